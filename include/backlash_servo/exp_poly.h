@@ -1,0 +1,87 @@
+/**
+ * @file exp_poly.h
+ * @brief Real exponential polynomials f(τ) = Σ_i P_i(τ) e^{r_i τ} and exact root isolation for them.
+ *
+ * Every mode of the servo with real characteristic exponents has a closed-form solution of this form, so its
+ * positions, velocities, gap and mesh torque are ExpPolys in the local time τ [s] of the mode. Roots are isolated
+ * exactly by the Pólya–Szegő argument: between two sign changes of f lies a sign change of
+ * \f$ \frac{d}{d\tau}(f e^{-r_0 \tau}) \f$, which has one term (or one polynomial degree) fewer; recursing down to a
+ * single constant term gives all critical points, and between critical points f is monotone (up to a positive factor),
+ * so no root — grazing or not — can be missed. No ROS dependency, no allocation.
+ */
+#pragma once
+
+#include <array>
+
+namespace backlash_servo
+{
+/// Highest polynomial degree a term can hold (products of two mode solutions need 2 × 3).
+constexpr int EXP_POLY_MAX_DEGREE = 7;
+/// Most distinct exponential rates an ExpPoly can hold.
+constexpr int EXP_POLY_MAX_TERMS = 8;
+/// Most sign-change roots reported by one call to signChangeRoots().
+constexpr int EXP_POLY_MAX_ROOTS = 64;
+
+/// One term P(τ) e^{rate τ}; coef[k] multiplies τ^k.
+struct ExpTerm
+{
+  double rate = 0.0;  ///< exponential rate r [1/s]
+  int degree = 0;     ///< degree of the polynomial P
+  std::array<double, EXP_POLY_MAX_DEGREE + 1> coef{};
+};
+
+class ExpPoly
+{
+public:
+  ExpPoly() = default;
+  /// A constant function c.
+  static ExpPoly constant(double c);
+  /// The single term c τ^k e^{rate τ}.
+  static ExpPoly monomial(double c, int k, double rate);
+
+  /// Adds coef[0..degree] τ^k e^{rate τ}; terms with exactly equal rates are merged.
+  void addTerm(double rate, const double* coef, int degree);
+  int termCount() const { return n_; }
+  const ExpTerm& term(int i) const { return terms_[i]; }
+
+  /// f(τ).
+  double operator()(double tau) const;
+  /// f(τ) and a bound on its rounding error (a multiple of ε Σ|c_k τ^k e^{rτ}|).
+  double evaluate(double tau, double* rounding_bound) const;
+
+  ExpPoly derivative() const;
+  /// Some antiderivative A (A' = f); use A(τ) − A(0) for definite integrals.
+  ExpPoly antiderivative() const;
+  /// ∫_0^T f(τ) dτ, accurate also when |r T| is small.
+  double integral(double upper) const;
+
+  ExpPoly operator+(const ExpPoly& other) const;
+  ExpPoly operator-(const ExpPoly& other) const;
+  ExpPoly operator*(const ExpPoly& other) const;
+  ExpPoly operator*(double s) const;
+
+  /**
+   * Particular solution y of \f$ y' + s\,y = f \f$ built term by term as Q(τ) e^{rτ} with
+   * \f$ Q' + (r + s) Q = P \f$ (degree raised by one where r + s = 0, i.e. resonance).
+   */
+  ExpPoly solveFirstOrder(double s) const;
+
+  /**
+   * All points of (a, b) where f changes sign, ascending, written to out (at most EXP_POLY_MAX_ROOTS).
+   * Returns the count. Roots of even multiplicity (touching zero) are not sign changes and are not reported.
+   */
+  int signChangeRoots(double a, double b, double* out) const;
+
+  /// Root of f − level in [a, b] given that f − level has opposite signs (or a zero) at a and b and is monotone.
+  double refineRoot(double level, double a, double b) const;
+
+private:
+  /// d/dτ (f e^{−r_0 τ}) e^{...}: the sign-equivalent derivative with one term or one degree fewer.
+  ExpPoly deflatedDerivative() const;
+  int complexity() const;
+
+  std::array<ExpTerm, EXP_POLY_MAX_TERMS> terms_{};
+  int n_ = 0;
+};
+
+}  // namespace backlash_servo

@@ -1,0 +1,80 @@
+/**
+ * @file limit_cycle.h
+ * @brief Limit cycle or convergence? Decided on the Poincaré map of successive positive maxima of θ_c.
+ *
+ * Let \f$ x_n = \theta_{c,\max,n} - \theta_R > 0 \f$ be the successive positive errors. The map \f$ x_n \mapsto
+ * x_{n+k} \f$ (k = 1, or the cycle's multiplicity when a cycle has several maxima) either has a fixed point
+ * \f$ x^* > 0 \f$ (a limit cycle) or drives \f$ x_n \f$ to 0 (convergence). Aitken's Δ² extrapolation of the last
+ * four same-phase maxima estimates \f$ x^* \f$ and the contraction ratio \f$ r = d_n/d_{n-1} \f$; the verdict is
+ * settled only when the estimate is self-consistent (see README, "How the verdict is made"). No ROS dependency.
+ */
+#pragma once
+
+#include <vector>
+
+namespace backlash_servo
+{
+/// A positive maximum of the load position.
+struct Maximum
+{
+  double time = 0.0;      ///< [s]
+  double position = 0.0;  ///< θ_c at the maximum [rad]
+  double velocity = 0.0;  ///< ω_c just after the maximum [rad/s] (0, or negative after an impact)
+};
+
+enum class Verdict
+{
+  Undecided,   ///< not enough evidence yet
+  LimitCycle,  ///< maxima settled to a fixed point above the command
+  Converged    ///< maxima decay to the command (or stopped, with the servo at rest)
+};
+
+const char* toString(Verdict v);
+
+struct LimitCycleStatus
+{
+  Verdict verdict = Verdict::Undecided;
+  double error = 0.0;        ///< limit-cycle error: largest settled positive error θ_c,max − θ_R [rad]; 0 if none
+  double period = 0.0;       ///< limit-cycle period [s]; 0 if none
+  int multiplicity = 0;      ///< maxima per period of the cycle
+  double extrapolated = 0.0; ///< Aitken estimate of the fixed point x* [rad] (latest)
+  double ratio = 0.0;        ///< latest contraction ratio of successive differences [-]
+};
+
+class LimitCycleDetector
+{
+public:
+  /**
+   * @param command θ_R [rad] the maxima are measured from
+   * @param scale size [rad] below which errors count as zero (use max(Δ, |step|)); thresholds are fractions of it
+   */
+  LimitCycleDetector(double command, double scale);
+
+  /// Records a maximum; only maxima above the command are kept. Updates the status.
+  void addMaximum(const Maximum& m);
+  /// Tells the detector the servo is at rest on its command: settles a Converged verdict.
+  void markAtRest();
+
+  const std::vector<Maximum>& maxima() const { return maxima_; }
+  const LimitCycleStatus& status() const { return status_; }
+  bool settled() const { return status_.verdict != Verdict::Undecided; }
+  double command() const { return command_; }
+
+  /// Relative precision to which a limit cycle's fixed point must be pinned before it is declared.
+  static constexpr double FIXED_POINT_TOLERANCE = 1e-6;
+  /// Fraction of the scale below which a maximum or a fixed point counts as zero.
+  static constexpr double ZERO_FRACTION = 1e-7;
+  /// Largest cycle multiplicity (maxima per period) looked for.
+  static constexpr int MAX_MULTIPLICITY = 8;
+
+private:
+  void update();
+
+  double command_;
+  double scale_;
+  std::vector<Maximum> maxima_;
+  LimitCycleStatus status_;
+  int decay_votes_ = 0;
+};
+
+}  // namespace backlash_servo

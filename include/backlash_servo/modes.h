@@ -1,0 +1,112 @@
+/**
+ * @file modes.h
+ * @brief Closed-form motion of the servo in each mode (teeth in contact, teeth apart) and event location inside a mode.
+ *
+ * Both modes are linear with constant input, so their solutions are written in closed form in the local time τ [s]
+ * since the mode (re)started. Accuracy does not depend on any step size. No ROS dependency.
+ */
+#pragma once
+
+#include "backlash_servo/exp_poly.h"
+#include "backlash_servo/params.h"
+#include "backlash_servo/state.h"
+
+namespace backlash_servo
+{
+/// Rates [1/s] below this fraction of the reference rate are treated as exactly 0, and two rates closer than
+/// this fraction as equal: this keeps the closed forms free of catastrophic cancellation (see README, accuracy).
+constexpr double RATE_MERGE_FRACTION = 1e-7;
+
+/// Energy flows over a time interval [J].
+struct EnergyFlows
+{
+  double input = 0.0;           ///< ∫ T_m ω_m dt, work done by the motor torque [J]
+  double motor_friction = 0.0;  ///< ∫ f_m ω_m² dt [J]
+  double load_friction = 0.0;   ///< ∫ f_L ω_c² dt [J]
+};
+
+/**
+ * @brief Teeth in contact (either side): one rigid body referred to the load shaft.
+ *
+ * \f[ J\ddot\theta_c + F_T\dot\theta_c + \rho k\,\theta_c = \rho a,\qquad J = J_m + \rho^2 J_L,\;
+ *     F_T = f_m + \rho^2 f_L \f]
+ * with the motor torque \f$ T_m = a - k\theta_c \f$ (MotorInput). The mesh torque on the load is
+ * \f$ T_L = J_L\ddot\theta_c + f_L\dot\theta_c \f$ [N·m].
+ */
+class ContactMotion
+{
+public:
+  ContactMotion(const ServoParams& params, const MotorInput& input, double load_position, double load_velocity);
+
+  /// Load position [rad] and velocity [rad/s] at local time tau [s].
+  void at(double tau, double* load_position, double* load_velocity) const;
+  /// Mesh torque on the load [N·m] at local time tau [s].
+  double meshTorque(double tau) const;
+  /**
+   * First τ in (0, horizon] where the mesh torque leaves its allowed side (side = +1: T_L ≥ 0 in forward contact,
+   * −1: T_L ≤ 0 in backward contact), i.e. where the teeth separate. +inf if none.
+   */
+  double separationTime(int side, double horizon) const;
+  /// Times in (0, horizon] where the load velocity goes from + to − (positive maxima of θ_c), ascending.
+  int velocityMaxima(double horizon, double* out, int max_out) const;
+  /// Energy flows over [0, tau].
+  EnergyFlows energy(double tau) const;
+
+private:
+  /// Down-crossings (from + to −) of the function selected by which (0 = velocity, 1 = mesh torque) times sign.
+  int downCrossings(int which, double sign, double horizon, bool require_positive_first, double* out,
+                    int max_out) const;
+
+  ServoParams params_;
+  MotorInput input_;
+  double x0_, v0_;
+  bool oscillatory_ = false;
+  // Oscillatory: θ_c = x_eq + e^{−στ}(A cos ωτ + B sin ωτ); velocity and mesh torque as e^{−στ}(C cos + D sin).
+  double x_eq_ = 0.0, sigma_ = 0.0, omega_ = 0.0, a_ = 0.0, b_ = 0.0;
+  double vel_c_ = 0.0, vel_d_ = 0.0, torque_c_ = 0.0, torque_d_ = 0.0;
+  // Real exponents: closed forms as exponential polynomials.
+  ExpPoly position_, velocity_, torque_;
+};
+
+/**
+ * @brief Teeth apart: load and motor move separately.
+ *
+ * \f[ J_L\ddot\theta_c + f_L\dot\theta_c = 0,\qquad J_m\ddot\theta_m + f_m\dot\theta_m = a - k\,\theta_c \f]
+ * Gap \f$ g = \theta_c - \rho\theta_m \f$ [rad].
+ */
+class FreeMotion
+{
+public:
+  FreeMotion(const ServoParams& params, const MotorInput& input, const State& start);
+
+  /// Positions [rad] and velocities [rad/s] at local time tau [s] (time and contact of out are not touched).
+  void at(double tau, State* out) const;
+  double gap(double tau) const { return gap_(tau); }
+  /**
+   * First τ in (0, horizon] where the gap reaches a wall: g < 0 or g > Δ beyond rounding. Grazing contacts that
+   * dip past the wall by more than the rounding bound are found exactly: the gap is monotone between its critical
+   * points, which are isolated exactly (ExpPoly::signChangeRoots). Returns +inf if none; *wall gets the wall hit.
+   */
+  double impactTime(double horizon, Contact* wall) const;
+  /// Energy flows over [0, tau].
+  EnergyFlows energy(double tau) const;
+
+private:
+  ServoParams params_;
+  MotorInput input_;
+  ExpPoly load_position_, load_velocity_, motor_position_, motor_velocity_, gap_;
+};
+
+/**
+ * Whether teeth at rest relative to each other on wall `wall` (Forward or Backward) stay in contact: the contact
+ * mesh torque must press into the wall (T_L ≥ 0 forward, ≤ 0 backward). When T_L is zero within rounding, the first
+ * derivative of T_L that is not decides, so this choice and the floating motion that follows it agree exactly.
+ */
+bool contactHolds(const ServoParams& params, const MotorInput& input, double load_position, double load_velocity,
+                  Contact wall);
+
+/// Mesh torque on the load in contact [N·m] for the given state: \f$ T_L = J_L\ddot\theta_c + f_L\dot\theta_c \f$.
+double contactMeshTorque(const ServoParams& params, const MotorInput& input, double load_position,
+                         double load_velocity);
+
+}  // namespace backlash_servo

@@ -1,0 +1,87 @@
+/**
+ * @file params.h
+ * @brief Physical parameters of the backlash servo (SI units) and their validation.
+ *
+ * No ROS dependency. See ../shared/MODEL.md for the model.
+ */
+#pragma once
+
+#include <stdexcept>
+#include <string>
+
+namespace backlash_servo
+{
+/// Thrown when a parameter is outside its allowed range; the message names the field and the range.
+class InvalidParameterError : public std::invalid_argument
+{
+public:
+  InvalidParameterError(const std::string& field, const std::string& message)
+    : std::invalid_argument(field + ": " + message), field_(field)
+  {
+  }
+  /// Name of the offending field (snake_case, as in YAML and on the command line).
+  const std::string& field() const { return field_; }
+
+private:
+  std::string field_;
+};
+
+/**
+ * @brief Physical parameters of the geared position servo with backlash.
+ *
+ * Motor torque in position mode: \f$ T_m = K(\theta_R - \theta_c) \f$ (feedback from the load).
+ * Rigid mesh: \f$ \theta_c = \rho\,\theta_m + g \f$ with gap \f$ g \in [0, \Delta] \f$.
+ */
+struct ServoParams
+{
+  double motor_inertia = 0.1;   ///< J_m, motor inertia on the motor shaft [kg·m²], > 0
+  double load_inertia = 0.9;    ///< J_L, load inertia on the load shaft [kg·m²], > 0
+  double motor_friction = 0.48; ///< f_m, viscous friction of the motor [N·m·s/rad], >= 0
+  double load_friction = 0.32;  ///< f_L, viscous friction of the load [N·m·s/rad], >= 0
+  double gain = 1.0;            ///< K, servo gain [N·m/rad], > 0
+  double gear_ratio = 1.0;      ///< ρ = teeth(gear 1)/teeth(gear 2) [-], > 0; rigid mesh gives θ_c = ρ θ_m
+  double backlash = 0.3;        ///< Δ, free play measured at the load shaft [rad], >= 0 (0 = rigid mesh)
+  double restitution = 1.0;     ///< e, coefficient of restitution of the tooth impact [-], in [0, 1]
+
+  /// Throws InvalidParameterError naming the first bad field and its allowed range.
+  void validate() const;
+
+  /// J = J_m + ρ² J_L, inertia of the meshed pair referred to the load shaft [kg·m²].
+  double totalInertia() const { return motor_inertia + gear_ratio * gear_ratio * load_inertia; }
+  /// F_T = f_m + ρ² f_L, total friction referred to the load shaft [N·m·s/rad].
+  double totalFriction() const { return motor_friction + gear_ratio * gear_ratio * load_friction; }
+  /// ω_n = sqrt(ρK/J), natural frequency of the meshed servo [rad/s].
+  double naturalFrequency() const;
+  /// ζ = F_T / (2 ω_n J), damping ratio of the meshed servo [-].
+  double dampingRatio() const;
+  /// ρ² J_L / J_m, the thesis' inertia split [-].
+  double inertiaRatio() const { return gear_ratio * gear_ratio * load_inertia / motor_inertia; }
+  /// ρ² f_L / F_T, the thesis' friction split [-] (0 when F_T = 0).
+  double frictionRatio() const;
+};
+
+/**
+ * @brief The thesis' chart form of the parameters (non-dimensional study of Anderson & Lockett).
+ *
+ * \f[ J = J_m + \rho^2 J_L,\quad \omega_n^2 = \rho K / J,\quad F_T = 2\zeta\omega_n J,\quad
+ *     \rho^2 J_L / J_m = \text{inertia\_ratio},\quad \rho^2 f_L / F_T = \text{friction\_ratio} \f]
+ */
+struct ChartParams
+{
+  double zeta = 0.4;              ///< ζ, damping ratio [-], >= 0
+  double natural_frequency = 1.0; ///< ω_n [rad/s], > 0
+  double total_inertia = 1.0;     ///< J = J_m + ρ² J_L [kg·m²], > 0
+  double inertia_ratio = 9.0;     ///< ρ² J_L / J_m [-], > 0
+  double friction_ratio = 0.4;    ///< ρ² f_L / F_T [-], in [0, 1]
+  double gear_ratio = 1.0;        ///< ρ [-], > 0
+  double backlash = 0.3;          ///< Δ [rad], >= 0
+  double restitution = 1.0;       ///< e [-], in [0, 1]
+
+  /// Converts to physical SI parameters; throws InvalidParameterError on bad input.
+  ServoParams toServoParams() const;
+};
+
+/// Checks that value is finite; throws InvalidParameterError(field, "must be finite") otherwise.
+void requireFinite(const std::string& field, double value);
+
+}  // namespace backlash_servo

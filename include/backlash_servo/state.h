@@ -1,0 +1,53 @@
+/**
+ * @file state.h
+ * @brief State of the servo and of its input (no ROS dependency).
+ */
+#pragma once
+
+#include <string>
+
+namespace backlash_servo
+{
+/// Which side of the backlash the teeth touch. Gap g = θ_c − ρ θ_m: Forward ⇔ g = 0, Backward ⇔ g = Δ.
+enum class Contact
+{
+  Forward,   ///< g = 0: the motor tooth can push the load in +
+  Backward,  ///< g = Δ: the motor tooth can push the load in −
+  Apart      ///< 0 < g < Δ: teeth floating
+};
+
+/// "forward" | "backward" | "apart".
+const char* toString(Contact c);
+/// Parses "forward", "backward", "apart" or "none"; throws std::invalid_argument otherwise.
+Contact contactFromString(const std::string& s);
+
+/// Full mechanical state. Angles on their own shafts.
+struct State
+{
+  double time = 0.0;             ///< simulated time [s]
+  double load_position = 0.0;    ///< θ_c [rad]
+  double load_velocity = 0.0;    ///< ω_c [rad/s]
+  double motor_position = 0.0;   ///< θ_m [rad]
+  double motor_velocity = 0.0;   ///< ω_m [rad/s]
+  Contact contact = Contact::Forward;
+};
+
+/// How the motor torque is produced.
+enum class ControlMode
+{
+  Position,  ///< T_m = K (θ_R − θ_c), the servo's own P loop
+  Effort     ///< T_m supplied directly by the caller (external controller)
+};
+
+/**
+ * The motor torque as an affine function of the load position: \f$ T_m = a - k\,\theta_c \f$.
+ * Position mode: a = K θ_R, k = K. Effort mode: a = u, k = 0.
+ */
+struct MotorInput
+{
+  double offset = 0.0;     ///< a [N·m]
+  double stiffness = 0.0;  ///< k [N·m/rad]
+  double torque(double load_position) const { return offset - stiffness * load_position; }
+};
+
+}  // namespace backlash_servo

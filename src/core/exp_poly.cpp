@@ -1,0 +1,438 @@
+#include "backlash_servo/exp_poly.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <stdexcept>
+
+namespace backlash_servo
+{
+namespace
+{
+constexpr double EPS = std::numeric_limits<double>::epsilon();
+
+/// Drops exactly-zero leading coefficients; returns false when the whole polynomial is zero.
+bool trimDegree(ExpTerm& t)
+{
+  while (t.degree > 0 && t.coef[t.degree] == 0.0)
+  {
+    --t.degree;
+  }
+  return !(t.degree == 0 && t.coef[0] == 0.0);
+}
+
+/// ∫_0^T τ^k e^{rτ} dτ by its power series; used where |rT| < 1 (no cancellation).
+double seriesMomentIntegral(int k, double r, double upper)
+{
+  double term = std::pow(upper, k + 1);  // r^n T^{n+k+1} / n!
+  double sum = 0.0;
+  for (int n = 0; n < 60; ++n)
+  {
+    const double add = term / (n + k + 1);
+    sum += add;
+    if (std::fabs(add) <= 1e-18 * std::fabs(sum))
+    {
+      break;
+    }
+    term *= r * upper / (n + 1);
+  }
+  return sum;
+}
+}  // namespace
+
+ExpPoly ExpPoly::constant(double c)
+{
+  ExpPoly f;
+  f.addTerm(0.0, &c, 0);
+  return f;
+}
+
+ExpPoly ExpPoly::monomial(double c, int k, double rate)
+{
+  std::array<double, EXP_POLY_MAX_DEGREE + 1> coef{};
+  coef[k] = c;
+  ExpPoly f;
+  f.addTerm(rate, coef.data(), k);
+  return f;
+}
+
+void ExpPoly::addTerm(double rate, const double* coef, int degree)
+{
+  if (degree > EXP_POLY_MAX_DEGREE)
+  {
+    throw std::logic_error("ExpPoly: polynomial degree limit exceeded");
+  }
+  for (int i = 0; i < n_; ++i)
+  {
+    if (terms_[i].rate == rate)
+    {
+      ExpTerm& t = terms_[i];
+      for (int k = 0; k <= degree; ++k)
+      {
+        t.coef[k] += coef[k];
+      }
+      t.degree = std::max(t.degree, degree);
+      if (!trimDegree(t))
+      {
+        terms_[i] = terms_[n_ - 1];
+        --n_;
+      }
+      return;
+    }
+  }
+  if (n_ == EXP_POLY_MAX_TERMS)
+  {
+    throw std::logic_error("ExpPoly: term limit exceeded");
+  }
+  ExpTerm t;
+  t.rate = rate;
+  t.degree = degree;
+  for (int k = 0; k <= degree; ++k)
+  {
+    t.coef[k] = coef[k];
+  }
+  if (trimDegree(t))
+  {
+    terms_[n_++] = t;
+  }
+}
+
+double ExpPoly::operator()(double tau) const
+{
+  double sum = 0.0;
+  for (int i = 0; i < n_; ++i)
+  {
+    const ExpTerm& t = terms_[i];
+    double p = t.coef[t.degree];
+    for (int k = t.degree - 1; k >= 0; --k)
+    {
+      p = p * tau + t.coef[k];
+    }
+    sum += t.rate == 0.0 ? p : p * std::exp(t.rate * tau);
+  }
+  return sum;
+}
+
+double ExpPoly::evaluate(double tau, double* rounding_bound) const
+{
+  double sum = 0.0;
+  double magnitude = 0.0;
+  const double at = std::fabs(tau);
+  for (int i = 0; i < n_; ++i)
+  {
+    const ExpTerm& t = terms_[i];
+    double p = t.coef[t.degree];
+    double pa = std::fabs(p);
+    for (int k = t.degree - 1; k >= 0; --k)
+    {
+      p = p * tau + t.coef[k];
+      pa = pa * at + std::fabs(t.coef[k]);
+    }
+    const double ex = t.rate == 0.0 ? 1.0 : std::exp(t.rate * tau);
+    sum += p * ex;
+    magnitude += pa * ex * (t.degree + 2);
+  }
+  if (rounding_bound != nullptr)
+  {
+    *rounding_bound = 16.0 * EPS * magnitude;
+  }
+  return sum;
+}
+
+ExpPoly ExpPoly::derivative() const
+{
+  ExpPoly d;
+  for (int i = 0; i < n_; ++i)
+  {
+    const ExpTerm& t = terms_[i];
+    std::array<double, EXP_POLY_MAX_DEGREE + 1> c{};
+    for (int k = 0; k <= t.degree; ++k)
+    {
+      c[k] = t.rate * t.coef[k] + (k < t.degree ? (k + 1) * t.coef[k + 1] : 0.0);
+    }
+    d.addTerm(t.rate, c.data(), t.degree);
+  }
+  return d;
+}
+
+ExpPoly ExpPoly::solveFirstOrder(double s) const
+{
+  ExpPoly y;
+  for (int i = 0; i < n_; ++i)
+  {
+    const ExpTerm& t = terms_[i];
+    const double c = t.rate + s;
+    std::array<double, EXP_POLY_MAX_DEGREE + 1> q{};
+    int degree = t.degree;
+    if (c == 0.0)
+    {
+      // Resonance: Q' = P, Q(0) = 0.
+      ++degree;
+      if (degree > EXP_POLY_MAX_DEGREE)
+      {
+        throw std::logic_error("ExpPoly: polynomial degree limit exceeded");
+      }
+      for (int k = 0; k <= t.degree; ++k)
+      {
+        q[k + 1] = t.coef[k] / (k + 1);
+      }
+    }
+    else
+    {
+      // Q' + c Q = P solved from the top coefficient down.
+      q[degree] = t.coef[degree] / c;
+      for (int k = degree - 1; k >= 0; --k)
+      {
+        q[k] = (t.coef[k] - (k + 1) * q[k + 1]) / c;
+      }
+    }
+    y.addTerm(t.rate, q.data(), degree);
+  }
+  return y;
+}
+
+ExpPoly ExpPoly::antiderivative() const { return solveFirstOrder(0.0); }
+
+double ExpPoly::integral(double upper) const
+{
+  double sum = 0.0;
+  for (int i = 0; i < n_; ++i)
+  {
+    const ExpTerm& t = terms_[i];
+    const double rt = t.rate * upper;
+    if (std::fabs(rt) < 1.0)
+    {
+      for (int k = 0; k <= t.degree; ++k)
+      {
+        if (t.coef[k] != 0.0)
+        {
+          sum += t.coef[k] * seriesMomentIntegral(k, t.rate, upper);
+        }
+      }
+    }
+    else
+    {
+      std::array<double, EXP_POLY_MAX_DEGREE + 1> q{};
+      q[t.degree] = t.coef[t.degree] / t.rate;
+      for (int k = t.degree - 1; k >= 0; --k)
+      {
+        q[k] = (t.coef[k] - (k + 1) * q[k + 1]) / t.rate;
+      }
+      double qt = q[t.degree];
+      for (int k = t.degree - 1; k >= 0; --k)
+      {
+        qt = qt * upper + q[k];
+      }
+      sum += qt * std::exp(rt) - q[0];
+    }
+  }
+  return sum;
+}
+
+ExpPoly ExpPoly::operator+(const ExpPoly& other) const
+{
+  ExpPoly r = *this;
+  for (int i = 0; i < other.n_; ++i)
+  {
+    r.addTerm(other.terms_[i].rate, other.terms_[i].coef.data(), other.terms_[i].degree);
+  }
+  return r;
+}
+
+ExpPoly ExpPoly::operator*(double s) const
+{
+  ExpPoly r;
+  for (int i = 0; i < n_; ++i)
+  {
+    ExpTerm t = terms_[i];
+    for (int k = 0; k <= t.degree; ++k)
+    {
+      t.coef[k] *= s;
+    }
+    r.addTerm(t.rate, t.coef.data(), t.degree);
+  }
+  return r;
+}
+
+ExpPoly ExpPoly::operator-(const ExpPoly& other) const { return *this + other * -1.0; }
+
+ExpPoly ExpPoly::operator*(const ExpPoly& other) const
+{
+  ExpPoly r;
+  for (int i = 0; i < n_; ++i)
+  {
+    for (int j = 0; j < other.n_; ++j)
+    {
+      const ExpTerm& a = terms_[i];
+      const ExpTerm& b = other.terms_[j];
+      const int degree = a.degree + b.degree;
+      if (degree > EXP_POLY_MAX_DEGREE)
+      {
+        throw std::logic_error("ExpPoly: polynomial degree limit exceeded in product");
+      }
+      std::array<double, EXP_POLY_MAX_DEGREE + 1> c{};
+      for (int k = 0; k <= a.degree; ++k)
+      {
+        for (int l = 0; l <= b.degree; ++l)
+        {
+          c[k + l] += a.coef[k] * b.coef[l];
+        }
+      }
+      r.addTerm(a.rate + b.rate, c.data(), degree);
+    }
+  }
+  return r;
+}
+
+int ExpPoly::complexity() const
+{
+  int c = -1;
+  for (int i = 0; i < n_; ++i)
+  {
+    c += terms_[i].degree + 1;
+  }
+  return c;
+}
+
+ExpPoly ExpPoly::deflatedDerivative() const
+{
+  // (f e^{-r0 τ})' e^{r0 τ}... written with shifted rates: Σ (P_i' + (r_i − r0) P_i) e^{(r_i − r0) τ}.
+  // The reference is the largest rate, so every shifted rate is <= 0 and nothing overflows on long horizons.
+  ExpPoly d;
+  int ref = 0;
+  for (int i = 1; i < n_; ++i)
+  {
+    if (terms_[i].rate > terms_[ref].rate)
+    {
+      ref = i;
+    }
+  }
+  const double r0 = terms_[ref].rate;
+  for (int i = 0; i < n_; ++i)
+  {
+    const ExpTerm& t = terms_[i];
+    const double dr = i == ref ? 0.0 : t.rate - r0;
+    std::array<double, EXP_POLY_MAX_DEGREE + 1> c{};
+    for (int k = 0; k <= t.degree; ++k)
+    {
+      c[k] = dr * t.coef[k] + (k < t.degree ? (k + 1) * t.coef[k + 1] : 0.0);
+    }
+    d.addTerm(dr, c.data(), t.degree);
+  }
+  return d;
+}
+
+int ExpPoly::signChangeRoots(double a, double b, double* out) const
+{
+  if (n_ == 0 || complexity() <= 0 || !(b > a))
+  {
+    return 0;
+  }
+  double crit[EXP_POLY_MAX_ROOTS];
+  const int m = deflatedDerivative().signChangeRoots(a, b, crit);
+  int count = 0;
+  double prev = a;
+  double fprev = (*this)(a);
+  // Sign of the last nonzero value, and an exact zero seen since then (if any).
+  int last_sign = fprev > 0.0 ? 1 : (fprev < 0.0 ? -1 : 0);
+  bool pending_zero = false;
+  double zero_at = a;
+  for (int i = 0; i <= m; ++i)
+  {
+    const double q = i < m ? crit[i] : b;
+    const double fq = (*this)(q);
+    const int s = fq > 0.0 ? 1 : (fq < 0.0 ? -1 : 0);
+    if (s == 0)
+    {
+      if (last_sign != 0 && q < b)
+      {
+        pending_zero = true;
+        zero_at = q;
+      }
+    }
+    else
+    {
+      if (last_sign != 0 && s != last_sign && count < EXP_POLY_MAX_ROOTS)
+      {
+        out[count++] = pending_zero ? zero_at : refineRoot(0.0, prev, q);
+      }
+      last_sign = s;
+      pending_zero = false;
+    }
+    prev = q;
+  }
+  return count;
+}
+
+double ExpPoly::refineRoot(double level, double a, double b) const
+{
+  double fa = (*this)(a) - level;
+  double fb = (*this)(b) - level;
+  if (fa == 0.0)
+  {
+    return a;
+  }
+  if (fb == 0.0)
+  {
+    return b;
+  }
+  if ((fa < 0.0) == (fb < 0.0))
+  {
+    return std::fabs(fa) < std::fabs(fb) ? a : b;
+  }
+  // Illinois false position, with a bisection whenever the bracket fails to halve in three steps.
+  int side = 0;
+  double width = b - a;
+  for (int it = 0; it < 300; ++it)
+  {
+    if (b - a <= 2.0 * EPS * std::max(std::fabs(a), std::fabs(b)) || b - a <= std::numeric_limits<double>::min())
+    {
+      break;
+    }
+    double x;
+    if (it % 3 == 2 && b - a > 0.5 * width)
+    {
+      x = 0.5 * (a + b);
+    }
+    else
+    {
+      x = (a * fb - b * fa) / (fb - fa);
+      if (!(x > a && x < b))
+      {
+        x = 0.5 * (a + b);
+      }
+    }
+    if (it % 3 == 2)
+    {
+      width = b - a;
+    }
+    const double fx = (*this)(x)-level;
+    if (fx == 0.0)
+    {
+      return x;
+    }
+    if ((fx < 0.0) == (fa < 0.0))
+    {
+      a = x;
+      fa = fx;
+      if (side == -1)
+      {
+        fb *= 0.5;
+      }
+      side = -1;
+    }
+    else
+    {
+      b = x;
+      fb = fx;
+      if (side == 1)
+      {
+        fa *= 0.5;
+      }
+      side = 1;
+    }
+  }
+  return std::fabs(fa) < std::fabs(fb) ? a : b;
+}
+
+}  // namespace backlash_servo

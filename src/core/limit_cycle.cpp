@@ -1,0 +1,109 @@
+#include "backlash_servo/limit_cycle.h"
+
+#include <algorithm>
+#include <cmath>
+
+namespace backlash_servo
+{
+const char* toString(Verdict v)
+{
+  switch (v)
+  {
+    case Verdict::LimitCycle:
+      return "limit_cycle";
+    case Verdict::Converged:
+      return "converged";
+    default:
+      return "undecided";
+  }
+}
+
+LimitCycleDetector::LimitCycleDetector(double command, double scale) : command_(command), scale_(scale) {}
+
+void LimitCycleDetector::addMaximum(const Maximum& m)
+{
+  if (m.position - command_ <= ZERO_FRACTION * scale_)
+  {
+    return;
+  }
+  maxima_.push_back(m);
+  update();
+}
+
+void LimitCycleDetector::markAtRest()
+{
+  if (status_.verdict == Verdict::Undecided)
+  {
+    status_ = LimitCycleStatus();
+    status_.verdict = Verdict::Converged;
+  }
+}
+
+namespace
+{
+/// Aitken Δ² estimate of the limit of s0, s1, s2 (s0 newest).
+double aitken(double s0, double s1, double s2)
+{
+  const double d1 = s0 - s1;
+  const double d2 = s1 - s2;
+  return d1 == d2 ? s0 : s0 - d1 * d1 / (d1 - d2);
+}
+}  // namespace
+
+void LimitCycleDetector::update()
+{
+  const int n = static_cast<int>(maxima_.size());
+  auto x = [&](int i) { return maxima_[i].position - command_; };
+  if (n >= 3)
+  {
+    status_.extrapolated = aitken(x(n - 1), x(n - 2), x(n - 3));
+    const double d2 = x(n - 2) - x(n - 3);
+    status_.ratio = d2 != 0.0 ? (x(n - 1) - x(n - 2)) / d2 : 0.0;
+  }
+  if (status_.verdict != Verdict::Undecided)
+  {
+    return;
+  }
+  // A limit cycle of multiplicity k: every phase of the k-periodic sequence has a pinned, positive fixed point.
+  for (int k = 1; k <= MAX_MULTIPLICITY && n >= 3 * k + 1; ++k)
+  {
+    bool pinned = true;
+    double error = 0.0;
+    for (int phase = 0; phase < k && pinned; ++phase)
+    {
+      const int i = n - 1 - phase;
+      const double s0 = x(i), s1 = x(i - k), s2 = x(i - 2 * k), s3 = x(i - 3 * k);
+      const double fixed = aitken(s0, s1, s2);
+      const double previous_fixed = aitken(s1, s2, s3);
+      pinned = fixed > ZERO_FRACTION * scale_ * 10.0 && std::fabs(s0 - fixed) <= FIXED_POINT_TOLERANCE * fixed &&
+               std::fabs(fixed - previous_fixed) <= 10.0 * FIXED_POINT_TOLERANCE * fixed &&
+               std::fabs(s0 - s1) <= 1e-3 * fixed;
+      error = std::max(error, s0);
+    }
+    if (pinned)
+    {
+      status_.verdict = Verdict::LimitCycle;
+      status_.error = error;
+      status_.period = maxima_[n - 1].time - maxima_[n - 1 - k].time;
+      status_.multiplicity = k;
+      return;
+    }
+  }
+  // Convergence: steady geometric decay whose extrapolated limit is (near) zero, three times in a row.
+  if (n >= 4)
+  {
+    const double s0 = x(n - 1), s1 = x(n - 2), s2 = x(n - 3), s3 = x(n - 4);
+    const double r1 = (s0 - s1) / (s1 - s2);
+    const double r2 = (s1 - s2) / (s2 - s3);
+    const bool decaying = s0 < s1 && s1 < s2 && s2 < s3 && r1 > 0.0 && r1 < 1.0 && r2 > 0.0 && r2 < 1.0 &&
+                          std::fabs(r1 - r2) <= 0.1 * r1 && aitken(s0, s1, s2) <= 1e-3 * s0;
+    decay_votes_ = decaying ? decay_votes_ + 1 : 0;
+    if (decay_votes_ >= 3)
+    {
+      status_ = LimitCycleStatus();
+      status_.verdict = Verdict::Converged;
+    }
+  }
+}
+
+}  // namespace backlash_servo

@@ -1,0 +1,354 @@
+#include "backlash_servo/modes.h"
+
+#include <algorithm>
+#include <cmath>
+#include <complex>
+#include <limits>
+
+namespace backlash_servo
+{
+namespace
+{
+constexpr double EPS = std::numeric_limits<double>::epsilon();
+constexpr double INF = std::numeric_limits<double>::infinity();
+constexpr double PI = 3.14159265358979323846;
+
+/// Largest rate of the model [1/s]; the scale below which rates count as zero.
+double referenceRate(const ServoParams& p)
+{
+  return std::max({p.naturalFrequency(), p.totalFriction() / p.totalInertia(), p.load_friction / p.load_inertia,
+                   p.motor_friction / p.motor_inertia});
+}
+
+double canonicalRate(double rate, double reference) { return rate < RATE_MERGE_FRACTION * reference ? 0.0 : rate; }
+
+/// ∫_0^T e^{zτ} dτ for complex z, by series where |zT| < 1 (no cancellation).
+std::complex<double> integralExp(std::complex<double> z, double upper)
+{
+  const std::complex<double> zt = z * upper;
+  if (std::abs(zt) < 1.0)
+  {
+    std::complex<double> term = upper;  // T (zT)^n / (n+1)!
+    std::complex<double> sum = 0.0;
+    for (int n = 0; n < 60; ++n)
+    {
+      sum += term;
+      if (std::abs(term) <= 1e-18 * std::abs(sum))
+      {
+        break;
+      }
+      term *= zt / static_cast<double>(n + 2);
+    }
+    return sum;
+  }
+  return (std::exp(zt) - 1.0) / z;
+}
+
+/**
+ * Down-crossings (+ to −) of f in (0, horizon], located exactly: f is monotone between the sign changes of f'.
+ * Values within f's rounding bound count as zero: a crossing needs f below −bound. With require_positive_first,
+ * f must first exceed +bound (a maximum of θ_c needs a positive velocity before it).
+ */
+int walkDownCrossings(const ExpPoly& f, double horizon, bool require_positive_first, double* out, int max_out)
+{
+  double crit[EXP_POLY_MAX_ROOTS];
+  const int m = f.derivative().signChangeRoots(0.0, horizon, crit);
+  double bound = 0.0;
+  double p = 0.0;
+  double fp = f.evaluate(0.0, &bound);
+  bool armed = !require_positive_first || fp > bound;
+  int count = 0;
+  for (int i = 0; i <= m && count < max_out; ++i)
+  {
+    const double q = i < m ? crit[i] : horizon;
+    const double fq = f.evaluate(q, &bound);
+    if (armed && fq < -bound)
+    {
+      out[count++] = fp > 0.0 ? f.refineRoot(0.0, p, q) : p;
+      armed = !require_positive_first;
+      if (!require_positive_first)
+      {
+        break;
+      }
+    }
+    if (fq > bound)
+    {
+      armed = true;
+    }
+    p = q;
+    fp = fq;
+  }
+  return count;
+}
+}  // namespace
+
+double contactMeshTorque(const ServoParams& p, const MotorInput& in, double x, double v)
+{
+  const double acc = (p.gear_ratio * in.torque(x) - p.totalFriction() * v) / p.totalInertia();
+  return p.load_inertia * acc + p.load_friction * v;
+}
+
+bool contactHolds(const ServoParams& p, const MotorInput& in, double x, double v, Contact wall)
+{
+  const double j = p.totalInertia();
+  const double f = p.totalFriction();
+  const double rk = p.gear_ratio * in.stiffness;
+  // Derivatives of θ_c from the contact ODE, and magnitudes to bound their rounding.
+  const double x2 = (p.gear_ratio * in.torque(x) - f * v) / j;
+  const double m2 = (p.gear_ratio * (std::fabs(in.offset) + std::fabs(in.stiffness * x)) + std::fabs(f * v)) / j;
+  const double x3 = (-rk * v - f * x2) / j;
+  const double m3 = (rk * std::fabs(v) + f * m2) / j;
+  const double x4 = (-rk * x2 - f * x3) / j;
+  const double m4 = (rk * m2 + f * m3) / j;
+  const double values[3] = {p.load_inertia * x2 + p.load_friction * v, p.load_inertia * x3 + p.load_friction * x2,
+                            p.load_inertia * x4 + p.load_friction * x3};
+  const double bounds[3] = {p.load_inertia * m2 + p.load_friction * std::fabs(v),
+                            p.load_inertia * m3 + p.load_friction * m2, p.load_inertia * m4 + p.load_friction * m3};
+  const double side = wall == Contact::Backward ? -1.0 : 1.0;
+  for (int k = 0; k < 3; ++k)
+  {
+    if (std::fabs(values[k]) > 64.0 * EPS * bounds[k])
+    {
+      return side * values[k] > 0.0;
+    }
+  }
+  return true;  // mesh torque identically zero: nothing pulls the teeth apart
+}
+
+// ---------------------------------------------------------------------------------------------------------------
+ContactMotion::ContactMotion(const ServoParams& params, const MotorInput& input, double x0, double v0)
+  : params_(params), input_(input), x0_(x0), v0_(v0)
+{
+  const double j = params.totalInertia();
+  const double ref = referenceRate(params);
+  const double p = canonicalRate(params.totalFriction() / j, ref);
+  const double q = params.gear_ratio * input.stiffness / j;
+  const double r = params.gear_ratio * input.offset / j;
+  if (q > 0.0)
+  {
+    x_eq_ = input.offset / input.stiffness;
+    const double y0 = x0 - x_eq_;
+    const double disc = p * p - 4.0 * q;
+    if (disc < 0.0)
+    {
+      oscillatory_ = true;
+      sigma_ = 0.5 * p;
+      omega_ = 0.5 * std::sqrt(-disc);
+      a_ = y0;
+      b_ = (v0 + sigma_ * y0) / omega_;
+      // d/dτ of e^{−στ}(C cos ωτ + D sin ωτ) is e^{−στ}((−σC + ωD) cos + (−σD − ωC) sin).
+      vel_c_ = -sigma_ * a_ + omega_ * b_;
+      vel_d_ = -sigma_ * b_ - omega_ * a_;
+      const double acc_c = -sigma_ * vel_c_ + omega_ * vel_d_;
+      const double acc_d = -sigma_ * vel_d_ - omega_ * vel_c_;
+      torque_c_ = params.load_inertia * acc_c + params.load_friction * vel_c_;
+      torque_d_ = params.load_inertia * acc_d + params.load_friction * vel_d_;
+      return;
+    }
+    const double s = std::sqrt(disc);
+    position_ = ExpPoly::constant(x_eq_);
+    if (s <= RATE_MERGE_FRACTION * p)
+    {
+      // Critically damped: y = (A + Bτ) e^{λτ}.
+      const double lambda = -0.5 * p;
+      position_ = position_ + ExpPoly::monomial(y0, 0, lambda) + ExpPoly::monomial(v0 - lambda * y0, 1, lambda);
+    }
+    else
+    {
+      const double l1 = -0.5 * (p + s);
+      const double l2 = q / l1;  // product of the roots is q; avoids cancellation
+      const double c1 = (v0 - l2 * y0) / (l1 - l2);
+      position_ = position_ + ExpPoly::monomial(c1, 0, l1) + ExpPoly::monomial(y0 - c1, 0, l2);
+    }
+  }
+  else if (p > 0.0)
+  {
+    // Effort mode: θ̈ + p θ̇ = r, velocity relaxes to r/p.
+    const double v_inf = r / p;
+    const double c = (v0 - v_inf) / p;
+    position_ = ExpPoly::constant(x0 + c) + ExpPoly::monomial(v_inf, 1, 0.0) + ExpPoly::monomial(-c, 0, -p);
+  }
+  else
+  {
+    position_ = ExpPoly::constant(x0) + ExpPoly::monomial(v0, 1, 0.0) + ExpPoly::monomial(0.5 * r, 2, 0.0);
+  }
+  velocity_ = position_.derivative();
+  torque_ = velocity_.derivative() * params.load_inertia + velocity_ * params.load_friction;
+}
+
+void ContactMotion::at(double tau, double* x, double* v) const
+{
+  if (oscillatory_)
+  {
+    const double e = std::exp(-sigma_ * tau);
+    const double c = std::cos(omega_ * tau);
+    const double s = std::sin(omega_ * tau);
+    *x = x_eq_ + e * (a_ * c + b_ * s);
+    *v = e * (vel_c_ * c + vel_d_ * s);
+    return;
+  }
+  *x = position_(tau);
+  *v = velocity_(tau);
+}
+
+double ContactMotion::meshTorque(double tau) const
+{
+  if (oscillatory_)
+  {
+    return std::exp(-sigma_ * tau) * (torque_c_ * std::cos(omega_ * tau) + torque_d_ * std::sin(omega_ * tau));
+  }
+  return torque_(tau);
+}
+
+int ContactMotion::downCrossings(int which, double sign, double horizon, bool require_positive_first, double* out,
+                                 int max_out) const
+{
+  if (!oscillatory_)
+  {
+    return walkDownCrossings((which == 0 ? velocity_ : torque_) * sign, horizon, require_positive_first, out,
+                             max_out);
+  }
+  // e^{−στ}(C cos ωτ + D sin ωτ) = R e^{−στ} cos(ωτ − φ): down-crossings at ωτ − φ = π/2 + 2πk, exactly.
+  const double c = sign * (which == 0 ? vel_c_ : torque_c_);
+  const double d = sign * (which == 0 ? vel_d_ : torque_d_);
+  if (c == 0.0 && d == 0.0)
+  {
+    return 0;
+  }
+  const double period = 2.0 * PI / omega_;
+  double tau = (std::atan2(d, c) + 0.5 * PI) / omega_;
+  if (tau <= 0.0)
+  {
+    tau += period;
+  }
+  // Starting at a zero while falling (f(0) ≈ 0, crossing within a quarter period) is not a fresh maximum.
+  if (require_positive_first && c <= 64.0 * EPS * std::fabs(d) && omega_ * tau < 0.5 * PI)
+  {
+    tau += period;
+  }
+  int count = 0;
+  for (; tau <= horizon && count < max_out; tau += period)
+  {
+    out[count++] = tau;
+  }
+  return count;
+}
+
+double ContactMotion::separationTime(int side, double horizon) const
+{
+  double t;
+  return downCrossings(1, side, horizon, false, &t, 1) == 1 ? t : INF;
+}
+
+int ContactMotion::velocityMaxima(double horizon, double* out, int max_out) const
+{
+  return downCrossings(0, 1.0, horizon, true, out, max_out);
+}
+
+EnergyFlows ContactMotion::energy(double tau) const
+{
+  double x1, v1;
+  at(tau, &x1, &v1);
+  const double dx = x1 - x0_;
+  double v2;  // ∫ θ̇_c² dτ
+  if (oscillatory_)
+  {
+    // v² = e^{−2στ}[(C²+D²)/2 + (C²−D²)/2 cos 2ωτ + CD sin 2ωτ]
+    const std::complex<double> osc = integralExp({-2.0 * sigma_, 2.0 * omega_}, tau);
+    const double mean = ExpPoly::monomial(1.0, 0, -2.0 * sigma_).integral(tau);
+    v2 = 0.5 * (vel_c_ * vel_c_ + vel_d_ * vel_d_) * mean + 0.5 * (vel_c_ * vel_c_ - vel_d_ * vel_d_) * osc.real() +
+         vel_c_ * vel_d_ * osc.imag();
+  }
+  else
+  {
+    v2 = (velocity_ * velocity_).integral(tau);
+  }
+  const double rho = params_.gear_ratio;
+  EnergyFlows e;
+  // ω_m = θ̇_c / ρ and T_m = a − kθ_c: ∫T_m ω_m dt = (a Δθ − k Δ(θ²)/2) / ρ exactly.
+  e.input = (input_.offset * dx - input_.stiffness * dx * 0.5 * (x1 + x0_)) / rho;
+  e.motor_friction = params_.motor_friction / (rho * rho) * v2;
+  e.load_friction = params_.load_friction * v2;
+  return e;
+}
+
+// ---------------------------------------------------------------------------------------------------------------
+FreeMotion::FreeMotion(const ServoParams& params, const MotorInput& input, const State& s) : params_(params), input_(input)
+{
+  const double ref = referenceRate(params);
+  const double alpha = canonicalRate(params.load_friction / params.load_inertia, ref);
+  double beta = canonicalRate(params.motor_friction / params.motor_inertia, ref);
+  if (std::fabs(alpha - beta) <= RATE_MERGE_FRACTION * std::max(alpha, beta))
+  {
+    beta = alpha;
+  }
+  const double x0 = s.load_position;
+  const double v0 = s.load_velocity;
+  if (alpha > 0.0)
+  {
+    const double c = v0 / alpha;
+    load_position_ = ExpPoly::constant(x0 + c) + ExpPoly::monomial(-c, 0, -alpha);
+    load_velocity_ = ExpPoly::monomial(v0, 0, -alpha);
+  }
+  else
+  {
+    load_position_ = ExpPoly::constant(x0) + ExpPoly::monomial(v0, 1, 0.0);
+    load_velocity_ = ExpPoly::constant(v0);
+  }
+  // J_m ω̇_m + f_m ω_m = a − k θ_c(τ): particular solution plus the free decay e^{−βτ} matching ω_m(0).
+  const ExpPoly forcing =
+      (ExpPoly::constant(input.offset) - load_position_ * input.stiffness) * (1.0 / params.motor_inertia);
+  const ExpPoly particular = forcing.solveFirstOrder(beta);
+  motor_velocity_ = particular + ExpPoly::monomial(s.motor_velocity - particular(0.0), 0, -beta);
+  const ExpPoly angle = motor_velocity_.antiderivative();
+  motor_position_ = angle + ExpPoly::constant(s.motor_position - angle(0.0));
+  gap_ = load_position_ - motor_position_ * params.gear_ratio;
+}
+
+void FreeMotion::at(double tau, State* out) const
+{
+  out->load_position = load_position_(tau);
+  out->load_velocity = load_velocity_(tau);
+  out->motor_position = motor_position_(tau);
+  out->motor_velocity = motor_velocity_(tau);
+}
+
+double FreeMotion::impactTime(double horizon, Contact* wall) const
+{
+  double crit[EXP_POLY_MAX_ROOTS];
+  const int m = gap_.derivative().signChangeRoots(0.0, horizon, crit);
+  const double delta = params_.backlash;
+  double p = 0.0;
+  double gp = gap_(0.0);
+  for (int i = 0; i <= m; ++i)
+  {
+    const double q = i < m ? crit[i] : horizon;
+    double bound = 0.0;
+    const double gq = gap_.evaluate(q, &bound);
+    if (gq < -bound)
+    {
+      *wall = Contact::Forward;
+      return gp > 0.0 ? gap_.refineRoot(0.0, p, q) : p;
+    }
+    if (gq > delta + bound + 4.0 * EPS * delta)
+    {
+      *wall = Contact::Backward;
+      return gp < delta ? gap_.refineRoot(delta, p, q) : p;
+    }
+    p = q;
+    gp = gq;
+  }
+  return INF;
+}
+
+EnergyFlows FreeMotion::energy(double tau) const
+{
+  const ExpPoly torque = ExpPoly::constant(input_.offset) - load_position_ * input_.stiffness;
+  EnergyFlows e;
+  e.input = (torque * motor_velocity_).integral(tau);
+  e.motor_friction = params_.motor_friction * (motor_velocity_ * motor_velocity_).integral(tau);
+  e.load_friction = params_.load_friction * (load_velocity_ * load_velocity_).integral(tau);
+  return e;
+}
+
+}  // namespace backlash_servo
