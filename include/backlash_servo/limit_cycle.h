@@ -26,6 +26,7 @@ enum class Verdict
 {
   Undecided,   ///< not enough evidence yet
   LimitCycle,  ///< maxima settled to a fixed point above the command
+  Irregular,   ///< sustained oscillation whose maxima never settle (quasi-periodic or chaotic), no decay
   Converged    ///< maxima decay to the command (or stopped, with the servo at rest)
 };
 
@@ -34,8 +35,10 @@ const char* toString(Verdict v);
 struct LimitCycleStatus
 {
   Verdict verdict = Verdict::Undecided;
-  double error = 0.0;        ///< limit-cycle error: largest settled positive error θ_c,max − θ_R [rad]; 0 if none
-  double period = 0.0;       ///< limit-cycle period [s]; 0 if none
+  double error = 0.0;        ///< limit-cycle error: largest positive error θ_c,max − θ_R of the settled cycle
+                             ///< (Aitken fixed point of each phase) [rad]; 0 if none
+                             ///< (Irregular: largest error of the last IRREGULAR_WINDOW maxima)
+  double period = 0.0;       ///< limit-cycle period [s]; 0 if none (Irregular: mean time between maxima)
   int multiplicity = 0;      ///< maxima per period of the cycle
   double extrapolated = 0.0; ///< Aitken estimate of the fixed point x* [rad] (latest)
   double ratio = 0.0;        ///< latest contraction ratio of successive differences [-]
@@ -66,6 +69,11 @@ public:
   static constexpr double ZERO_FRACTION = 1e-7;
   /// Largest cycle multiplicity (maxima per period) looked for.
   static constexpr int MAX_MULTIPLICITY = 8;
+  /// Irregular: two consecutive windows of this many maxima show no decay.
+  static constexpr int IRREGULAR_WINDOW = 30;
+
+  /// True for verdicts that mean a sustained oscillation (LimitCycle, Irregular).
+  bool oscillating() const;
 
 private:
   void update();

@@ -13,12 +13,19 @@ const char* toString(Verdict v)
       return "limit_cycle";
     case Verdict::Converged:
       return "converged";
+    case Verdict::Irregular:
+      return "irregular_oscillation";
     default:
       return "undecided";
   }
 }
 
 LimitCycleDetector::LimitCycleDetector(double command, double scale) : command_(command), scale_(scale) {}
+
+bool LimitCycleDetector::oscillating() const
+{
+  return status_.verdict == Verdict::LimitCycle || status_.verdict == Verdict::Irregular;
+}
 
 void LimitCycleDetector::addMaximum(const Maximum& m)
 {
@@ -64,27 +71,30 @@ void LimitCycleDetector::update()
   {
     return;
   }
-  // A limit cycle of multiplicity k: every phase of the k-periodic sequence has a pinned, positive fixed point.
-  for (int k = 1; k <= MAX_MULTIPLICITY && n >= 3 * k + 1; ++k)
+  // A limit cycle of multiplicity k: in every phase of the k-periodic sequence the Aitken estimates of the fixed
+  // point from three successive windows agree to FIXED_POINT_TOLERANCE, and the maxima are close to it (so the
+  // map is in its linear regime, where Aitken's extrapolation is exact to second order).
+  for (int k = 1; k <= MAX_MULTIPLICITY && n >= 4 * k + 1; ++k)
   {
     bool pinned = true;
     double error = 0.0;
     for (int phase = 0; phase < k && pinned; ++phase)
     {
       const int i = n - 1 - phase;
-      const double s0 = x(i), s1 = x(i - k), s2 = x(i - 2 * k), s3 = x(i - 3 * k);
+      const double s0 = x(i), s1 = x(i - k), s2 = x(i - 2 * k), s3 = x(i - 3 * k), s4 = x(i - 4 * k);
       const double fixed = aitken(s0, s1, s2);
-      const double previous_fixed = aitken(s1, s2, s3);
-      pinned = fixed > ZERO_FRACTION * scale_ * 10.0 && std::fabs(s0 - fixed) <= FIXED_POINT_TOLERANCE * fixed &&
-               std::fabs(fixed - previous_fixed) <= 10.0 * FIXED_POINT_TOLERANCE * fixed &&
-               std::fabs(s0 - s1) <= 1e-3 * fixed;
-      error = std::max(error, s0);
+      const double tol = FIXED_POINT_TOLERANCE * fixed;
+      pinned = fixed > 10.0 * ZERO_FRACTION * scale_ && std::fabs(fixed - aitken(s1, s2, s3)) <= tol &&
+               std::fabs(fixed - aitken(s2, s3, s4)) <= tol && std::fabs(s0 - s1) <= 1e-3 * fixed;
+      error = std::max(error, fixed);
     }
     if (pinned)
     {
       status_.verdict = Verdict::LimitCycle;
       status_.error = error;
-      status_.period = maxima_[n - 1].time - maxima_[n - 1 - k].time;
+      // The period converges like the maxima do: extrapolate the last three same-phase intervals the same way.
+      auto interval = [&](int j) { return maxima_[n - 1 - j * k].time - maxima_[n - 1 - (j + 1) * k].time; };
+      status_.period = aitken(interval(0), interval(1), interval(2));
       status_.multiplicity = k;
       return;
     }
@@ -102,6 +112,32 @@ void LimitCycleDetector::update()
     {
       status_ = LimitCycleStatus();
       status_.verdict = Verdict::Converged;
+      return;
+    }
+  }
+  // Irregular: the latest window of maxima neither settled nor decays relative to the window before it.
+  const int w = IRREGULAR_WINDOW;
+  if (n >= 2 * w)
+  {
+    double mean_a = 0.0, mean_b = 0.0, min_b = x(n - 1), max_b = 0.0;
+    int turns = 0;  // sign changes of successive differences: a monotone (slow) approach has none
+    for (int i = 0; i < w; ++i)
+    {
+      mean_a += x(n - 2 * w + i) / w;
+      mean_b += x(n - w + i) / w;
+      min_b = std::min(min_b, x(n - w + i));
+      max_b = std::max(max_b, x(n - w + i));
+      if (i >= 2 && (x(n - w + i) - x(n - w + i - 1)) * (x(n - w + i - 1) - x(n - w + i - 2)) < 0.0)
+      {
+        ++turns;
+      }
+    }
+    if (mean_b >= 0.99 * mean_a && min_b >= 0.5 * mean_a && turns >= w / 4)
+    {
+      status_.verdict = Verdict::Irregular;
+      status_.error = max_b;
+      status_.period = (maxima_[n - 1].time - maxima_[n - w].time) / (w - 1);
+      status_.multiplicity = 0;
     }
   }
 }

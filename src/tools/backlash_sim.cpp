@@ -1,0 +1,340 @@
+// backlash_sim: one exact run of the backlash servo from the command line (see README, "backlash_sim").
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <fstream>
+#include <iostream>
+#include <memory>
+#include <sstream>
+
+#include "backlash_servo/modes.h"
+#include "json_writer.h"
+#include "sim_options.h"
+
+using namespace backlash_servo;
+
+namespace
+{
+const char* USAGE = R"(usage: backlash_sim [options]
+Simulates a unit step (or any command) of the geared servo with backlash exactly and reports whether it settles
+or falls into a limit cycle. All quantities SI (rad, rad/s, N·m, kg·m², N·m·s/rad, s).
+
+physical form (defaults: the thesis' limit-cycle case):
+  --motor-inertia J_m   --load-inertia J_L   --motor-friction f_m   --load-friction f_L
+  --gain K              --gear-ratio rho
+chart form (instead of the physical form):
+  --zeta Z  --inertia-ratio rho^2 J_L/J_m  --friction-ratio rho^2 f_L/F_T
+  [--natural-frequency w_n (1)] [--total-inertia J (1)] [--gear-ratio rho (1)]
+always:
+  --backlash D (0.3)  --restitution e (1)  --command theta_R (1)  --duration s (0 = until settled)
+  --max-duration s (0 = 2000/w_n, cap when running until settled)
+initial state (default: all 0, forward contact):
+  --load-position --load-velocity --motor-position --motor-velocity --contact forward|backward|none
+input/output:
+  --config FILE.yaml   same keys in snake_case (flags override the file)
+  --json               one JSON object on stdout
+  --csv FILE           trajectory samples plus one row per event
+  --sample-rate HZ     CSV sample rate (100)
+  --help
+)";
+
+struct CliOptions
+{
+  KeyValues keys;
+  bool json = false;
+  std::string csv;
+  double sample_rate = 100.0;
+};
+
+CliOptions parseArgs(int argc, char** argv)
+{
+  CliOptions o;
+  KeyValues flags;
+  std::string config;
+  for (int i = 1; i < argc; ++i)
+  {
+    std::string arg = argv[i];
+    if (arg == "--help" || arg == "-h")
+    {
+      std::cout << USAGE;
+      std::exit(0);
+    }
+    if (arg == "--json")
+    {
+      o.json = true;
+      continue;
+    }
+    if (arg.rfind("--", 0) != 0)
+    {
+      throw UsageError("unexpected argument '" + arg + "' (options start with --; see --help)");
+    }
+    std::string value;
+    const auto eq = arg.find('=');
+    if (eq != std::string::npos)
+    {
+      value = arg.substr(eq + 1);
+      arg = arg.substr(0, eq);
+    }
+    else
+    {
+      if (i + 1 >= argc)
+      {
+        throw UsageError(arg + " needs a value");
+      }
+      value = argv[++i];
+    }
+    std::string key = arg.substr(2);
+    std::replace(key.begin(), key.end(), '-', '_');
+    if (key == "config")
+    {
+      config = value;
+    }
+    else if (key == "csv")
+    {
+      o.csv = value;
+    }
+    else if (key == "sample_rate")
+    {
+      KeyValues tmp;
+      tmp.set(key, value);
+      o.sample_rate = tmp.number(key);
+      if (!(o.sample_rate > 0.0))
+      {
+        throw UsageError("--sample-rate must be > 0 Hz");
+      }
+    }
+    else if (std::find(modelKeys().begin(), modelKeys().end(), key) != modelKeys().end())
+    {
+      flags.set(key, value);
+    }
+    else
+    {
+      throw UsageError("unknown option " + arg + " (see --help)");
+    }
+  }
+  if (!config.empty())
+  {
+    o.keys.loadYaml(config);
+    for (const auto& kv : o.keys.all())
+    {
+      const bool model = std::find(modelKeys().begin(), modelKeys().end(), kv.first) != modelKeys().end();
+      const bool node = std::find(nodeOnlyKeys().begin(), nodeOnlyKeys().end(), kv.first) != nodeOnlyKeys().end();
+      if (!model && !node)
+      {
+        throw UsageError("config file '" + config + "': unknown key '" + kv.first + "'");
+      }
+    }
+  }
+  for (const auto& kv : flags.all())
+  {
+    o.keys.set(kv.first, kv.second);
+  }
+  return o;
+}
+
+/// Writes trajectory samples and event rows as CSV.
+class CsvWriter : public EventSink
+{
+public:
+  CsvWriter(std::ostream& out, const RunConfig& config) : out_(out), config_(config)
+  {
+    out_ << "time,load_position,load_velocity,motor_position,motor_velocity,gap,contact,mesh_torque,motor_torque,"
+            "event\n";
+  }
+  void onEvent(const Event& e) override { row(e.state, toString(e.type)); }
+  void row(const State& s, const char* event)
+  {
+    const ServoParams& p = config_.params;
+    const MotorInput in{p.gain * config_.command, p.gain};
+    const double mesh =
+        s.contact == Contact::Apart ? 0.0 : contactMeshTorque(p, in, s.load_position, s.load_velocity);
+    char buf[512];
+    std::snprintf(buf, sizeof buf, "%.15g,%.15g,%.15g,%.15g,%.15g,%.15g,%s,%.15g,%.15g,%s\n", s.time,
+                  s.load_position, s.load_velocity, s.motor_position, s.motor_velocity,
+                  s.load_position - p.gear_ratio * s.motor_position, toString(s.contact), mesh,
+                  in.torque(s.load_position), event);
+    out_ << buf;
+  }
+
+private:
+  std::ostream& out_;
+  const RunConfig& config_;
+};
+
+void writeJson(std::ostream& out, const RunConfig& c, const RunSummary& r, double wall_seconds)
+{
+  const ServoParams& p = c.params;
+  JsonWriter j(out);
+  j.beginObject();
+  j.beginObject("params")
+      .field("motor_inertia", p.motor_inertia)
+      .field("load_inertia", p.load_inertia)
+      .field("motor_friction", p.motor_friction)
+      .field("load_friction", p.load_friction)
+      .field("gain", p.gain)
+      .field("gear_ratio", p.gear_ratio)
+      .field("backlash", p.backlash)
+      .field("restitution", p.restitution)
+      .field("command", c.command)
+      .field("zeta", p.dampingRatio())
+      .field("natural_frequency", p.naturalFrequency())
+      .field("inertia_ratio", p.inertiaRatio())
+      .field("friction_ratio", p.frictionRatio())
+      .endObject();
+  const bool lc = r.status.verdict == Verdict::LimitCycle || r.status.verdict == Verdict::Irregular;
+  j.field("verdict", std::string(toString(r.status.verdict)));
+  j.field("settled", r.settled);
+  j.field("limit_cycle", lc);
+  j.field("limit_cycle_error", lc ? r.status.error : 0.0);
+  if (lc)
+  {
+    j.field("period", r.status.period);
+  }
+  else
+  {
+    j.null("period");
+  }
+  j.field("maxima_per_period", static_cast<long long>(r.status.multiplicity));
+  j.beginArray("maxima");
+  for (const Maximum& m : r.maxima)
+  {
+    j.beginObject().field("time", m.time).field("position", m.position).field("velocity", m.velocity).endObject();
+  }
+  j.endArray();
+  j.field("impacts", static_cast<long long>(r.impacts));
+  j.beginObject("energy")
+      .field("input", r.energy.input)
+      .field("motor_friction", r.energy.motor_friction)
+      .field("load_friction", r.energy.load_friction)
+      .field("impact_loss", r.energy.impact_loss)
+      .field("kinetic", r.kinetic)
+      .field("initial_kinetic", r.energy.initial_kinetic)
+      .field("balance_error", r.balance_error)
+      .endObject();
+  const State& s = r.final_state;
+  j.beginObject("final_state")
+      .field("time", s.time)
+      .field("load_position", s.load_position)
+      .field("load_velocity", s.load_velocity)
+      .field("motor_position", s.motor_position)
+      .field("motor_velocity", s.motor_velocity)
+      .field("contact", std::string(toString(s.contact)))
+      .endObject();
+  j.field("simulated_time", r.simulated);
+  j.field("wall_time", wall_seconds);
+  j.endObject();
+  out << "\n";
+}
+
+void writeSummary(std::ostream& out, const RunConfig& c, const RunSummary& r, double wall_seconds)
+{
+  const ServoParams& p = c.params;
+  char buf[512];
+  std::snprintf(buf, sizeof buf,
+                "servo: J_m=%g J_L=%g kg·m², f_m=%g f_L=%g N·m·s/rad, K=%g N·m/rad, rho=%g, backlash=%g rad, e=%g\n"
+                "chart: zeta=%.4g  w_n=%.4g rad/s  rho²J_L/J_m=%.4g  rho²f_L/F_T=%.4g;  command %g -> %g rad\n",
+                p.motor_inertia, p.load_inertia, p.motor_friction, p.load_friction, p.gain, p.gear_ratio,
+                p.backlash, p.restitution, p.dampingRatio(), p.naturalFrequency(), p.inertiaRatio(),
+                p.frictionRatio(), c.initial.load_position, c.command);
+  out << buf;
+  if (r.status.verdict == Verdict::LimitCycle)
+  {
+    std::snprintf(buf, sizeof buf, "verdict: LIMIT CYCLE, error %.6g rad, period %.6g s (%d maxima per period)\n",
+                  r.status.error, r.status.period, r.status.multiplicity);
+  }
+  else if (r.status.verdict == Verdict::Irregular)
+  {
+    std::snprintf(buf, sizeof buf,
+                  "verdict: IRREGULAR sustained oscillation (maxima never settle), largest error %.6g rad, "
+                  "mean time between maxima %.6g s\n",
+                  r.status.error, r.status.period);
+  }
+  else if (r.status.verdict == Verdict::Converged)
+  {
+    std::snprintf(buf, sizeof buf, "verdict: converges to the command (no limit cycle)\n");
+  }
+  else
+  {
+    std::snprintf(buf, sizeof buf, "verdict: undecided after %g s (latest fixed-point estimate %.6g rad)\n",
+                  r.simulated, r.status.extrapolated);
+  }
+  out << buf;
+  out << "positive maxima (t [s], theta_c [rad]):";
+  for (std::size_t i = 0; i < r.maxima.size(); ++i)
+  {
+    if (i == 6 && r.maxima.size() > 8)
+    {
+      out << "  ...";
+      i = r.maxima.size() - 2;
+    }
+    std::snprintf(buf, sizeof buf, "  (%.4f, %.6f)", r.maxima[i].time, r.maxima[i].position);
+    out << buf;
+  }
+  std::snprintf(buf, sizeof buf,
+                "\nimpacts: %llu; simulated %.6g s in %.3g ms wall; energy balance residual %.3g J of %.3g J input\n",
+                static_cast<unsigned long long>(r.impacts), r.simulated, wall_seconds * 1e3, r.balance_error,
+                r.energy.input);
+  out << buf;
+}
+}  // namespace
+
+int main(int argc, char** argv)
+{
+  CliOptions options;
+  RunConfig config;
+  try
+  {
+    options = parseArgs(argc, argv);
+    config = runConfigFrom(options.keys);
+  }
+  catch (const std::exception& e)
+  {
+    std::cerr << "backlash_sim: error: " << e.what() << "\n";
+    return 2;
+  }
+  try
+  {
+    std::ostringstream csv_text;
+    std::unique_ptr<CsvWriter> csv;
+    SampleCallback on_sample;
+    double sample_period = 0.0;
+    if (!options.csv.empty())
+    {
+      csv = std::make_unique<CsvWriter>(csv_text, config);
+      sample_period = 1.0 / options.sample_rate;
+      on_sample = [&](const Simulator& sim) { csv->row(sim.state(), ""); };
+    }
+    const auto start = std::chrono::steady_clock::now();
+    const RunSummary result = runResponse(config, csv.get(), sample_period, on_sample);
+    const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    if (csv)
+    {
+      // Written whole to a temporary then renamed: a failed run never leaves a half-written file.
+      const std::string tmp = options.csv + ".tmp";
+      std::ofstream f(tmp);
+      f << csv_text.str();
+      f.close();
+      if (!f || std::rename(tmp.c_str(), options.csv.c_str()) != 0)
+      {
+        std::remove(tmp.c_str());
+        std::cerr << "backlash_sim: error: cannot write '" << options.csv << "'\n";
+        return 2;
+      }
+    }
+    if (options.json)
+    {
+      writeJson(std::cout, config, result, wall);
+    }
+    else
+    {
+      writeSummary(std::cout, config, result, wall);
+    }
+  }
+  catch (const std::exception& e)
+  {
+    std::cerr << "backlash_sim: error: " << e.what() << "\n";
+    return 1;
+  }
+  return 0;
+}

@@ -1,0 +1,148 @@
+// backlash_sim as a user runs it: JSON contract, YAML config equivalence, CSV output, clear errors with exit code 2.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cstdio>
+#include <cstdlib>
+#include <fstream>
+#include <regex>
+#include <sstream>
+#include <string>
+#include <sys/wait.h>
+
+namespace
+{
+struct Result
+{
+  int code;
+  std::string out;
+  std::string err;
+};
+
+Result run(const std::string& args)
+{
+  const std::string err_file = "/tmp/backlash_sim_test_err.txt";
+  const std::string cmd = std::string(BACKLASH_SIM_EXE) + " " + args + " 2>" + err_file;
+  FILE* p = popen(cmd.c_str(), "r");
+  std::string out;
+  char buf[4096];
+  size_t n;
+  while ((n = fread(buf, 1, sizeof buf, p)) > 0)
+  {
+    out.append(buf, n);
+  }
+  const int status = pclose(p);
+  std::ifstream f(err_file);
+  std::stringstream err;
+  err << f.rdbuf();
+  return {WEXITSTATUS(status), out, err.str()};
+}
+
+double number(const std::string& json, const std::string& key)
+{
+  std::smatch m;
+  const std::regex re("\"" + key + "\":(-?[0-9.eE+-]+)");
+  if (!std::regex_search(json, m, re))
+  {
+    ADD_FAILURE() << "no key " << key << " in " << json.substr(0, 300);
+    return 0.0;
+  }
+  return std::stod(m[1]);
+}
+
+std::string writeFile(const std::string& name, const std::string& text)
+{
+  const std::string path = "/tmp/" + name;
+  std::ofstream(path) << text;
+  return path;
+}
+}  // namespace
+
+TEST(Cli, ThesisCaseJsonHasTheContractFields)
+{
+  const Result r = run("--json");
+  ASSERT_EQ(r.code, 0) << r.err;
+  for (const char* key : {"\"params\"", "\"limit_cycle\":true", "\"limit_cycle_error\"", "\"period\"", "\"maxima\"",
+                          "\"impacts\"", "\"energy\"", "\"input\"", "\"motor_friction\"", "\"load_friction\"",
+                          "\"impact_loss\"", "\"kinetic\"", "\"final_state\"", "\"contact\""})
+  {
+    EXPECT_NE(r.out.find(key), std::string::npos) << key;
+  }
+  EXPECT_NEAR(number(r.out, "limit_cycle_error"), 0.0515, 5e-4);
+  EXPECT_NEAR(number(r.out, "motor_inertia"), 0.1, 1e-15);
+}
+
+TEST(Cli, ChartFormAndYamlConfigGiveTheSameRun)
+{
+  const Result flags = run("--json --zeta 0.5 --inertia-ratio 1 --friction-ratio 0.4 --restitution 1 --backlash 0.3");
+  const std::string yaml = writeFile("backlash_sim_test.yaml",
+                                     "# fig. 31\nzeta: 0.5   # damping ratio\ninertia_ratio: 1\nfriction_ratio: 0.4\n"
+                                     "restitution: 1\nbacklash: 0.3\npublish_rate: 100  # node-only key, ignored\n");
+  const Result file = run("--json --config " + yaml);
+  ASSERT_EQ(flags.code, 0) << flags.err;
+  ASSERT_EQ(file.code, 0) << file.err;
+  EXPECT_DOUBLE_EQ(number(flags.out, "limit_cycle_error"), number(file.out, "limit_cycle_error"));
+  EXPECT_NEAR(number(file.out, "limit_cycle_error"), 0.046, 1e-3);
+  // Flags override the file.
+  const Result over = run("--json --config " + yaml + " --backlash 0.03");
+  EXPECT_NEAR(number(over.out, "limit_cycle_error") * 10.0, number(file.out, "limit_cycle_error"), 1e-6);
+}
+
+TEST(Cli, CsvHasSamplesAndEventRows)
+{
+  const std::string csv = "/tmp/backlash_sim_test.csv";
+  std::remove(csv.c_str());
+  const Result r = run("--duration 20 --csv " + csv + " --sample-rate 50");
+  ASSERT_EQ(r.code, 0) << r.err;
+  std::ifstream f(csv);
+  std::string header;
+  std::getline(f, header);
+  EXPECT_EQ(header,
+            "time,load_position,load_velocity,motor_position,motor_velocity,gap,contact,mesh_torque,motor_torque,event");
+  int samples = 0, impacts = 0, maxima = 0;
+  std::string line;
+  while (std::getline(f, line))
+  {
+    const std::string event = line.substr(line.rfind(',') + 1);
+    samples += event.empty();
+    impacts += event == "impact";
+    maxima += event == "maximum";
+  }
+  EXPECT_EQ(samples, 20 * 50 + 1);
+  EXPECT_GT(impacts, 0);
+  EXPECT_GE(maxima, 2);
+}
+
+TEST(Cli, BadInputIsOneClearLineAndExitCode2)
+{
+  struct Case
+  {
+    std::string args;
+    std::string mentions;
+  };
+  const std::string bad_yaml = writeFile("backlash_sim_bad.yaml", "zeta: [0.5\n  inertia_ratio: : 1\n");
+  const std::string unknown_key = writeFile("backlash_sim_unknown.yaml", "zeta: 0.5\ninertia_ratio: 1\nfriction_ratio: 0\nbacklsh: 0.3\n");
+  const Case cases[] = {{"--restitution 1.5", "restitution"},
+                        {"--motor-inertia -1", "motor_inertia"},
+                        {"--gain nan", "--gain"},
+                        {"--backlash abc", "--backlash"},
+                        {"--frobnicate 3", "--frobnicate"},
+                        {"--zeta 0.4 --gain 2", "not both"},
+                        {"--zeta 0.4", "--inertia-ratio"},
+                        {"--contact sideways", "--contact"},
+                        {"--contact forward --motor-position 0.2", "motor_position"},
+                        {"--config /nonexistent.yaml", "cannot read"},
+                        {"--config " + bad_yaml, "not valid YAML"},
+                        {"--config " + unknown_key, "backlsh"}};
+  for (const Case& c : cases)
+  {
+    const std::string csv = "/tmp/backlash_sim_never.csv";
+    std::remove(csv.c_str());
+    const Result r = run(c.args + " --csv " + csv);
+    EXPECT_EQ(r.code, 2) << c.args;
+    EXPECT_TRUE(r.out.empty()) << c.args;
+    EXPECT_NE(r.err.find(c.mentions), std::string::npos) << c.args << " -> " << r.err;
+    EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
+    EXPECT_FALSE(std::ifstream(csv).good()) << "half-written output for " << c.args;
+  }
+}

@@ -1,0 +1,326 @@
+// Event location: no event is missed (brute-force tiny-step reference), results do not depend on the caller's
+// steps, Zeno sequences end in contact at the analytic accumulation time, elastic teeth do not chatter forever.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <vector>
+
+#include "backlash_servo/modes.h"
+#include "backlash_servo/step_response.h"
+
+using namespace backlash_servo;
+
+namespace
+{
+struct Recorder : EventSink
+{
+  std::vector<Event> events;
+  void onEvent(const Event& e) override { events.push_back(e); }
+  std::vector<double> times(EventType t) const
+  {
+    std::vector<double> out;
+    for (const Event& e : events)
+    {
+      if (e.type == t)
+      {
+        out.push_back(e.state.time);
+      }
+    }
+    return out;
+  }
+};
+
+/**
+ * Test-only brute-force reference: classical RK4 with a tiny fixed step on the same hybrid model, impacts located
+ * by bisection of the step, contact kept while the mesh torque presses. Independent of the closed forms.
+ */
+class BruteForce
+{
+public:
+  explicit BruteForce(const ServoParams& p, double command) : p_(p), command_(command) {}
+  std::vector<double> impactTimes(double t_end, double dt)
+  {
+    std::vector<double> out;
+    double x[4] = {0, 0, 0, 0};  // θ_c, ω_c, θ_m, ω_m
+    bool contact = true;
+    int wall = 0;  // 0 forward, 1 backward
+    double t = 0.0;
+    while (t < t_end)
+    {
+      double y[4];
+      step(x, dt, contact, wall, y);
+      if (contact)
+      {
+        const double tl = meshTorque(y);
+        if ((wall == 0 && tl < 0.0) || (wall == 1 && tl > 0.0))
+        {
+          contact = false;
+        }
+      }
+      else
+      {
+        const double g = y[0] - p_.gear_ratio * y[2];
+        if (g < 0.0 || g > p_.backlash)
+        {
+          // Bisect the step length for the crossing.
+          const double level = g < 0.0 ? 0.0 : p_.backlash;
+          double lo = 0.0, hi = dt;
+          for (int i = 0; i < 60; ++i)
+          {
+            const double mid = 0.5 * (lo + hi);
+            double z[4];
+            step(x, mid, false, wall, z);
+            const double gm = z[0] - p_.gear_ratio * z[2];
+            ((level == 0.0) ? (gm < 0.0) : (gm > level)) ? hi = mid : lo = mid;
+          }
+          step(x, hi, false, wall, y);
+          t += hi;
+          out.push_back(t);
+          wall = level == 0.0 ? 0 : 1;
+          y[2] = (y[0] - level) / p_.gear_ratio;
+          const double rho = p_.gear_ratio, jm = p_.motor_inertia, jl = p_.load_inertia, e = p_.restitution;
+          const double v = y[1], w = y[3];
+          const double vn = jm / (jm + rho * rho * jl) * (rho * w * (1 + e) + v * (rho * rho * jl / jm - e));
+          y[1] = vn;
+          y[3] = (vn - e * (rho * w - v)) / rho;
+          // Below the reference's resolution a bounce is treated as sticking (contact kept while it presses).
+          if (std::fabs(rho * y[3] - y[1]) < 1e-5)
+          {
+            y[3] = y[1] / rho;
+            contact = true;
+          }
+          std::copy(y, y + 4, x);
+          continue;
+        }
+      }
+      std::copy(y, y + 4, x);
+      t += dt;
+    }
+    return out;
+  }
+
+private:
+  double meshTorque(const double* s) const
+  {
+    const double acc =
+        (p_.gear_ratio * p_.gain * (command_ - s[0]) - p_.totalFriction() * s[1]) / p_.totalInertia();
+    return p_.load_inertia * acc + p_.load_friction * s[1];
+  }
+  void deriv(const double* s, bool contact, double* d) const
+  {
+    const double tm = p_.gain * (command_ - s[0]);
+    if (contact)
+    {
+      const double acc = (p_.gear_ratio * tm - p_.totalFriction() * s[1]) / p_.totalInertia();
+      d[0] = s[1];
+      d[1] = acc;
+      d[2] = s[1] / p_.gear_ratio;
+      d[3] = acc / p_.gear_ratio;
+      return;
+    }
+    d[0] = s[1];
+    d[1] = -p_.load_friction * s[1] / p_.load_inertia;
+    d[2] = s[3];
+    d[3] = (tm - p_.motor_friction * s[3]) / p_.motor_inertia;
+  }
+  void step(const double* x, double h, bool contact, int wall, double* y) const
+  {
+    double k1[4], k2[4], k3[4], k4[4], s[4];
+    deriv(x, contact, k1);
+    for (int i = 0; i < 4; ++i) s[i] = x[i] + 0.5 * h * k1[i];
+    deriv(s, contact, k2);
+    for (int i = 0; i < 4; ++i) s[i] = x[i] + 0.5 * h * k2[i];
+    deriv(s, contact, k3);
+    for (int i = 0; i < 4; ++i) s[i] = x[i] + h * k3[i];
+    deriv(s, contact, k4);
+    for (int i = 0; i < 4; ++i) y[i] = x[i] + h / 6.0 * (k1[i] + 2 * k2[i] + 2 * k3[i] + k4[i]);
+    if (contact)
+    {
+      y[2] = (y[0] - (wall == 0 ? 0.0 : p_.backlash)) / p_.gear_ratio;
+    }
+  }
+  ServoParams p_;
+  double command_;
+};
+
+ServoParams chart(double zeta, double inertia_ratio, double friction_ratio, double e, double delta = 0.3)
+{
+  ChartParams c;
+  c.zeta = zeta;
+  c.inertia_ratio = inertia_ratio;
+  c.friction_ratio = friction_ratio;
+  c.restitution = e;
+  c.backlash = delta;
+  return c.toServoParams();
+}
+}  // namespace
+
+TEST(Events, NoImpactMissedAgainstTinyStepReference)
+{
+  // Cases with well-separated impacts (the reference cannot resolve Zeno tails).
+  for (const ServoParams& p : {chart(0.4, 1.0, 0.4, 0.6), chart(0.2, 4.0, 0.4, 0.8), chart(0.3, 0.25, 0.2, 0.0)})
+  {
+    Recorder rec;
+    Simulator sim(p, State(), 1.0);
+    sim.advanceTo(20.0, &rec);
+    const std::vector<double> ours = rec.times(EventType::Impact);
+    const std::vector<double> ref = BruteForce(p, 1.0).impactTimes(20.0, 1e-4);
+    ASSERT_GT(ours.size(), 2u);
+    // Compare every impact of the reference that is not part of a sub-step chatter burst.
+    std::size_t j = 0;
+    for (double tr : ref)
+    {
+      while (j < ours.size() && ours[j] < tr - 1e-3)
+      {
+        ++j;
+      }
+      ASSERT_LT(j, ours.size()) << "reference impact at " << tr << " s has no counterpart";
+      EXPECT_NEAR(ours[j], tr, 1e-3) << "reference impact at " << tr;
+    }
+    // And ours are all seen by the reference, down to its resolution (closing speed 1e-3 rad/s).
+    for (const Event& ev : rec.events)
+    {
+      if (ev.type != EventType::Impact || ev.impact.approach_speed < 1e-3)
+      {
+        continue;
+      }
+      const double to = ev.state.time;
+      double best = 1e9;
+      for (double tr : ref)
+      {
+        best = std::min(best, std::fabs(tr - to));
+      }
+      EXPECT_LT(best, 1e-3) << "impact at " << to << " s not in the reference";
+    }
+  }
+}
+
+TEST(Events, ResultsDoNotDependOnTheCallersSteps)
+{
+  const ServoParams p;  // thesis limit-cycle case, e = 1
+  Recorder one, fine, ragged;
+  Simulator a(p, State(), 1.0), b(p, State(), 1.0), c(p, State(), 1.0);
+  a.advanceTo(150.0, &one);
+  for (int i = 1; i <= 15000; ++i)
+  {
+    b.advanceTo(0.01 * i, &fine);
+  }
+  double t = 0.0;
+  unsigned seed = 7;
+  while (t < 150.0)
+  {
+    seed = seed * 1664525u + 1013904223u;
+    t = std::min(150.0, t + 1e-6 + (seed >> 8) % 1000 * 1e-3);
+    c.advanceTo(t, &ragged);
+  }
+  const auto m1 = one.times(EventType::Maximum), m2 = fine.times(EventType::Maximum), m3 = ragged.times(EventType::Maximum);
+  ASSERT_EQ(m1.size(), m2.size());
+  ASSERT_EQ(m1.size(), m3.size());
+  for (std::size_t i = 0; i < m1.size(); ++i)
+  {
+    EXPECT_NEAR(m1[i], m2[i], 1e-9);
+    EXPECT_NEAR(m1[i], m3[i], 1e-9);
+  }
+  EXPECT_EQ(a.impactCount(), b.impactCount());
+  EXPECT_EQ(a.impactCount(), c.impactCount());
+  EXPECT_NEAR(a.state().load_position, b.state().load_position, 1e-9);
+  EXPECT_NEAR(a.state().load_position, c.state().load_position, 1e-9);
+}
+
+TEST(Events, ZenoBouncesEndInContactAtTheAnalyticAccumulationTime)
+{
+  for (double e : {0.5, 0.8})
+  {
+    // Frictionless, effort mode: relative acceleration of the gap is −ρu/J_m while apart, so after a first impact
+    // with closing speed s the bounces last Σ 2 eⁿ s / a = 2 e s / (a (1 − e)).
+    ServoParams p;
+    p.motor_inertia = 1.0;
+    p.load_inertia = 1.0;
+    p.motor_friction = 0.0;
+    p.load_friction = 0.0;
+    p.gear_ratio = 1.0;
+    p.backlash = 0.1;
+    p.restitution = e;
+    State s;
+    s.contact = Contact::Apart;
+    s.motor_position = -0.05;  // gap 0.05
+    Simulator sim(p, s, 0.0);
+    const double u = 1.0;
+    sim.setMotorTorque(u);
+    Recorder rec;
+    const double t1 = std::sqrt(0.1);  // 0.05 = a t²/2 with a = 1
+    const double closing = t1;
+    const double t_zeno = t1 + 2.0 * e * closing / (1.0 - e);
+    sim.advanceTo(t_zeno + 1.0, &rec);
+    const auto impacts = rec.times(EventType::Impact);
+    EXPECT_NEAR(impacts.front(), t1, 1e-12);
+    // The stick rule ends the sequence once a bounce could not rise above the gap's rounding (~1e-7 rad/s here),
+    // cutting a tail of at most 2 v_stick / (a (1 − e)) ≈ 1e-5 s.
+    EXPECT_LE(impacts.back(), t_zeno + 1e-12);
+    EXPECT_NEAR(impacts.back(), t_zeno, 2e-5);
+    EXPECT_LT(impacts.size(), 200u);
+    EXPECT_EQ(sim.state().contact, Contact::Forward);
+    // Afterwards one body: total momentum u t shared, v = u t / (J_m + ρ² J_L).
+    EXPECT_NEAR(sim.state().load_velocity, u * (t_zeno + 1.0) / 2.0, 1e-9);
+    EXPECT_LT(std::fabs(sim.energyBalanceError()), 1e-9 * sim.energy().input);
+  }
+}
+
+TEST(Events, ElasticTeethUnderPressingTorqueDoNotChatter)
+{
+  ServoParams p;
+  p.restitution = 1.0;
+  Simulator sim(p, State(), 0.0);
+  sim.setMotorTorque(0.7);  // presses the forward wall from rest
+  sim.advanceTo(50.0);
+  EXPECT_EQ(sim.impactCount(), 0u);
+  EXPECT_EQ(sim.state().contact, Contact::Forward);
+  // A numerically zero closing speed on arrival sticks instead of starting endless micro-bounces.
+  State s;
+  s.contact = Contact::Apart;
+  s.load_velocity = 0.0;
+  s.motor_velocity = 1e-13;
+  Simulator touch(p, s, 0.0);
+  touch.setMotorTorque(0.7);
+  touch.advanceTo(10.0);
+  EXPECT_LE(touch.impactCount(), 1u);
+  EXPECT_EQ(touch.state().contact, Contact::Forward);
+}
+
+TEST(Events, ZenoHeavyAndElasticStepResponsesTerminate)
+{
+  for (double e : {0.5, 0.8, 1.0})
+  {
+    for (double zeta : {0.1, 0.4})
+    {
+      RunConfig c;
+      c.params = chart(zeta, 9.0, 0.4, e);
+      c.duration = 500.0;
+      const RunSummary r = runResponse(c);
+      EXPECT_DOUBLE_EQ(r.final_state.time, 500.0);
+      EXPECT_LT(r.impacts, 100000u);
+    }
+  }
+}
+
+TEST(Events, SeparationHappensWhereTheMeshTorqueChangesSign)
+{
+  const ServoParams p = chart(0.4, 9.0, 0.4, 1.0);
+  Recorder rec;
+  Simulator sim(p, State(), 1.0);
+  sim.advanceTo(30.0, &rec);
+  int checked = 0;
+  for (const Event& e : rec.events)
+  {
+    if (e.type != EventType::Separation || e.state.time == 0.0)
+    {
+      continue;
+    }
+    // Just before, the contact mesh torque was on the pressing side; at the event it is zero.
+    const MotorInput in{p.gain * 1.0, p.gain};
+    const double tl = contactMeshTorque(p, in, e.state.load_position, e.state.load_velocity);
+    EXPECT_NEAR(tl, 0.0, 1e-12) << "separation at " << e.state.time;
+    ++checked;
+  }
+  EXPECT_GT(checked, 0);
+}

@@ -1,0 +1,82 @@
+// The verdict on synthetic maxima sequences with known answers.
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include "backlash_servo/limit_cycle.h"
+
+using namespace backlash_servo;
+
+namespace
+{
+LimitCycleDetector feed(double (*x)(int), int n, double period = 10.0)
+{
+  LimitCycleDetector d(1.0, 0.3);
+  for (int i = 0; i < n && !d.settled(); ++i)
+  {
+    d.addMaximum({period * i, 1.0 + x(i), -0.01});
+  }
+  return d;
+}
+}  // namespace
+
+TEST(LimitCycle, GeometricApproachToAFixedPointIsALimitCycle)
+{
+  const auto d = feed([](int i) { return 0.05 + 0.3 * std::pow(0.6, i); }, 200);
+  ASSERT_EQ(d.status().verdict, Verdict::LimitCycle);
+  EXPECT_NEAR(d.status().error, 0.05, 1e-6);
+  EXPECT_NEAR(d.status().period, 10.0, 1e-12);
+  EXPECT_EQ(d.status().multiplicity, 1);
+}
+
+TEST(LimitCycle, SlowApproachIsNotDeclaredEarly)
+{
+  // Ratio 0.97: the maxima differ by ~1e-3 for a long time; the verdict must wait until the fixed point is pinned.
+  const auto d = feed([](int i) { return 0.05 + 0.2 * std::pow(0.97, i); }, 2000);
+  ASSERT_EQ(d.status().verdict, Verdict::LimitCycle);
+  EXPECT_NEAR(d.status().error, 0.05, 1e-6);
+}
+
+TEST(LimitCycle, GeometricDecayToTheCommandConverges)
+{
+  const auto d = feed([](int i) { return 0.3 * std::pow(0.8, i); }, 200);
+  EXPECT_EQ(d.status().verdict, Verdict::Converged);
+  EXPECT_LT(d.maxima().size(), 20u);  // decided from the trend, not by waiting for zero
+}
+
+TEST(LimitCycle, SlowNonGeometricDecayIsNotMistakenForACycle)
+{
+  // x_n = 0.3/(1 + n/5): decays like 1/n; successive differences shrink, which "average the last few" would call
+  // a cycle. No fixed point exists, so no LimitCycle verdict may be given.
+  const auto d = feed([](int i) { return 0.3 / (1.0 + i / 5.0); }, 300);
+  EXPECT_NE(d.status().verdict, Verdict::LimitCycle);
+  EXPECT_NE(d.status().verdict, Verdict::Irregular);
+}
+
+TEST(LimitCycle, PeriodTwoCycleIsFoundWithItsMultiplicity)
+{
+  const auto d = feed([](int i) { return (i % 2 ? 0.04 : 0.07) + 0.1 * std::pow(0.5, i); }, 200, 3.0);
+  ASSERT_EQ(d.status().verdict, Verdict::LimitCycle);
+  EXPECT_EQ(d.status().multiplicity, 2);
+  EXPECT_NEAR(d.status().error, 0.07, 1e-6);
+  EXPECT_NEAR(d.status().period, 6.0, 1e-12);
+}
+
+TEST(LimitCycle, IrregularSustainedOscillation)
+{
+  // Bounded, non-decaying, never settling (a quasi-periodic sequence).
+  const auto d = feed([](int i) { return 0.4 + 0.02 * std::sin(2.0 * i) + 0.01 * std::sin(0.7 * std::sqrt(2.0) * i); }, 400);
+  EXPECT_EQ(d.status().verdict, Verdict::Irregular);
+  EXPECT_GT(d.status().error, 0.4);
+}
+
+TEST(LimitCycle, RestSettlesConvergence)
+{
+  LimitCycleDetector d(1.0, 0.3);
+  d.addMaximum({1.0, 1.2, 0.0});
+  EXPECT_FALSE(d.settled());
+  d.markAtRest();
+  EXPECT_EQ(d.status().verdict, Verdict::Converged);
+  d.addMaximum({2.0, 0.9, 0.0});  // below the command: ignored
+  EXPECT_EQ(d.maxima().size(), 1u);
+}
