@@ -32,7 +32,7 @@ enum class Verdict
 
 const char* toString(Verdict v);
 
-struct LimitCycleStatus
+struct LimitCycleReport
 {
   Verdict verdict = Verdict::Undecided;
   double error = 0.0;        ///< limit-cycle error: largest positive error θ_c,max − θ_R of the settled cycle
@@ -59,7 +59,7 @@ public:
   void markAtRest();
 
   const std::vector<Maximum>& maxima() const { return maxima_; }
-  const LimitCycleStatus& status() const { return status_; }
+  const LimitCycleReport& status() const { return status_; }
   bool settled() const { return status_.verdict != Verdict::Undecided; }
   double command() const { return command_; }
 
@@ -81,7 +81,7 @@ private:
   double command_;
   double scale_;
   std::vector<Maximum> maxima_;
-  LimitCycleStatus status_;
+  LimitCycleReport status_;
   int decay_votes_ = 0;
 };
 

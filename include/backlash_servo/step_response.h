@@ -27,7 +27,7 @@ struct RunConfig
 
 struct RunSummary
 {
-  LimitCycleStatus status;
+  LimitCycleReport status;
   std::vector<Maximum> maxima;  ///< positive maxima above the command, in time order
   std::uint64_t impacts = 0;
   EnergyLedger energy;

@@ -41,7 +41,7 @@ void LimitCycleDetector::markAtRest()
 {
   if (status_.verdict == Verdict::Undecided)
   {
-    status_ = LimitCycleStatus();
+    status_ = LimitCycleReport();
     status_.verdict = Verdict::Converged;
   }
 }
@@ -110,7 +110,7 @@ void LimitCycleDetector::update()
     decay_votes_ = decaying ? decay_votes_ + 1 : 0;
     if (decay_votes_ >= 3)
     {
-      status_ = LimitCycleStatus();
+      status_ = LimitCycleReport();
       status_.verdict = Verdict::Converged;
       return;
     }

@@ -43,7 +43,8 @@ const std::vector<std::string>& nodeOnlyKeys()
 {
   static const std::vector<std::string> keys = {"control_mode",     "motor_effort",     "publish_rate",
                                                 "real_time_factor", "publish_clock",    "motor_joint_name",
-                                                "load_joint_name",  "min_impact_speed", "paused"};
+                                                "load_joint_name",  "min_impact_speed", "paused",
+                                                "stop_after",       "start_delay"};
   return keys;
 }
 
@@ -89,7 +90,7 @@ double KeyValues::number(const std::string& key) const
   const double v = std::strtod(text.c_str(), &end);
   if (text.empty() || end == text.c_str() || *end != '\0' || errno == ERANGE || !std::isfinite(v))
   {
-    throw UsageError(flagName(key) + ": expected a finite number, got '" + text + "'");
+    throw UsageError(name(key) + ": expected a finite number, got '" + text + "'");
   }
   return v;
 }
@@ -106,8 +107,9 @@ RunConfig runConfigFrom(const KeyValues& kv)
   const bool chart = anyOf(kv, CHART_KEYS);
   if (chart && anyOf(kv, PHYSICAL_KEYS))
   {
-    throw UsageError("give either physical parameters (--motor-inertia ... --gain) or the chart form (--zeta "
-                     "--inertia-ratio --friction-ratio ...), not both");
+    throw UsageError("give either physical parameters (" + kv.name("motor_inertia") + " ... " + kv.name("gain") +
+                     ") or the chart form (" + kv.name("zeta") + " " + kv.name("inertia_ratio") + " " +
+                     kv.name("friction_ratio") + " ...), not both");
   }
   if (chart)
   {
@@ -115,7 +117,7 @@ RunConfig runConfigFrom(const KeyValues& kv)
     {
       if (!kv.has(required))
       {
-        throw UsageError(flagName(required) + " is required in the chart form");
+        throw UsageError(kv.name(required) + " is required in the chart form");
       }
     }
     ChartParams ch;
@@ -147,7 +149,8 @@ RunConfig runConfigFrom(const KeyValues& kv)
   c.max_duration = kv.number("max_duration", 0.0);
   if (c.duration < 0.0 || c.max_duration < 0.0)
   {
-    throw UsageError("--duration and --max-duration must be >= 0 s (0 = run until the verdict is settled)");
+    throw UsageError(kv.name("duration") + " and " + kv.name("max_duration") +
+                     " must be >= 0 s (0 = run until the verdict is settled)");
   }
   State& s = c.initial;
   try
@@ -156,7 +159,7 @@ RunConfig runConfigFrom(const KeyValues& kv)
   }
   catch (const std::invalid_argument& e)
   {
-    throw UsageError(std::string("--contact: ") + e.what());
+    throw UsageError(kv.name("contact") + ": " + e.what());
   }
   const double rho = c.params.gear_ratio;
   s.load_position = kv.number("load_position", 0.0);

@@ -23,6 +23,9 @@ public:
   using std::runtime_error::runtime_error;
 };
 
+/// "--motor-inertia" for "motor_inertia".
+std::string flagName(const std::string& key);
+
 /// Raw key → value text, from YAML then flags (later sources override earlier ones).
 class KeyValues
 {
@@ -35,14 +38,15 @@ public:
   double number(const std::string& key) const;
   double number(const std::string& key, double fallback) const { return has(key) ? number(key) : fallback; }
   std::string text(const std::string& key, const std::string& fallback) const;
+  /// How errors name a key: "--motor-inertia" (command line, the default) or "motor_inertia" (YAML / ROS params).
+  void nameKeysAsFlags(bool flags) { flags_ = flags; }
+  std::string name(const std::string& key) const { return flags_ ? flagName(key) : key; }
   const std::map<std::string, std::string>& all() const { return values_; }
 
 private:
   std::map<std::string, std::string> values_;
+  bool flags_ = true;
 };
-
-/// "--motor-inertia" for "motor_inertia".
-std::string flagName(const std::string& key);
 
 /// Keys that describe the physical servo and its initial state (shared by every tool and the ROS node).
 const std::vector<std::string>& modelKeys();

@@ -1,0 +1,416 @@
+#include "servo_node.h"
+
+#include <rosgraph_msgs/Clock.h>
+#include <sensor_msgs/JointState.h>
+
+#include <algorithm>
+#include <cmath>
+
+#include "backlash_servo/BacklashState.h"
+#include "backlash_servo/ImpactEvent.h"
+#include "backlash_servo/LimitCycleStatus.h"
+
+namespace backlash_servo
+{
+namespace
+{
+uint8_t contactCode(Contact c)
+{
+  switch (c)
+  {
+    case Contact::Forward:
+      return BacklashState::FORWARD;
+    case Contact::Backward:
+      return BacklashState::BACKWARD;
+    default:
+      return BacklashState::APART;
+  }
+}
+}  // namespace
+
+ServoNode::ServoNode(ros::NodeHandle& nh, ros::NodeHandle& pnh, const NodeConfig& config)
+  : config_(config)
+  , clock_mode_(config.publish_clock ? ClockMode::Publisher :
+                                       (ros::Time::isSimTime() ? ClockMode::External : ClockMode::RealTime))
+  , sim_(config.run.params, config.run.initial, config.run.command)
+  , command_(config.run.command)
+  , effort_(config.motor_effort)
+  , paused_(config.paused)
+{
+  if (config_.control_mode == ControlMode::Effort)
+  {
+    sim_.setMotorTorque(effort_);
+  }
+  restartDetector();
+  joint_pub_ = nh.advertise<sensor_msgs::JointState>("joint_states", 1000);
+  impact_pub_ = nh.advertise<ImpactEvent>("impact", 10000);
+  state_pub_ = nh.advertise<BacklashState>("backlash_state", 1000);
+  limit_cycle_pub_ = nh.advertise<LimitCycleStatus>("limit_cycle", 1000, true);
+  if (clock_mode_ == ClockMode::Publisher)
+  {
+    clock_pub_ = nh.advertise<rosgraph_msgs::Clock>("/clock", 1000);
+    if (!ros::Time::isSimTime())
+    {
+      ROS_WARN("backlash_servo_node: publish_clock is true but use_sim_time is false: other nodes will not follow");
+    }
+  }
+  command_sub_ = nh.subscribe("command", 100, &ServoNode::onCommand, this);
+  effort_sub_ = nh.subscribe("motor_effort", 100, &ServoNode::onEffort, this);
+  reset_srv_ = pnh.advertiseService("reset", &ServoNode::onReset, this);
+  pause_srv_ = pnh.advertiseService("pause", &ServoNode::onPause, this);
+  resume_srv_ = pnh.advertiseService("resume", &ServoNode::onResume, this);
+
+  // Seed the server with the loaded parameters before the callback is set (it is called once at once).
+  reconfigure_ = std::make_unique<dynamic_reconfigure::Server<BacklashServoConfig>>(reconfigure_mutex_, pnh);
+  last_good_ = currentConfig();
+  reconfigure_->updateConfig(last_good_);
+  reconfigure_->setCallback([this](BacklashServoConfig& c, uint32_t level) { onReconfigure(c, level); });
+
+  if (clock_mode_ == ClockMode::External)
+  {
+    ros::Time::waitForValid();
+    origin_ = ros::Time::now();
+  }
+  else if (clock_mode_ == ClockMode::Publisher)
+  {
+    const ros::WallTime w = ros::WallTime::now();
+    origin_ = ros::Time(w.sec, w.nsec);
+  }
+  else
+  {
+    origin_ = ros::Time::now();
+  }
+  const char* modes[] = {"real time", "publishing /clock", "following /clock"};
+  ROS_INFO("backlash_servo_node: %s, real_time_factor %g, %g Hz, zeta %.3g, w_n %.3g rad/s, backlash %g rad, e %g",
+           modes[static_cast<int>(clock_mode_)], config_.real_time_factor, config_.publish_rate,
+           sim_.params().dampingRatio(), sim_.params().naturalFrequency(), sim_.params().backlash,
+           sim_.params().restitution);
+}
+
+BacklashServoConfig ServoNode::currentConfig() const
+{
+  BacklashServoConfig c;
+  const ServoParams& p = sim_.params();
+  c.motor_inertia = p.motor_inertia;
+  c.load_inertia = p.load_inertia;
+  c.motor_friction = p.motor_friction;
+  c.load_friction = p.load_friction;
+  c.gain = p.gain;
+  c.gear_ratio = p.gear_ratio;
+  c.backlash = p.backlash;
+  c.restitution = p.restitution;
+  c.control_mode = config_.control_mode == ControlMode::Effort ? 1 : 0;
+  c.publish_rate = config_.publish_rate;
+  c.real_time_factor = config_.real_time_factor;
+  c.min_impact_speed = config_.min_impact_speed;
+  return c;
+}
+
+void ServoNode::reanchorWallClock()
+{
+  wall_anchor_ = ros::WallTime::now();
+  sim_anchor_ = sim_.state().time;
+}
+
+void ServoNode::restartDetector()
+{
+  const double scale =
+      std::max({sim_.params().backlash, std::fabs(command_ - sim_.state().load_position), 1e-12});
+  detector_ = std::make_unique<LimitCycleDetector>(command_, scale);
+  announced_ = Verdict::Undecided;
+}
+
+void ServoNode::run()
+{
+  // Give recorders and monitors time to subscribe before sim time starts (callbacks are served meanwhile).
+  const ros::WallTime start = ros::WallTime::now() + ros::WallDuration(config_.start_delay);
+  while (ros::ok() && ros::WallTime::now() < start)
+  {
+    ros::spinOnce();
+    ros::WallDuration(0.01).sleep();
+  }
+  reanchorWallClock();
+  if (clock_mode_ == ClockMode::Publisher)
+  {
+    rosgraph_msgs::Clock clock;
+    clock.clock = stamp(0.0);
+    clock_pub_.publish(clock);
+  }
+  publishSample();
+  sample_index_ = 1;
+  while (ros::ok())
+  {
+    ros::spinOnce();  // commands, services and reconfigure act here, at a step boundary
+    if (paused_)
+    {
+      ros::WallDuration(0.005).sleep();
+      reanchorWallClock();
+      continue;
+    }
+    const double t = sample_base_ + static_cast<double>(sample_index_) / config_.publish_rate;
+    if (clock_mode_ == ClockMode::External)
+    {
+      if (ros::Time::now() < stamp(t))
+      {
+        ros::WallDuration(0.0005).sleep();
+        continue;
+      }
+    }
+    else if (config_.real_time_factor > 0.0)
+    {
+      const double wait = (wall_anchor_.toSec() + (t - sim_anchor_) / config_.real_time_factor) -
+                          ros::WallTime::now().toSec();
+      if (wait > 0.0)
+      {
+        ros::WallDuration(std::min(wait, 0.005)).sleep();
+        continue;
+      }
+    }
+    sim_.advanceTo(t, this);
+    ++sample_index_;
+    if (clock_mode_ == ClockMode::Publisher)
+    {
+      rosgraph_msgs::Clock clock;
+      clock.clock = stamp(t);
+      clock_pub_.publish(clock);
+    }
+    publishSample();
+    if (config_.stop_after > 0.0 && t >= config_.stop_after)
+    {
+      ROS_INFO("backlash_servo_node: stop_after %g s reached: verdict %s, error %.6g rad, period %.6g s, %llu impacts",
+               config_.stop_after, toString(detector_->status().verdict), detector_->status().error,
+               detector_->status().period, static_cast<unsigned long long>(sim_.impactCount()));
+      break;
+    }
+  }
+  ros::shutdown();
+}
+
+void ServoNode::publishSample()
+{
+  const State& s = sim_.state();
+  const ros::Time now = stamp(s.time);
+  sensor_msgs::JointState js;
+  js.header.stamp = now;
+  js.name = {config_.motor_joint_name, config_.load_joint_name};
+  js.position = {s.motor_position, s.load_position};
+  js.velocity = {s.motor_velocity, s.load_velocity};
+  js.effort = {sim_.motorTorque(), sim_.meshTorque()};
+  joint_pub_.publish(js);
+
+  BacklashState b;
+  b.header.stamp = now;
+  b.sim_time = s.time;
+  b.contact = contactCode(s.contact);
+  b.gap = sim_.gap();
+  b.mesh_torque = sim_.meshTorque();
+  b.motor_torque = sim_.motorTorque();
+  b.command = command_;
+  b.control_mode = sim_.controlMode() == ControlMode::Effort ? BacklashState::EFFORT : BacklashState::POSITION;
+  const EnergyLedger& e = sim_.energy();
+  b.energy_input = e.input;
+  b.energy_motor_friction = e.motor_friction;
+  b.energy_load_friction = e.load_friction;
+  b.energy_impact_loss = e.impact_loss;
+  b.energy_kinetic = sim_.kineticEnergy();
+  b.impacts = sim_.impactCount();
+  state_pub_.publish(b);
+}
+
+void ServoNode::onEvent(const Event& e)
+{
+  if (e.type == EventType::Impact)
+  {
+    if (e.impact.approach_speed < config_.min_impact_speed)
+    {
+      return;  // filtered from publishing only; it was simulated
+    }
+    ImpactEvent m;
+    m.header.stamp = stamp(e.state.time);
+    m.sim_time = e.state.time;
+    m.wall = e.impact.wall == Contact::Backward ? ImpactEvent::BACKWARD : ImpactEvent::FORWARD;
+    m.motor_velocity_before = e.impact.motor_velocity_before;
+    m.motor_velocity_after = e.impact.motor_velocity_after;
+    m.load_velocity_before = e.impact.load_velocity_before;
+    m.load_velocity_after = e.impact.load_velocity_after;
+    m.approach_speed = e.impact.approach_speed;
+    m.impulse = e.impact.impulse;
+    m.energy_loss = e.impact.energy_loss;
+    m.stuck = e.impact.stuck;
+    impact_pub_.publish(m);
+  }
+  else if (e.type == EventType::Maximum && sim_.controlMode() == ControlMode::Position)
+  {
+    const std::size_t before = detector_->maxima().size();
+    detector_->addMaximum({e.state.time, e.state.load_position, e.state.load_velocity});
+    if (detector_->maxima().size() == before)
+    {
+      return;  // not above the command
+    }
+    publishLimitCycle(e.state.time);
+  }
+}
+
+void ServoNode::publishLimitCycle(double sim_time)
+{
+  const auto& st = detector_->status();
+  const Maximum& last = detector_->maxima().back();
+  LimitCycleStatus m;
+  m.header.stamp = stamp(sim_time);
+  m.sim_time = sim_time;
+  m.verdict = toString(st.verdict);
+  m.detected = detector_->oscillating();
+  m.error = m.detected ? st.error : 0.0;
+  m.period = m.detected ? st.period : 0.0;
+  m.maxima_observed = static_cast<uint32_t>(detector_->maxima().size());
+  m.last_maximum_time = last.time;
+  m.last_maximum_position = last.position;
+  m.last_maximum_velocity = last.velocity;
+  m.command = command_;
+  limit_cycle_pub_.publish(m);
+  ROS_INFO("maximum #%u at t = %.4f s: load %.6f rad (error %+.6f rad); verdict: %s", m.maxima_observed, last.time,
+           last.position, last.position - command_, m.verdict.c_str());
+  if (st.verdict != announced_)
+  {
+    announced_ = st.verdict;
+    if (m.detected)
+    {
+      ROS_INFO("%s detected: error %.6f rad, period %.4f s", st.verdict == Verdict::LimitCycle ? "LIMIT CYCLE" :
+                                                                                             "IRREGULAR OSCILLATION",
+               st.error, st.period);
+    }
+    else if (st.verdict == Verdict::Converged)
+    {
+      ROS_INFO("converging to the command: no limit cycle");
+    }
+  }
+}
+
+void ServoNode::onCommand(const std_msgs::Float64& msg)
+{
+  if (!std::isfinite(msg.data))
+  {
+    ROS_WARN_THROTTLE(1.0, "backlash_servo_node: dropped non-finite command %f (keeping %g rad)", msg.data, command_);
+    return;
+  }
+  command_ = msg.data;
+  if (sim_.controlMode() == ControlMode::Position)
+  {
+    sim_.setCommand(command_);
+    restartDetector();
+  }
+}
+
+void ServoNode::onEffort(const std_msgs::Float64& msg)
+{
+  if (!std::isfinite(msg.data))
+  {
+    ROS_WARN_THROTTLE(1.0, "backlash_servo_node: dropped non-finite motor_effort %f (keeping %g N·m)", msg.data,
+                      effort_);
+    return;
+  }
+  effort_ = msg.data;
+  if (sim_.controlMode() == ControlMode::Effort)
+  {
+    sim_.setMotorTorque(effort_);
+  }
+  else
+  {
+    ROS_WARN_THROTTLE(5.0, "backlash_servo_node: motor_effort ignored in position mode (set control_mode: effort)");
+  }
+}
+
+bool ServoNode::onReset(std_srvs::Trigger::Request&, std_srvs::Trigger::Response& res)
+{
+  State initial = config_.run.initial;
+  initial.time = sim_.state().time;  // time never runs backwards
+  try
+  {
+    sim_.setState(initial);
+  }
+  catch (const std::exception& e)
+  {
+    res.success = false;
+    res.message = std::string("initial state does not fit the current parameters: ") + e.what();
+    ROS_ERROR("backlash_servo_node: reset refused: %s", res.message.c_str());
+    return true;
+  }
+  command_ = config_.run.command;
+  if (sim_.controlMode() == ControlMode::Position)
+  {
+    sim_.setCommand(command_);
+  }
+  restartDetector();
+  res.success = true;
+  res.message = "reset to the initial state at t = " + std::to_string(initial.time) + " s";
+  return true;
+}
+
+bool ServoNode::onPause(std_srvs::Trigger::Request&, std_srvs::Trigger::Response& res)
+{
+  paused_ = true;
+  res.success = true;
+  res.message = "paused at t = " + std::to_string(sim_.state().time) + " s";
+  return true;
+}
+
+bool ServoNode::onResume(std_srvs::Trigger::Request&, std_srvs::Trigger::Response& res)
+{
+  paused_ = false;
+  reanchorWallClock();
+  res.success = true;
+  res.message = "running from t = " + std::to_string(sim_.state().time) + " s";
+  return true;
+}
+
+void ServoNode::onReconfigure(BacklashServoConfig& c, uint32_t)
+{
+  ServoParams p;
+  p.motor_inertia = c.motor_inertia;
+  p.load_inertia = c.load_inertia;
+  p.motor_friction = c.motor_friction;
+  p.load_friction = c.load_friction;
+  p.gain = c.gain;
+  p.gear_ratio = c.gear_ratio;
+  p.backlash = c.backlash;
+  p.restitution = c.restitution;
+  NodeConfig next = config_;
+  next.publish_rate = c.publish_rate;
+  next.real_time_factor = c.real_time_factor;
+  next.min_impact_speed = c.min_impact_speed;
+  next.control_mode = c.control_mode == 1 ? ControlMode::Effort : ControlMode::Position;
+  try
+  {
+    p.validate();
+    validateNodeSettings(next);
+    sim_.setParams(p);  // at this step boundary, no jump in θ_c or ω_c (see README for a shrinking backlash)
+  }
+  catch (const std::exception& e)
+  {
+    ROS_ERROR("backlash_servo_node: reconfigure refused (%s); keeping the previous values", e.what());
+    c = last_good_;
+    return;
+  }
+  if (next.control_mode != config_.control_mode)
+  {
+    if (next.control_mode == ControlMode::Effort)
+    {
+      sim_.setMotorTorque(effort_);
+    }
+    else
+    {
+      sim_.setCommand(command_);
+    }
+    restartDetector();
+  }
+  if (next.publish_rate != config_.publish_rate)
+  {
+    sample_base_ = sim_.state().time;
+    sample_index_ = 1;
+  }
+  config_ = next;
+  reanchorWallClock();
+  last_good_ = c;
+}
+
+}  // namespace backlash_servo

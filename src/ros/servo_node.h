@@ -1,0 +1,84 @@
+/**
+ * @file servo_node.h
+ * @brief backlash_servo_node: the simulated servo joint in a live ROS graph. A thin adapter around Simulator —
+ *        all physics (event location, impacts, verdict) stays in the core.
+ *
+ * Time: the simulator advances sample by sample (publish_rate, in sim time); impacts and maxima between samples are
+ * located exactly by the core and published with their exact stamps. The sample loop is paced by the wall clock
+ * (real_time_factor), runs free (publish_clock with real_time_factor 0), or follows an external /clock.
+ */
+#pragma once
+
+#include <dynamic_reconfigure/server.h>
+#include <ros/ros.h>
+#include <std_msgs/Float64.h>
+#include <std_srvs/Trigger.h>
+
+#include <boost/thread/recursive_mutex.hpp>
+#include <memory>
+
+#include "backlash_servo/BacklashServoConfig.h"
+#include "backlash_servo/limit_cycle.h"
+#include "backlash_servo/simulator.h"
+#include "node_config.h"
+
+namespace backlash_servo
+{
+class ServoNode : public EventSink
+{
+public:
+  ServoNode(ros::NodeHandle& nh, ros::NodeHandle& pnh, const NodeConfig& config);
+  /// Runs the sample loop until shutdown (or stop_after).
+  void run();
+
+  /// Core events (called during Simulator::advanceTo): impacts and maxima are published here.
+  void onEvent(const Event& event) override;
+
+private:
+  enum class ClockMode
+  {
+    RealTime,  ///< follow the wall clock scaled by real_time_factor
+    Publisher, ///< the node publishes /clock
+    External   ///< follow /clock from elsewhere
+  };
+
+  void onCommand(const std_msgs::Float64& msg);
+  void onEffort(const std_msgs::Float64& msg);
+  bool onReset(std_srvs::Trigger::Request& req, std_srvs::Trigger::Response& res);
+  bool onPause(std_srvs::Trigger::Request& req, std_srvs::Trigger::Response& res);
+  bool onResume(std_srvs::Trigger::Request& req, std_srvs::Trigger::Response& res);
+  void onReconfigure(BacklashServoConfig& config, uint32_t level);
+
+  /// Waits (serving callbacks) until the sample at sim time t may be computed; false on shutdown.
+  bool waitFor(double t);
+  void publishSample();
+  void publishLimitCycle(double sim_time);
+  void restartDetector();
+  void reanchorWallClock();
+  ros::Time stamp(double sim_time) const { return origin_ + ros::Duration(sim_time); }
+  BacklashServoConfig currentConfig() const;
+
+  NodeConfig config_;
+  ClockMode clock_mode_;
+  Simulator sim_;
+  double command_;  // θ_R [rad], kept also in effort mode for switching back
+  double effort_;   // effort-mode torque [N·m]
+  std::unique_ptr<LimitCycleDetector> detector_;
+  Verdict announced_ = Verdict::Undecided;
+
+  ros::Publisher joint_pub_, impact_pub_, state_pub_, limit_cycle_pub_, clock_pub_;
+  ros::Subscriber command_sub_, effort_sub_;
+  ros::ServiceServer reset_srv_, pause_srv_, resume_srv_;
+  boost::recursive_mutex reconfigure_mutex_;
+  std::unique_ptr<dynamic_reconfigure::Server<BacklashServoConfig>> reconfigure_;
+  BacklashServoConfig last_good_;
+
+  ros::Time origin_;           // ROS time of sim time 0
+  double sample_base_ = 0.0;   // sim time of sample 0 of the current schedule [s]
+  long sample_index_ = 0;      // index of the next sample
+  ros::WallTime wall_anchor_;  // wall time at which the sim was at sim_anchor_
+  double sim_anchor_ = 0.0;
+  bool paused_ = false;
+};
+
+}  // namespace backlash_servo
