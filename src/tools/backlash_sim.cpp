@@ -256,8 +256,16 @@ void writeSummary(std::ostream& out, const RunConfig& c, const RunSummary& r, do
   }
   else
   {
-    std::snprintf(buf, sizeof buf, "verdict: undecided after %g s (latest fixed-point estimate %.6g rad)\n",
-                  r.simulated, r.status.extrapolated);
+    if (r.maxima.size() >= 3)
+    {
+      std::snprintf(buf, sizeof buf, "verdict: undecided after %g s (latest fixed-point estimate %.6g rad)\n",
+                    r.simulated, r.status.extrapolated);
+    }
+    else
+    {
+      std::snprintf(buf, sizeof buf, "verdict: undecided after %g s (%zu positive maxima so far)\n", r.simulated,
+                    r.maxima.size());
+    }
   }
   out << buf;
   out << "positive maxima (t [s], theta_c [rad]):";
