@@ -25,6 +25,9 @@ if [ ${#missing[@]} -gt 0 ]; then
 fi
 
 BUILD_TYPE=${1:-RelWithDebInfo}
+# catkin snapshots the environment at configure time and only puts the devel space's python path (generated
+# messages, used by the rostest clients) into it if the directory already exists.
+mkdir -p build/devel/lib/python3/dist-packages
 cmake -S . -B build -DPYTHON_EXECUTABLE=/usr/bin/python3 -DCMAKE_BUILD_TYPE="$BUILD_TYPE" >/dev/null
 make -C build -j"$(nproc)" all
 echo "setup: built into ./build — 'source build/devel/setup.bash' makes rosrun/roslaunch/rostest find the package"

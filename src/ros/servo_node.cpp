@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <ctime>
 
 #include "backlash_servo/BacklashState.h"
 #include "backlash_servo/ImpactEvent.h"
@@ -130,6 +131,7 @@ void ServoNode::run()
     ros::WallDuration(0.01).sleep();
   }
   reanchorWallClock();
+  const ros::WallTime run_start = ros::WallTime::now();
   if (clock_mode_ == ClockMode::Publisher)
   {
     rosgraph_msgs::Clock clock;
@@ -177,9 +179,14 @@ void ServoNode::run()
     publishSample();
     if (config_.stop_after > 0.0 && t >= config_.stop_after)
     {
+      const double wall = (ros::WallTime::now() - run_start).toSec();
+      const double cpu = static_cast<double>(std::clock()) / CLOCKS_PER_SEC;
       ROS_INFO("backlash_servo_node: stop_after %g s reached: verdict %s, error %.6g rad, period %.6g s, %llu impacts",
                config_.stop_after, toString(detector_->status().verdict), detector_->status().error,
                detector_->status().period, static_cast<unsigned long long>(sim_.impactCount()));
+      ROS_INFO("backlash_servo_node: %ld samples at %g Hz in %.3f s wall: achieved real-time factor %.1f, "
+               "CPU %.3f s (%.1f %% of one core)",
+               sample_index_, config_.publish_rate, wall, t / wall, cpu, 100.0 * cpu / wall);
       break;
     }
   }
