@@ -5,7 +5,7 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 export PATH=/usr/bin:$PATH
-source build/devel/setup.bash
+set +u; source build/devel/setup.bash; set -u
 tmp=$(mktemp -d)
 run() {
   roslaunch backlash_servo backlash_servo.launch config:="$PWD/config/thesis_limit_cycle.yaml" record:=true \

@@ -6,5 +6,5 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 export PATH=/usr/bin:$PATH
 bash scripts/setup.sh >/dev/null
-source build/devel/setup.bash
+set +u; source build/devel/setup.bash; set -u
 exec roslaunch backlash_servo thesis_limit_cycle.launch real_time_factor:=20 stop_after:=200 "$@"

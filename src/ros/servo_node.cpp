@@ -160,12 +160,18 @@ void ServoNode::run()
     }
     else if (config_.real_time_factor > 0.0)
     {
+      // Long waits are cut into 5 ms slices so callbacks stay responsive; the last slice ends exactly on time and
+      // falls through (one wake-up and one spinOnce per sample at high rates).
       const double wait = (wall_anchor_.toSec() + (t - sim_anchor_) / config_.real_time_factor) -
                           ros::WallTime::now().toSec();
+      if (wait > 0.005)
+      {
+        ros::WallDuration(0.005).sleep();
+        continue;
+      }
       if (wait > 0.0)
       {
-        ros::WallDuration(std::min(wait, 0.005)).sleep();
-        continue;
+        ros::WallDuration(wait).sleep();
       }
     }
     sim_.advanceTo(t, this);
