@@ -46,6 +46,8 @@ public:
 
   /// f(τ).
   double operator()(double tau) const;
+  /// f(τ) and f'(τ) in one pass (shared exponentials).
+  void evaluateWithDerivative(double tau, double* value, double* slope) const;
   /// f(τ) and a bound on its rounding error (a multiple of ε Σ|c_k τ^k e^{rτ}|).
   double evaluate(double tau, double* rounding_bound) const;
 

@@ -65,7 +65,7 @@ private:
   double x_eq_ = 0.0, sigma_ = 0.0, omega_ = 0.0, a_ = 0.0, b_ = 0.0;
   double vel_c_ = 0.0, vel_d_ = 0.0, torque_c_ = 0.0, torque_d_ = 0.0;
   // Real exponents: closed forms as exponential polynomials.
-  ExpPoly position_, velocity_, torque_;
+  ExpPoly position_, velocity_, acceleration_, torque_;
 };
 
 /**

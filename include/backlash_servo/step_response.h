@@ -23,6 +23,7 @@ struct RunConfig
   double command = 1.0;   ///< θ_R [rad], applied at the initial time
   double duration = 0.0;  ///< simulate exactly this long [s]; 0 = until the verdict is settled
   double max_duration = 0.0;  ///< cap when running until settled [s]; 0 = 2000/ω_n
+  bool track_energy = true;   ///< energy ledger (off: ~25 % faster, energy fields of the summary are zero)
 };
 
 struct RunSummary

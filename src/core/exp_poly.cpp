@@ -84,16 +84,14 @@ void ExpPoly::addTerm(double rate, const double* coef, int degree)
   {
     throw std::logic_error("ExpPoly: term limit exceeded");
   }
-  ExpTerm t;
+  ExpTerm& t = terms_[n_];
   t.rate = rate;
   t.degree = degree;
-  for (int k = 0; k <= degree; ++k)
-  {
-    t.coef[k] = coef[k];
-  }
+  std::copy(coef, coef + degree + 1, t.coef.begin());
+  std::fill(t.coef.begin() + degree + 1, t.coef.end(), 0.0);  // invariant: coef[k] = 0 above the degree
   if (trimDegree(t))
   {
-    terms_[n_++] = t;
+    ++n_;
   }
 }
 
@@ -364,6 +362,35 @@ int ExpPoly::signChangeRoots(double a, double b, double* out) const
   return count;
 }
 
+void ExpPoly::evaluateWithDerivative(double tau, double* value, double* slope) const
+{
+  double f = 0.0, df = 0.0;
+  for (int i = 0; i < n_; ++i)
+  {
+    const ExpTerm& t = terms_[i];
+    double p = t.coef[t.degree];
+    double dp = 0.0;
+    for (int k = t.degree - 1; k >= 0; --k)
+    {
+      dp = dp * tau + p;
+      p = p * tau + t.coef[k];
+    }
+    if (t.rate == 0.0)
+    {
+      f += p;
+      df += dp;
+    }
+    else
+    {
+      const double ex = std::exp(t.rate * tau);
+      f += p * ex;
+      df += (dp + t.rate * p) * ex;
+    }
+  }
+  *value = f;
+  *slope = df;
+}
+
 double ExpPoly::refineRoot(double level, double a, double b) const
 {
   double fa = (*this)(a) - level;
@@ -380,59 +407,49 @@ double ExpPoly::refineRoot(double level, double a, double b) const
   {
     return std::fabs(fa) < std::fabs(fb) ? a : b;
   }
-  // Illinois false position, with a bisection whenever the bracket fails to halve in three steps.
-  int side = 0;
-  double width = b - a;
-  for (int it = 0; it < 300; ++it)
+  // Safeguarded Newton (rtsafe): Newton steps while they stay inside the shrinking bracket and converge fast,
+  // bisection otherwise. f is monotone on [a, b], so the bracket always holds the single root.
+  const bool rising = fb > 0.0;
+  double x = fabs(fa) < fabs(fb) ? a : b;
+  double step_before = b - a;
+  double step = step_before;
+  for (int it = 0; it < 200; ++it)
   {
-    if (b - a <= 2.0 * EPS * std::max(std::fabs(a), std::fabs(b)) || b - a <= std::numeric_limits<double>::min())
-    {
-      break;
-    }
-    double x;
-    if (it % 3 == 2 && b - a > 0.5 * width)
-    {
-      x = 0.5 * (a + b);
-    }
-    else
-    {
-      x = (a * fb - b * fa) / (fb - fa);
-      if (!(x > a && x < b))
-      {
-        x = 0.5 * (a + b);
-      }
-    }
-    if (it % 3 == 2)
-    {
-      width = b - a;
-    }
-    const double fx = (*this)(x)-level;
-    if (fx == 0.0)
+    double f, df;
+    evaluateWithDerivative(x, &f, &df);
+    f -= level;
+    if (f == 0.0)
     {
       return x;
     }
-    if ((fx < 0.0) == (fa < 0.0))
+    if ((f > 0.0) == rising)
     {
-      a = x;
-      fa = fx;
-      if (side == -1)
-      {
-        fb *= 0.5;
-      }
-      side = -1;
+      b = x;
     }
     else
     {
-      b = x;
-      fb = fx;
-      if (side == 1)
-      {
-        fa *= 0.5;
-      }
-      side = 1;
+      a = x;
+    }
+    const double newton = df != 0.0 ? x - f / df : a - 1.0;
+    if (newton <= a || newton >= b || std::fabs(2.0 * f) > std::fabs(step_before * df))
+    {
+      step_before = step;
+      step = 0.5 * (b - a);
+      x = a + step;
+    }
+    else
+    {
+      step_before = step;
+      step = std::fabs(newton - x);
+      x = newton;
+    }
+    if (b - a <= 2.0 * EPS * std::max(std::fabs(a), std::fabs(b)) || b - a <= std::numeric_limits<double>::min() ||
+        step <= 2.0 * EPS * std::fabs(x))
+    {
+      break;
     }
   }
-  return std::fabs(fa) < std::fabs(fb) ? a : b;
+  return x;
 }
 
 }  // namespace backlash_servo

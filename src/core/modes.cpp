@@ -46,23 +46,25 @@ std::complex<double> integralExp(std::complex<double> z, double upper)
 
 /**
  * Down-crossings (+ to −) of f in (0, horizon], located exactly: f is monotone between the sign changes of f'.
- * Values within f's rounding bound count as zero: a crossing needs f below −bound. With require_positive_first,
+ * Values within rounding (bound(τ)) count as zero: a crossing needs f below −bound. With require_positive_first,
  * f must first exceed +bound (a maximum of θ_c needs a positive velocity before it).
  */
-int walkDownCrossings(const ExpPoly& f, double horizon, bool require_positive_first, double* out, int max_out)
+template <class Bound>
+int walkDownCrossings(const ExpPoly& f, const Bound& bound, double horizon, bool require_positive_first, double* out,
+                      int max_out)
 {
   double crit[EXP_POLY_MAX_ROOTS];
   const int m = f.derivative().signChangeRoots(0.0, horizon, crit);
-  double bound = 0.0;
   double p = 0.0;
-  double fp = f.evaluate(0.0, &bound);
-  bool armed = !require_positive_first || fp > bound;
+  double fp = f(0.0);
+  bool armed = !require_positive_first || fp > bound(0.0);
   int count = 0;
   for (int i = 0; i <= m && count < max_out; ++i)
   {
     const double q = i < m ? crit[i] : horizon;
-    const double fq = f.evaluate(q, &bound);
-    if (armed && fq < -bound)
+    const double fq = f(q);
+    const double bq = bound(q);
+    if (armed && fq < -bq)
     {
       out[count++] = fp > 0.0 ? f.refineRoot(0.0, p, q) : p;
       armed = !require_positive_first;
@@ -71,7 +73,7 @@ int walkDownCrossings(const ExpPoly& f, double horizon, bool require_positive_fi
         break;
       }
     }
-    if (fq > bound)
+    if (fq > bq)
     {
       armed = true;
     }
@@ -79,6 +81,16 @@ int walkDownCrossings(const ExpPoly& f, double horizon, bool require_positive_fi
     fp = fq;
   }
   return count;
+}
+
+/// Rounding bound of a·f(τ) + b·g(τ) from the bounds of its parts (merging like terms can cancel, hiding the
+/// magnitudes the rounding came from).
+double combinedBound(const ExpPoly& f, double a, const ExpPoly& g, double b, double tau)
+{
+  double bf = 0.0, bg = 0.0;
+  const double vf = f.evaluate(tau, &bf);
+  const double vg = g.evaluate(tau, &bg);
+  return std::fabs(a) * (bf + 16.0 * EPS * std::fabs(vf)) + std::fabs(b) * (bg + 16.0 * EPS * std::fabs(vg));
 }
 }  // namespace
 
@@ -173,7 +185,8 @@ ContactMotion::ContactMotion(const ServoParams& params, const MotorInput& input,
     position_ = ExpPoly::constant(x0) + ExpPoly::monomial(v0, 1, 0.0) + ExpPoly::monomial(0.5 * r, 2, 0.0);
   }
   velocity_ = position_.derivative();
-  torque_ = velocity_.derivative() * params.load_inertia + velocity_ * params.load_friction;
+  acceleration_ = velocity_.derivative();
+  torque_ = acceleration_ * params.load_inertia + velocity_ * params.load_friction;
 }
 
 void ContactMotion::at(double tau, double* x, double* v) const
@@ -205,8 +218,15 @@ int ContactMotion::downCrossings(int which, double sign, double horizon, bool re
 {
   if (!oscillatory_)
   {
-    return walkDownCrossings((which == 0 ? velocity_ : torque_) * sign, horizon, require_positive_first, out,
-                             max_out);
+    if (which == 0)
+    {
+      auto bound = [&](double tau) { return combinedBound(velocity_, 1.0, velocity_, 0.0, tau); };
+      return walkDownCrossings(velocity_ * sign, bound, horizon, require_positive_first, out, max_out);
+    }
+    auto bound = [&](double tau) {
+      return combinedBound(acceleration_, params_.load_inertia, velocity_, params_.load_friction, tau);
+    };
+    return walkDownCrossings(torque_ * sign, bound, horizon, require_positive_first, out, max_out);
   }
   // e^{−στ}(C cos ωτ + D sin ωτ) = R e^{−στ} cos(ωτ − φ): down-crossings at ωτ − φ = π/2 + 2πk, exactly.
   const double c = sign * (which == 0 ? vel_c_ : torque_c_);
@@ -323,8 +343,9 @@ double FreeMotion::impactTime(double horizon, Contact* wall) const
   for (int i = 0; i <= m; ++i)
   {
     const double q = i < m ? crit[i] : horizon;
-    double bound = 0.0;
-    const double gq = gap_.evaluate(q, &bound);
+    const double gq = gap_(q);
+    // g = θ_c − ρθ_m cancels: its rounding is that of the positions, not of the (small) merged coefficients.
+    const double bound = combinedBound(load_position_, 1.0, motor_position_, params_.gear_ratio, q);
     if (gq < -bound)
     {
       *wall = Contact::Forward;

@@ -294,7 +294,10 @@ void Simulator::advanceContact(double horizon, double t_end, EventSink* sink)
       emit(sink, EventType::Maximum);
     }
   }
-  addFlows(motion.energy(end));
+  if (track_energy_)
+  {
+    addFlows(motion.energy(end));
+  }
   place(end);
   if (separation <= horizon)
   {
@@ -309,7 +312,10 @@ void Simulator::advanceFree(double horizon, double t_end, EventSink* sink)
   Contact wall = Contact::Forward;
   const double impact = motion.impactTime(horizon, &wall);
   const double end = std::min(impact, horizon);
-  addFlows(motion.energy(end));
+  if (track_energy_)
+  {
+    addFlows(motion.energy(end));
+  }
   const double t0 = state_.time;
   motion.at(end, &state_);
   state_.time = end >= horizon ? t_end : t0 + end;

@@ -8,6 +8,8 @@ namespace backlash_servo
 namespace
 {
 constexpr double PI = 3.14159265358979323846;
+/// A quiet servo must be within this fraction of the scale (max(Δ, step)) of its command to count as converged.
+constexpr double QUIET_ERROR_FRACTION = 1e-2;
 
 /// Feeds maxima to the detector and forwards every event.
 class Watcher : public EventSink
@@ -35,6 +37,7 @@ private:
 RunSummary runResponse(const RunConfig& config, EventSink* sink, double sample_period, const SampleCallback& on_sample)
 {
   Simulator sim(config.params, config.initial, config.command);
+  sim.setEnergyTracking(config.track_energy);
   const double omega_n = config.params.naturalFrequency();
   const double scale = std::max({config.params.backlash, std::fabs(config.command - config.initial.load_position),
                                  1e-12});
@@ -46,6 +49,9 @@ RunSummary runResponse(const RunConfig& config, EventSink* sink, double sample_p
                                             : config.duration);
   const double chunk = sample_period > 0.0 ? sample_period : 2.0 * PI / omega_n;
   const double rest = LimitCycleDetector::ZERO_FRACTION * scale;
+  // Quiet: no new positive maximum for a long time while close to the command means no oscillation is left, only
+  // the slow creep of the motor across the backlash under a vanishing torque.
+  const double quiet_floor = 10.0 * 2.0 * PI / omega_n;
   if (on_sample)
   {
     on_sample(sim);
@@ -61,6 +67,18 @@ RunSummary runResponse(const RunConfig& config, EventSink* sink, double sample_p
     const State& s = sim.state();
     if (std::fabs(s.load_position - config.command) <= rest && std::fabs(s.load_velocity) <= rest * omega_n &&
         std::fabs(config.params.gear_ratio * s.motor_velocity) <= rest * omega_n)
+    {
+      detector.markAtRest();
+    }
+    const std::vector<Maximum>& m = detector.maxima();
+    double longest = 0.0;
+    for (std::size_t k = 1; k < m.size(); ++k)
+    {
+      longest = std::max(longest, m[k].time - m[k - 1].time);
+    }
+    const double last = m.empty() ? t0 : m.back().time;
+    if (s.time - last > std::max(quiet_floor, 5.0 * longest) &&
+        std::fabs(s.load_position - config.command) <= QUIET_ERROR_FRACTION * scale)
     {
       detector.markAtRest();
     }

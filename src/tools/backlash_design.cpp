@@ -1,0 +1,362 @@
+// backlash_design: the thesis' Section 6 design procedure, by simulation instead of chart reading.
+// See README, "backlash_design".
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <functional>
+#include <iostream>
+#include <sstream>
+#include <vector>
+
+#include "json_writer.h"
+#include "sim_options.h"
+
+using namespace backlash_servo;
+
+namespace
+{
+const char* USAGE = R"(usage: backlash_design --motor-inertia J_m --motor-friction f_m --load-inertia J_L --load-friction f_L
+                       --restitution e [--backlash D] [--gain K|LO:HI] [--gear-ratio rho|LO:HI]
+                       [--find max-gain|gear-ratio] [--json]
+Computes zeta, w_n and the chart coordinates of a motor/gear/load choice and simulates whether it falls into a
+limit cycle (and how big). --find max-gain bisects the largest servo gain K [N·m/rad] without a limit cycle in the
+gain range (default K/1000 .. K*1000); --find gear-ratio scans the gear-ratio range (default rho/10 .. rho*10) for
+ratios without a limit cycle. SI units; defaults: K = 1, rho = 1, backlash 0.3 rad.
+)";
+
+struct Design
+{
+  ServoParams base;  // J_m, f_m, J_L, f_L, e, Δ; gain and gear_ratio set per evaluation
+  double gain = 1.0, gain_lo = 0.0, gain_hi = 0.0;
+  double rho = 1.0, rho_lo = 0.0, rho_hi = 0.0;
+  std::string find;
+  bool json = false;
+};
+
+struct Evaluation
+{
+  ServoParams params;
+  RunSummary run;
+  bool limit_cycle() const
+  {
+    // Undecided counts as a limit cycle: a design tool must not promise what it could not show.
+    return run.status.verdict != Verdict::Converged;
+  }
+};
+
+Evaluation evaluate(const ServoParams& base, double gain, double rho)
+{
+  Evaluation e;
+  e.params = base;
+  e.params.gain = gain;
+  e.params.gear_ratio = rho;
+  RunConfig c;
+  c.params = e.params;
+  c.track_energy = false;  // verdicts only
+  e.run = runResponse(c);
+  return e;
+}
+
+struct Transient
+{
+  double overshoot = 0.0;      // first maximum above the command minus the command [rad] (unit step)
+  double settling_time = 0.0;  // last time outside ±2 % of the step [s]; inf if never settled in the run
+};
+
+Transient transient(const ServoParams& p)
+{
+  RunConfig c;
+  c.params = p;
+  Transient t;
+  double last_outside = 0.0;
+  const double dt = 2.0 * 3.14159265358979 / p.naturalFrequency() / 2000.0;
+  const RunSummary r = runResponse(c, nullptr, dt, [&](const Simulator& sim) {
+    if (std::fabs(sim.state().load_position - 1.0) > 0.02)
+    {
+      last_outside = sim.state().time;
+    }
+  });
+  t.overshoot = r.maxima.empty() ? 0.0 : r.maxima.front().position - 1.0;
+  t.settling_time = r.status.verdict == Verdict::Converged ? last_outside : INFINITY;
+  return t;
+}
+
+void parseRange(const KeyValues& kv, const std::string& key, double* value, double* lo, double* hi)
+{
+  const std::string text = kv.text(key, "");
+  const auto colon = text.find(':');
+  if (colon == std::string::npos)
+  {
+    *value = kv.has(key) ? kv.number(key) : *value;
+    return;
+  }
+  KeyValues part;
+  part.set(key, text.substr(0, colon));
+  *lo = part.number(key);
+  part.set(key, text.substr(colon + 1));
+  *hi = part.number(key);
+  if (!(*lo > 0.0 && *hi > *lo))
+  {
+    throw UsageError(flagName(key) + ": a range LO:HI needs 0 < LO < HI");
+  }
+  *value = std::sqrt(*lo * *hi);
+}
+
+Design parse(int argc, char** argv)
+{
+  KeyValues kv;
+  Design d;
+  for (int i = 1; i < argc; ++i)
+  {
+    const std::string arg = argv[i];
+    if (arg == "--help" || arg == "-h")
+    {
+      std::cout << USAGE;
+      std::exit(0);
+    }
+    if (arg == "--json")
+    {
+      d.json = true;
+      continue;
+    }
+    if (arg.rfind("--", 0) != 0 || i + 1 >= argc)
+    {
+      throw UsageError("unexpected argument '" + arg + "' (see --help)");
+    }
+    std::string key = arg.substr(2);
+    std::replace(key.begin(), key.end(), '-', '_');
+    const std::string value = argv[++i];
+    if (key == "find")
+    {
+      if (value != "max-gain" && value != "gear-ratio")
+      {
+        throw UsageError("--find must be max-gain or gear-ratio");
+      }
+      d.find = value;
+      continue;
+    }
+    const char* known[] = {"motor_inertia", "motor_friction", "load_inertia", "load_friction", "restitution",
+                           "backlash",      "gain",           "gear_ratio"};
+    if (std::find(std::begin(known), std::end(known), key) == std::end(known))
+    {
+      throw UsageError("unknown option " + arg + " (see --help)");
+    }
+    kv.set(key, value);
+  }
+  for (const char* required : {"motor_inertia", "motor_friction", "load_inertia", "load_friction", "restitution"})
+  {
+    if (!kv.has(required))
+    {
+      throw UsageError(flagName(required) + " is required");
+    }
+  }
+  d.base.motor_inertia = kv.number("motor_inertia");
+  d.base.motor_friction = kv.number("motor_friction");
+  d.base.load_inertia = kv.number("load_inertia");
+  d.base.load_friction = kv.number("load_friction");
+  d.base.restitution = kv.number("restitution");
+  d.base.backlash = kv.number("backlash", 0.3);
+  parseRange(kv, "gain", &d.gain, &d.gain_lo, &d.gain_hi);
+  parseRange(kv, "gear_ratio", &d.rho, &d.rho_lo, &d.rho_hi);
+  if (d.gain_lo == 0.0)
+  {
+    d.gain_lo = d.gain / 1000.0;
+    d.gain_hi = d.gain * 1000.0;
+  }
+  if (d.rho_lo == 0.0)
+  {
+    d.rho_lo = d.rho / 10.0;
+    d.rho_hi = d.rho * 10.0;
+  }
+  ServoParams check = d.base;
+  check.gain = d.gain;
+  check.gear_ratio = d.rho;
+  check.validate();
+  return d;
+}
+
+/// Largest x in [lo, hi] with no limit cycle, by bisection on log x (verdict assumed monotone: LC above).
+/// Returns {boundary, status}: status 0 found, -1 every value limit-cycles, +1 none does.
+std::pair<double, int> bisect(double lo, double hi, const std::function<bool(double)>& limit_cycles)
+{
+  if (limit_cycles(lo))
+  {
+    return {lo, -1};
+  }
+  if (!limit_cycles(hi))
+  {
+    return {hi, 1};
+  }
+  for (int i = 0; i < 60 && hi / lo > 1.0 + 1e-7; ++i)
+  {
+    const double mid = std::sqrt(lo * hi);
+    (limit_cycles(mid) ? hi : lo) = mid;
+  }
+  return {lo, 0};
+}
+
+void describe(std::ostream& out, const char* title, const Evaluation& e)
+{
+  const ServoParams& p = e.params;
+  char buf[600];
+  std::snprintf(buf, sizeof buf,
+                "%s: K = %.6g N·m/rad, rho = %.6g\n  zeta = %.4g, w_n = %.4g rad/s, rho²J_L/J_m = %.4g, "
+                "rho²f_L/F_T = %.4g\n  simulated: %s",
+                title, p.gain, p.gear_ratio, p.dampingRatio(), p.naturalFrequency(), p.inertiaRatio(),
+                p.frictionRatio(), toString(e.run.status.verdict));
+  out << buf;
+  if (e.run.status.verdict == Verdict::LimitCycle || e.run.status.verdict == Verdict::Irregular)
+  {
+    std::snprintf(buf, sizeof buf, ", error %.6g rad (%.3g × backlash), period %.6g s", e.run.status.error,
+                  e.run.status.error / p.backlash, e.run.status.period);
+    out << buf;
+  }
+  out << "\n";
+}
+
+void evaluationJson(JsonWriter& j, const char* key, const Evaluation& e)
+{
+  const ServoParams& p = e.params;
+  const bool lc = e.run.status.verdict == Verdict::LimitCycle || e.run.status.verdict == Verdict::Irregular;
+  j.beginObject(key)
+      .field("gain", p.gain)
+      .field("gear_ratio", p.gear_ratio)
+      .field("zeta", p.dampingRatio())
+      .field("natural_frequency", p.naturalFrequency())
+      .field("inertia_ratio", p.inertiaRatio())
+      .field("friction_ratio", p.frictionRatio())
+      .field("verdict", std::string(toString(e.run.status.verdict)))
+      .field("limit_cycle", lc)
+      .field("limit_cycle_error", lc ? e.run.status.error : 0.0)
+      .field("period", lc ? e.run.status.period : 0.0)
+      .endObject();
+}
+}  // namespace
+
+int main(int argc, char** argv)
+{
+  Design d;
+  try
+  {
+    d = parse(argc, argv);
+  }
+  catch (const std::exception& e)
+  {
+    std::cerr << "backlash_design: error: " << e.what() << "\n";
+    return 2;
+  }
+  std::ostringstream text;
+  std::ostringstream json_text;
+  JsonWriter j(json_text);
+  j.beginObject();
+  const Evaluation candidate = evaluate(d.base, d.gain, d.rho);
+  describe(text, "candidate", candidate);
+  evaluationJson(j, "candidate", candidate);
+  if (d.find == "max-gain")
+  {
+    const auto found = bisect(d.gain_lo, d.gain_hi,
+                              [&](double k) { return evaluate(d.base, k, d.rho).limit_cycle(); });
+    char buf[300];
+    j.beginObject("max_gain").field("range_low", d.gain_lo).field("range_high", d.gain_hi);
+    if (found.second == -1)
+    {
+      std::snprintf(buf, sizeof buf, "max gain: every K in [%g, %g] limit-cycles\n", d.gain_lo, d.gain_hi);
+      text << buf;
+      j.null("gain");
+    }
+    else if (found.second == 1)
+    {
+      std::snprintf(buf, sizeof buf, "max gain: no limit cycle anywhere up to K = %g (range end)\n", d.gain_hi);
+      text << buf;
+      j.field("gain", d.gain_hi).field("bounded_by_range", true);
+    }
+    else
+    {
+      const double k = found.first;
+      const Evaluation below = evaluate(d.base, k * 0.999, d.rho);
+      const Evaluation above = evaluate(d.base, k * 1.001, d.rho);
+      const Transient t = transient(below.params);
+      std::snprintf(buf, sizeof buf, "max gain without a limit cycle: K = %.6g N·m/rad (bisection to 1e-7)\n", k);
+      text << buf;
+      describe(text, "  check just below (0.999 K)", below);
+      describe(text, "  check just above (1.001 K)", above);
+      std::snprintf(buf, sizeof buf, "chosen design (0.999 K): overshoot %.4g rad (%.3g %%), 2%% settling time %.4g s\n",
+                    t.overshoot, 100.0 * t.overshoot, t.settling_time);
+      text << buf;
+      j.field("gain", k);
+      evaluationJson(j, "check_below", below);
+      evaluationJson(j, "check_above", above);
+      j.field("overshoot", t.overshoot).field("settling_time", t.settling_time);
+    }
+    j.endObject();
+  }
+  else if (d.find == "gear-ratio")
+  {
+    // Scan on a log grid, then refine each change of verdict by bisection.
+    const int n = 41;
+    std::vector<double> rhos(n);
+    std::vector<bool> lc(n);
+    for (int i = 0; i < n; ++i)
+    {
+      rhos[i] = d.rho_lo * std::pow(d.rho_hi / d.rho_lo, static_cast<double>(i) / (n - 1));
+      lc[i] = evaluate(d.base, d.gain, rhos[i]).limit_cycle();
+    }
+    std::vector<std::pair<double, double>> free;
+    double start = lc[0] ? -1.0 : rhos[0];
+    for (int i = 1; i < n; ++i)
+    {
+      if (lc[i] == lc[i - 1])
+      {
+        continue;
+      }
+      double a = rhos[i - 1], b = rhos[i];
+      for (int it = 0; it < 40 && b / a > 1.0 + 1e-7; ++it)
+      {
+        const double mid = std::sqrt(a * b);
+        (evaluate(d.base, d.gain, mid).limit_cycle() == lc[i - 1] ? a : b) = mid;
+      }
+      if (lc[i])
+      {
+        free.emplace_back(start, a);
+      }
+      else
+      {
+        start = b;
+      }
+    }
+    if (!lc[n - 1])
+    {
+      free.emplace_back(start, rhos[n - 1]);
+    }
+    j.beginArray("gear_ratios_without_limit_cycle");
+    text << "gear ratios without a limit cycle in [" << d.rho_lo << ", " << d.rho_hi << "]:";
+    double best = 0.0;
+    for (const auto& f : free)
+    {
+      text << " [" << f.first << ", " << f.second << "]";
+      j.beginArray().field(nullptr, f.first).field(nullptr, f.second).endArray();
+      const double pick = std::min(std::max(d.rho, f.first), f.second);
+      if (best == 0.0 || std::fabs(std::log(pick / d.rho)) < std::fabs(std::log(best / d.rho)))
+      {
+        best = pick;
+      }
+    }
+    j.endArray();
+    text << (free.empty() ? " none\n" : "\n");
+    if (best > 0.0)
+    {
+      // Stay strictly inside the interval so the verdict is not a boundary case.
+      const Evaluation chosen = evaluate(d.base, d.gain, best);
+      describe(text, "closest such ratio", chosen);
+      const Transient t = transient(chosen.params);
+      char buf[200];
+      std::snprintf(buf, sizeof buf, "  overshoot %.4g rad, 2%% settling time %.4g s\n", t.overshoot, t.settling_time);
+      text << buf;
+      evaluationJson(j, "chosen", chosen);
+      j.field("overshoot", t.overshoot).field("settling_time", t.settling_time);
+    }
+  }
+  j.endObject();
+  std::cout << (d.json ? json_text.str() + "\n" : text.str());
+  return 0;
+}
