@@ -99,7 +99,7 @@ void LimitCycleDetector::update()
       return;
     }
   }
-  // Convergence: steady geometric decay whose extrapolated limit is (near) zero, three times in a row.
+  // Convergence: steady geometric decay whose extrapolated limit is (near) zero, twice in a row.
   if (n >= 4)
   {
     const double s0 = x(n - 1), s1 = x(n - 2), s2 = x(n - 3), s3 = x(n - 4);
@@ -108,7 +108,7 @@ void LimitCycleDetector::update()
     const bool decaying = s0 < s1 && s1 < s2 && s2 < s3 && r1 > 0.0 && r1 < 1.0 && r2 > 0.0 && r2 < 1.0 &&
                           std::fabs(r1 - r2) <= 0.1 * r1 && aitken(s0, s1, s2) <= 1e-3 * s0;
     decay_votes_ = decaying ? decay_votes_ + 1 : 0;
-    if (decay_votes_ >= 3)
+    if (decay_votes_ >= 2)
     {
       status_ = LimitCycleReport();
       status_.verdict = Verdict::Converged;

@@ -1,0 +1,214 @@
+#!/usr/bin/python3
+"""Charts of the backlash servo study (the thesis' figures, computed). Headless (Agg); writes PNG and SVG.
+
+usage: backlash_charts.py existence SWEEP.csv OUTDIR    existence regions per e, one boundary per zeta (Figs. 1-2)
+       backlash_charts.py error SWEEP.csv OUTDIR        limit-cycle error vs rho^2 J_L/J_m (Figs. 3-26)
+       backlash_charts.py delta SWEEP.csv OUTDIR        limit-cycle error vs backlash (Figs. 28-29)
+       backlash_charts.py phase SIM.csv OUTDIR [NAME]   phase portrait from backlash_sim --csv (Figs. 30-31)
+       backlash_charts.py surface SWEEP.csv OUTDIR      3-D existence surface over (friction, inertia, zeta) (Fig. 27)
+SWEEP.csv is backlash_sweep output; SIM.csv is backlash_sim --csv output.
+"""
+import csv
+import math
+import os
+import sys
+from collections import defaultdict
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+
+
+def read_sweep(path):
+    rows = []
+    with open(path) as f:
+        for r in csv.DictReader(f):
+            rows.append({
+                "zeta": float(r["zeta"]), "ir": float(r["inertia_ratio"]), "fr": float(r["friction_ratio"]),
+                "e": float(r["restitution"]), "delta": float(r["backlash"]), "lc": r["limit_cycle"] == "1",
+                "error": float(r["limit_cycle_error"]), "verdict": r["verdict"],
+            })
+    if not rows:
+        sys.exit(f"backlash_charts: {path} has no rows")
+    return rows
+
+
+def save(fig, outdir, name):
+    os.makedirs(outdir, exist_ok=True)
+    for ext in ("png", "svg"):
+        fig.savefig(os.path.join(outdir, f"{name}.{ext}"), dpi=110, bbox_inches="tight")
+    plt.close(fig)
+    print(os.path.join(outdir, name + ".png"))
+
+
+def grid(rows, e, zeta):
+    """LC indicator on the (friction ratio, inertia ratio) grid for one e and zeta."""
+    frs = sorted({r["fr"] for r in rows})
+    irs = sorted({r["ir"] for r in rows})
+    z = np.full((len(irs), len(frs)), np.nan)
+    for r in rows:
+        if r["e"] == e and r["zeta"] == zeta:
+            z[irs.index(r["ir"]), frs.index(r["fr"])] = 1.0 if r["lc"] else 0.0
+    return np.array(frs), np.array(irs), z
+
+
+def existence(rows, outdir):
+    es = sorted({r["e"] for r in rows})
+    zetas = sorted({r["zeta"] for r in rows})
+    cols = min(len(es), 2)
+    fig, axes = plt.subplots(math.ceil(len(es) / cols), cols, figsize=(6.2 * cols, 4.8 * math.ceil(len(es) / cols)),
+                             squeeze=False)
+    cmap = plt.get_cmap("viridis")
+    for ax, e in zip(axes.flat, es):
+        for k, zeta in enumerate(zetas):
+            frs, irs, z = grid(rows, e, zeta)
+            color = cmap(k / max(1, len(zetas) - 1))
+            if np.nanmax(z) == np.nanmin(z) or len(frs) < 2 or len(irs) < 2:
+                continue
+            cs = ax.contour(frs, irs, z, levels=[0.5], colors=[color], linewidths=1.8)
+            ax.clabel(cs, fmt={0.5: f"ζ={zeta:g}"}, fontsize=7)
+        ax.set_yscale("log")
+        ax.set_xlabel("friction split ρ²f_L/F_T")
+        ax.set_ylabel("inertia split ρ²J_L/J_m")
+        ax.set_title(f"e = {e:g}: limit cycle on the side away from each ζ's no-cycle corner")
+        ax.grid(True, which="both", alpha=0.3)
+        # Shade where a limit cycle exists for the smallest zeta (the largest region).
+        frs, irs, z = grid(rows, e, zetas[0])
+        ax.contourf(frs, irs, z, levels=[0.5, 1.5], colors=["#f4cccc"], alpha=0.5)
+    for ax in axes.flat[len(es):]:
+        ax.axis("off")
+    fig.suptitle("Limit-cycle existence boundaries (computed; shaded: limit cycle at the smallest ζ)")
+    save(fig, outdir, "existence_maps")
+
+
+def error(rows, outdir):
+    es = sorted({r["e"] for r in rows})
+    frs = sorted({r["fr"] for r in rows})
+    zetas = sorted({r["zeta"] for r in rows})
+    fig, axes = plt.subplots(len(es), len(frs), figsize=(3.0 * len(frs), 2.6 * len(es)), squeeze=False,
+                             sharex=True, sharey=True)
+    cmap = plt.get_cmap("plasma")
+    for i, e in enumerate(es):
+        for j, fr in enumerate(frs):
+            ax = axes[i][j]
+            for k, zeta in enumerate(zetas):
+                pts = sorted((r["ir"], r["error"]) for r in rows
+                             if r["e"] == e and r["fr"] == fr and r["zeta"] == zeta and r["lc"] and r["error"] > 0)
+                if pts:
+                    ax.plot(*zip(*pts), "o-", ms=3, lw=1.2, color=cmap(k / max(1, len(zetas) - 1)),
+                            label=f"ζ={zeta:g}")
+            ax.set_xscale("log")
+            ax.set_yscale("log")
+            ax.grid(True, which="both", alpha=0.3)
+            if i == 0:
+                ax.set_title(f"ρ²f_L/F_T = {fr:g}", fontsize=9)
+            if j == 0:
+                ax.set_ylabel(f"e = {e:g}\nerror [rad]", fontsize=9)
+            if i == len(es) - 1:
+                ax.set_xlabel("ρ²J_L/J_m", fontsize=9)
+    handles, labels = axes[0][0].get_legend_handles_labels()
+    for row in axes:
+        for ax in row:
+            h, lab = ax.get_legend_handles_labels()
+            if len(h) > len(handles):
+                handles, labels = h, lab
+    fig.legend(handles, labels, loc="upper right", fontsize=8)
+    fig.suptitle("Limit-cycle error (max positive error, Δ = 0.3 rad) vs inertia split")
+    save(fig, outdir, "limit_cycle_error")
+
+
+def delta(rows, outdir):
+    cases = defaultdict(list)
+    for r in rows:
+        if r["lc"]:
+            cases[(r["zeta"], r["ir"], r["fr"], r["e"])].append((r["delta"], r["error"]))
+    fig, ax = plt.subplots(figsize=(6.5, 4.6))
+    for (zeta, ir, fr, e), pts in sorted(cases.items()):
+        pts.sort()
+        ax.plot(*zip(*pts), "o-", label=f"ζ={zeta:g}, ρ²J_L/J_m={ir:g}, ρ²f_L/F_T={fr:g}, e={e:g}")
+    ax.set_xscale("log")
+    ax.set_yscale("log")
+    ax.set_xlabel("backlash Δ [rad]")
+    ax.set_ylabel("limit-cycle error [rad]")
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=7)
+    ax.set_title("Limit-cycle error is proportional to the backlash")
+    save(fig, outdir, "error_vs_backlash")
+
+
+def phase(path, outdir, name="phase_portrait"):
+    t, x, v, contact, event = [], [], [], [], []
+    with open(path) as f:
+        for r in csv.DictReader(f):
+            t.append(float(r["time"]))
+            x.append(float(r["load_position"]))
+            v.append(float(r["load_velocity"]))
+            contact.append(r["contact"])
+            event.append(r["event"])
+    x, v = np.array(x), np.array(v)
+    apart = np.array([c == "apart" for c in contact])
+    fig, ax = plt.subplots(figsize=(6.5, 5.0))
+    # Draw segments coloured by contact state.
+    for k in range(1, len(x)):
+        ax.plot(x[k - 1:k + 1], v[k - 1:k + 1], color="#d62728" if apart[k] else "#1f77b4", lw=0.9)
+    imp = [k for k, ev in enumerate(event) if ev == "impact"]
+    ax.plot(x[imp], v[imp], "k.", ms=4, label="impact (velocity after)")
+    ax.plot([], [], color="#1f77b4", label="teeth in contact")
+    ax.plot([], [], color="#d62728", label="teeth apart")
+    ax.set_xlabel("load position θ_c [rad]")
+    ax.set_ylabel("load velocity θ̇_c [rad/s]")
+    ax.grid(True, alpha=0.3)
+    ax.legend(fontsize=8)
+    ax.set_title("Phase portrait (exact trajectory, events at their exact times)")
+    save(fig, outdir, name)
+
+
+def surface(rows, outdir):
+    from mpl_toolkits.mplot3d import Axes3D  # noqa: F401
+
+    es = sorted({r["e"] for r in rows})
+    zetas = sorted({r["zeta"] for r in rows})
+    frs = sorted({r["fr"] for r in rows})
+    irs = sorted({r["ir"] for r in rows})
+    lc = {(r["e"], r["zeta"], r["ir"], r["fr"]): r["lc"] for r in rows}
+    fig = plt.figure(figsize=(6.0 * min(2, len(es)), 5.0 * math.ceil(len(es) / 2)))
+    for n, e in enumerate(es):
+        ax = fig.add_subplot(math.ceil(len(es) / 2), min(2, len(es)), n + 1, projection="3d")
+        z = np.zeros((len(irs), len(frs)))
+        for i, ir in enumerate(irs):
+            for j, fr in enumerate(frs):
+                # Boundary damping: above the largest zeta that still limit-cycles (midway to the next grid value).
+                cyc = [k for k, zeta in enumerate(zetas) if lc.get((e, zeta, ir, fr))]
+                if not cyc:
+                    z[i, j] = zetas[0]
+                elif cyc[-1] == len(zetas) - 1:
+                    z[i, j] = zetas[-1]
+                else:
+                    z[i, j] = 0.5 * (zetas[cyc[-1]] + zetas[cyc[-1] + 1])
+        fx, iy = np.meshgrid(frs, np.log10(irs))
+        ax.plot_surface(fx, iy, z, cmap="viridis", edgecolor="k", linewidth=0.2, alpha=0.9)
+        ax.set_xlabel("ρ²f_L/F_T")
+        ax.set_ylabel("log10 ρ²J_L/J_m")
+        ax.set_zlabel("ζ boundary")
+        ax.set_title(f"e = {e:g}: limit cycle below the surface")
+    fig.suptitle("Limit-cycle existence surface (the thesis' unfinished Fig. 27)")
+    save(fig, outdir, "existence_surface")
+
+
+def main(argv):
+    if len(argv) < 3 or argv[0] not in ("existence", "error", "delta", "phase", "surface"):
+        print(__doc__)
+        return 2
+    kind, src, outdir = argv[0], argv[1], argv[2]
+    if kind == "phase":
+        phase(src, outdir, *(argv[3:4]))
+        return 0
+    rows = read_sweep(src)
+    {"existence": existence, "error": error, "delta": delta, "surface": surface}[kind](rows, outdir)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv[1:]))

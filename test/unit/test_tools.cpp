@@ -1,0 +1,208 @@
+// backlash_sweep, backlash_design and the chart scripts, checked against single backlash_sim runs.
+#include <gtest/gtest.h>
+
+#include <sys/stat.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <cmath>
+#include <csignal>
+#include <cstdio>
+#include <fstream>
+#include <regex>
+#include <sstream>
+#include <string>
+#include <vector>
+
+namespace
+{
+std::string runCapture(const std::string& cmd, int* code = nullptr)
+{
+  FILE* p = popen(cmd.c_str(), "r");
+  std::string out;
+  char buf[4096];
+  size_t n;
+  while ((n = fread(buf, 1, sizeof buf, p)) > 0)
+  {
+    out.append(buf, n);
+  }
+  const int status = pclose(p);
+  if (code != nullptr)
+  {
+    *code = WEXITSTATUS(status);
+  }
+  return out;
+}
+
+std::string readFile(const std::string& path)
+{
+  std::ifstream f(path);
+  std::stringstream s;
+  s << f.rdbuf();
+  return s.str();
+}
+
+std::vector<std::vector<std::string>> csvRows(const std::string& text)
+{
+  std::vector<std::vector<std::string>> rows;
+  std::stringstream ss(text);
+  std::string line;
+  std::getline(ss, line);  // header
+  while (std::getline(ss, line))
+  {
+    std::vector<std::string> cells;
+    std::stringstream ls(line);
+    std::string cell;
+    while (std::getline(ls, cell, ','))
+    {
+      cells.push_back(cell);
+    }
+    rows.push_back(cells);
+  }
+  return rows;
+}
+
+double jsonNumber(const std::string& json, const std::string& key)
+{
+  std::smatch m;
+  if (!std::regex_search(json, m, std::regex("\"" + key + "\":(-?[0-9.eE+-]+)")))
+  {
+    ADD_FAILURE() << "no " << key << " in " << json.substr(0, 300);
+    return NAN;
+  }
+  return std::stod(m[1]);
+}
+
+std::string jsonText(const std::string& json, const std::string& key)
+{
+  std::smatch m;
+  if (!std::regex_search(json, m, std::regex("\"" + key + "\":\"([a-z_]+)\"")))
+  {
+    return "";
+  }
+  return m[1];
+}
+
+const std::string SWEEP = BACKLASH_SWEEP_EXE;
+const std::string SIM = BACKLASH_SIM_EXE;
+const std::string DESIGN = BACKLASH_DESIGN_EXE;
+const std::string GRID = " --zeta 0.3,0.6 --inertia-ratio 1,9 --friction-ratio 0.4 --restitution 0,0.6,1";
+}  // namespace
+
+TEST(Sweep, EveryRowEqualsASingleBacklashSimRun)
+{
+  int code = 0;
+  const std::string csv = runCapture(SWEEP + GRID + " --jobs 2 2>/dev/null", &code);
+  ASSERT_EQ(code, 0);
+  const auto rows = csvRows(csv);
+  ASSERT_EQ(rows.size(), 12u);
+  int cycles = 0;
+  for (const auto& r : rows)
+  {
+    ASSERT_EQ(r.size(), 12u);
+    const std::string json = runCapture(SIM + " --json --zeta " + r[0] + " --inertia-ratio " + r[1] +
+                                        " --friction-ratio " + r[2] + " --restitution " + r[3] + " --backlash " + r[4]);
+    EXPECT_EQ(r[5], jsonText(json, "verdict")) << r[0] << " " << r[1] << " " << r[3];
+    EXPECT_EQ(std::stod(r[7]), jsonNumber(json, "limit_cycle_error"));
+    EXPECT_EQ(std::stoull(r[9]), static_cast<unsigned long long>(jsonNumber(json, "impacts")));
+    cycles += r[6] == "1";
+  }
+  EXPECT_GT(cycles, 0);
+  EXPECT_LT(cycles, 12);
+}
+
+TEST(Sweep, ResumeAfterAnInterruptionGivesTheSameCsv)
+{
+  const std::string full = "/tmp/backlash_sweep_full.csv", part = "/tmp/backlash_sweep_part.csv";
+  int code = 0;
+  runCapture(SWEEP + GRID + " --output " + full + " 2>/dev/null", &code);
+  ASSERT_EQ(code, 0);
+  const std::string expected = readFile(full);
+  // A torn file: header, the first three rows and half of the fourth.
+  std::stringstream ss(expected);
+  std::string line, torn;
+  for (int i = 0; i < 4 && std::getline(ss, line); ++i)
+  {
+    torn += line + "\n";
+  }
+  std::getline(ss, line);
+  torn += line.substr(0, line.size() / 2);
+  std::ofstream(part) << torn;
+  runCapture(SWEEP + GRID + " --output " + part + " --resume 2>/dev/null", &code);
+  ASSERT_EQ(code, 0);
+  EXPECT_EQ(readFile(part), expected);
+  // A real interruption (SIGINT) leaves a valid prefix; --resume completes it identically.
+  std::remove(part.c_str());
+  const pid_t pid = fork();
+  if (pid == 0)
+  {
+    const std::string args = SWEEP + GRID + " --jobs 1 --output " + part;
+    execl("/bin/sh", "sh", "-c", ("exec " + args + " 2>/dev/null").c_str(), static_cast<char*>(nullptr));
+    _exit(127);
+  }
+  usleep(20000);
+  kill(pid, SIGINT);
+  int status = 0;
+  waitpid(pid, &status, 0);
+  const int rc = WEXITSTATUS(status);
+  EXPECT_TRUE(rc == 130 || rc == 0) << rc;
+  EXPECT_EQ(expected.rfind(readFile(part), 0), 0u) << "interrupted output is not a prefix";
+  runCapture(SWEEP + GRID + " --output " + part + " --resume 2>/dev/null", &code);
+  EXPECT_EQ(readFile(part), expected);
+}
+
+TEST(Sweep, BadAxesAreOneLineErrors)
+{
+  int code = 0;
+  const std::string err = runCapture(SWEEP + " --zeta 1:2 2>&1 >/dev/null", &code);
+  EXPECT_EQ(code, 2);
+  EXPECT_NE(err.find("--zeta"), std::string::npos) << err;
+  runCapture(SWEEP + " --friction-ratio 1.5 2>/dev/null", &code);
+  EXPECT_EQ(code, 2);
+}
+
+TEST(Design, MaxGainIsConfirmedBySimulatingBelowAndAbove)
+{
+  const std::string args = " --motor-inertia 0.25 --motor-friction 0.64 --load-inertia 1.0 --load-friction 0.64 "
+                           "--restitution 0.6";
+  int code = 0;
+  const std::string json = runCapture(DESIGN + args + " --gain 1 --find max-gain --json", &code);
+  ASSERT_EQ(code, 0) << json;
+  std::smatch m;
+  ASSERT_TRUE(std::regex_search(json, m, std::regex("\"max_gain\":\\{[^{]*\"gain\":([0-9.eE+-]+)")));
+  const double k = std::stod(m[1]);
+  EXPECT_GT(k, 1.0);
+  EXPECT_LT(k, 10.0);
+  // Independent check with backlash_sim: converges below the answer, limit-cycles clearly above it.
+  const std::string below = runCapture(SIM + " --json --motor-inertia 0.25 --motor-friction 0.64 --load-inertia 1.0 "
+                                             "--load-friction 0.64 --restitution 0.6 --gain " +
+                                       std::to_string(k * 0.99));
+  const std::string above = runCapture(SIM + " --json --motor-inertia 0.25 --motor-friction 0.64 --load-inertia 1.0 "
+                                             "--load-friction 0.64 --restitution 0.6 --gain " +
+                                       std::to_string(k * 1.05));
+  EXPECT_EQ(jsonText(below, "verdict"), "converged");
+  EXPECT_EQ(jsonText(above, "verdict"), "limit_cycle");
+  // The chart coordinates printed for the candidate follow from the inputs.
+  EXPECT_NEAR(jsonNumber(json, "inertia_ratio"), 4.0, 1e-12);
+  EXPECT_NEAR(jsonNumber(json, "friction_ratio"), 0.5, 1e-12);
+}
+
+TEST(Charts, ScriptsRunHeadlessAndWriteImages)
+{
+  const std::string out = "/tmp/backlash_charts_test";
+  int code = 0;
+  const std::string log =
+      runCapture("bash " + std::string(SOURCE_DIR) + "/scripts/make_charts.sh --quick " + out + " 2>&1", &code);
+  ASSERT_EQ(code, 0) << log;
+  for (const char* name : {"existence_maps", "existence_surface", "limit_cycle_error", "error_vs_backlash",
+                           "phase_portrait_fig31"})
+  {
+    for (const char* ext : {".png", ".svg"})
+    {
+      struct stat st;
+      const std::string path = out + "/" + name + ext;
+      ASSERT_EQ(stat(path.c_str(), &st), 0) << path;
+      EXPECT_GT(st.st_size, 5000) << path;
+    }
+  }
+}
