@@ -72,14 +72,14 @@ def existence(rows, outdir):
         ax.set_yscale("log")
         ax.set_xlabel("friction split ρ²f_L/F_T")
         ax.set_ylabel("inertia split ρ²J_L/J_m")
-        ax.set_title(f"e = {e:g}: limit cycle on the side away from each ζ's no-cycle corner")
+        ax.set_title(f"e = {e:g}")
         ax.grid(True, which="both", alpha=0.3)
         # Shade where a limit cycle exists for the smallest zeta (the largest region).
         frs, irs, z = grid(rows, e, zetas[0])
         ax.contourf(frs, irs, z, levels=[0.5, 1.5], colors=["#f4cccc"], alpha=0.5)
     for ax in axes.flat[len(es):]:
         ax.axis("off")
-    fig.suptitle("Limit-cycle existence boundaries (computed; shaded: limit cycle at the smallest ζ)")
+    fig.suptitle("Limit-cycle existence boundaries, one line per ζ (shaded: limit cycle at the smallest ζ)")
     save(fig, outdir, "existence_maps")
 
 

@@ -335,7 +335,9 @@ int main(int argc, char** argv)
     {
       text << " [" << f.first << ", " << f.second << "]";
       j.beginArray().field(nullptr, f.first).field(nullptr, f.second).endArray();
-      const double pick = std::min(std::max(d.rho, f.first), f.second);
+      // Stay 1 % inside the interval (when it is wide enough) so the choice is not a boundary case.
+      const double margin = f.second / f.first > 1.0201 ? 1.01 : 1.0;
+      const double pick = std::min(std::max(d.rho, f.first * margin), f.second / margin);
       if (best == 0.0 || std::fabs(std::log(pick / d.rho)) < std::fabs(std::log(best / d.rho)))
       {
         best = pick;
@@ -345,7 +347,6 @@ int main(int argc, char** argv)
     text << (free.empty() ? " none\n" : "\n");
     if (best > 0.0)
     {
-      // Stay strictly inside the interval so the verdict is not a boundary case.
       const Evaluation chosen = evaluate(d.base, d.gain, best);
       describe(text, "closest such ratio", chosen);
       const Transient t = transient(chosen.params);
