@@ -21,6 +21,8 @@ constexpr int EXP_POLY_MAX_DEGREE = 7;
 constexpr int EXP_POLY_MAX_TERMS = 8;
 /// Most sign-change roots reported by one call to signChangeRoots().
 constexpr int EXP_POLY_MAX_ROOTS = 64;
+/// Relative precision of critical points (see refineRoot).
+constexpr double CRITICAL_POINT_TOLERANCE = 1e-10;
 
 /// One term P(τ) e^{rate τ}; coef[k] multiplies τ^k.
 struct ExpTerm
@@ -72,10 +74,14 @@ public:
    * All points of (a, b) where f changes sign, ascending, written to out (at most EXP_POLY_MAX_ROOTS).
    * Returns the count. Roots of even multiplicity (touching zero) are not sign changes and are not reported.
    */
-  int signChangeRoots(double a, double b, double* out) const;
+  int signChangeRoots(double a, double b, double* out, double rel_tol = 0.0) const;
 
-  /// Root of f − level in [a, b] given that f − level has opposite signs (or a zero) at a and b and is monotone.
-  double refineRoot(double level, double a, double b) const;
+  /**
+   * Root of f − level in [a, b] given that f − level has opposite signs (or a zero) at a and b and is monotone,
+   * to rel_tol relative (0 = full double precision). Critical points only bound monotone pieces — an error δ in
+   * one changes the extremum value by O(δ²) — so they are refined to CRITICAL_POINT_TOLERANCE only.
+   */
+  double refineRoot(double level, double a, double b, double rel_tol = 0.0) const;
 
 private:
   /// d/dτ (f e^{−r_0 τ}) e^{...}: the sign-equivalent derivative with one term or one degree fewer.

@@ -320,14 +320,41 @@ ExpPoly ExpPoly::deflatedDerivative() const
   return d;
 }
 
-int ExpPoly::signChangeRoots(double a, double b, double* out) const
+int ExpPoly::signChangeRoots(double a, double b, double* out, double rel_tol) const
 {
   if (n_ == 0 || complexity() <= 0 || !(b > a))
   {
     return 0;
   }
+  // Closed forms for the two simplest shapes (the bottom of every recursion): c0 e^{r0 τ} + c1 e^{r1 τ} and a
+  // linear polynomial times an exponential. Each has at most one root, a simple one.
+  if (complexity() == 1)
+  {
+    double root = 0.0;
+    if (n_ == 2)
+    {
+      const ExpTerm& t0 = terms_[0];
+      const ExpTerm& t1 = terms_[1];
+      const double ratio = -t0.coef[0] / t1.coef[0];
+      if (!(ratio > 0.0))
+      {
+        return 0;
+      }
+      root = std::log(ratio) / (t1.rate - t0.rate);  // e^{(r1 − r0) τ} = −c0/c1
+    }
+    else
+    {
+      root = -terms_[0].coef[0] / terms_[0].coef[1];
+    }
+    if (!(root > a && root < b))
+    {
+      return 0;
+    }
+    out[0] = root;
+    return 1;
+  }
   double crit[EXP_POLY_MAX_ROOTS];
-  const int m = deflatedDerivative().signChangeRoots(a, b, crit);
+  const int m = deflatedDerivative().signChangeRoots(a, b, crit, CRITICAL_POINT_TOLERANCE);
   int count = 0;
   double prev = a;
   double fprev = (*this)(a);
@@ -352,7 +379,7 @@ int ExpPoly::signChangeRoots(double a, double b, double* out) const
     {
       if (last_sign != 0 && s != last_sign && count < EXP_POLY_MAX_ROOTS)
       {
-        out[count++] = pending_zero ? zero_at : refineRoot(0.0, prev, q);
+        out[count++] = pending_zero ? zero_at : refineRoot(0.0, prev, q, rel_tol);
       }
       last_sign = s;
       pending_zero = false;
@@ -391,8 +418,9 @@ void ExpPoly::evaluateWithDerivative(double tau, double* value, double* slope) c
   *slope = df;
 }
 
-double ExpPoly::refineRoot(double level, double a, double b) const
+double ExpPoly::refineRoot(double level, double a, double b, double rel_tol) const
 {
+  const double tol = std::max(rel_tol, 2.0 * EPS);
   double fa = (*this)(a) - level;
   double fb = (*this)(b) - level;
   if (fa == 0.0)
@@ -407,12 +435,14 @@ double ExpPoly::refineRoot(double level, double a, double b) const
   {
     return std::fabs(fa) < std::fabs(fb) ? a : b;
   }
-  // Safeguarded Newton (rtsafe): Newton steps while they stay inside the shrinking bracket and converge fast,
-  // bisection otherwise. f is monotone on [a, b], so the bracket always holds the single root.
-  const bool rising = fb > 0.0;
-  double x = fabs(fa) < fabs(fb) ? a : b;
-  double step_before = b - a;
-  double step = step_before;
+  // Newton inside the shrinking bracket; where a Newton step would leave it or stall, a false-position step
+  // (bisection if that fails to halve the bracket). f is monotone on [a, b], so the bracket holds the only root.
+  double x = (a * fb - b * fa) / (fb - fa);
+  if (!(x > a && x < b))
+  {
+    x = 0.5 * (a + b);
+  }
+  double last_width = b - a;
   for (int it = 0; it < 200; ++it)
   {
     double f, df;
@@ -422,32 +452,40 @@ double ExpPoly::refineRoot(double level, double a, double b) const
     {
       return x;
     }
-    if ((f > 0.0) == rising)
-    {
-      b = x;
-    }
-    else
+    if ((f < 0.0) == (fa < 0.0))
     {
       a = x;
-    }
-    const double newton = df != 0.0 ? x - f / df : a - 1.0;
-    if (newton <= a || newton >= b || std::fabs(2.0 * f) > std::fabs(step_before * df))
-    {
-      step_before = step;
-      step = 0.5 * (b - a);
-      x = a + step;
+      fa = f;
     }
     else
     {
-      step_before = step;
-      step = std::fabs(newton - x);
+      b = x;
+      fb = f;
+    }
+    const double newton = df != 0.0 ? x - f / df : a - 1.0;
+    const double step = std::fabs(newton - x);
+    if (b - a <= tol * std::max(std::fabs(a), std::fabs(b)) || b - a <= std::numeric_limits<double>::min() ||
+        (newton > a && newton < b && step <= tol * std::fabs(x)))
+    {
+      return newton > a && newton < b ? newton : x;
+    }
+    if (newton > a && newton < b)
+    {
       x = newton;
     }
-    if (b - a <= 2.0 * EPS * std::max(std::fabs(a), std::fabs(b)) || b - a <= std::numeric_limits<double>::min() ||
-        step <= 2.0 * EPS * std::fabs(x))
+    else if (b - a < 0.5 * last_width)
     {
-      break;
+      x = (a * fb - b * fa) / (fb - fa);
+      if (!(x > a && x < b))
+      {
+        x = 0.5 * (a + b);
+      }
     }
+    else
+    {
+      x = 0.5 * (a + b);
+    }
+    last_width = b - a;
   }
   return x;
 }

@@ -54,7 +54,7 @@ int walkDownCrossings(const ExpPoly& f, const Bound& bound, double horizon, bool
                       int max_out)
 {
   double crit[EXP_POLY_MAX_ROOTS];
-  const int m = f.derivative().signChangeRoots(0.0, horizon, crit);
+  const int m = f.derivative().signChangeRoots(0.0, horizon, crit, CRITICAL_POINT_TOLERANCE);
   double p = 0.0;
   double fp = f(0.0);
   bool armed = !require_positive_first || fp > bound(0.0);
@@ -336,7 +336,7 @@ void FreeMotion::at(double tau, State* out) const
 double FreeMotion::impactTime(double horizon, Contact* wall) const
 {
   double crit[EXP_POLY_MAX_ROOTS];
-  const int m = gap_.derivative().signChangeRoots(0.0, horizon, crit);
+  const int m = gap_.derivative().signChangeRoots(0.0, horizon, crit, CRITICAL_POINT_TOLERANCE);
   const double delta = params_.backlash;
   double p = 0.0;
   double gp = gap_(0.0);
