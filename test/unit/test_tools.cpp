@@ -206,3 +206,19 @@ TEST(Charts, ScriptsRunHeadlessAndWriteImages)
     }
   }
 }
+
+TEST(Bench, HarnessRunsAndTheAccuracyComparisonHolds)
+{
+  // Only that it runs and that accuracy holds (ours vs an independent tight-tolerance reference, and better than
+  // the thesis' fixed-step method); never a timing.
+  int code = 0;
+  const std::string ref = "/tmp/backlash_bench_reference.txt";
+  const std::string out = runCapture(std::string(BENCH_CORE_EXE) + " --quick --reference-out " + ref, &code);
+  EXPECT_EQ(code, 0) << out;
+  EXPECT_NE(out.find("accuracy check: ours agrees"), std::string::npos) << out;
+  const std::string py = runCapture("/usr/bin/python3 " + std::string(SOURCE_DIR) + "/bench/scipy_baseline.py " + ref +
+                                        " --max-sim 5",
+                                    &code);
+  EXPECT_EQ(code, 0) << py;
+  EXPECT_NE(py.find("thesis_d1"), std::string::npos) << py;
+}
