@@ -15,10 +15,10 @@
 
 namespace backlash_servo
 {
-/// Highest polynomial degree a term can hold (products of two mode solutions need 2 × 3).
-constexpr int EXP_POLY_MAX_DEGREE = 7;
-/// Most distinct exponential rates an ExpPoly can hold.
-constexpr int EXP_POLY_MAX_TERMS = 8;
+/// Highest polynomial degree a term can hold: ω_m² of a frictionless apart mode (θ_m cubic, ω_m quadratic) needs 4.
+constexpr int EXP_POLY_MAX_DEGREE = 4;
+/// Most distinct exponential rates an ExpPoly can hold: products of two modes have {0, −α, −β} pairwise, 6.
+constexpr int EXP_POLY_MAX_TERMS = 6;
 /// Most sign-change roots reported by one call to signChangeRoots().
 constexpr int EXP_POLY_MAX_ROOTS = 64;
 /// Relative precision of critical points (see refineRoot).
