@@ -59,6 +59,9 @@ public:
   /// ∫_0^T f(τ) dτ, accurate also when |r T| is small.
   double integral(double upper) const;
 
+  ExpPoly& operator+=(const ExpPoly& other);
+  /// Adds the constant c (to the rate-0 term).
+  void addConstant(double c) { addTerm(0.0, &c, 0); }
   ExpPoly operator+(const ExpPoly& other) const;
   ExpPoly operator-(const ExpPoly& other) const;
   ExpPoly operator*(const ExpPoly& other) const;

@@ -24,7 +24,11 @@ bool trimDegree(ExpTerm& t)
 /// ∫_0^T τ^k e^{rτ} dτ by its power series; used where |rT| < 1 (no cancellation).
 double seriesMomentIntegral(int k, double r, double upper)
 {
-  double term = std::pow(upper, k + 1);  // r^n T^{n+k+1} / n!
+  double term = upper;  // r^n T^{n+k+1} / n!
+  for (int j = 0; j < k; ++j)
+  {
+    term *= upper;
+  }
   double sum = 0.0;
   for (int n = 0; n < 60; ++n)
   {
@@ -227,32 +231,46 @@ double ExpPoly::integral(double upper) const
   return sum;
 }
 
+ExpPoly& ExpPoly::operator+=(const ExpPoly& other)
+{
+  for (int i = 0; i < other.n_; ++i)
+  {
+    addTerm(other.terms_[i].rate, other.terms_[i].coef.data(), other.terms_[i].degree);
+  }
+  return *this;
+}
+
 ExpPoly ExpPoly::operator+(const ExpPoly& other) const
 {
   ExpPoly r = *this;
-  for (int i = 0; i < other.n_; ++i)
-  {
-    r.addTerm(other.terms_[i].rate, other.terms_[i].coef.data(), other.terms_[i].degree);
-  }
+  r += other;
   return r;
 }
 
 ExpPoly ExpPoly::operator*(double s) const
 {
-  ExpPoly r;
-  for (int i = 0; i < n_; ++i)
+  ExpPoly r = *this;
+  if (s == 0.0)
   {
-    ExpTerm t = terms_[i];
-    for (int k = 0; k <= t.degree; ++k)
+    r.n_ = 0;
+    return r;
+  }
+  for (int i = 0; i < r.n_; ++i)
+  {
+    for (int k = 0; k <= r.terms_[i].degree; ++k)
     {
-      t.coef[k] *= s;
+      r.terms_[i].coef[k] *= s;
     }
-    r.addTerm(t.rate, t.coef.data(), t.degree);
   }
   return r;
 }
 
-ExpPoly ExpPoly::operator-(const ExpPoly& other) const { return *this + other * -1.0; }
+ExpPoly ExpPoly::operator-(const ExpPoly& other) const
+{
+  ExpPoly r = other * -1.0;
+  r += *this;
+  return r;
+}
 
 ExpPoly ExpPoly::operator*(const ExpPoly& other) const
 {

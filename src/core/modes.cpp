@@ -316,13 +316,15 @@ FreeMotion::FreeMotion(const ServoParams& params, const MotorInput& input, const
     load_velocity_ = ExpPoly::constant(v0);
   }
   // J_m ω̇_m + f_m ω_m = a − k θ_c(τ): particular solution plus the free decay e^{−βτ} matching ω_m(0).
-  const ExpPoly forcing =
-      (ExpPoly::constant(input.offset) - load_position_ * input.stiffness) * (1.0 / params.motor_inertia);
-  const ExpPoly particular = forcing.solveFirstOrder(beta);
-  motor_velocity_ = particular + ExpPoly::monomial(s.motor_velocity - particular(0.0), 0, -beta);
-  const ExpPoly angle = motor_velocity_.antiderivative();
-  motor_position_ = angle + ExpPoly::constant(s.motor_position - angle(0.0));
-  gap_ = load_position_ - motor_position_ * params.gear_ratio;
+  ExpPoly forcing = load_position_ * (-input.stiffness / params.motor_inertia);
+  forcing.addConstant(input.offset / params.motor_inertia);
+  motor_velocity_ = forcing.solveFirstOrder(beta);
+  const double decay = s.motor_velocity - motor_velocity_(0.0);
+  motor_velocity_.addTerm(-beta, &decay, 0);
+  motor_position_ = motor_velocity_.antiderivative();
+  motor_position_.addConstant(s.motor_position - motor_position_(0.0));
+  gap_ = motor_position_ * -params.gear_ratio;
+  gap_ += load_position_;
 }
 
 void FreeMotion::at(double tau, State* out) const
@@ -364,7 +366,8 @@ double FreeMotion::impactTime(double horizon, Contact* wall) const
 
 EnergyFlows FreeMotion::energy(double tau) const
 {
-  const ExpPoly torque = ExpPoly::constant(input_.offset) - load_position_ * input_.stiffness;
+  ExpPoly torque = load_position_ * -input_.stiffness;
+  torque.addConstant(input_.offset);
   EnergyFlows e;
   e.input = (torque * motor_velocity_).integral(tau);
   e.motor_friction = params_.motor_friction * (motor_velocity_ * motor_velocity_).integral(tau);
