@@ -38,7 +38,7 @@ struct Outcome
 /// The hybrid model shared by the baselines: modes, right-hand side, mesh torque, impact map.
 class Model
 {
-public:
+ public:
   Model(const backlash_servo::ServoParams& p, double command) : p_(p), command_(command) {}
   int mode = 0;  // 0 forward contact, 1 backward contact, 2 apart
 
@@ -97,7 +97,7 @@ public:
 
   const backlash_servo::ServoParams& params() const { return p_; }
 
-private:
+ private:
   backlash_servo::ServoParams p_;
   double command_;
 };
@@ -114,14 +114,18 @@ inline Outcome fixedStepRk4(const backlash_servo::ServoParams& p, double command
   {
     Vec k1, k2, k3, k4, s;
     m.rhs(x, k1);
-    for (int j = 0; j < 4; ++j) s[j] = x[j] + 0.5 * dt * k1[j];
+    for (int j = 0; j < 4; ++j)
+      s[j] = x[j] + 0.5 * dt * k1[j];
     m.rhs(s, k2);
-    for (int j = 0; j < 4; ++j) s[j] = x[j] + 0.5 * dt * k2[j];
+    for (int j = 0; j < 4; ++j)
+      s[j] = x[j] + 0.5 * dt * k2[j];
     m.rhs(s, k3);
-    for (int j = 0; j < 4; ++j) s[j] = x[j] + dt * k3[j];
+    for (int j = 0; j < 4; ++j)
+      s[j] = x[j] + dt * k3[j];
     m.rhs(s, k4);
     const double before = x[0];
-    for (int j = 0; j < 4; ++j) x[j] += dt / 6.0 * (k1[j] + 2 * k2[j] + 2 * k3[j] + k4[j]);
+    for (int j = 0; j < 4; ++j)
+      x[j] += dt / 6.0 * (k1[j] + 2 * k2[j] + 2 * k3[j] + k4[j]);
     ++out.steps;
     const double t = i * dt;
     if (m.mode != 2)
@@ -189,9 +193,12 @@ inline Outcome odeintDense(const backlash_servo::ServoParams& p, double command,
       stepper.calc_state(t1, x1);
       // Event functions: separation (mesh torque), walls (gap), maximum (velocity).
       auto eventValue = [&](int kind, const Vec& s) {
-        if (kind == 0) return m.mode == 0 ? m.meshTorque(s) : -m.meshTorque(s);
-        if (kind == 1) return m.gap(s);
-        if (kind == 2) return p.backlash - m.gap(s);
+        if (kind == 0)
+          return m.mode == 0 ? m.meshTorque(s) : -m.meshTorque(s);
+        if (kind == 1)
+          return m.gap(s);
+        if (kind == 2)
+          return p.backlash - m.gap(s);
         return s[1];
       };
       double first = t1;
@@ -260,7 +267,8 @@ inline Outcome odeintDense(const backlash_servo::ServoParams& p, double command,
       ++out.events;
       if (which == 3)
       {
-        if (x[0] > command) out.maxima.push_back({t, x[0]});
+        if (x[0] > command)
+          out.maxima.push_back({t, x[0]});
         // Continue from the event without restarting (maximum does not change the mode).
         stepper.initialize(x, t, std::max(1e-9, t1 - t));
         continue;

@@ -221,7 +221,7 @@ int main(int argc, char** argv)
   rusage usage;
   getrusage(RUSAGE_SELF, &usage);
   std::printf("peak memory (whole benchmark process): %.1f MB\n", usage.ru_maxrss / 1024.0);
-  std::printf("accuracy check: %s\n", ok ? "ours agrees with the reference to 1e-9 rad and beats RK4 dt=1e-2" :
-                                             "FAILED");
+  std::printf("accuracy check: %s\n",
+              ok ? "ours agrees with the reference to 1e-9 rad and beats RK4 dt=1e-2" : "FAILED");
   return ok ? 0 : 1;
 }

@@ -34,7 +34,7 @@ struct ExpTerm
 
 class ExpPoly
 {
-public:
+ public:
   ExpPoly() = default;
   /// A constant function c.
   static ExpPoly constant(double c);
@@ -86,7 +86,7 @@ public:
    */
   double refineRoot(double level, double a, double b, double rel_tol = 0.0) const;
 
-private:
+ private:
   /// d/dτ (f e^{−r_0 τ}) e^{...}: the sign-equivalent derivative with one term or one degree fewer.
   ExpPoly deflatedDerivative() const;
   int complexity() const;

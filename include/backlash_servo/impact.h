@@ -25,7 +25,6 @@ struct ImpactOutcome
  *     + \omega_c\left(\frac{\rho^2 J_L}{J_m} - e\right)\right] \f]
  * Energy lost: \f$ (1 - e^2)\tfrac12\mu(\rho\omega_m - \omega_c)^2 \f$, \f$ \mu = J_m J_L/(J_m + \rho^2 J_L) \f$.
  */
-ImpactOutcome resolveImpact(const ServoParams& params, double load_velocity, double motor_velocity,
-                            double restitution);
+ImpactOutcome resolveImpact(const ServoParams& params, double load_velocity, double motor_velocity, double restitution);
 
 }  // namespace backlash_servo

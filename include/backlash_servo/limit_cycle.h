@@ -35,18 +35,18 @@ const char* toString(Verdict v);
 struct LimitCycleReport
 {
   Verdict verdict = Verdict::Undecided;
-  double error = 0.0;        ///< limit-cycle error: largest positive error θ_c,max − θ_R of the settled cycle
-                             ///< (Aitken fixed point of each phase) [rad]; 0 if none
-                             ///< (Irregular: largest error of the last IRREGULAR_WINDOW maxima)
-  double period = 0.0;       ///< limit-cycle period [s]; 0 if none (Irregular: mean time between maxima)
-  int multiplicity = 0;      ///< maxima per period of the cycle
-  double extrapolated = 0.0; ///< Aitken estimate of the fixed point x* [rad] (latest)
-  double ratio = 0.0;        ///< latest contraction ratio of successive differences [-]
+  double error = 0.0;         ///< limit-cycle error: largest positive error θ_c,max − θ_R of the settled cycle
+                              ///< (Aitken fixed point of each phase) [rad]; 0 if none
+                              ///< (Irregular: largest error of the last IRREGULAR_WINDOW maxima)
+  double period = 0.0;        ///< limit-cycle period [s]; 0 if none (Irregular: mean time between maxima)
+  int multiplicity = 0;       ///< maxima per period of the cycle
+  double extrapolated = 0.0;  ///< Aitken estimate of the fixed point x* [rad] (latest)
+  double ratio = 0.0;         ///< latest contraction ratio of successive differences [-]
 };
 
 class LimitCycleDetector
 {
-public:
+ public:
   /**
    * @param command θ_R [rad] the maxima are measured from
    * @param scale size [rad] below which errors count as zero (use max(Δ, |step|)); thresholds are fractions of it
@@ -75,7 +75,7 @@ public:
   /// True for verdicts that mean a sustained oscillation (LimitCycle, Irregular).
   bool oscillating() const;
 
-private:
+ private:
   void update();
 
   double command_;

@@ -35,7 +35,7 @@ struct EnergyFlows
  */
 class ContactMotion
 {
-public:
+ public:
   ContactMotion(const ServoParams& params, const MotorInput& input, double load_position, double load_velocity);
 
   /// Load position [rad] and velocity [rad/s] at local time tau [s].
@@ -52,7 +52,7 @@ public:
   /// Energy flows over [0, tau].
   EnergyFlows energy(double tau) const;
 
-private:
+ private:
   /// Down-crossings (from + to −) of the function selected by which (0 = velocity, 1 = mesh torque) times sign.
   int downCrossings(int which, double sign, double horizon, bool require_positive_first, double* out,
                     int max_out) const;
@@ -76,7 +76,7 @@ private:
  */
 class FreeMotion
 {
-public:
+ public:
   FreeMotion(const ServoParams& params, const MotorInput& input, const State& start);
 
   /// Positions [rad] and velocities [rad/s] at local time tau [s] (time and contact of out are not touched).
@@ -91,7 +91,7 @@ public:
   /// Energy flows over [0, tau].
   EnergyFlows energy(double tau) const;
 
-private:
+ private:
   ServoParams params_;
   MotorInput input_;
   ExpPoly load_position_, load_velocity_, motor_position_, motor_velocity_, gap_;

@@ -14,15 +14,14 @@ namespace backlash_servo
 /// Thrown when a parameter is outside its allowed range; the message names the field and the range.
 class InvalidParameterError : public std::invalid_argument
 {
-public:
+ public:
   InvalidParameterError(const std::string& field, const std::string& message)
-    : std::invalid_argument(field + ": " + message), field_(field)
-  {
-  }
+      : std::invalid_argument(field + ": " + message), field_(field)
+  {}
   /// Name of the offending field (snake_case, as in YAML and on the command line).
   const std::string& field() const { return field_; }
 
-private:
+ private:
   std::string field_;
 };
 
@@ -34,14 +33,14 @@ private:
  */
 struct ServoParams
 {
-  double motor_inertia = 0.1;   ///< J_m, motor inertia on the motor shaft [kg·m²], > 0
-  double load_inertia = 0.9;    ///< J_L, load inertia on the load shaft [kg·m²], > 0
-  double motor_friction = 0.48; ///< f_m, viscous friction of the motor [N·m·s/rad], >= 0
-  double load_friction = 0.32;  ///< f_L, viscous friction of the load [N·m·s/rad], >= 0
-  double gain = 1.0;            ///< K, servo gain [N·m/rad], > 0
-  double gear_ratio = 1.0;      ///< ρ = teeth(gear 1)/teeth(gear 2) [-], > 0; rigid mesh gives θ_c = ρ θ_m
-  double backlash = 0.3;        ///< Δ, free play measured at the load shaft [rad], >= 0 (0 = rigid mesh)
-  double restitution = 1.0;     ///< e, coefficient of restitution of the tooth impact [-], in [0, 1]
+  double motor_inertia = 0.1;    ///< J_m, motor inertia on the motor shaft [kg·m²], > 0
+  double load_inertia = 0.9;     ///< J_L, load inertia on the load shaft [kg·m²], > 0
+  double motor_friction = 0.48;  ///< f_m, viscous friction of the motor [N·m·s/rad], >= 0
+  double load_friction = 0.32;   ///< f_L, viscous friction of the load [N·m·s/rad], >= 0
+  double gain = 1.0;             ///< K, servo gain [N·m/rad], > 0
+  double gear_ratio = 1.0;       ///< ρ = teeth(gear 1)/teeth(gear 2) [-], > 0; rigid mesh gives θ_c = ρ θ_m
+  double backlash = 0.3;         ///< Δ, free play measured at the load shaft [rad], >= 0 (0 = rigid mesh)
+  double restitution = 1.0;      ///< e, coefficient of restitution of the tooth impact [-], in [0, 1]
 
   /// Throws InvalidParameterError naming the first bad field and its allowed range.
   void validate() const;
@@ -68,14 +67,14 @@ struct ServoParams
  */
 struct ChartParams
 {
-  double zeta = 0.4;              ///< ζ, damping ratio [-], >= 0
-  double natural_frequency = 1.0; ///< ω_n [rad/s], > 0
-  double total_inertia = 1.0;     ///< J = J_m + ρ² J_L [kg·m²], > 0
-  double inertia_ratio = 9.0;     ///< ρ² J_L / J_m [-], > 0
-  double friction_ratio = 0.4;    ///< ρ² f_L / F_T [-], in [0, 1]
-  double gear_ratio = 1.0;        ///< ρ [-], > 0
-  double backlash = 0.3;          ///< Δ [rad], >= 0
-  double restitution = 1.0;       ///< e [-], in [0, 1]
+  double zeta = 0.4;               ///< ζ, damping ratio [-], >= 0
+  double natural_frequency = 1.0;  ///< ω_n [rad/s], > 0
+  double total_inertia = 1.0;      ///< J = J_m + ρ² J_L [kg·m²], > 0
+  double inertia_ratio = 9.0;      ///< ρ² J_L / J_m [-], > 0
+  double friction_ratio = 0.4;     ///< ρ² f_L / F_T [-], in [0, 1]
+  double gear_ratio = 1.0;         ///< ρ [-], > 0
+  double backlash = 0.3;           ///< Δ [rad], >= 0
+  double restitution = 1.0;        ///< e [-], in [0, 1]
 
   /// Converts to physical SI parameters; throws InvalidParameterError on bad input.
   ServoParams toServoParams() const;

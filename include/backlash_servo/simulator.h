@@ -15,11 +15,11 @@ namespace backlash_servo
 {
 enum class EventType
 {
-  Impact,         ///< teeth collided (see ImpactInfo)
-  Separation,     ///< mesh torque reached zero and changed sign: teeth came apart (Δ = 0: pushing side flipped)
-  Maximum,        ///< positive maximum of θ_c (ω_c went from + to −, smoothly or at an impact)
-  InputChange,    ///< command θ_R or motor torque changed
-  ParameterChange ///< parameters replaced
+  Impact,          ///< teeth collided (see ImpactInfo)
+  Separation,      ///< mesh torque reached zero and changed sign: teeth came apart (Δ = 0: pushing side flipped)
+  Maximum,         ///< positive maximum of θ_c (ω_c went from + to −, smoothly or at an impact)
+  InputChange,     ///< command θ_R or motor torque changed
+  ParameterChange  ///< parameters replaced
 };
 
 const char* toString(EventType t);
@@ -49,7 +49,7 @@ struct Event
 /// Receives events in time order while the simulator advances.
 class EventSink
 {
-public:
+ public:
   virtual ~EventSink() = default;
   virtual void onEvent(const Event& event) = 0;
 };
@@ -66,7 +66,7 @@ struct EnergyLedger
 
 class Simulator
 {
-public:
+ public:
   /// Starts in position mode with command θ_R = command [rad]. Throws InvalidParameterError on bad input.
   Simulator(const ServoParams& params, const State& initial, double command);
 
@@ -107,7 +107,7 @@ public:
   double energyBalanceError() const;
   std::uint64_t impactCount() const { return impacts_; }
 
-private:
+ private:
   MotorInput input() const;
   void emit(EventSink* sink, EventType type, const ImpactInfo* impact = nullptr) const;
   void addFlows(const EnergyFlows& flows);

@@ -24,11 +24,11 @@ Contact contactFromString(const std::string& s);
 /// Full mechanical state. Angles on their own shafts.
 struct State
 {
-  double time = 0.0;             ///< simulated time [s]
-  double load_position = 0.0;    ///< θ_c [rad]
-  double load_velocity = 0.0;    ///< ω_c [rad/s]
-  double motor_position = 0.0;   ///< θ_m [rad]
-  double motor_velocity = 0.0;   ///< ω_m [rad/s]
+  double time = 0.0;            ///< simulated time [s]
+  double load_position = 0.0;   ///< θ_c [rad]
+  double load_velocity = 0.0;   ///< ω_c [rad/s]
+  double motor_position = 0.0;  ///< θ_m [rad]
+  double motor_velocity = 0.0;  ///< ω_m [rad/s]
   Contact contact = Contact::Forward;
 };
 

@@ -19,9 +19,9 @@ namespace backlash_servo
 struct RunConfig
 {
   ServoParams params;
-  State initial;          ///< default: everything 0, forward contact
-  double command = 1.0;   ///< θ_R [rad], applied at the initial time
-  double duration = 0.0;  ///< simulate exactly this long [s]; 0 = until the verdict is settled
+  State initial;              ///< default: everything 0, forward contact
+  double command = 1.0;       ///< θ_R [rad], applied at the initial time
+  double duration = 0.0;      ///< simulate exactly this long [s]; 0 = until the verdict is settled
   double max_duration = 0.0;  ///< cap when running until settled [s]; 0 = 2000/ω_n
   bool track_energy = true;   ///< energy ledger (off: ~25 % faster, energy fields of the summary are zero)
 };
@@ -32,11 +32,11 @@ struct RunSummary
   std::vector<Maximum> maxima;  ///< positive maxima above the command, in time order
   std::uint64_t impacts = 0;
   EnergyLedger energy;
-  double kinetic = 0.0;         ///< kinetic energy at the end [J]
-  double balance_error = 0.0;   ///< energy balance residual [J]
+  double kinetic = 0.0;        ///< kinetic energy at the end [J]
+  double balance_error = 0.0;  ///< energy balance residual [J]
   State final_state;
-  double simulated = 0.0;       ///< simulated time [s]
-  bool settled = false;         ///< the verdict was settled (not cut off by the duration or the cap)
+  double simulated = 0.0;  ///< simulated time [s]
+  bool settled = false;    ///< the verdict was settled (not cut off by the duration or the cap)
 };
 
 /// Called at every sample time (sample_period > 0) with the simulator positioned there.

@@ -193,7 +193,10 @@ ExpPoly ExpPoly::solveFirstOrder(double s) const
   return y;
 }
 
-ExpPoly ExpPoly::antiderivative() const { return solveFirstOrder(0.0); }
+ExpPoly ExpPoly::antiderivative() const
+{
+  return solveFirstOrder(0.0);
+}
 
 double ExpPoly::integral(double upper) const
 {
@@ -439,8 +442,8 @@ void ExpPoly::evaluateWithDerivative(double tau, double* value, double* slope) c
 double ExpPoly::refineRoot(double level, double a, double b, double rel_tol) const
 {
   const double tol = std::max(rel_tol, 2.0 * EPS);
-  double fa = (*this)(a) - level;
-  double fb = (*this)(b) - level;
+  double fa = (*this)(a)-level;
+  double fb = (*this)(b)-level;
   if (fa == 0.0)
   {
     return a;

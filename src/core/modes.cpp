@@ -20,7 +20,10 @@ double referenceRate(const ServoParams& p)
                    p.motor_friction / p.motor_inertia});
 }
 
-double canonicalRate(double rate, double reference) { return rate < RATE_MERGE_FRACTION * reference ? 0.0 : rate; }
+double canonicalRate(double rate, double reference)
+{
+  return rate < RATE_MERGE_FRACTION * reference ? 0.0 : rate;
+}
 
 /// ∫_0^T e^{zτ} dτ for complex z, by series where |zT| < 1 (no cancellation).
 std::complex<double> integralExp(std::complex<double> z, double upper)
@@ -129,7 +132,7 @@ bool contactHolds(const ServoParams& p, const MotorInput& in, double x, double v
 
 // ---------------------------------------------------------------------------------------------------------------
 ContactMotion::ContactMotion(const ServoParams& params, const MotorInput& input, double x0, double v0)
-  : params_(params), input_(input), x0_(x0), v0_(v0)
+    : params_(params), input_(input), x0_(x0), v0_(v0)
 {
   const double j = params.totalInertia();
   const double ref = referenceRate(params);
@@ -293,7 +296,8 @@ EnergyFlows ContactMotion::energy(double tau) const
 }
 
 // ---------------------------------------------------------------------------------------------------------------
-FreeMotion::FreeMotion(const ServoParams& params, const MotorInput& input, const State& s) : params_(params), input_(input)
+FreeMotion::FreeMotion(const ServoParams& params, const MotorInput& input, const State& s)
+    : params_(params), input_(input)
 {
   const double ref = referenceRate(params);
   const double alpha = canonicalRate(params.load_friction / params.load_inertia, ref);

@@ -54,9 +54,15 @@ void ServoParams::validate() const
   requireUnitInterval("restitution", restitution);
 }
 
-double ServoParams::naturalFrequency() const { return std::sqrt(gear_ratio * gain / totalInertia()); }
+double ServoParams::naturalFrequency() const
+{
+  return std::sqrt(gear_ratio * gain / totalInertia());
+}
 
-double ServoParams::dampingRatio() const { return totalFriction() / (2.0 * naturalFrequency() * totalInertia()); }
+double ServoParams::dampingRatio() const
+{
+  return totalFriction() / (2.0 * naturalFrequency() * totalInertia());
+}
 
 double ServoParams::frictionRatio() const
 {

@@ -18,7 +18,10 @@ constexpr int MAX_STALLED_ITERATIONS = 10000;
 /// Maxima reported per contact segment before it is restarted (bounds a fixed buffer).
 constexpr int MAXIMA_PER_SEGMENT = 16;
 
-Contact otherWall(Contact c) { return c == Contact::Forward ? Contact::Backward : Contact::Forward; }
+Contact otherWall(Contact c)
+{
+  return c == Contact::Forward ? Contact::Backward : Contact::Forward;
+}
 }  // namespace
 
 const char* toString(Contact c)
@@ -102,10 +105,9 @@ void Simulator::setState(const State& s)
     const double wall = s.contact == Contact::Forward ? 0.0 : delta;
     if (std::fabs(g - wall) > tol)
     {
-      throw InvalidParameterError("motor_position", std::string("in ") + toString(s.contact) +
-                                                        " contact the gap θ_c − ρθ_m must be " +
-                                                        (wall == 0.0 ? "0" : "Δ") + " (got " + std::to_string(g) +
-                                                        " rad)");
+      throw InvalidParameterError("motor_position",
+                                  std::string("in ") + toString(s.contact) + " contact the gap θ_c − ρθ_m must be " +
+                                      (wall == 0.0 ? "0" : "Δ") + " (got " + std::to_string(g) + " rad)");
     }
     if (std::fabs(s.load_velocity - rho * s.motor_velocity) > 1e-9 * std::max(1.0, std::fabs(s.load_velocity)))
     {
@@ -118,8 +120,8 @@ void Simulator::setState(const State& s)
   {
     if (g < -tol || g > delta + tol)
     {
-      throw InvalidParameterError("motor_position", "gap θ_c − ρθ_m = " + std::to_string(g) +
-                                                        " rad lies outside [0, backlash]");
+      throw InvalidParameterError("motor_position",
+                                  "gap θ_c − ρθ_m = " + std::to_string(g) + " rad lies outside [0, backlash]");
     }
     n.motor_position = (s.load_position - std::min(std::max(g, 0.0), delta)) / rho;
   }
@@ -179,9 +181,15 @@ void Simulator::setParams(const ServoParams& params, EventSink* sink)
   emit(sink, EventType::ParameterChange);
 }
 
-double Simulator::gap() const { return state_.load_position - params_.gear_ratio * state_.motor_position; }
+double Simulator::gap() const
+{
+  return state_.load_position - params_.gear_ratio * state_.motor_position;
+}
 
-double Simulator::motorTorque() const { return input().torque(state_.load_position); }
+double Simulator::motorTorque() const
+{
+  return input().torque(state_.load_position);
+}
 
 double Simulator::meshTorque() const
 {
@@ -346,9 +354,10 @@ void Simulator::handleImpact(Contact wall, EventSink* sink)
   const double speed_noise = 64.0 * EPS * (std::fabs(v) + rho * std::fabs(w));
   const double jm = params_.motor_inertia;
   const double jl = params_.load_inertia;
-  const double press_accel = std::fabs(contactMeshTorque(params_, input(), state_.load_position, v)) *
-                             (jm + rho * rho * jl) / (jm * jl);
-  const double gap_noise = 64.0 * EPS * (std::fabs(state_.load_position) + rho * std::fabs(state_.motor_position) + delta);
+  const double press_accel =
+      std::fabs(contactMeshTorque(params_, input(), state_.load_position, v)) * (jm + rho * rho * jl) / (jm * jl);
+  const double gap_noise =
+      64.0 * EPS * (std::fabs(state_.load_position) + rho * std::fabs(state_.motor_position) + delta);
   const double stick_speed = std::max(speed_noise, std::sqrt(2.0 * press_accel * gap_noise));
   if (!(closing > 0.0))
   {

@@ -14,7 +14,7 @@ constexpr double QUIET_ERROR_FRACTION = 1e-2;
 /// Feeds maxima to the detector and forwards every event.
 class Watcher : public EventSink
 {
-public:
+ public:
   Watcher(LimitCycleDetector* detector, EventSink* next) : detector_(detector), next_(next) {}
   void onEvent(const Event& e) override
   {
@@ -28,7 +28,7 @@ public:
     }
   }
 
-private:
+ private:
   LimitCycleDetector* detector_;
   EventSink* next_;
 };
@@ -39,14 +39,14 @@ RunSummary runResponse(const RunConfig& config, EventSink* sink, double sample_p
   Simulator sim(config.params, config.initial, config.command);
   sim.setEnergyTracking(config.track_energy);
   const double omega_n = config.params.naturalFrequency();
-  const double scale = std::max({config.params.backlash, std::fabs(config.command - config.initial.load_position),
-                                 1e-12});
+  const double scale =
+      std::max({config.params.backlash, std::fabs(config.command - config.initial.load_position), 1e-12});
   LimitCycleDetector detector(config.command, scale);
   Watcher watcher(&detector, sink);
   const double t0 = config.initial.time;
   const bool until_settled = config.duration <= 0.0;
-  const double t_stop = t0 + (until_settled ? (config.max_duration > 0.0 ? config.max_duration : 2000.0 / omega_n)
-                                            : config.duration);
+  const double t_stop =
+      t0 + (until_settled ? (config.max_duration > 0.0 ? config.max_duration : 2000.0 / omega_n) : config.duration);
   const double chunk = sample_period > 0.0 ? sample_period : 2.0 * PI / omega_n;
   const double rest = LimitCycleDetector::ZERO_FRACTION * scale;
   // Quiet: no new positive maximum for a long time while close to the command means no oscillation is left, only

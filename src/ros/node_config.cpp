@@ -122,9 +122,10 @@ NodeConfig loadNodeConfig(const ros::NodeHandle& pnh)
       }
       else if (key == "control_mode")
       {
-        const std::string mode = v.getType() == XmlRpc::XmlRpcValue::TypeInt
-                                     ? (static_cast<int>(v) == 1 ? "effort" : static_cast<int>(v) == 0 ? "position" : "?")
-                                     : toText(key, v);
+        const std::string mode = v.getType() == XmlRpc::XmlRpcValue::TypeInt ? (static_cast<int>(v) == 1   ? "effort"
+                                                                                : static_cast<int>(v) == 0 ? "position"
+                                                                                                           : "?")
+                                                                             : toText(key, v);
         if (mode != "position" && mode != "effort")
         {
           throw UsageError("control_mode: must be position or effort");

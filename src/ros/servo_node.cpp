@@ -30,13 +30,13 @@ uint8_t contactCode(Contact c)
 }  // namespace
 
 ServoNode::ServoNode(ros::NodeHandle& nh, ros::NodeHandle& pnh, const NodeConfig& config)
-  : config_(config)
-  , clock_mode_(config.publish_clock ? ClockMode::Publisher :
-                                       (ros::Time::isSimTime() ? ClockMode::External : ClockMode::RealTime))
-  , sim_(config.run.params, config.run.initial, config.run.command)
-  , command_(config.run.command)
-  , effort_(config.motor_effort)
-  , paused_(config.paused)
+    : config_(config),
+      clock_mode_(config.publish_clock ? ClockMode::Publisher
+                                       : (ros::Time::isSimTime() ? ClockMode::External : ClockMode::RealTime)),
+      sim_(config.run.params, config.run.initial, config.run.command),
+      command_(config.run.command),
+      effort_(config.motor_effort),
+      paused_(config.paused)
 {
   if (config_.control_mode == ControlMode::Effort)
   {
@@ -115,8 +115,7 @@ void ServoNode::reanchorWallClock()
 
 void ServoNode::restartDetector()
 {
-  const double scale =
-      std::max({sim_.params().backlash, std::fabs(command_ - sim_.state().load_position), 1e-12});
+  const double scale = std::max({sim_.params().backlash, std::fabs(command_ - sim_.state().load_position), 1e-12});
   detector_ = std::make_unique<LimitCycleDetector>(command_, scale);
   announced_ = Verdict::Undecided;
 }
@@ -162,8 +161,8 @@ void ServoNode::run()
     {
       // Long waits are cut into 5 ms slices so callbacks stay responsive; the last slice ends exactly on time and
       // falls through (one wake-up and one spinOnce per sample at high rates).
-      const double wait = (wall_anchor_.toSec() + (t - sim_anchor_) / config_.real_time_factor) -
-                          ros::WallTime::now().toSec();
+      const double wait =
+          (wall_anchor_.toSec() + (t - sim_anchor_) / config_.real_time_factor) - ros::WallTime::now().toSec();
       if (wait > 0.005)
       {
         ros::WallDuration(0.005).sleep();
@@ -190,9 +189,10 @@ void ServoNode::run()
       ROS_INFO("backlash_servo_node: stop_after %g s reached: verdict %s, error %.6g rad, period %.6g s, %llu impacts",
                config_.stop_after, toString(detector_->status().verdict), detector_->status().error,
                detector_->status().period, static_cast<unsigned long long>(sim_.impactCount()));
-      ROS_INFO("backlash_servo_node: %ld samples at %g Hz in %.3f s wall: achieved real-time factor %.1f, "
-               "CPU %.3f s (%.1f %% of one core)",
-               sample_index_, config_.publish_rate, wall, t / wall, cpu, 100.0 * cpu / wall);
+      ROS_INFO(
+          "backlash_servo_node: %ld samples at %g Hz in %.3f s wall: achieved real-time factor %.1f, "
+          "CPU %.3f s (%.1f %% of one core)",
+          sample_index_, config_.publish_rate, wall, t / wall, cpu, 100.0 * cpu / wall);
       break;
     }
   }
@@ -288,9 +288,8 @@ void ServoNode::publishLimitCycle(double sim_time)
     announced_ = st.verdict;
     if (m.detected)
     {
-      ROS_INFO("%s detected: error %.6f rad, period %.4f s", st.verdict == Verdict::LimitCycle ? "LIMIT CYCLE" :
-                                                                                             "IRREGULAR OSCILLATION",
-               st.error, st.period);
+      ROS_INFO("%s detected: error %.6f rad, period %.4f s",
+               st.verdict == Verdict::LimitCycle ? "LIMIT CYCLE" : "IRREGULAR OSCILLATION", st.error, st.period);
     }
     else if (st.verdict == Verdict::Converged)
     {

@@ -26,7 +26,7 @@ namespace backlash_servo
 {
 class ServoNode : public EventSink
 {
-public:
+ public:
   ServoNode(ros::NodeHandle& nh, ros::NodeHandle& pnh, const NodeConfig& config);
   /// Runs the sample loop until shutdown (or stop_after).
   void run();
@@ -34,12 +34,12 @@ public:
   /// Core events (called during Simulator::advanceTo): impacts and maxima are published here.
   void onEvent(const Event& event) override;
 
-private:
+ private:
   enum class ClockMode
   {
-    RealTime,  ///< follow the wall clock scaled by real_time_factor
-    Publisher, ///< the node publishes /clock
-    External   ///< follow /clock from elsewhere
+    RealTime,   ///< follow the wall clock scaled by real_time_factor
+    Publisher,  ///< the node publishes /clock
+    External    ///< follow /clock from elsewhere
   };
 
   void onCommand(const std_msgs::Float64& msg);

@@ -15,7 +15,8 @@ using namespace backlash_servo;
 
 namespace
 {
-const char* USAGE = R"(usage: backlash_design --motor-inertia J_m --motor-friction f_m --load-inertia J_L --load-friction f_L
+const char* USAGE =
+    R"(usage: backlash_design --motor-inertia J_m --motor-friction f_m --load-inertia J_L --load-friction f_L
                        --restitution e [--backlash D] [--gain K|LO:HI] [--gear-ratio rho|LO:HI]
                        [--find max-gain|gear-ratio] [--json]
 Computes zeta, w_n and the chart coordinates of a motor/gear/load choice and simulates whether it falls into a
@@ -135,8 +136,8 @@ Design parse(int argc, char** argv)
       d.find = value;
       continue;
     }
-    const char* known[] = {"motor_inertia", "motor_friction", "load_inertia", "load_friction", "restitution",
-                           "backlash",      "gain",           "gear_ratio"};
+    const char* known[] = {"motor_inertia", "motor_friction", "load_inertia", "load_friction",
+                           "restitution",   "backlash",       "gain",         "gear_ratio"};
     if (std::find(std::begin(known), std::end(known), key) == std::end(known))
     {
       throw UsageError("unknown option " + arg + " (see --help)");
@@ -254,8 +255,7 @@ int main(int argc, char** argv)
   evaluationJson(j, "candidate", candidate);
   if (d.find == "max-gain")
   {
-    const auto found = bisect(d.gain_lo, d.gain_hi,
-                              [&](double k) { return evaluate(d.base, k, d.rho).limit_cycle(); });
+    const auto found = bisect(d.gain_lo, d.gain_hi, [&](double k) { return evaluate(d.base, k, d.rho).limit_cycle(); });
     char buf[300];
     j.beginObject("max_gain").field("range_low", d.gain_lo).field("range_high", d.gain_hi);
     if (found.second == -1)
@@ -280,8 +280,9 @@ int main(int argc, char** argv)
       text << buf;
       describe(text, "  check just below (0.999 K)", below);
       describe(text, "  check just above (1.001 K)", above);
-      std::snprintf(buf, sizeof buf, "chosen design (0.999 K): overshoot %.4g rad (%.3g %%), 2%% settling time %.4g s\n",
-                    t.overshoot, 100.0 * t.overshoot, t.settling_time);
+      std::snprintf(buf, sizeof buf,
+                    "chosen design (0.999 K): overshoot %.4g rad (%.3g %%), 2%% settling time %.4g s\n", t.overshoot,
+                    100.0 * t.overshoot, t.settling_time);
       text << buf;
       j.field("gain", k);
       evaluationJson(j, "check_below", below);

@@ -136,7 +136,7 @@ CliOptions parseArgs(int argc, char** argv)
 /// Writes trajectory samples and event rows as CSV.
 class CsvWriter : public EventSink
 {
-public:
+ public:
   CsvWriter(std::ostream& out, const RunConfig& config) : out_(out), config_(config)
   {
     out_ << "time,load_position,load_velocity,motor_position,motor_velocity,gap,contact,mesh_torque,motor_torque,"
@@ -147,17 +147,16 @@ public:
   {
     const ServoParams& p = config_.params;
     const MotorInput in{p.gain * config_.command, p.gain};
-    const double mesh =
-        s.contact == Contact::Apart ? 0.0 : contactMeshTorque(p, in, s.load_position, s.load_velocity);
+    const double mesh = s.contact == Contact::Apart ? 0.0 : contactMeshTorque(p, in, s.load_position, s.load_velocity);
     char buf[512];
-    std::snprintf(buf, sizeof buf, "%.15g,%.15g,%.15g,%.15g,%.15g,%.15g,%s,%.15g,%.15g,%s\n", s.time,
-                  s.load_position, s.load_velocity, s.motor_position, s.motor_velocity,
+    std::snprintf(buf, sizeof buf, "%.15g,%.15g,%.15g,%.15g,%.15g,%.15g,%s,%.15g,%.15g,%s\n", s.time, s.load_position,
+                  s.load_velocity, s.motor_position, s.motor_velocity,
                   s.load_position - p.gear_ratio * s.motor_position, toString(s.contact), mesh,
                   in.torque(s.load_position), event);
     out_ << buf;
   }
 
-private:
+ private:
   std::ostream& out_;
   const RunConfig& config_;
 };
@@ -234,9 +233,9 @@ void writeSummary(std::ostream& out, const RunConfig& c, const RunSummary& r, do
   std::snprintf(buf, sizeof buf,
                 "servo: J_m=%g J_L=%g kg·m², f_m=%g f_L=%g N·m·s/rad, K=%g N·m/rad, rho=%g, backlash=%g rad, e=%g\n"
                 "chart: zeta=%.4g  w_n=%.4g rad/s  rho²J_L/J_m=%.4g  rho²f_L/F_T=%.4g;  command %g -> %g rad\n",
-                p.motor_inertia, p.load_inertia, p.motor_friction, p.load_friction, p.gain, p.gear_ratio,
-                p.backlash, p.restitution, p.dampingRatio(), p.naturalFrequency(), p.inertiaRatio(),
-                p.frictionRatio(), c.initial.load_position, c.command);
+                p.motor_inertia, p.load_inertia, p.motor_friction, p.load_friction, p.gain, p.gear_ratio, p.backlash,
+                p.restitution, p.dampingRatio(), p.naturalFrequency(), p.inertiaRatio(), p.frictionRatio(),
+                c.initial.load_position, c.command);
   out << buf;
   if (r.status.verdict == Verdict::LimitCycle)
   {

@@ -46,7 +46,10 @@ constexpr int PARAM_COLUMNS = 5;
 constexpr int COLUMNS = 12;
 
 std::atomic<bool> g_interrupted{false};
-void onSignal(int) { g_interrupted = true; }
+void onSignal(int)
+{
+  g_interrupted = true;
+}
 
 std::vector<double> parseAxis(const std::string& flag, const std::string& text)
 {

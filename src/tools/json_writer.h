@@ -12,7 +12,7 @@ namespace backlash_servo
 {
 class JsonWriter
 {
-public:
+ public:
   explicit JsonWriter(std::ostream& out) : out_(out) {}
   JsonWriter& beginObject(const char* key = nullptr);
   JsonWriter& endObject();
@@ -24,7 +24,7 @@ public:
   JsonWriter& field(const char* key, const std::string& value);
   JsonWriter& null(const char* key);
 
-private:
+ private:
   void prefix(const char* key);
   std::ostream& out_;
   std::vector<bool> first_{true};

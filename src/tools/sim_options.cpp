@@ -32,19 +32,18 @@ std::string flagName(const std::string& key)
 const std::vector<std::string>& modelKeys()
 {
   static const std::vector<std::string> keys = {
-      "motor_inertia", "load_inertia",  "motor_friction", "load_friction",  "gain",          "gear_ratio",
-      "zeta",          "natural_frequency", "total_inertia", "inertia_ratio", "friction_ratio", "backlash",
-      "restitution",   "command",       "duration",       "max_duration",   "load_position", "load_velocity",
-      "motor_position", "motor_velocity", "contact"};
+      "motor_inertia",  "load_inertia",      "motor_friction", "load_friction", "gain",           "gear_ratio",
+      "zeta",           "natural_frequency", "total_inertia",  "inertia_ratio", "friction_ratio", "backlash",
+      "restitution",    "command",           "duration",       "max_duration",  "load_position",  "load_velocity",
+      "motor_position", "motor_velocity",    "contact"};
   return keys;
 }
 
 const std::vector<std::string>& nodeOnlyKeys()
 {
-  static const std::vector<std::string> keys = {"control_mode",     "motor_effort",     "publish_rate",
-                                                "real_time_factor", "publish_clock",    "motor_joint_name",
-                                                "load_joint_name",  "min_impact_speed", "paused",
-                                                "stop_after",       "start_delay"};
+  static const std::vector<std::string> keys = {
+      "control_mode",    "motor_effort",     "publish_rate", "real_time_factor", "publish_clock", "motor_joint_name",
+      "load_joint_name", "min_impact_speed", "paused",       "stop_after",       "start_delay"};
   return keys;
 }
 

@@ -19,7 +19,7 @@ namespace backlash_servo
 /// Bad command line or config file; main() prints it on one line and exits with code 2.
 class UsageError : public std::runtime_error
 {
-public:
+ public:
   using std::runtime_error::runtime_error;
 };
 
@@ -29,7 +29,7 @@ std::string flagName(const std::string& key);
 /// Raw key → value text, from YAML then flags (later sources override earlier ones).
 class KeyValues
 {
-public:
+ public:
   /// Reads a flat YAML mapping of scalars; throws UsageError naming the file and problem.
   void loadYaml(const std::string& path);
   void set(const std::string& key, const std::string& value) { values_[key] = value; }
@@ -43,7 +43,7 @@ public:
   std::string name(const std::string& key) const { return flags_ ? flagName(key) : key; }
   const std::map<std::string, std::string>& all() const { return values_; }
 
-private:
+ private:
   std::map<std::string, std::string> values_;
   bool flags_ = true;
 };

@@ -1,6 +1,7 @@
 // backlash_sim as a user runs it: JSON contract, YAML config equivalence, CSV output, clear errors with exit code 2.
 #include <gtest/gtest.h>
 
+#include <sys/wait.h>
 #include <algorithm>
 #include <cstdio>
 #include <cstdlib>
@@ -8,7 +9,6 @@
 #include <regex>
 #include <sstream>
 #include <string>
-#include <sys/wait.h>
 
 namespace
 {
@@ -97,8 +97,9 @@ TEST(Cli, CsvHasSamplesAndEventRows)
   std::ifstream f(csv);
   std::string header;
   std::getline(f, header);
-  EXPECT_EQ(header,
-            "time,load_position,load_velocity,motor_position,motor_velocity,gap,contact,mesh_torque,motor_torque,event");
+  EXPECT_EQ(
+      header,
+      "time,load_position,load_velocity,motor_position,motor_velocity,gap,contact,mesh_torque,motor_torque,event");
   int samples = 0, impacts = 0, maxima = 0;
   std::string line;
   while (std::getline(f, line))
@@ -121,7 +122,8 @@ TEST(Cli, BadInputIsOneClearLineAndExitCode2)
     std::string mentions;
   };
   const std::string bad_yaml = writeFile("backlash_sim_bad.yaml", "zeta: [0.5\n  inertia_ratio: : 1\n");
-  const std::string unknown_key = writeFile("backlash_sim_unknown.yaml", "zeta: 0.5\ninertia_ratio: 1\nfriction_ratio: 0\nbacklsh: 0.3\n");
+  const std::string unknown_key =
+      writeFile("backlash_sim_unknown.yaml", "zeta: 0.5\ninertia_ratio: 1\nfriction_ratio: 0\nbacklsh: 0.3\n");
   const Case cases[] = {{"--restitution 1.5", "restitution"},
                         {"--motor-inertia -1", "motor_inertia"},
                         {"--gain nan", "--gain"},

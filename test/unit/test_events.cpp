@@ -36,7 +36,7 @@ struct Recorder : EventSink
  */
 class BruteForce
 {
-public:
+ public:
   explicit BruteForce(const ServoParams& p, double command) : p_(p), command_(command) {}
   std::vector<double> impactTimes(double t_end, double dt)
   {
@@ -99,11 +99,10 @@ public:
     return out;
   }
 
-private:
+ private:
   double meshTorque(const double* s) const
   {
-    const double acc =
-        (p_.gear_ratio * p_.gain * (command_ - s[0]) - p_.totalFriction() * s[1]) / p_.totalInertia();
+    const double acc = (p_.gear_ratio * p_.gain * (command_ - s[0]) - p_.totalFriction() * s[1]) / p_.totalInertia();
     return p_.load_inertia * acc + p_.load_friction * s[1];
   }
   void deriv(const double* s, bool contact, double* d) const
@@ -127,13 +126,17 @@ private:
   {
     double k1[4], k2[4], k3[4], k4[4], s[4];
     deriv(x, contact, k1);
-    for (int i = 0; i < 4; ++i) s[i] = x[i] + 0.5 * h * k1[i];
+    for (int i = 0; i < 4; ++i)
+      s[i] = x[i] + 0.5 * h * k1[i];
     deriv(s, contact, k2);
-    for (int i = 0; i < 4; ++i) s[i] = x[i] + 0.5 * h * k2[i];
+    for (int i = 0; i < 4; ++i)
+      s[i] = x[i] + 0.5 * h * k2[i];
     deriv(s, contact, k3);
-    for (int i = 0; i < 4; ++i) s[i] = x[i] + h * k3[i];
+    for (int i = 0; i < 4; ++i)
+      s[i] = x[i] + h * k3[i];
     deriv(s, contact, k4);
-    for (int i = 0; i < 4; ++i) y[i] = x[i] + h / 6.0 * (k1[i] + 2 * k2[i] + 2 * k3[i] + k4[i]);
+    for (int i = 0; i < 4; ++i)
+      y[i] = x[i] + h / 6.0 * (k1[i] + 2 * k2[i] + 2 * k3[i] + k4[i]);
     if (contact)
     {
       y[2] = (y[0] - (wall == 0 ? 0.0 : p_.backlash)) / p_.gear_ratio;
@@ -213,7 +216,8 @@ TEST(Events, ResultsDoNotDependOnTheCallersSteps)
     t = std::min(150.0, t + 1e-6 + (seed >> 8) % 1000 * 1e-3);
     c.advanceTo(t, &ragged);
   }
-  const auto m1 = one.times(EventType::Maximum), m2 = fine.times(EventType::Maximum), m3 = ragged.times(EventType::Maximum);
+  const auto m1 = one.times(EventType::Maximum), m2 = fine.times(EventType::Maximum),
+             m3 = ragged.times(EventType::Maximum);
   ASSERT_EQ(m1.size(), m2.size());
   ASSERT_EQ(m1.size(), m3.size());
   for (std::size_t i = 0; i < m1.size(); ++i)

@@ -65,7 +65,8 @@ TEST(LimitCycle, PeriodTwoCycleIsFoundWithItsMultiplicity)
 TEST(LimitCycle, IrregularSustainedOscillation)
 {
   // Bounded, non-decaying, never settling (a quasi-periodic sequence).
-  const auto d = feed([](int i) { return 0.4 + 0.02 * std::sin(2.0 * i) + 0.01 * std::sin(0.7 * std::sqrt(2.0) * i); }, 400);
+  const auto d =
+      feed([](int i) { return 0.4 + 0.02 * std::sin(2.0 * i) + 0.01 * std::sin(0.7 * std::sqrt(2.0) * i); }, 400);
   EXPECT_EQ(d.status().verdict, Verdict::Irregular);
   EXPECT_GT(d.status().error, 0.4);
 }

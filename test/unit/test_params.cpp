@@ -43,16 +43,12 @@ TEST(Params, EachBadFieldIsNamed)
     double value;
     const char* name;
   };
-  const Case cases[] = {{&ServoParams::motor_inertia, 0.0, "motor_inertia"},
-                        {&ServoParams::motor_inertia, -1.0, "motor_inertia"},
-                        {&ServoParams::load_inertia, nan, "load_inertia"},
-                        {&ServoParams::motor_friction, -0.1, "motor_friction"},
-                        {&ServoParams::load_friction, inf, "load_friction"},
-                        {&ServoParams::gain, 0.0, "gain"},
-                        {&ServoParams::gear_ratio, -2.0, "gear_ratio"},
-                        {&ServoParams::backlash, -1e-3, "backlash"},
-                        {&ServoParams::restitution, 1.01, "restitution"},
-                        {&ServoParams::restitution, -0.01, "restitution"}};
+  const Case cases[] = {
+      {&ServoParams::motor_inertia, 0.0, "motor_inertia"}, {&ServoParams::motor_inertia, -1.0, "motor_inertia"},
+      {&ServoParams::load_inertia, nan, "load_inertia"},   {&ServoParams::motor_friction, -0.1, "motor_friction"},
+      {&ServoParams::load_friction, inf, "load_friction"}, {&ServoParams::gain, 0.0, "gain"},
+      {&ServoParams::gear_ratio, -2.0, "gear_ratio"},      {&ServoParams::backlash, -1e-3, "backlash"},
+      {&ServoParams::restitution, 1.01, "restitution"},    {&ServoParams::restitution, -0.01, "restitution"}};
   for (const Case& c : cases)
   {
     ServoParams p;

@@ -163,8 +163,9 @@ TEST(Sweep, BadAxesAreOneLineErrors)
 
 TEST(Design, MaxGainIsConfirmedBySimulatingBelowAndAbove)
 {
-  const std::string args = " --motor-inertia 0.25 --motor-friction 0.64 --load-inertia 1.0 --load-friction 0.64 "
-                           "--restitution 0.6";
+  const std::string args =
+      " --motor-inertia 0.25 --motor-friction 0.64 --load-inertia 1.0 --load-friction 0.64 "
+      "--restitution 0.6";
   int code = 0;
   const std::string json = runCapture(DESIGN + args + " --gain 1 --find max-gain --json", &code);
   ASSERT_EQ(code, 0) << json;
@@ -174,11 +175,13 @@ TEST(Design, MaxGainIsConfirmedBySimulatingBelowAndAbove)
   EXPECT_GT(k, 1.0);
   EXPECT_LT(k, 10.0);
   // Independent check with backlash_sim: converges below the answer, limit-cycles clearly above it.
-  const std::string below = runCapture(SIM + " --json --motor-inertia 0.25 --motor-friction 0.64 --load-inertia 1.0 "
-                                             "--load-friction 0.64 --restitution 0.6 --gain " +
+  const std::string below = runCapture(SIM +
+                                       " --json --motor-inertia 0.25 --motor-friction 0.64 --load-inertia 1.0 "
+                                       "--load-friction 0.64 --restitution 0.6 --gain " +
                                        std::to_string(k * 0.99));
-  const std::string above = runCapture(SIM + " --json --motor-inertia 0.25 --motor-friction 0.64 --load-inertia 1.0 "
-                                             "--load-friction 0.64 --restitution 0.6 --gain " +
+  const std::string above = runCapture(SIM +
+                                       " --json --motor-inertia 0.25 --motor-friction 0.64 --load-inertia 1.0 "
+                                       "--load-friction 0.64 --restitution 0.6 --gain " +
                                        std::to_string(k * 1.05));
   EXPECT_EQ(jsonText(below, "verdict"), "converged");
   EXPECT_EQ(jsonText(above, "verdict"), "limit_cycle");
@@ -194,8 +197,8 @@ TEST(Charts, ScriptsRunHeadlessAndWriteImages)
   const std::string log =
       runCapture("bash " + std::string(SOURCE_DIR) + "/scripts/make_charts.sh --quick " + out + " 2>&1", &code);
   ASSERT_EQ(code, 0) << log;
-  for (const char* name : {"existence_maps", "existence_surface", "limit_cycle_error", "error_vs_backlash",
-                           "phase_portrait_fig31"})
+  for (const char* name :
+       {"existence_maps", "existence_surface", "limit_cycle_error", "error_vs_backlash", "phase_portrait_fig31"})
   {
     for (const char* ext : {".png", ".svg"})
     {
@@ -216,9 +219,8 @@ TEST(Bench, HarnessRunsAndTheAccuracyComparisonHolds)
   const std::string out = runCapture(std::string(BENCH_CORE_EXE) + " --quick --reference-out " + ref, &code);
   EXPECT_EQ(code, 0) << out;
   EXPECT_NE(out.find("accuracy check: ours agrees"), std::string::npos) << out;
-  const std::string py = runCapture("/usr/bin/python3 " + std::string(SOURCE_DIR) + "/bench/scipy_baseline.py " + ref +
-                                        " --max-sim 5",
-                                    &code);
+  const std::string py = runCapture(
+      "/usr/bin/python3 " + std::string(SOURCE_DIR) + "/bench/scipy_baseline.py " + ref + " --max-sim 5", &code);
   EXPECT_EQ(code, 0) << py;
   EXPECT_NE(py.find("thesis_d1"), std::string::npos) << py;
 }
