@@ -48,8 +48,8 @@ class ExpPoly
 
   /// f(τ).
   double operator()(double tau) const;
-  /// f(τ) and f'(τ) in one pass (shared exponentials).
-  void evaluateWithDerivative(double tau, double* value, double* slope) const;
+  /// f(τ) and f'(τ) in one pass (shared exponentials); optionally Σ|c_k τ^k e^{rτ}| (the rounding scale).
+  void evaluateWithDerivative(double tau, double* value, double* slope, double* magnitude = nullptr) const;
   /// f(τ) and a bound on its rounding error (a multiple of ε Σ|c_k τ^k e^{rτ}|).
   double evaluate(double tau, double* rounding_bound) const;
 
@@ -85,6 +85,8 @@ class ExpPoly
    * one changes the extremum value by O(δ²) — so they are refined to CRITICAL_POINT_TOLERANCE only.
    */
   double refineRoot(double level, double a, double b, double rel_tol = 0.0) const;
+  /// refineRoot() when f(a) − level and f(b) − level are already known.
+  double refineBracket(double level, double a, double fa, double b, double fb, double rel_tol = 0.0) const;
 
  private:
   /// d/dτ (f e^{−r_0 τ}) e^{...}: the sign-equivalent derivative with one term or one degree fewer.

@@ -400,50 +400,63 @@ int ExpPoly::signChangeRoots(double a, double b, double* out, double rel_tol) co
     {
       if (last_sign != 0 && s != last_sign && count < EXP_POLY_MAX_ROOTS)
       {
-        out[count++] = pending_zero ? zero_at : refineRoot(0.0, prev, q, rel_tol);
+        out[count++] = pending_zero ? zero_at : refineBracket(0.0, prev, fprev, q, fq, rel_tol);
       }
       last_sign = s;
       pending_zero = false;
     }
     prev = q;
+    fprev = fq;
   }
   return count;
 }
 
-void ExpPoly::evaluateWithDerivative(double tau, double* value, double* slope) const
+void ExpPoly::evaluateWithDerivative(double tau, double* value, double* slope, double* magnitude) const
 {
-  double f = 0.0, df = 0.0;
+  double f = 0.0, df = 0.0, mag = 0.0;
+  const double at = std::fabs(tau);
   for (int i = 0; i < n_; ++i)
   {
     const ExpTerm& t = terms_[i];
     double p = t.coef[t.degree];
+    double pa = std::fabs(p);
     double dp = 0.0;
     for (int k = t.degree - 1; k >= 0; --k)
     {
       dp = dp * tau + p;
       p = p * tau + t.coef[k];
+      pa = pa * at + std::fabs(t.coef[k]);
     }
     if (t.rate == 0.0)
     {
       f += p;
       df += dp;
+      mag += pa;
     }
     else
     {
       const double ex = std::exp(t.rate * tau);
       f += p * ex;
       df += (dp + t.rate * p) * ex;
+      mag += pa * ex;
     }
   }
   *value = f;
   *slope = df;
+  if (magnitude != nullptr)
+  {
+    *magnitude = mag;
+  }
 }
 
 double ExpPoly::refineRoot(double level, double a, double b, double rel_tol) const
 {
+  return refineBracket(level, a, (*this)(a)-level, b, (*this)(b)-level, rel_tol);
+}
+
+double ExpPoly::refineBracket(double level, double a, double fa, double b, double fb, double rel_tol) const
+{
   const double tol = std::max(rel_tol, 2.0 * EPS);
-  double fa = (*this)(a)-level;
-  double fb = (*this)(b)-level;
   if (fa == 0.0)
   {
     return a;
@@ -456,20 +469,21 @@ double ExpPoly::refineRoot(double level, double a, double b, double rel_tol) con
   {
     return std::fabs(fa) < std::fabs(fb) ? a : b;
   }
-  // Newton inside the shrinking bracket; where a Newton step would leave it or stall, a false-position step
-  // (bisection if that fails to halve the bracket). f is monotone on [a, b], so the bracket holds the only root.
+  // Newton inside the shrinking bracket while its steps at least halve; otherwise (a step would leave the bracket,
+  // or convergence is slow as at a flat start) bisection. f is monotone on [a, b], so the
+  // bracket holds the only root. Stops when the bracket or the Newton step reaches tol, or f is at rounding level.
   double x = (a * fb - b * fa) / (fb - fa);
   if (!(x > a && x < b))
   {
     x = 0.5 * (a + b);
   }
-  double last_width = b - a;
+  double last_step = 2.0 * (b - a);
   for (int it = 0; it < 200; ++it)
   {
-    double f, df;
-    evaluateWithDerivative(x, &f, &df);
+    double f, df, magnitude;
+    evaluateWithDerivative(x, &f, &df, &magnitude);
     f -= level;
-    if (f == 0.0)
+    if (std::fabs(f) <= 4.0 * EPS * (magnitude + std::fabs(level)))
     {
       return x;
     }
@@ -483,30 +497,26 @@ double ExpPoly::refineRoot(double level, double a, double b, double rel_tol) con
       b = x;
       fb = f;
     }
+    if (b - a <= tol * std::max(std::fabs(a), std::fabs(b)) || b - a <= std::numeric_limits<double>::min())
+    {
+      return x;
+    }
     const double newton = df != 0.0 ? x - f / df : a - 1.0;
     const double step = std::fabs(newton - x);
-    if (b - a <= tol * std::max(std::fabs(a), std::fabs(b)) || b - a <= std::numeric_limits<double>::min() ||
-        (newton > a && newton < b && step <= tol * std::fabs(x)))
+    if (newton > a && newton < b && step <= 0.5 * last_step)
     {
-      return newton > a && newton < b ? newton : x;
-    }
-    if (newton > a && newton < b)
-    {
-      x = newton;
-    }
-    else if (b - a < 0.5 * last_width)
-    {
-      x = (a * fb - b * fa) / (fb - fa);
-      if (!(x > a && x < b))
+      if (step <= tol * std::fabs(x))
       {
-        x = 0.5 * (a + b);
+        return newton;
       }
+      x = newton;
+      last_step = step;
     }
     else
     {
       x = 0.5 * (a + b);
+      last_step = 0.5 * (b - a);
     }
-    last_width = b - a;
   }
   return x;
 }

@@ -69,7 +69,7 @@ int walkDownCrossings(const ExpPoly& f, const Bound& bound, double horizon, bool
     const double bq = bound(q);
     if (armed && fq < -bq)
     {
-      out[count++] = fp > 0.0 ? f.refineRoot(0.0, p, q) : p;
+      out[count++] = fp > 0.0 ? f.refineBracket(0.0, p, fp, q, fq) : p;
       armed = !require_positive_first;
       if (!require_positive_first)
       {
@@ -355,12 +355,12 @@ double FreeMotion::impactTime(double horizon, Contact* wall) const
     if (gq < -bound)
     {
       *wall = Contact::Forward;
-      return gp > 0.0 ? gap_.refineRoot(0.0, p, q) : p;
+      return gp > 0.0 ? gap_.refineBracket(0.0, p, gp, q, gq) : p;
     }
     if (gq > delta + bound + 4.0 * EPS * delta)
     {
       *wall = Contact::Backward;
-      return gp < delta ? gap_.refineRoot(delta, p, q) : p;
+      return gp < delta ? gap_.refineBracket(delta, p, gp - delta, q, gq - delta) : p;
     }
     p = q;
     gp = gq;
