@@ -17,6 +17,9 @@ constexpr double EPS = std::numeric_limits<double>::epsilon();
 constexpr int MAX_STALLED_ITERATIONS = 10000;
 /// Maxima reported per contact segment before it is restarted (bounds a fixed buffer).
 constexpr int MAXIMA_PER_SEGMENT = 16;
+/// Apart mode: impacts are searched this many natural periods ahead per segment.
+constexpr double FREE_SEARCH_PERIODS = 1.0;
+constexpr double PI = 3.14159265358979323846;
 
 Contact otherWall(Contact c)
 {
@@ -318,8 +321,11 @@ void Simulator::advanceFree(double horizon, double t_end, EventSink* sink)
 {
   const FreeMotion motion(params_, input(), state_);
   Contact wall = Contact::Forward;
-  const double impact = motion.impactTime(horizon, &wall);
-  const double end = std::min(impact, horizon);
+  // Search at most one natural period ahead: impacts come sooner almost always, and a short window keeps the
+  // critical points and brackets of the search local (a longer flight simply continues in a new segment).
+  const double window = std::min(horizon, FREE_SEARCH_PERIODS * 2.0 * PI / params_.naturalFrequency());
+  const double impact = motion.impactTime(window, &wall);
+  const double end = std::min(impact, window);
   if (track_energy_)
   {
     addFlows(motion.energy(end));
@@ -327,7 +333,7 @@ void Simulator::advanceFree(double horizon, double t_end, EventSink* sink)
   const double t0 = state_.time;
   motion.at(end, &state_);
   state_.time = end >= horizon ? t_end : t0 + end;
-  if (impact <= horizon)
+  if (impact <= window)
   {
     handleImpact(wall, sink);
   }
