@@ -311,13 +311,16 @@ FreeMotion::FreeMotion(const ServoParams& params, const MotorInput& input, const
   if (alpha > 0.0)
   {
     const double c = v0 / alpha;
-    load_position_ = ExpPoly::constant(x0 + c) + ExpPoly::monomial(-c, 0, -alpha);
-    load_velocity_ = ExpPoly::monomial(v0, 0, -alpha);
+    const double constant = x0 + c, decaying = -c;
+    load_position_.addTerm(0.0, &constant, 0);
+    load_position_.addTerm(-alpha, &decaying, 0);
+    load_velocity_.addTerm(-alpha, &v0, 0);
   }
   else
   {
-    load_position_ = ExpPoly::constant(x0) + ExpPoly::monomial(v0, 1, 0.0);
-    load_velocity_ = ExpPoly::constant(v0);
+    const double line[2] = {x0, v0};
+    load_position_.addTerm(0.0, line, 1);
+    load_velocity_.addTerm(0.0, &v0, 0);
   }
   // J_m ω̇_m + f_m ω_m = a − k θ_c(τ): particular solution plus the free decay e^{−βτ} matching ω_m(0).
   ExpPoly forcing = load_position_ * (-input.stiffness / params.motor_inertia);

@@ -17,8 +17,8 @@ constexpr double EPS = std::numeric_limits<double>::epsilon();
 constexpr int MAX_STALLED_ITERATIONS = 10000;
 /// Maxima reported per contact segment before it is restarted (bounds a fixed buffer).
 constexpr int MAXIMA_PER_SEGMENT = 16;
-/// Apart mode: impacts are searched this many natural periods ahead per segment.
-constexpr double FREE_SEARCH_PERIODS = 1.0;
+/// Apart mode: impacts are searched this far ahead per segment [natural periods] (fastest on the benchmarks).
+constexpr double FREE_SEARCH_PERIODS = 0.5;
 constexpr double PI = 3.14159265358979323846;
 
 Contact otherWall(Contact c)
@@ -321,7 +321,7 @@ void Simulator::advanceFree(double horizon, double t_end, EventSink* sink)
 {
   const FreeMotion motion(params_, input(), state_);
   Contact wall = Contact::Forward;
-  // Search at most one natural period ahead: impacts come sooner almost always, and a short window keeps the
+  // Search at most half a natural period ahead: impacts come sooner almost always, and a short window keeps the
   // critical points and brackets of the search local (a longer flight simply continues in a new segment).
   const double window = std::min(horizon, FREE_SEARCH_PERIODS * 2.0 * PI / params_.naturalFrequency());
   const double impact = motion.impactTime(window, &wall);
