@@ -8,6 +8,7 @@ export PATH=/usr/bin:$PATH
 PACKAGES=(
   build-essential cmake pkg-config
   ros-core-dev catkin libsensor-msgs-dev libstd-msgs-dev libstd-srvs-dev librostest-dev python3-rostest
+  python3-roslaunch python3-rostopic python3-rospy libros-rosgraph-msgs-dev
   libdynamic-reconfigure-config-init-mutex-dev python3-dynamic-reconfigure
   libeigen3-dev librosbag-dev python3-rosbag python3-sensor-msgs python3-std-msgs python3-std-srvs rosbash
   libyaml-cpp-dev googletest libgtest-dev python3-matplotlib python3-scipy python3-numpy libboost-dev

@@ -328,3 +328,18 @@ TEST(Events, SeparationHappensWhereTheMeshTorqueChangesSign)
   }
   EXPECT_GT(checked, 0);
 }
+
+TEST(Events, RoundingLevelPenetrationAfterSeparationDoesNotStall)
+{
+  // Regression: at t ≈ 58.2487 s this point separated with the gap at −7e-17 rad (rounding of θ_c − ρθ_m ≈ 1.3 − 1.3)
+  // and the merged coefficients' bound (6e-17) called it a penetration at τ = 0 again and again.
+  RunConfig c;
+  c.params = chart(0.2, 0.04, 1.0, 0.8);
+  c.duration = 120.0;
+  const RunSummary r = runResponse(c);
+  EXPECT_DOUBLE_EQ(r.final_state.time, 120.0);
+  EXPECT_LT(std::fabs(r.balance_error), 1e-9 * r.energy.input);
+  RunConfig settle = c;
+  settle.duration = 0.0;
+  EXPECT_EQ(runResponse(settle).status.verdict, Verdict::LimitCycle);
+}
