@@ -322,6 +322,30 @@ FreeMotion::FreeMotion(const ServoParams& params, const MotorInput& input, const
     load_position_.addTerm(0.0, line, 1);
     load_velocity_.addTerm(0.0, &v0, 0);
   }
+  if (alpha > 0.0 && beta > 0.0 && alpha != beta)
+  {
+    // The generic case written out (same solution as the general path below, without its intermediate ExpPolys):
+    // θ_c = C0 + C1 e^{−ατ}; ω_m = W0 + W1 e^{−ατ} + W2 e^{−βτ}; θ_m = M0 + W0 τ + M1 e^{−ατ} + M2 e^{−βτ}.
+    const double c1 = -v0 / alpha, c0 = x0 - c1;
+    const double f0 = (input.offset - input.stiffness * c0) / params.motor_inertia;
+    const double f1 = -input.stiffness * c1 / params.motor_inertia;
+    const double w0 = f0 / beta, w1 = f1 / (beta - alpha), w2 = s.motor_velocity - w0 - w1;
+    const double m1 = -w1 / alpha, m2 = -w2 / beta;
+    const double m[2] = {s.motor_position - m1 - m2, w0};
+    motor_velocity_.addTerm(0.0, &w0, 0);
+    motor_velocity_.addTerm(-alpha, &w1, 0);
+    motor_velocity_.addTerm(-beta, &w2, 0);
+    motor_position_.addTerm(0.0, m, 1);
+    motor_position_.addTerm(-alpha, &m1, 0);
+    motor_position_.addTerm(-beta, &m2, 0);
+    const double rho = params.gear_ratio;
+    const double g[2] = {c0 - rho * m[0], -rho * w0};
+    const double ga = c1 - rho * m1, gb = -rho * m2;
+    gap_.addTerm(0.0, g, 1);
+    gap_.addTerm(-alpha, &ga, 0);
+    gap_.addTerm(-beta, &gb, 0);
+    return;
+  }
   // J_m ω̇_m + f_m ω_m = a − k θ_c(τ): particular solution plus the free decay e^{−βτ} matching ω_m(0).
   ExpPoly forcing = load_position_ * (-input.stiffness / params.motor_inertia);
   forcing.addConstant(input.offset / params.motor_inertia);

@@ -6,6 +6,7 @@
 #include <vector>
 
 #include "backlash_servo/impact.h"
+#include "backlash_servo/modes.h"
 #include "backlash_servo/step_response.h"
 
 using namespace backlash_servo;
@@ -242,4 +243,54 @@ TEST(Scaling, LimitCycleSizeIsProportionalToBacklash)
   ASSERT_EQ(rb.status.verdict, Verdict::LimitCycle);
   EXPECT_NEAR(rb.status.error * 10.0, ra.status.error, 1e-6 * ra.status.error);
   EXPECT_NEAR(rb.status.period, ra.status.period, 1e-5 * ra.status.period);
+}
+
+TEST(Modes, ApartMotionSolvesItsOdeForEveryRateCase)
+{
+  // Generic (α ≠ β, both > 0; the written-out fast path), α = 0, β = 0, α = β (resonance): the closed form must
+  // start at the given state and satisfy J_L θ̈_c + f_L θ̇_c = 0, J_m θ̈_m + f_m θ̇_m = a − kθ_c (central
+  // differences), and its gap must be θ_c − ρθ_m.
+  struct Case
+  {
+    double jm, jl, fm, fl;
+  };
+  const Case cases[] = {{0.1, 0.9, 0.48, 0.32}, {0.1, 0.9, 0.48, 0.0}, {0.1, 0.9, 0.0, 0.32}, {0.2, 0.5, 0.4, 1.0}};
+  for (const Case& c : cases)
+  {
+    ServoParams p;
+    p.motor_inertia = c.jm;
+    p.load_inertia = c.jl;
+    p.motor_friction = c.fm;
+    p.load_friction = c.fl;
+    p.gear_ratio = 1.7;
+    const MotorInput in{0.8, 1.3};
+    State s;
+    s.load_position = 0.4;
+    s.load_velocity = -0.7;
+    s.motor_position = 0.1;
+    s.motor_velocity = 1.1;
+    s.contact = Contact::Apart;
+    const FreeMotion m(p, in, s);
+    State at0;
+    m.at(0.0, &at0);
+    EXPECT_NEAR(at0.load_position, s.load_position, 1e-14);
+    EXPECT_NEAR(at0.load_velocity, s.load_velocity, 1e-14);
+    EXPECT_NEAR(at0.motor_position, s.motor_position, 1e-14);
+    EXPECT_NEAR(at0.motor_velocity, s.motor_velocity, 1e-14);
+    for (double tau : {0.3, 1.7, 4.0})
+    {
+      const double h = 1e-4;
+      State a, b, mid;
+      m.at(tau - h, &a);
+      m.at(tau + h, &b);
+      m.at(tau, &mid);
+      const double dv = (b.load_velocity - a.load_velocity) / (2 * h);
+      const double dw = (b.motor_velocity - a.motor_velocity) / (2 * h);
+      EXPECT_NEAR((b.load_position - a.load_position) / (2 * h), mid.load_velocity, 1e-7);
+      EXPECT_NEAR((b.motor_position - a.motor_position) / (2 * h), mid.motor_velocity, 1e-7);
+      EXPECT_NEAR(p.load_inertia * dv + p.load_friction * mid.load_velocity, 0.0, 1e-7);
+      EXPECT_NEAR(p.motor_inertia * dw + p.motor_friction * mid.motor_velocity, in.torque(mid.load_position), 1e-7);
+      EXPECT_NEAR(m.gap(tau), mid.load_position - p.gear_ratio * mid.motor_position, 1e-12);
+    }
+  }
 }
