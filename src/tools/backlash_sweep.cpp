@@ -120,7 +120,8 @@ std::string key(const Point& p)
   return buf;
 }
 
-std::string evaluate(const Point& p, double max_duration)
+/// Physical parameters of a point (chart form, ω_n = 1 rad/s, J = 1 kg·m², ρ = 1); throws InvalidParameterError.
+ServoParams paramsOf(const Point& p)
 {
   ChartParams ch;
   ch.zeta = p.zeta;
@@ -128,8 +129,13 @@ std::string evaluate(const Point& p, double max_duration)
   ch.friction_ratio = p.friction_ratio;
   ch.restitution = p.restitution;
   ch.backlash = p.backlash;
+  return ch.toServoParams();
+}
+
+std::string evaluate(const Point& p, double max_duration)
+{
   RunConfig c;
-  c.params = ch.toServoParams();
+  c.params = paramsOf(p);
   c.max_duration = max_duration;
   c.track_energy = false;  // verdicts only
   const RunSummary r = runResponse(c);
@@ -247,13 +253,7 @@ int main(int argc, char** argv)
   {
     try
     {
-      ChartParams ch;
-      ch.zeta = p.zeta;
-      ch.inertia_ratio = p.inertia_ratio;
-      ch.friction_ratio = p.friction_ratio;
-      ch.restitution = p.restitution;
-      ch.backlash = p.backlash;
-      ch.toServoParams();
+      paramsOf(p);
     }
     catch (const std::exception& e)
     {

@@ -1,6 +1,8 @@
 // backlash_sim as a user runs it: JSON contract, YAML config equivalence, CSV output, clear errors with exit code 2.
 #include <gtest/gtest.h>
 
+#include "test_helpers.h"
+
 #include <sys/wait.h>
 #include <algorithm>
 #include <cstdio>
@@ -22,20 +24,13 @@ struct Result
 Result run(const std::string& args)
 {
   const std::string err_file = "/tmp/backlash_sim_test_err.txt";
-  const std::string cmd = std::string(BACKLASH_SIM_EXE) + " " + args + " 2>" + err_file;
-  FILE* p = popen(cmd.c_str(), "r");
-  std::string out;
-  char buf[4096];
-  size_t n;
-  while ((n = fread(buf, 1, sizeof buf, p)) > 0)
-  {
-    out.append(buf, n);
-  }
-  const int status = pclose(p);
+  int code = 0;
+  const std::string out =
+      test_helpers::runCapture(std::string(BACKLASH_SIM_EXE) + " " + args + " 2>" + err_file, &code);
   std::ifstream f(err_file);
   std::stringstream err;
   err << f.rdbuf();
-  return {WEXITSTATUS(status), out, err.str()};
+  return {code, out, err.str()};
 }
 
 double number(const std::string& json, const std::string& key)

@@ -7,29 +7,14 @@
 
 #include "backlash_servo/modes.h"
 #include "backlash_servo/step_response.h"
+#include "test_helpers.h"
 
 using namespace backlash_servo;
+using test_helpers::chart;
+using test_helpers::Recorder;
 
 namespace
 {
-struct Recorder : EventSink
-{
-  std::vector<Event> events;
-  void onEvent(const Event& e) override { events.push_back(e); }
-  std::vector<double> times(EventType t) const
-  {
-    std::vector<double> out;
-    for (const Event& e : events)
-    {
-      if (e.type == t)
-      {
-        out.push_back(e.state.time);
-      }
-    }
-    return out;
-  }
-};
-
 /**
  * Test-only brute-force reference: classical RK4 with a tiny fixed step on the same hybrid model, impacts located
  * by bisection of the step, contact kept while the mesh torque presses. Independent of the closed forms.
@@ -146,16 +131,6 @@ class BruteForce
   double command_;
 };
 
-ServoParams chart(double zeta, double inertia_ratio, double friction_ratio, double e, double delta = 0.3)
-{
-  ChartParams c;
-  c.zeta = zeta;
-  c.inertia_ratio = inertia_ratio;
-  c.friction_ratio = friction_ratio;
-  c.restitution = e;
-  c.backlash = delta;
-  return c.toServoParams();
-}
 }  // namespace
 
 TEST(Events, NoImpactMissedAgainstTinyStepReference)

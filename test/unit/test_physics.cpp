@@ -8,25 +8,14 @@
 #include "backlash_servo/impact.h"
 #include "backlash_servo/modes.h"
 #include "backlash_servo/step_response.h"
+#include "test_helpers.h"
 
 using namespace backlash_servo;
+using test_helpers::chart;
+using test_helpers::Recorder;
 
 namespace
 {
-ServoParams chart(double zeta, double inertia_ratio, double friction_ratio, double e, double delta = 0.3,
-                  double omega_n = 1.0, double rho = 1.0)
-{
-  ChartParams c;
-  c.zeta = zeta;
-  c.inertia_ratio = inertia_ratio;
-  c.friction_ratio = friction_ratio;
-  c.restitution = e;
-  c.backlash = delta;
-  c.natural_frequency = omega_n;
-  c.gear_ratio = rho;
-  return c.toServoParams();
-}
-
 /// Unit-step response of θ̈ + 2ζωθ̇ + ω²θ = ω² from rest (textbook closed form).
 double linearStep(double zeta, double w, double t)
 {
@@ -44,23 +33,6 @@ double linearStep(double zeta, double w, double t)
   return 1.0 + (l2 * std::exp(l1 * t) - l1 * std::exp(l2 * t)) / (l1 - l2);
 }
 
-struct Recorder : EventSink
-{
-  std::vector<Event> events;
-  void onEvent(const Event& e) override { events.push_back(e); }
-  std::vector<Event> of(EventType t) const
-  {
-    std::vector<Event> out;
-    for (const Event& e : events)
-    {
-      if (e.type == t)
-      {
-        out.push_back(e);
-      }
-    }
-    return out;
-  }
-};
 }  // namespace
 
 TEST(Linear, ZeroBacklashIsTheClosedFormStepResponse)

@@ -1,6 +1,8 @@
 // backlash_sweep, backlash_design and the chart scripts, checked against single backlash_sim runs.
 #include <gtest/gtest.h>
 
+#include "test_helpers.h"
+
 #include <sys/stat.h>
 #include <sys/wait.h>
 #include <unistd.h>
@@ -16,23 +18,7 @@
 
 namespace
 {
-std::string runCapture(const std::string& cmd, int* code = nullptr)
-{
-  FILE* p = popen(cmd.c_str(), "r");
-  std::string out;
-  char buf[4096];
-  size_t n;
-  while ((n = fread(buf, 1, sizeof buf, p)) > 0)
-  {
-    out.append(buf, n);
-  }
-  const int status = pclose(p);
-  if (code != nullptr)
-  {
-    *code = WEXITSTATUS(status);
-  }
-  return out;
-}
+using test_helpers::runCapture;
 
 std::string readFile(const std::string& path)
 {

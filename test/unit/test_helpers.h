@@ -1,0 +1,76 @@
+// Helpers shared by the gtest files: chart-form parameters, an event recorder, running a command.
+#pragma once
+
+#include <sys/wait.h>
+
+#include <cstdio>
+#include <string>
+#include <vector>
+
+#include "backlash_servo/params.h"
+#include "backlash_servo/simulator.h"
+
+namespace test_helpers
+{
+/// Physical parameters from the thesis' chart form (ω_n [rad/s], Δ [rad]).
+inline backlash_servo::ServoParams chart(double zeta, double inertia_ratio, double friction_ratio, double e,
+                                         double delta = 0.3, double omega_n = 1.0, double rho = 1.0)
+{
+  backlash_servo::ChartParams c;
+  c.zeta = zeta;
+  c.inertia_ratio = inertia_ratio;
+  c.friction_ratio = friction_ratio;
+  c.restitution = e;
+  c.backlash = delta;
+  c.natural_frequency = omega_n;
+  c.gear_ratio = rho;
+  return c.toServoParams();
+}
+
+/// Keeps every event.
+struct Recorder : backlash_servo::EventSink
+{
+  std::vector<backlash_servo::Event> events;
+  void onEvent(const backlash_servo::Event& e) override { events.push_back(e); }
+  std::vector<backlash_servo::Event> of(backlash_servo::EventType t) const
+  {
+    std::vector<backlash_servo::Event> out;
+    for (const backlash_servo::Event& e : events)
+    {
+      if (e.type == t)
+      {
+        out.push_back(e);
+      }
+    }
+    return out;
+  }
+  std::vector<double> times(backlash_servo::EventType t) const
+  {
+    std::vector<double> out;
+    for (const backlash_servo::Event& e : of(t))
+    {
+      out.push_back(e.state.time);
+    }
+    return out;
+  }
+};
+
+/// Runs a shell command; returns its stdout and sets *code to its exit status.
+inline std::string runCapture(const std::string& cmd, int* code = nullptr)
+{
+  FILE* p = popen(cmd.c_str(), "r");
+  std::string out;
+  char buf[4096];
+  size_t n;
+  while ((n = fread(buf, 1, sizeof buf, p)) > 0)
+  {
+    out.append(buf, n);
+  }
+  const int status = pclose(p);
+  if (code != nullptr)
+  {
+    *code = WEXITSTATUS(status);
+  }
+  return out;
+}
+}  // namespace test_helpers
