@@ -149,29 +149,25 @@ int main(int argc, char** argv)
     const bench::Outcome ref = bench::odeintDense(c.params, 1.0, c.duration, 1e-13);
     std::vector<Row> rows;
     rows.push_back(ours(c));
-    for (double dt : rk4_steps)
-    {
+    // One timed row per baseline run.
+    auto baseline = [&](const char* format, double setting, const std::function<bench::Outcome()>& run) {
       Row r;
       char name[40];
-      std::snprintf(name, sizeof name, "RK4 fixed dt=%g", dt);
+      std::snprintf(name, sizeof name, format, setting);
       r.method = name;
       bench::Outcome o;
-      r.wall = timeIt([&]() { o = bench::fixedStepRk4(c.params, 1.0, c.duration, dt); });
+      r.wall = timeIt([&]() { o = run(); });
       r.events = o.events;
       r.maxima = o.maxima;
       rows.push_back(r);
+    };
+    for (double dt : rk4_steps)
+    {
+      baseline("RK4 fixed dt=%g", dt, [&]() { return bench::fixedStepRk4(c.params, 1.0, c.duration, dt); });
     }
     for (double tol : {1e-6, 1e-10})
     {
-      Row r;
-      char name[40];
-      std::snprintf(name, sizeof name, "odeint dopri5 tol=%g", tol);
-      r.method = name;
-      bench::Outcome o;
-      r.wall = timeIt([&]() { o = bench::odeintDense(c.params, 1.0, c.duration, tol); });
-      r.events = o.events;
-      r.maxima = o.maxima;
-      rows.push_back(r);
+      baseline("odeint dopri5 tol=%g", tol, [&]() { return bench::odeintDense(c.params, 1.0, c.duration, tol); });
     }
     const double ours_wall = rows[0].wall;
     double ours_err = 0.0, rk4_coarse_err = 0.0;
