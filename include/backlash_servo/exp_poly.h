@@ -48,8 +48,9 @@ class ExpPoly
 
   /// f(τ).
   double operator()(double tau) const;
-  /// f(τ) and f'(τ) in one pass (shared exponentials); optionally Σ|c_k τ^k e^{rτ}| (the rounding scale).
-  void evaluateWithDerivative(double tau, double* value, double* slope, double* magnitude = nullptr) const;
+  /// f(τ) and f'(τ) in one pass (shared exponentials); optionally Σ|c_k τ^k e^{rτ}| (the rounding scale) and f''.
+  void evaluateWithDerivative(double tau, double* value, double* slope, double* magnitude = nullptr,
+                              double* curvature = nullptr) const;
   /// f(τ) and a bound on its rounding error (a multiple of ε Σ|c_k τ^k e^{rτ}|).
   double evaluate(double tau, double* rounding_bound) const;
 

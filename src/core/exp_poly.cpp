@@ -411,41 +411,39 @@ int ExpPoly::signChangeRoots(double a, double b, double* out, double rel_tol) co
   return count;
 }
 
-void ExpPoly::evaluateWithDerivative(double tau, double* value, double* slope, double* magnitude) const
+void ExpPoly::evaluateWithDerivative(double tau, double* value, double* slope, double* magnitude,
+                                     double* curvature) const
 {
-  double f = 0.0, df = 0.0, mag = 0.0;
+  double f = 0.0, df = 0.0, ddf = 0.0, mag = 0.0;
   const double at = std::fabs(tau);
   for (int i = 0; i < n_; ++i)
   {
     const ExpTerm& t = terms_[i];
     double p = t.coef[t.degree];
     double pa = std::fabs(p);
-    double dp = 0.0;
+    double dp = 0.0, ddp = 0.0;
     for (int k = t.degree - 1; k >= 0; --k)
     {
+      ddp = ddp * tau + 2.0 * dp;
       dp = dp * tau + p;
       p = p * tau + t.coef[k];
       pa = pa * at + std::fabs(t.coef[k]);
     }
-    if (t.rate == 0.0)
-    {
-      f += p;
-      df += dp;
-      mag += pa;
-    }
-    else
-    {
-      const double ex = std::exp(t.rate * tau);
-      f += p * ex;
-      df += (dp + t.rate * p) * ex;
-      mag += pa * ex;
-    }
+    const double ex = t.rate == 0.0 ? 1.0 : std::exp(t.rate * tau);
+    f += p * ex;
+    df += (dp + t.rate * p) * ex;
+    ddf += (ddp + 2.0 * t.rate * dp + t.rate * t.rate * p) * ex;
+    mag += pa * ex;
   }
   *value = f;
   *slope = df;
   if (magnitude != nullptr)
   {
     *magnitude = mag;
+  }
+  if (curvature != nullptr)
+  {
+    *curvature = ddf;
   }
 }
 
@@ -469,9 +467,10 @@ double ExpPoly::refineBracket(double level, double a, double fa, double b, doubl
   {
     return std::fabs(fa) < std::fabs(fb) ? a : b;
   }
-  // Newton inside the shrinking bracket while its steps at least halve; otherwise (a step would leave the bracket,
-  // or convergence is slow as at a flat start) bisection. f is monotone on [a, b], so the
-  // bracket holds the only root. Stops when the bracket or the Newton step reaches tol, or f is at rounding level.
+  // Halley (cubic convergence; f'' costs no extra exponentials) inside the shrinking bracket while its steps at
+  // least halve; otherwise (a step would leave the bracket, or convergence is slow as at a flat start) bisection.
+  // f is monotone on [a, b], so the bracket holds the only root. Stops when the bracket or the step reaches tol, or
+  // f is at rounding level.
   double x = (a * fb - b * fa) / (fb - fa);
   if (!(x > a && x < b))
   {
@@ -480,8 +479,8 @@ double ExpPoly::refineBracket(double level, double a, double fa, double b, doubl
   double last_step = 2.0 * (b - a);
   for (int it = 0; it < 200; ++it)
   {
-    double f, df, magnitude;
-    evaluateWithDerivative(x, &f, &df, &magnitude);
+    double f, df, magnitude, ddf;
+    evaluateWithDerivative(x, &f, &df, &magnitude, &ddf);
     f -= level;
     if (std::fabs(f) <= 4.0 * EPS * (magnitude + std::fabs(level)))
     {
@@ -501,7 +500,8 @@ double ExpPoly::refineBracket(double level, double a, double fa, double b, doubl
     {
       return x;
     }
-    const double newton = df != 0.0 ? x - f / df : a - 1.0;
+    const double denominator = 2.0 * df * df - f * ddf;
+    const double newton = denominator != 0.0 ? x - 2.0 * f * df / denominator : a - 1.0;
     const double step = std::fabs(newton - x);
     if (newton > a && newton < b && step <= 0.5 * last_step)
     {
