@@ -21,7 +21,7 @@ constexpr int EXP_POLY_MAX_DEGREE = 4;
 constexpr int EXP_POLY_MAX_TERMS = 6;
 /// Most sign-change roots reported by one call to signChangeRoots().
 constexpr int EXP_POLY_MAX_ROOTS = 64;
-/// Relative precision of critical points (see refineRoot).
+/// Relative precision of critical points (see refineBracket).
 constexpr double CRITICAL_POINT_TOLERANCE = 1e-10;
 
 /// One term P(τ) e^{rate τ}; coef[k] multiplies τ^k.
@@ -64,7 +64,6 @@ class ExpPoly
   /// Adds the constant c (to the rate-0 term).
   void addConstant(double c) { addTerm(0.0, &c, 0); }
   ExpPoly operator+(const ExpPoly& other) const;
-  ExpPoly operator-(const ExpPoly& other) const;
   ExpPoly operator*(const ExpPoly& other) const;
   ExpPoly operator*(double s) const;
 
@@ -81,12 +80,10 @@ class ExpPoly
   int signChangeRoots(double a, double b, double* out, double rel_tol = 0.0) const;
 
   /**
-   * Root of f − level in [a, b] given that f − level has opposite signs (or a zero) at a and b and is monotone,
-   * to rel_tol relative (0 = full double precision). Critical points only bound monotone pieces — an error δ in
-   * one changes the extremum value by O(δ²) — so they are refined to CRITICAL_POINT_TOLERANCE only.
+   * Root of f − level in [a, b], given fa = f(a) − level and fb = f(b) − level of opposite signs (or a zero) and
+   * f monotone on [a, b], to rel_tol relative (0 = full double precision). Critical points only bound monotone pieces —
+   * an error δ in one changes the extremum value by O(δ²) — so they are refined to CRITICAL_POINT_TOLERANCE only.
    */
-  double refineRoot(double level, double a, double b, double rel_tol = 0.0) const;
-  /// refineRoot() when f(a) − level and f(b) − level are already known.
   double refineBracket(double level, double a, double fa, double b, double fb, double rel_tol = 0.0) const;
 
  private:

@@ -41,7 +41,6 @@ struct LimitCycleReport
   double period = 0.0;        ///< limit-cycle period [s]; 0 if none (Irregular: mean time between maxima)
   int multiplicity = 0;       ///< maxima per period of the cycle
   double extrapolated = 0.0;  ///< Aitken estimate of the fixed point x* [rad] (latest)
-  double ratio = 0.0;         ///< latest contraction ratio of successive differences [-]
 };
 
 class LimitCycleDetector

@@ -268,13 +268,6 @@ ExpPoly ExpPoly::operator*(double s) const
   return r;
 }
 
-ExpPoly ExpPoly::operator-(const ExpPoly& other) const
-{
-  ExpPoly r = other * -1.0;
-  r += *this;
-  return r;
-}
-
 ExpPoly ExpPoly::operator*(const ExpPoly& other) const
 {
   ExpPoly r;
@@ -445,11 +438,6 @@ void ExpPoly::evaluateWithDerivative(double tau, double* value, double* slope, d
   {
     *curvature = ddf;
   }
-}
-
-double ExpPoly::refineRoot(double level, double a, double b, double rel_tol) const
-{
-  return refineBracket(level, a, (*this)(a)-level, b, (*this)(b)-level, rel_tol);
 }
 
 double ExpPoly::refineBracket(double level, double a, double fa, double b, double fb, double rel_tol) const

@@ -64,8 +64,6 @@ void LimitCycleDetector::update()
   if (n >= 3)
   {
     status_.extrapolated = aitken(x(n - 1), x(n - 2), x(n - 3));
-    const double d2 = x(n - 2) - x(n - 3);
-    status_.ratio = d2 != 0.0 ? (x(n - 1) - x(n - 2)) / d2 : 0.0;
   }
   if (status_.verdict != Verdict::Undecided)
   {

@@ -86,14 +86,19 @@ int walkDownCrossings(const ExpPoly& f, const Bound& bound, double horizon, bool
   return count;
 }
 
-/// Rounding bound of a·f(τ) + b·g(τ) from the bounds of its parts (merging like terms can cancel, hiding the
-/// magnitudes the rounding came from).
+/// Rounding bound of f(τ), including that of its value (merging like terms can cancel, hiding the magnitudes the
+/// rounding came from).
+double roundingBound(const ExpPoly& f, double tau)
+{
+  double b = 0.0;
+  const double v = f.evaluate(tau, &b);
+  return b + 16.0 * EPS * std::fabs(v);
+}
+
+/// Rounding bound of a·f(τ) + b·g(τ) from the bounds of its parts.
 double combinedBound(const ExpPoly& f, double a, const ExpPoly& g, double b, double tau)
 {
-  double bf = 0.0, bg = 0.0;
-  const double vf = f.evaluate(tau, &bf);
-  const double vg = g.evaluate(tau, &bg);
-  return std::fabs(a) * (bf + 16.0 * EPS * std::fabs(vf)) + std::fabs(b) * (bg + 16.0 * EPS * std::fabs(vg));
+  return std::fabs(a) * roundingBound(f, tau) + std::fabs(b) * roundingBound(g, tau);
 }
 }  // namespace
 
@@ -223,7 +228,7 @@ int ContactMotion::downCrossings(int which, double sign, double horizon, bool re
   {
     if (which == 0)
     {
-      auto bound = [&](double tau) { return combinedBound(velocity_, 1.0, velocity_, 0.0, tau); };
+      auto bound = [&](double tau) { return roundingBound(velocity_, tau); };
       return walkDownCrossings(velocity_ * sign, bound, horizon, require_positive_first, out, max_out);
     }
     auto bound = [&](double tau) {

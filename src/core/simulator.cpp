@@ -365,28 +365,22 @@ void Simulator::handleImpact(Contact wall, EventSink* sink)
   const double gap_noise =
       64.0 * EPS * (std::fabs(state_.load_position) + rho * std::fabs(state_.motor_position) + delta);
   const double stick_speed = std::max(speed_noise, std::sqrt(2.0 * press_accel * gap_noise));
-  if (!(closing > 0.0))
+  if (!(closing > 0.0) && std::fabs(closing) > stick_speed)
   {
-    // Touching without closing: only rounding brought us here.
-    if (std::fabs(closing) <= stick_speed)
-    {
-      const ImpactOutcome o = resolveImpact(params_, v, w, 0.0);
-      state_.load_velocity = o.load_velocity;
-      state_.motor_velocity = o.motor_velocity;
-      energy_.impact_loss += o.energy_loss;
-      settleOnWall(wall);
-    }
-    else
-    {
-      state_.contact = Contact::Apart;
-    }
+    state_.contact = Contact::Apart;  // clearly moving away: only rounding put the gap on the wall
     return;
   }
+  // A touch without closing (rounding) or a closing speed the stick rule calls zero is made plastic.
   const double e = params_.restitution * closing <= stick_speed ? 0.0 : params_.restitution;
   const ImpactOutcome o = resolveImpact(params_, v, w, e);
   state_.load_velocity = o.load_velocity;
   state_.motor_velocity = o.motor_velocity;
   energy_.impact_loss += o.energy_loss;
+  if (!(closing > 0.0))
+  {
+    settleOnWall(wall);  // not an impact: nothing counted or reported
+    return;
+  }
   ++impacts_;
   if (e == 0.0)
   {

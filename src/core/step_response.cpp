@@ -52,6 +52,8 @@ RunSummary runResponse(const RunConfig& config, EventSink* sink, double sample_p
   // Quiet: no new positive maximum for a long time while close to the command means no oscillation is left, only
   // the slow creep of the motor across the backlash under a vanishing torque.
   const double quiet_floor = 10.0 * 2.0 * PI / omega_n;
+  double longest = 0.0;  // longest interval between successive maxima so far [s]
+  std::size_t intervals_seen = 0;
   if (on_sample)
   {
     on_sample(sim);
@@ -71,10 +73,9 @@ RunSummary runResponse(const RunConfig& config, EventSink* sink, double sample_p
       detector.markAtRest();
     }
     const std::vector<Maximum>& m = detector.maxima();
-    double longest = 0.0;
-    for (std::size_t k = 1; k < m.size(); ++k)
+    for (; intervals_seen + 1 < m.size(); ++intervals_seen)
     {
-      longest = std::max(longest, m[k].time - m[k - 1].time);
+      longest = std::max(longest, m[intervals_seen + 1].time - m[intervals_seen].time);
     }
     const double last = m.empty() ? t0 : m.back().time;
     if (s.time - last > std::max(quiet_floor, 5.0 * longest) &&
