@@ -46,15 +46,21 @@ class ContactMotion
    * First τ in (0, horizon] where the mesh torque leaves its allowed side (side = +1: T_L ≥ 0 in forward contact,
    * −1: T_L ≤ 0 in backward contact), i.e. where the teeth separate. +inf if none.
    */
-  double separationTime(int side, double horizon) const;
+  double separationTime(double side, double horizon) const;
   /// Times in (0, horizon] where the load velocity goes from + to − (positive maxima of θ_c), ascending.
   int velocityMaxima(double horizon, double* out, int max_out) const;
   /// Energy flows over [0, tau].
   EnergyFlows energy(double tau) const;
 
  private:
-  /// Down-crossings (from + to −) of the function selected by which (0 = velocity, 1 = mesh torque) times sign.
-  int downCrossings(int which, double sign, double horizon, bool require_positive_first, double* out,
+  /// The two signals of the contact mode whose zeros are events.
+  enum class Signal
+  {
+    LoadVelocity,  ///< ω_c: its down-crossings are maxima of θ_c
+    MeshTorque     ///< T_L: its sign change on the wrong side is a separation
+  };
+  /// Down-crossings (from + to −) of signal × sign.
+  int downCrossings(Signal signal, double sign, double horizon, bool require_positive_first, double* out,
                     int max_out) const;
 
   ServoParams params_;
@@ -104,6 +110,10 @@ class FreeMotion
  */
 bool contactHolds(const ServoParams& params, const MotorInput& input, double load_position, double load_velocity,
                   Contact wall);
+
+/// Load acceleration in contact [rad/s²]: \f$ \ddot\theta_c = (\rho T_m - F_T\dot\theta_c)/J \f$.
+double contactAcceleration(const ServoParams& params, const MotorInput& input, double load_position,
+                           double load_velocity);
 
 /// Mesh torque on the load in contact [N·m] for the given state: \f$ T_L = J_L\ddot\theta_c + f_L\dot\theta_c \f$.
 double contactMeshTorque(const ServoParams& params, const MotorInput& input, double load_position,

@@ -1,84 +1,41 @@
 /**
  * @file simulator.h
- * @brief Exact hybrid simulator of the backlash servo: closed-form propagation, exact event location, impacts,
- *        energy accounting. No ROS dependency; the ROS node and the tools are thin layers over this class.
+ * @brief The simulated servo joint: a Plant (bodies, gear mesh, contact, impacts) driven by a Drive (the control
+ *        law). The simulator composes them and stops at the earlier of a plant event and a drive event. No ROS
+ *        dependency; the ROS node and the tools are thin layers over this class.
  */
 #pragma once
 
 #include <cstdint>
+#include <memory>
 
-#include "backlash_servo/modes.h"
-#include "backlash_servo/params.h"
-#include "backlash_servo/state.h"
+#include "backlash_servo/drive.h"
+#include "backlash_servo/plant.h"
 
 namespace backlash_servo
 {
-enum class EventType
-{
-  Impact,          ///< teeth collided (see ImpactInfo)
-  Separation,      ///< mesh torque reached zero and changed sign: teeth came apart (Δ = 0: pushing side flipped)
-  Maximum,         ///< positive maximum of θ_c (ω_c went from + to −, smoothly or at an impact)
-  InputChange,     ///< command θ_R or motor torque changed
-  ParameterChange  ///< parameters replaced
-};
-
-const char* toString(EventType t);
-
-/// Details of one impact, velocities at the load/motor shafts.
-struct ImpactInfo
-{
-  Contact wall = Contact::Forward;     ///< wall hit: Forward (g = 0) or Backward (g = Δ)
-  double load_velocity_before = 0.0;   ///< ω_c before [rad/s]
-  double load_velocity_after = 0.0;    ///< ω_c after [rad/s]
-  double motor_velocity_before = 0.0;  ///< ω_m before [rad/s]
-  double motor_velocity_after = 0.0;   ///< ω_m after [rad/s]
-  double approach_speed = 0.0;         ///< |ġ| before, relative speed of the teeth at the load shaft [rad/s]
-  double impulse = 0.0;                ///< angular impulse on the load [N·m·s]
-  double energy_loss = 0.0;            ///< kinetic energy lost [J]
-  bool stuck = false;                  ///< teeth stayed in contact afterwards (stick rule)
-};
-
-/// An event at state.time; state is the state just after the event.
-struct Event
-{
-  EventType type = EventType::Impact;
-  State state;
-  ImpactInfo impact;  ///< filled for EventType::Impact
-};
-
-/// Receives events in time order while the simulator advances.
-class EventSink
-{
- public:
-  virtual ~EventSink() = default;
-  virtual void onEvent(const Event& event) = 0;
-};
-
-/// Cumulative energy terms since the start (or the last reset) [J].
-struct EnergyLedger
-{
-  double input = 0.0;            ///< work of the motor torque ∫ T_m ω_m dt [J]
-  double motor_friction = 0.0;   ///< ∫ f_m ω_m² dt [J]
-  double load_friction = 0.0;    ///< ∫ f_L ω_c² dt [J]
-  double impact_loss = 0.0;      ///< Σ energy lost in impacts [J]
-  double initial_kinetic = 0.0;  ///< kinetic energy at the start [J]
-};
-
 class Simulator
 {
  public:
-  /// Starts in position mode with command θ_R = command [rad]. Throws InvalidParameterError on bad input.
+  /// Starts with the continuous proportional law and command θ_R = command [rad]. Throws InvalidParameterError.
   Simulator(const ServoParams& params, const State& initial, double command);
+  Simulator(const Simulator& other);
+  Simulator& operator=(const Simulator& other);
 
-  const ServoParams& params() const { return params_; }
-  const State& state() const { return state_; }
-  ControlMode controlMode() const { return mode_; }
+  const ServoParams& params() const { return plant_.params(); }
+  const State& state() const { return plant_.state(); }
+  const Plant& plant() const { return plant_; }
+  const Drive& drive() const { return *drive_; }
+  ControlMode controlMode() const { return drive_->mode(); }
+  /// θ_R [rad] of the proportional law (the last one set, also while in effort mode).
   double command() const { return command_; }
 
   /// Position mode, T_m = K(θ_R − θ_c), with θ_R = command [rad] from now on (a step). Must be finite.
   void setCommand(double command, EventSink* sink = nullptr);
   /// Effort mode, T_m = torque [N·m] from now on (the internal P loop is off). Must be finite.
   void setMotorTorque(double torque, EventSink* sink = nullptr);
+  /// Replaces the drive (its law applies from now on).
+  void setDrive(std::unique_ptr<Drive> drive, EventSink* sink = nullptr);
   /**
    * Replaces the parameters at the current time without a jump in positions or velocities. If the current gap lies
    * outside the new [0, Δ], the motor is carried along: the gap is clamped to the nearest wall by moving θ_m (the
@@ -86,45 +43,31 @@ class Simulator
    */
   void setParams(const ServoParams& params, EventSink* sink = nullptr);
   /// Replaces the state (validated: finite, gap within [0, Δ], contact consistent); resets the energy ledger.
-  void setState(const State& state);
+  void setState(const State& state) { plant_.setState(state); }
 
-  /// Advances exactly to time t_end [s], reporting events in order to sink (may be null).
+  /// Advances exactly to time t_end [s], stopping at drive events on the way; events go in order to sink.
   void advanceTo(double t_end, EventSink* sink = nullptr);
 
   /// Gap g = θ_c − ρ θ_m [rad], in [0, Δ].
-  double gap() const;
+  double gap() const { return plant_.gap(); }
   /// Motor torque T_m [N·m].
-  double motorTorque() const;
+  double motorTorque() const { return plant_.motorTorque(); }
   /// Mesh torque on the load T_L [N·m] (0 when apart).
-  double meshTorque() const;
+  double meshTorque() const { return plant_.meshTorque(); }
   /// ½ J_m ω_m² + ½ J_L ω_c² [J].
-  double kineticEnergy() const;
-  const EnergyLedger& energy() const { return energy_; }
+  double kineticEnergy() const { return plant_.kineticEnergy(); }
+  const EnergyLedger& energy() const { return plant_.energy(); }
   /// Energy accounting costs ~25 % of the run time; sweeps that only need verdicts may switch it off (the ledger
   /// then stays at its last values and energyBalanceError() is meaningless).
-  void setEnergyTracking(bool on) { track_energy_ = on; }
+  void setEnergyTracking(bool on) { plant_.setEnergyTracking(on); }
   /// input − friction − impact losses − (kinetic − initial kinetic) [J]; zero up to rounding.
-  double energyBalanceError() const;
-  std::uint64_t impactCount() const { return impacts_; }
+  double energyBalanceError() const { return plant_.energyBalanceError(); }
+  std::uint64_t impactCount() const { return plant_.impactCount(); }
 
  private:
-  MotorInput input() const;
-  void emit(EventSink* sink, EventType type, const ImpactInfo* impact = nullptr) const;
-  void addFlows(const EnergyFlows& flows);
-  void advanceContact(double horizon, double t_end, EventSink* sink);
-  void advanceFree(double horizon, double t_end, EventSink* sink);
-  void handleImpact(Contact wall, EventSink* sink);
-  /// Puts teeth at relative rest on `wall` into contact if the mesh torque presses, else leaves them apart.
-  void settleOnWall(Contact wall);
-
-  ServoParams params_;
-  State state_;
-  ControlMode mode_ = ControlMode::Position;
-  double command_ = 0.0;       // θ_R [rad]
-  double motor_torque_ = 0.0;  // effort-mode torque [N·m]
-  EnergyLedger energy_;
-  std::uint64_t impacts_ = 0;
-  bool track_energy_ = true;
+  Plant plant_;
+  std::unique_ptr<Drive> drive_;
+  double command_;  // θ_R [rad] kept for switching back to position mode
 };
 
 }  // namespace backlash_servo

@@ -11,7 +11,7 @@
 #include <functional>
 #include <vector>
 
-#include "backlash_servo/limit_cycle.h"
+#include "backlash_servo/response_monitor.h"
 #include "backlash_servo/simulator.h"
 
 namespace backlash_servo
@@ -43,7 +43,8 @@ struct RunSummary
 using SampleCallback = std::function<void(const Simulator&)>;
 
 /**
- * Runs config; events go to sink (may be null) as well as to the limit-cycle detector; samples every
+ * Runs config; events go to sink (may be null) as well as to the response monitor (checked every natural period,
+ * or at every sample); samples every
  * sample_period [s] (0 = none) go to on_sample. Throws InvalidParameterError on bad parameters.
  */
 RunSummary runResponse(const RunConfig& config, EventSink* sink = nullptr, double sample_period = 0.0,

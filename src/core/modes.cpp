@@ -102,10 +102,14 @@ double combinedBound(const ExpPoly& f, double a, const ExpPoly& g, double b, dou
 }
 }  // namespace
 
+double contactAcceleration(const ServoParams& p, const MotorInput& in, double x, double v)
+{
+  return (p.gear_ratio * in.torque(x) - p.totalFriction() * v) / p.totalInertia();
+}
+
 double contactMeshTorque(const ServoParams& p, const MotorInput& in, double x, double v)
 {
-  const double acc = (p.gear_ratio * in.torque(x) - p.totalFriction() * v) / p.totalInertia();
-  return p.load_inertia * acc + p.load_friction * v;
+  return p.load_inertia * contactAcceleration(p, in, x, v) + p.load_friction * v;
 }
 
 bool contactHolds(const ServoParams& p, const MotorInput& in, double x, double v, Contact wall)
@@ -114,7 +118,7 @@ bool contactHolds(const ServoParams& p, const MotorInput& in, double x, double v
   const double f = p.totalFriction();
   const double rk = p.gear_ratio * in.stiffness;
   // Derivatives of θ_c from the contact ODE, and magnitudes to bound their rounding.
-  const double x2 = (p.gear_ratio * in.torque(x) - f * v) / j;
+  const double x2 = contactAcceleration(p, in, x, v);
   const double m2 = (p.gear_ratio * (std::fabs(in.offset) + std::fabs(in.stiffness * x)) + std::fabs(f * v)) / j;
   const double x3 = (-rk * v - f * x2) / j;
   const double m3 = (rk * std::fabs(v) + f * m2) / j;
@@ -221,12 +225,12 @@ double ContactMotion::meshTorque(double tau) const
   return torque_(tau);
 }
 
-int ContactMotion::downCrossings(int which, double sign, double horizon, bool require_positive_first, double* out,
+int ContactMotion::downCrossings(Signal signal, double sign, double horizon, bool require_positive_first, double* out,
                                  int max_out) const
 {
   if (!oscillatory_)
   {
-    if (which == 0)
+    if (signal == Signal::LoadVelocity)
     {
       auto bound = [&](double tau) { return roundingBound(velocity_, tau); };
       return walkDownCrossings(velocity_ * sign, bound, horizon, require_positive_first, out, max_out);
@@ -237,8 +241,9 @@ int ContactMotion::downCrossings(int which, double sign, double horizon, bool re
     return walkDownCrossings(torque_ * sign, bound, horizon, require_positive_first, out, max_out);
   }
   // e^{−στ}(C cos ωτ + D sin ωτ) = R e^{−στ} cos(ωτ − φ): down-crossings at ωτ − φ = π/2 + 2πk, exactly.
-  const double c = sign * (which == 0 ? vel_c_ : torque_c_);
-  const double d = sign * (which == 0 ? vel_d_ : torque_d_);
+  const bool velocity = signal == Signal::LoadVelocity;
+  const double c = sign * (velocity ? vel_c_ : torque_c_);
+  const double d = sign * (velocity ? vel_d_ : torque_d_);
   if (c == 0.0 && d == 0.0)
   {
     return 0;
@@ -262,15 +267,15 @@ int ContactMotion::downCrossings(int which, double sign, double horizon, bool re
   return count;
 }
 
-double ContactMotion::separationTime(int side, double horizon) const
+double ContactMotion::separationTime(double side, double horizon) const
 {
   double t;
-  return downCrossings(1, side, horizon, false, &t, 1) == 1 ? t : INF;
+  return downCrossings(Signal::MeshTorque, side, horizon, false, &t, 1) == 1 ? t : INF;
 }
 
 int ContactMotion::velocityMaxima(double horizon, double* out, int max_out) const
 {
-  return downCrossings(0, 1.0, horizon, true, out, max_out);
+  return downCrossings(Signal::LoadVelocity, 1.0, horizon, true, out, max_out);
 }
 
 EnergyFlows ContactMotion::energy(double tau) const

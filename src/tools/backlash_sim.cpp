@@ -137,28 +137,26 @@ CliOptions parseArgs(int argc, char** argv)
 class CsvWriter : public EventSink
 {
  public:
-  CsvWriter(std::ostream& out, const RunConfig& config) : out_(out), config_(config)
+  CsvWriter(std::ostream& out, const GearMesh& mesh) : out_(out), mesh_(mesh)
   {
     out_ << "time,load_position,load_velocity,motor_position,motor_velocity,gap,contact,mesh_torque,motor_torque,"
             "event\n";
   }
-  void onEvent(const Event& e) override { row(e.state, toString(e.type)); }
-  void row(const State& s, const char* event)
+  void onEvent(const Event& e) override { row(e.state, e.mesh_torque, e.motor_torque, toString(e.type)); }
+  void sample(const Simulator& sim) { row(sim.state(), sim.meshTorque(), sim.motorTorque(), ""); }
+
+ private:
+  void row(const State& s, double mesh_torque, double motor_torque, const char* event)
   {
-    const ServoParams& p = config_.params;
-    const MotorInput in{p.gain * config_.command, p.gain};
-    const double mesh = s.contact == Contact::Apart ? 0.0 : contactMeshTorque(p, in, s.load_position, s.load_velocity);
     char buf[512];
     std::snprintf(buf, sizeof buf, "%.15g,%.15g,%.15g,%.15g,%.15g,%.15g,%s,%.15g,%.15g,%s\n", s.time, s.load_position,
-                  s.load_velocity, s.motor_position, s.motor_velocity,
-                  s.load_position - p.gear_ratio * s.motor_position, toString(s.contact), mesh,
-                  in.torque(s.load_position), event);
+                  s.load_velocity, s.motor_position, s.motor_velocity, mesh_.gap(s.load_position, s.motor_position), toString(s.contact),
+                  mesh_torque, motor_torque, event);
     out_ << buf;
   }
 
- private:
   std::ostream& out_;
-  const RunConfig& config_;
+  GearMesh mesh_;
 };
 
 void writeJson(std::ostream& out, const RunConfig& c, const RunSummary& r, double wall_seconds)
@@ -308,9 +306,9 @@ int main(int argc, char** argv)
     double sample_period = 0.0;
     if (!options.csv.empty())
     {
-      csv = std::make_unique<CsvWriter>(csv_text, config);
+      csv = std::make_unique<CsvWriter>(csv_text, GearMesh(config.params));
       sample_period = 1.0 / options.sample_rate;
-      on_sample = [&](const Simulator& sim) { csv->row(sim.state(), ""); };
+      on_sample = [&](const Simulator& sim) { csv->sample(sim); };
     }
     const auto start = std::chrono::steady_clock::now();
     const RunSummary result = runResponse(config, csv.get(), sample_period, on_sample);

@@ -1,0 +1,130 @@
+/**
+ * @file plant.h
+ * @brief The mechanical plant: motor and load bodies, the gear mesh with backlash, contact, tooth impacts and the
+ *        stick rule, advanced exactly (closed-form modes, exact event location) under a given motor-torque law.
+ *        It knows nothing of set-points or controllers (drive.h) nor of limit cycles (response_monitor.h).
+ *        No ROS dependency.
+ */
+#pragma once
+
+#include <cstdint>
+
+#include "backlash_servo/gear_mesh.h"
+#include "backlash_servo/modes.h"
+#include "backlash_servo/params.h"
+#include "backlash_servo/state.h"
+
+namespace backlash_servo
+{
+enum class EventType
+{
+  Impact,          ///< teeth collided (see ImpactInfo)
+  Separation,      ///< mesh torque reached zero and changed sign: teeth came apart (Δ = 0: pushing side flipped)
+  Maximum,         ///< load velocity went from + to − (smoothly or at an impact): a maximum of θ_c (kinematic event
+                   ///< located exactly by the plant; the response monitor decides what it means)
+  InputChange,     ///< command θ_R or motor torque changed
+  ParameterChange  ///< parameters replaced
+};
+
+const char* toString(EventType t);
+
+/// Details of one impact, velocities at the load/motor shafts.
+struct ImpactInfo
+{
+  Contact wall = Contact::Forward;     ///< wall hit: Forward (g = 0) or Backward (g = Δ)
+  double load_velocity_before = 0.0;   ///< ω_c before [rad/s]
+  double load_velocity_after = 0.0;    ///< ω_c after [rad/s]
+  double motor_velocity_before = 0.0;  ///< ω_m before [rad/s]
+  double motor_velocity_after = 0.0;   ///< ω_m after [rad/s]
+  double approach_speed = 0.0;         ///< |ġ| before, relative speed of the teeth at the load shaft [rad/s]
+  double impulse = 0.0;                ///< angular impulse on the load [N·m·s]
+  double energy_loss = 0.0;            ///< kinetic energy lost [J]
+  bool stuck = false;                  ///< teeth stayed in contact afterwards (stick rule)
+};
+
+/// An event at state.time; state is the state just after the event.
+struct Event
+{
+  EventType type = EventType::Impact;
+  State state;
+  double motor_torque = 0.0;  ///< T_m just after the event [N·m]
+  double mesh_torque = 0.0;   ///< mesh torque on the load just after the event [N·m] (0 when apart)
+  ImpactInfo impact;          ///< filled for EventType::Impact
+};
+
+/// Receives events in time order while the simulator advances.
+class EventSink
+{
+ public:
+  virtual ~EventSink() = default;
+  virtual void onEvent(const Event& event) = 0;
+};
+
+/// Cumulative energy terms since the start (or the last reset) [J].
+struct EnergyLedger
+{
+  double input = 0.0;            ///< work of the motor torque ∫ T_m ω_m dt [J]
+  double motor_friction = 0.0;   ///< ∫ f_m ω_m² dt [J]
+  double load_friction = 0.0;    ///< ∫ f_L ω_c² dt [J]
+  double impact_loss = 0.0;      ///< Σ energy lost in impacts [J]
+  double initial_kinetic = 0.0;  ///< kinetic energy at the start [J]
+};
+
+/**
+ * @brief Motor and load coupled through a gear mesh with backlash, under a motor-torque law T_m = a − k θ_c.
+ *
+ * Contact: \f$ J\ddot\theta_c + F_T\dot\theta_c = \rho T_m \f$; apart: \f$ J_L\ddot\theta_c + f_L\dot\theta_c = 0,
+ * \; J_m\ddot\theta_m + f_m\dot\theta_m = T_m \f$; impacts by impact.h; separation where the mesh torque changes
+ * sign. See ../shared/MODEL.md and the README ("How it is exact").
+ */
+class Plant
+{
+ public:
+  /// Throws InvalidParameterError on bad parameters or a state that does not fit them.
+  Plant(const ServoParams& params, const State& initial, const MotorInput& law);
+
+  const ServoParams& params() const { return params_; }
+  const GearMesh& mesh() const { return mesh_; }
+  const State& state() const { return state_; }
+  /// The motor-torque law in force.
+  const MotorInput& law() const { return law_; }
+  /// A new motor-torque law from now on (the state is not touched).
+  void setLaw(const MotorInput& law) { law_ = law; }
+
+  /// See Simulator::setParams. Throws InvalidParameterError, keeping the old ones.
+  void setParams(const ServoParams& params, EventSink* sink);
+  /// Replaces the state (validated: finite, gap within [0, Δ], contact consistent); resets the energy ledger.
+  void setState(const State& state);
+  /// Advances exactly to time t_end [s] under the current law, reporting events in order to sink (may be null).
+  void advanceTo(double t_end, EventSink* sink);
+
+  double gap() const { return mesh_.gap(state_.load_position, state_.motor_position); }
+  double motorTorque() const { return law_.torque(state_.load_position); }
+  double meshTorque() const;
+  double kineticEnergy() const;
+  const EnergyLedger& energy() const { return energy_; }
+  void setEnergyTracking(bool on) { track_energy_ = on; }
+  double energyBalanceError() const;
+  std::uint64_t impactCount() const { return impacts_; }
+
+  /// Sends an event of the given type with the current state to sink (may be null).
+  void emit(EventSink* sink, EventType type, const ImpactInfo* impact = nullptr) const;
+
+ private:
+  void addFlows(const EnergyFlows& flows);
+  void advanceContact(double horizon, double t_end, EventSink* sink);
+  void advanceFree(double horizon, double t_end, EventSink* sink);
+  void handleImpact(Contact wall, EventSink* sink);
+  /// Puts teeth at relative rest on `wall` into contact if the mesh torque presses, else leaves them apart.
+  void settleOnWall(Contact wall);
+
+  ServoParams params_;
+  GearMesh mesh_;
+  State state_;
+  MotorInput law_;
+  EnergyLedger energy_;
+  std::uint64_t impacts_ = 0;
+  bool track_energy_ = true;
+};
+
+}  // namespace backlash_servo

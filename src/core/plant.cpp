@@ -1,0 +1,369 @@
+#include "backlash_servo/plant.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <stdexcept>
+#include <string>
+
+#include "backlash_servo/impact.h"
+
+namespace backlash_servo
+{
+namespace
+{
+constexpr double EPS = std::numeric_limits<double>::epsilon();
+/// Iterations without advancing time before the simulator declares a bug instead of hanging.
+constexpr int MAX_STALLED_ITERATIONS = 10000;
+/// Maxima reported per contact segment before it is restarted (bounds a fixed buffer).
+constexpr int MAXIMA_PER_SEGMENT = 16;
+/// Apart mode: impacts are searched this far ahead per segment [natural periods] (fastest on the benchmarks).
+constexpr double FREE_SEARCH_PERIODS = 0.5;
+constexpr double PI = 3.14159265358979323846;
+}  // namespace
+
+const char* toString(Contact c)
+{
+  switch (c)
+  {
+    case Contact::Forward:
+      return "forward";
+    case Contact::Backward:
+      return "backward";
+    default:
+      return "apart";
+  }
+}
+
+Contact contactFromString(const std::string& s)
+{
+  if (s == "forward")
+  {
+    return Contact::Forward;
+  }
+  if (s == "backward")
+  {
+    return Contact::Backward;
+  }
+  if (s == "apart" || s == "none")
+  {
+    return Contact::Apart;
+  }
+  throw std::invalid_argument("contact must be forward, backward or none (got '" + s + "')");
+}
+
+const char* toString(EventType t)
+{
+  switch (t)
+  {
+    case EventType::Impact:
+      return "impact";
+    case EventType::Separation:
+      return "separation";
+    case EventType::Maximum:
+      return "maximum";
+    case EventType::InputChange:
+      return "input_change";
+    default:
+      return "parameter_change";
+  }
+}
+
+Plant::Plant(const ServoParams& params, const State& initial, const MotorInput& law)
+    : params_(params), mesh_(params), law_(law)
+{
+  params_.validate();
+  setState(initial);
+}
+
+void Plant::setState(const State& s)
+{
+  requireFinite("time", s.time);
+  requireFinite("load_position", s.load_position);
+  requireFinite("load_velocity", s.load_velocity);
+  requireFinite("motor_position", s.motor_position);
+  requireFinite("motor_velocity", s.motor_velocity);
+  const double rho = params_.gear_ratio;
+  const double delta = params_.backlash;
+  const double g = mesh_.gap(s.load_position, s.motor_position);
+  const double tol = 1e-9 * std::max({1.0, std::fabs(s.load_position), delta});
+  State n = s;
+  if (s.contact != Contact::Apart)
+  {
+    const double wall = mesh_.wallGap(s.contact);
+    if (std::fabs(g - wall) > tol)
+    {
+      throw InvalidParameterError("motor_position",
+                                  std::string("in ") + toString(s.contact) + " contact the gap θ_c − ρθ_m must be " +
+                                      (wall == 0.0 ? "0" : "Δ") + " (got " + std::to_string(g) + " rad)");
+    }
+    if (std::fabs(s.load_velocity - rho * s.motor_velocity) > 1e-9 * std::max(1.0, std::fabs(s.load_velocity)))
+    {
+      throw InvalidParameterError("motor_velocity", "in contact the teeth move together: ρ ω_m must equal ω_c");
+    }
+    n.motor_position = mesh_.motorPosition(s.load_position, wall);
+    n.motor_velocity = mesh_.motorVelocityInContact(s.load_velocity);
+  }
+  else
+  {
+    if (g < -tol || g > delta + tol)
+    {
+      throw InvalidParameterError("motor_position",
+                                  "gap θ_c − ρθ_m = " + std::to_string(g) + " rad lies outside [0, backlash]");
+    }
+    n.motor_position = mesh_.motorPosition(s.load_position, std::min(std::max(g, 0.0), delta));
+  }
+  state_ = n;
+  energy_ = EnergyLedger();
+  energy_.initial_kinetic = kineticEnergy();
+  impacts_ = 0;
+}
+
+void Plant::setParams(const ServoParams& params, EventSink* sink)
+{
+  params.validate();
+  const double balance_before = energyBalanceError();
+  const double old_gap = gap();
+  params_ = params;
+  mesh_ = GearMesh(params_);
+  const double delta = params_.backlash;
+  // θ_c and ω_c are kept; the motor is re-expressed on the new mesh with the gap clamped into [0, Δ].
+  double g = std::min(std::max(old_gap, 0.0), delta);
+  if (state_.contact == Contact::Forward)
+  {
+    g = 0.0;
+  }
+  if (state_.contact == Contact::Backward && g < delta)
+  {
+    state_.contact = Contact::Apart;  // Δ grew: the teeth float at relative rest inside the larger gap
+  }
+  state_.motor_position = mesh_.motorPosition(state_.load_position, g);
+  if (state_.contact != Contact::Apart)
+  {
+    state_.motor_velocity = mesh_.motorVelocityInContact(state_.load_velocity);
+  }
+  else if (old_gap < 0.0 || old_gap > delta || (g == delta && delta == 0.0))
+  {
+    // Δ shrank below the gap: the wall now touches the teeth; closing teeth collide, resting ones settle.
+    handleImpact(g == 0.0 ? Contact::Forward : Contact::Backward, sink);
+  }
+  // A parameter change is not a physical process: re-base the kinetic energy so the ledger keeps its balance.
+  energy_.initial_kinetic = kineticEnergy() - energy_.input + energy_.motor_friction + energy_.load_friction +
+                            energy_.impact_loss + balance_before;
+  emit(sink, EventType::ParameterChange);
+}
+
+double Plant::meshTorque() const
+{
+  if (state_.contact == Contact::Apart)
+  {
+    return 0.0;
+  }
+  return contactMeshTorque(params_, law_, state_.load_position, state_.load_velocity);
+}
+
+double Plant::kineticEnergy() const
+{
+  return 0.5 * params_.motor_inertia * state_.motor_velocity * state_.motor_velocity +
+         0.5 * params_.load_inertia * state_.load_velocity * state_.load_velocity;
+}
+
+double Plant::energyBalanceError() const
+{
+  return energy_.input - energy_.motor_friction - energy_.load_friction - energy_.impact_loss -
+         (kineticEnergy() - energy_.initial_kinetic);
+}
+
+void Plant::emit(EventSink* sink, EventType type, const ImpactInfo* impact) const
+{
+  if (sink == nullptr)
+  {
+    return;
+  }
+  Event e;
+  e.type = type;
+  e.state = state_;
+  e.motor_torque = motorTorque();
+  e.mesh_torque = meshTorque();
+  if (impact != nullptr)
+  {
+    e.impact = *impact;
+  }
+  sink->onEvent(e);
+}
+
+void Plant::addFlows(const EnergyFlows& f)
+{
+  energy_.input += f.input;
+  energy_.motor_friction += f.motor_friction;
+  energy_.load_friction += f.load_friction;
+}
+
+void Plant::advanceTo(double t_end, EventSink* sink)
+{
+  if (!(t_end >= state_.time) || !std::isfinite(t_end))
+  {
+    throw std::invalid_argument("advanceTo: target time " + std::to_string(t_end) + " s is before the current time " +
+                                std::to_string(state_.time) + " s or not finite");
+  }
+  int stalled = 0;
+  while (state_.time < t_end)
+  {
+    const double before = state_.time;
+    const double horizon = t_end - state_.time;
+    if (state_.contact == Contact::Apart)
+    {
+      advanceFree(horizon, t_end, sink);
+    }
+    else
+    {
+      advanceContact(horizon, t_end, sink);
+    }
+    stalled = state_.time == before ? stalled + 1 : 0;
+    if (stalled > MAX_STALLED_ITERATIONS)
+    {
+      throw std::logic_error("backlash_servo::Plant made no progress at t = " + std::to_string(before) +
+                             " s (internal error; please report with the parameters)");
+    }
+  }
+}
+
+void Plant::advanceContact(double horizon, double t_end, EventSink* sink)
+{
+  const MotorInput in = law_;
+  const Contact wall = state_.contact;
+  if (!contactHolds(params_, in, state_.load_position, state_.load_velocity, wall))
+  {
+    // The mesh torque pulls the teeth off this wall right now.
+    state_.contact = mesh_.afterSeparation(wall);
+    emit(sink, EventType::Separation);
+    return;
+  }
+  const ContactMotion motion(params_, in, state_.load_position, state_.load_velocity);
+  double separation = motion.separationTime(GearMesh::pressingSign(wall), horizon);
+  double end = std::min(separation, horizon);
+  double maxima[MAXIMA_PER_SEGMENT];
+  const int n = motion.velocityMaxima(end, maxima, MAXIMA_PER_SEGMENT);
+  if (n == MAXIMA_PER_SEGMENT && maxima[n - 1] < end)
+  {
+    end = maxima[n - 1];  // restart the segment there; later maxima are found by the next one
+    separation = std::numeric_limits<double>::infinity();
+  }
+  const State start = state_;
+  auto place = [&](double tau) {
+    motion.at(tau, &state_.load_position, &state_.load_velocity);
+    state_.motor_position = mesh_.motorPositionOnWall(state_.load_position, wall);
+    state_.motor_velocity = mesh_.motorVelocityInContact(state_.load_velocity);
+    state_.time = tau >= horizon ? t_end : start.time + tau;
+  };
+  if (sink != nullptr)
+  {
+    for (int i = 0; i < n; ++i)
+    {
+      place(maxima[i]);
+      emit(sink, EventType::Maximum);
+    }
+  }
+  if (track_energy_)
+  {
+    addFlows(motion.energy(end));
+  }
+  place(end);
+  if (separation <= horizon)
+  {
+    state_.contact = mesh_.afterSeparation(wall);
+    emit(sink, EventType::Separation);
+  }
+}
+
+void Plant::advanceFree(double horizon, double t_end, EventSink* sink)
+{
+  const FreeMotion motion(params_, law_, state_);
+  Contact wall = Contact::Forward;
+  // Search at most half a natural period ahead: impacts come sooner almost always, and a short window keeps the
+  // critical points and brackets of the search local (a longer flight simply continues in a new segment).
+  const double window = std::min(horizon, FREE_SEARCH_PERIODS * 2.0 * PI / params_.naturalFrequency());
+  const double impact = motion.impactTime(window, &wall);
+  const double end = std::min(impact, window);
+  if (track_energy_)
+  {
+    addFlows(motion.energy(end));
+  }
+  const double t0 = state_.time;
+  motion.at(end, &state_);
+  state_.time = end >= horizon ? t_end : t0 + end;
+  if (impact <= window)
+  {
+    handleImpact(wall, sink);
+  }
+}
+
+void Plant::settleOnWall(Contact wall)
+{
+  state_.motor_velocity = mesh_.motorVelocityInContact(state_.load_velocity);
+  state_.contact =
+      contactHolds(params_, law_, state_.load_position, state_.load_velocity, wall) ? wall : Contact::Apart;
+}
+
+void Plant::handleImpact(Contact wall, EventSink* sink)
+{
+  const double rho = params_.gear_ratio;
+  const double delta = params_.backlash;
+  // Snap onto the wall (moves θ_m by rounding).
+  state_.motor_position = mesh_.motorPositionOnWall(state_.load_position, wall);
+  const double v = state_.load_velocity;
+  const double w = state_.motor_velocity;
+  const double closing = mesh_.closingSpeed(wall, v, w);  // > 0: teeth approach
+  // "Numerically zero" relative speed: below rounding of the velocities, or so small that the bounce it would start
+  // against the pressing mesh torque could not rise above the rounding of the gap (h = s²/2a).
+  const double speed_noise = 64.0 * EPS * (std::fabs(v) + rho * std::fabs(w));
+  const double jm = params_.motor_inertia;
+  const double jl = params_.load_inertia;
+  const double press_accel =
+      std::fabs(contactMeshTorque(params_, law_, state_.load_position, v)) * (jm + rho * rho * jl) / (jm * jl);
+  const double gap_noise =
+      64.0 * EPS * (std::fabs(state_.load_position) + rho * std::fabs(state_.motor_position) + delta);
+  const double stick_speed = std::max(speed_noise, std::sqrt(2.0 * press_accel * gap_noise));
+  if (!(closing > 0.0) && std::fabs(closing) > stick_speed)
+  {
+    state_.contact = Contact::Apart;  // clearly moving away: only rounding put the gap on the wall
+    return;
+  }
+  // A touch without closing (rounding) or a closing speed the stick rule calls zero is made plastic.
+  const double e = params_.restitution * closing <= stick_speed ? 0.0 : params_.restitution;
+  const ImpactOutcome o = resolveImpact(params_, v, w, e);
+  state_.load_velocity = o.load_velocity;
+  state_.motor_velocity = o.motor_velocity;
+  energy_.impact_loss += o.energy_loss;
+  if (!(closing > 0.0))
+  {
+    settleOnWall(wall);  // not an impact: nothing counted or reported
+    return;
+  }
+  ++impacts_;
+  if (e == 0.0)
+  {
+    settleOnWall(wall);
+  }
+  else
+  {
+    state_.contact = Contact::Apart;
+  }
+  ImpactInfo info;
+  info.wall = wall;
+  info.load_velocity_before = v;
+  info.load_velocity_after = o.load_velocity;
+  info.motor_velocity_before = w;
+  info.motor_velocity_after = o.motor_velocity;
+  info.approach_speed = closing;
+  info.impulse = o.impulse;
+  info.energy_loss = o.energy_loss;
+  info.stuck = state_.contact != Contact::Apart;
+  emit(sink, EventType::Impact, &info);
+  if (v > 0.0 && o.load_velocity <= 0.0)
+  {
+    emit(sink, EventType::Maximum);
+  }
+}
+
+}  // namespace backlash_servo

@@ -1,0 +1,57 @@
+#include "backlash_servo/response_monitor.h"
+
+#include <algorithm>
+#include <cmath>
+
+namespace backlash_servo
+{
+namespace
+{
+constexpr double PI = 3.14159265358979323846;
+
+double scaleOf(const ServoParams& params, double command, const State& start)
+{
+  return std::max({params.backlash, std::fabs(command - start.load_position), 1e-12});
+}
+}  // namespace
+
+ResponseMonitor::ResponseMonitor(const ServoParams& params, double command, const State& start)
+    : command_(command),
+      omega_n_(params.naturalFrequency()),
+      rho_(params.gear_ratio),
+      scale_(scaleOf(params, command, start)),
+      start_time_(start.time),
+      detector_(command, scale_)
+{}
+
+void ResponseMonitor::onEvent(const Event& e)
+{
+  if (e.type == EventType::Maximum)
+  {
+    detector_.addMaximum({e.state.time, e.state.load_position, e.state.load_velocity});
+  }
+}
+
+void ResponseMonitor::check(const State& s)
+{
+  const double rest = LimitCycleDetector::ZERO_FRACTION * scale_;
+  if (std::fabs(s.load_position - command_) <= rest && std::fabs(s.load_velocity) <= rest * omega_n_ &&
+      std::fabs(rho_ * s.motor_velocity) <= rest * omega_n_)
+  {
+    detector_.markAtRest();
+  }
+  const std::vector<Maximum>& m = detector_.maxima();
+  for (; intervals_seen_ + 1 < m.size(); ++intervals_seen_)
+  {
+    longest_ = std::max(longest_, m[intervals_seen_ + 1].time - m[intervals_seen_].time);
+  }
+  const double last = m.empty() ? start_time_ : m.back().time;
+  const double quiet_floor = QUIET_PERIODS * 2.0 * PI / omega_n_;
+  if (s.time - last > std::max(quiet_floor, 5.0 * longest_) &&
+      std::fabs(s.load_position - command_) <= QUIET_ERROR_FRACTION * scale_)
+  {
+    detector_.markAtRest();
+  }
+}
+
+}  // namespace backlash_servo
