@@ -42,7 +42,7 @@ ServoNode::ServoNode(ros::NodeHandle& nh, ros::NodeHandle& pnh, const NodeConfig
   {
     sim_.setMotorTorque(effort_);
   }
-  restartDetector();
+  restartMonitor();
   joint_pub_ = nh.advertise<sensor_msgs::JointState>("joint_states", 1000);
   impact_pub_ = nh.advertise<ImpactEvent>("impact", 10000);
   state_pub_ = nh.advertise<BacklashState>("backlash_state", 1000);
@@ -113,10 +113,9 @@ void ServoNode::reanchorWallClock()
   sim_anchor_ = sim_.state().time;
 }
 
-void ServoNode::restartDetector()
+void ServoNode::restartMonitor()
 {
-  const double scale = std::max({sim_.params().backlash, std::fabs(command_ - sim_.state().load_position), 1e-12});
-  detector_ = std::make_unique<LimitCycleDetector>(command_, scale);
+  monitor_ = std::make_unique<ResponseMonitor>(sim_.params(), command_, sim_.state());
   announced_ = Verdict::Undecided;
 }
 
@@ -175,6 +174,14 @@ void ServoNode::run()
     }
     sim_.advanceTo(t, this);
     ++sample_index_;
+    if (sim_.controlMode() == ControlMode::Position)
+    {
+      monitor_->check(sim_.state());  // rest and quiet rules, as backlash_sim applies them
+      if (monitor_->status().verdict != announced_)
+      {
+        publishLimitCycle(t, false);
+      }
+    }
     if (clock_mode_ == ClockMode::Publisher)
     {
       rosgraph_msgs::Clock clock;
@@ -187,8 +194,8 @@ void ServoNode::run()
       const double wall = (ros::WallTime::now() - run_start).toSec();
       const double cpu = static_cast<double>(std::clock()) / CLOCKS_PER_SEC;
       ROS_INFO("backlash_servo_node: stop_after %g s reached: verdict %s, error %.6g rad, period %.6g s, %llu impacts",
-               config_.stop_after, toString(detector_->status().verdict), detector_->status().error,
-               detector_->status().period, static_cast<unsigned long long>(sim_.impactCount()));
+               config_.stop_after, toString(monitor_->status().verdict), monitor_->status().error,
+               monitor_->status().period, static_cast<unsigned long long>(sim_.impactCount()));
       ROS_INFO(
           "backlash_servo_node: %ld samples at %g Hz in %.3f s wall: achieved real-time factor %.1f, "
           "CPU %.3f s (%.1f %% of one core)",
@@ -254,35 +261,41 @@ void ServoNode::onEvent(const Event& e)
   }
   else if (e.type == EventType::Maximum && sim_.controlMode() == ControlMode::Position)
   {
-    const std::size_t before = detector_->maxima().size();
-    detector_->addMaximum({e.state.time, e.state.load_position, e.state.load_velocity});
-    if (detector_->maxima().size() == before)
+    const std::size_t before = monitor_->maxima().size();
+    monitor_->onEvent(e);
+    if (monitor_->maxima().size() == before)
     {
       return;  // not above the command
     }
-    publishLimitCycle(e.state.time);
+    publishLimitCycle(e.state.time, true);
   }
 }
 
-void ServoNode::publishLimitCycle(double sim_time)
+void ServoNode::publishLimitCycle(double sim_time, bool maximum)
 {
-  const auto& st = detector_->status();
-  const Maximum& last = detector_->maxima().back();
+  const auto& st = monitor_->status();
   LimitCycleStatus m;
   m.header.stamp = stamp(sim_time);
   m.sim_time = sim_time;
   m.verdict = toString(st.verdict);
-  m.detected = detector_->oscillating();
+  m.detected = monitor_->oscillating();
   m.error = m.detected ? st.error : 0.0;
   m.period = m.detected ? st.period : 0.0;
-  m.maxima_observed = static_cast<uint32_t>(detector_->maxima().size());
-  m.last_maximum_time = last.time;
-  m.last_maximum_position = last.position;
-  m.last_maximum_velocity = last.velocity;
+  m.maxima_observed = static_cast<uint32_t>(monitor_->maxima().size());
+  if (!monitor_->maxima().empty())
+  {
+    const Maximum& last = monitor_->maxima().back();
+    m.last_maximum_time = last.time;
+    m.last_maximum_position = last.position;
+    m.last_maximum_velocity = last.velocity;
+  }
   m.command = command_;
   limit_cycle_pub_.publish(m);
-  ROS_INFO("maximum #%u at t = %.4f s: load %.6f rad (error %+.6f rad); verdict: %s", m.maxima_observed, last.time,
-           last.position, last.position - command_, m.verdict.c_str());
+  if (maximum)
+  {
+    ROS_INFO("maximum #%u at t = %.4f s: load %.6f rad (error %+.6f rad); verdict: %s", m.maxima_observed,
+             m.last_maximum_time, m.last_maximum_position, m.last_maximum_position - command_, m.verdict.c_str());
+  }
   if (st.verdict != announced_)
   {
     announced_ = st.verdict;
@@ -293,7 +306,7 @@ void ServoNode::publishLimitCycle(double sim_time)
     }
     else if (st.verdict == Verdict::Converged)
     {
-      ROS_INFO("converging to the command: no limit cycle");
+      ROS_INFO("converged to the command at t = %.4f s: no limit cycle", sim_time);
     }
   }
 }
@@ -309,7 +322,7 @@ void ServoNode::onCommand(const std_msgs::Float64& msg)
   if (sim_.controlMode() == ControlMode::Position)
   {
     sim_.setCommand(command_);
-    restartDetector();
+    restartMonitor();
   }
 }
 
@@ -352,7 +365,7 @@ bool ServoNode::onReset(std_srvs::Trigger::Request&, std_srvs::Trigger::Response
   {
     sim_.setCommand(command_);
   }
-  restartDetector();
+  restartMonitor();
   res.success = true;
   res.message = "reset to the initial state at t = " + std::to_string(initial.time) + " s";
   return true;
@@ -413,7 +426,7 @@ void ServoNode::onReconfigure(BacklashServoConfig& c, uint32_t)
     {
       sim_.setCommand(command_);
     }
-    restartDetector();
+    restartMonitor();
   }
   if (next.publish_rate != config_.publish_rate)
   {

@@ -18,7 +18,7 @@
 #include <memory>
 
 #include "backlash_servo/BacklashServoConfig.h"
-#include "backlash_servo/limit_cycle.h"
+#include "backlash_servo/response_monitor.h"
 #include "backlash_servo/simulator.h"
 #include "node_config.h"
 
@@ -52,8 +52,10 @@ class ServoNode : public EventSink
   /// Waits (serving callbacks) until the sample at sim time t may be computed; false on shutdown.
   bool waitFor(double t);
   void publishSample();
-  void publishLimitCycle(double sim_time);
-  void restartDetector();
+  /// Publishes the monitor's status on limit_cycle (latched) and logs it; `maximum`: a new maximum caused it.
+  void publishLimitCycle(double sim_time, bool maximum);
+  /// A fresh monitor from the current state and command (after a command step, a reset, a mode switch).
+  void restartMonitor();
   void reanchorWallClock();
   ros::Time stamp(double sim_time) const { return origin_ + ros::Duration(sim_time); }
   BacklashServoConfig currentConfig() const;
@@ -63,7 +65,7 @@ class ServoNode : public EventSink
   Simulator sim_;
   double command_;  // θ_R [rad], kept also in effort mode for switching back
   double effort_;   // effort-mode torque [N·m]
-  std::unique_ptr<LimitCycleDetector> detector_;
+  std::unique_ptr<ResponseMonitor> monitor_;  // the same judge as backlash_sim (rest and quiet rules included)
   Verdict announced_ = Verdict::Undecided;
 
   ros::Publisher joint_pub_, impact_pub_, state_pub_, limit_cycle_pub_, clock_pub_;

@@ -1,0 +1,41 @@
+#!/usr/bin/python3
+"""The node's limit_cycle topic reaches the verdict backlash_sim reaches, also where the rest/quiet rules decide."""
+import json
+import os
+import sys
+import unittest
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import rospy  # noqa: E402
+import rostest  # noqa: E402
+
+from backlash_servo.msg import LimitCycleStatus  # noqa: E402
+from helpers import Collector, call_trigger, run_cli, wait_for  # noqa: E402
+
+NODE = "/backlash_servo"
+
+
+class ConvergedVerdict(unittest.TestCase):
+    def test_same_verdict_as_the_cli(self):
+        rospy.init_node("test_converged_verdict")
+        cli = json.loads(run_cli(*(rospy.get_param("~cli_args").split() + ["--json"])))
+        self.assertEqual(cli["verdict"], "converged")
+        self.assertTrue(cli["settled"])
+        # The case is one the maxima alone cannot settle: too few maxima for the Poincaré-map test.
+        self.assertLess(len(cli["maxima"]), 3)
+
+        cycles = Collector("/limit_cycle", LimitCycleStatus)
+        self.assertTrue(cycles.wait_connected())
+        self.assertTrue(call_trigger(NODE + "/resume").success)
+        self.assertTrue(wait_for(lambda: cycles.msgs and cycles.msgs[-1].verdict != "undecided", 60.0),
+                        "no verdict on /limit_cycle: %s" % [m.verdict for m in cycles.msgs])
+        last = cycles.msgs[-1]
+        self.assertEqual(last.verdict, cli["verdict"])
+        self.assertFalse(last.detected)
+        self.assertEqual(last.maxima_observed, len(cli["maxima"]))
+        # Checked at every 50 ms sample instead of every natural period: reached no later than the CLI's check.
+        self.assertLessEqual(last.sim_time, cli["simulated_time"] + 1e-9)
+
+
+if __name__ == "__main__":
+    rostest.rosrun("backlash_servo", "converged_verdict", ConvergedVerdict)
