@@ -42,7 +42,7 @@ struct ServoParams
   double backlash = 0.3;         ///< Δ, free play measured at the load shaft [rad], >= 0 (0 = rigid mesh)
   double restitution = 1.0;      ///< e, coefficient of restitution of the tooth impact [-], in [0, 1]
 
-  /// Throws InvalidParameterError naming the first bad field and its allowed range.
+  /// Throws InvalidParameterError naming the first bad field, its value and its allowed range (param_table.h).
   void validate() const;
 
   /// J = J_m + ρ² J_L, inertia of the meshed pair referred to the load shaft [kg·m²].
@@ -80,7 +80,10 @@ struct ChartParams
   ServoParams toServoParams() const;
 };
 
-/// Checks that value is finite; throws InvalidParameterError(field, "must be finite") otherwise.
+/// Checks that value is finite; throws InvalidParameterError(field, "must be a finite number (got …)") otherwise.
 void requireFinite(const std::string& field, double value);
+
+/// The shortest decimal text that reads back as the same double ("0.1", "1e-07", "inf", "nan").
+std::string formatNumber(double value);
 
 }  // namespace backlash_servo

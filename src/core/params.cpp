@@ -1,6 +1,10 @@
 #include "backlash_servo/params.h"
 
 #include <cmath>
+#include <cstdio>
+#include <cstdlib>
+
+#include "backlash_servo/param_table.h"
 
 namespace backlash_servo
 {
@@ -8,50 +12,28 @@ void requireFinite(const std::string& field, double value)
 {
   if (!std::isfinite(value))
   {
-    throw InvalidParameterError(field, "must be a finite number");
+    throw InvalidParameterError(field, "must be a finite number (got " + formatNumber(value) + ")");
   }
 }
 
-namespace
+std::string formatNumber(double value)
 {
-void requirePositive(const std::string& field, double value)
-{
-  requireFinite(field, value);
-  if (!(value > 0.0))
+  char buf[40];
+  // Shortest of %.15g / %.17g that reads back as the same double: "0.1", not "0.10000000000000001".
+  std::snprintf(buf, sizeof buf, "%.15g", value);
+  if (std::isfinite(value) && std::strtod(buf, nullptr) != value)
   {
-    throw InvalidParameterError(field, "must be > 0 (got " + std::to_string(value) + ")");
+    std::snprintf(buf, sizeof buf, "%.17g", value);
   }
+  return buf;
 }
-
-void requireNonNegative(const std::string& field, double value)
-{
-  requireFinite(field, value);
-  if (!(value >= 0.0))
-  {
-    throw InvalidParameterError(field, "must be >= 0 (got " + std::to_string(value) + ")");
-  }
-}
-
-void requireUnitInterval(const std::string& field, double value)
-{
-  requireFinite(field, value);
-  if (!(value >= 0.0 && value <= 1.0))
-  {
-    throw InvalidParameterError(field, "must be in [0, 1] (got " + std::to_string(value) + ")");
-  }
-}
-}  // namespace
 
 void ServoParams::validate() const
 {
-  requirePositive("motor_inertia", motor_inertia);
-  requirePositive("load_inertia", load_inertia);
-  requireNonNegative("motor_friction", motor_friction);
-  requireNonNegative("load_friction", load_friction);
-  requirePositive("gain", gain);
-  requirePositive("gear_ratio", gear_ratio);
-  requireNonNegative("backlash", backlash);
-  requireUnitInterval("restitution", restitution);
+  for (const ParamSpec* spec : paramsIn(ParamSection::Servo))
+  {
+    spec->check(this->*std::get<double ServoParams::*>(spec->field));
+  }
 }
 
 double ServoParams::naturalFrequency() const
@@ -72,12 +54,11 @@ double ServoParams::frictionRatio() const
 
 ServoParams ChartParams::toServoParams() const
 {
-  requireNonNegative("zeta", zeta);
-  requirePositive("natural_frequency", natural_frequency);
-  requirePositive("total_inertia", total_inertia);
-  requirePositive("inertia_ratio", inertia_ratio);
-  requireUnitInterval("friction_ratio", friction_ratio);
-  requirePositive("gear_ratio", gear_ratio);
+  for (const ParamSpec* spec : paramsIn(ParamSection::Chart))
+  {
+    spec->check(this->*std::get<double ChartParams::*>(spec->field));
+  }
+  param("gear_ratio").check(gear_ratio);
   const double rho2 = gear_ratio * gear_ratio;
   ServoParams p;
   p.gear_ratio = gear_ratio;

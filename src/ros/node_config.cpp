@@ -3,183 +3,124 @@
 #include <ros/console.h>
 #include <xmlrpcpp/XmlRpcValue.h>
 
-#include <algorithm>
-#include <cstdio>
-#include <stdexcept>
-
-#include "sim_options.h"
+#include "backlash_servo/config/run_config_loader.h"
+#include "backlash_servo/param_table.h"
 
 namespace backlash_servo
 {
 namespace
 {
-bool isNumber(const XmlRpc::XmlRpcValue& v)
+double realValue(const KeyValues& kv, const char* key, double current)
 {
-  return v.getType() == XmlRpc::XmlRpcValue::TypeDouble || v.getType() == XmlRpc::XmlRpcValue::TypeInt;
+  const double v = kv.has(key) ? kv.number(key) : current;
+  param(key).check(v);
+  return v;
 }
 
-double toNumber(const std::string& key, XmlRpc::XmlRpcValue& v)
+std::string textValue(const KeyValues& kv, const char* key, const std::string& current)
 {
-  if (v.getType() == XmlRpc::XmlRpcValue::TypeDouble)
-  {
-    return static_cast<double>(v);
-  }
-  if (v.getType() == XmlRpc::XmlRpcValue::TypeInt)
-  {
-    return static_cast<int>(v);
-  }
-  throw UsageError(key + ": expected a number");
+  return kv.text(key, current);
 }
 
-bool toBool(const std::string& key, XmlRpc::XmlRpcValue& v)
+/// A ROS param → a typed key value (numbers stay numbers: no text round trip).
+void putValue(KeyValues* kv, const ParamSpec& spec, XmlRpc::XmlRpcValue& v)
 {
-  if (v.getType() != XmlRpc::XmlRpcValue::TypeBoolean)
+  switch (v.getType())
   {
-    throw UsageError(key + ": expected true or false");
+    case XmlRpc::XmlRpcValue::TypeDouble:
+      kv->setNumber(spec.key, static_cast<double>(v));
+      break;
+    case XmlRpc::XmlRpcValue::TypeInt:
+      if (spec.type == ParamType::Choice)
+      {
+        // dynamic_reconfigure stores a choice as its index.
+        const int i = static_cast<int>(v);
+        if (i < 0 || i >= static_cast<int>(spec.choices.size()))
+        {
+          throw ConfigError(std::string(spec.key) + ": choice index " + std::to_string(i) + " out of range");
+        }
+        kv->set(spec.key, spec.choices[i]);
+      }
+      else
+      {
+        kv->setNumber(spec.key, static_cast<int>(v));
+      }
+      break;
+    case XmlRpc::XmlRpcValue::TypeBoolean:
+      kv->setBoolean(spec.key, static_cast<bool>(v));
+      break;
+    case XmlRpc::XmlRpcValue::TypeString:
+      kv->set(spec.key, static_cast<std::string>(v));
+      break;
+    default:
+      throw ConfigError(std::string(spec.key) + ": expected a single " + toString(spec.type) + " value");
   }
-  return static_cast<bool>(v);
-}
-
-std::string toText(const std::string& key, XmlRpc::XmlRpcValue& v)
-{
-  if (v.getType() != XmlRpc::XmlRpcValue::TypeString)
-  {
-    throw UsageError(key + ": expected a string");
-  }
-  return static_cast<std::string>(v);
-}
-
-bool contains(const std::vector<std::string>& keys, const std::string& key)
-{
-  return std::find(keys.begin(), keys.end(), key) != keys.end();
 }
 }  // namespace
 
 void validateNodeSettings(const NodeConfig& c)
 {
-  if (!(c.publish_rate > 0.0) || !std::isfinite(c.publish_rate))
-  {
-    throw UsageError("publish_rate: must be > 0 Hz");
-  }
-  if (!(c.real_time_factor >= 0.0) || !std::isfinite(c.real_time_factor))
-  {
-    throw UsageError("real_time_factor: must be >= 0");
-  }
   if (c.real_time_factor == 0.0 && !c.publish_clock)
   {
-    throw UsageError("real_time_factor: 0 (as fast as possible) needs publish_clock: true");
-  }
-  if (!(c.min_impact_speed >= 0.0) || !std::isfinite(c.min_impact_speed))
-  {
-    throw UsageError("min_impact_speed: must be >= 0 rad/s");
-  }
-  if (!(c.stop_after >= 0.0) || !std::isfinite(c.stop_after))
-  {
-    throw UsageError("stop_after: must be >= 0 s");
-  }
-  if (!(c.start_delay >= 0.0) || !std::isfinite(c.start_delay))
-  {
-    throw UsageError("start_delay: must be >= 0 s");
-  }
-  if (!std::isfinite(c.motor_effort))
-  {
-    throw UsageError("motor_effort: must be finite");
+    throw ConfigError("real_time_factor: 0 (as fast as possible) needs publish_clock: true");
   }
   if (c.motor_joint_name.empty() || c.load_joint_name.empty() || c.motor_joint_name == c.load_joint_name)
   {
-    throw UsageError("motor_joint_name, load_joint_name: must be two different non-empty names");
+    throw ConfigError("motor_joint_name, load_joint_name: must be two different non-empty names");
   }
+}
+
+NodeConfig nodeSettingsFrom(const KeyValues& kv, const NodeConfig& base)
+{
+  NodeConfig c = base;
+  const ParamSpec& mode = param("control_mode");
+  const std::string mode_text =
+      textValue(kv, "control_mode", c.control_mode == ControlMode::Effort ? "effort" : "position");
+  if (!mode.isChoice(mode_text))
+  {
+    throw ConfigError("control_mode: must be position or effort (got '" + mode_text + "')");
+  }
+  c.control_mode = mode_text == "effort" ? ControlMode::Effort : ControlMode::Position;
+  c.motor_effort = realValue(kv, "motor_effort", c.motor_effort);
+  c.publish_rate = realValue(kv, "publish_rate", c.publish_rate);
+  c.real_time_factor = realValue(kv, "real_time_factor", c.real_time_factor);
+  c.publish_clock = kv.has("publish_clock") ? kv.boolean("publish_clock") : c.publish_clock;
+  c.motor_joint_name = textValue(kv, "motor_joint_name", c.motor_joint_name);
+  c.load_joint_name = textValue(kv, "load_joint_name", c.load_joint_name);
+  c.min_impact_speed = realValue(kv, "min_impact_speed", c.min_impact_speed);
+  c.paused = kv.has("paused") ? kv.boolean("paused") : c.paused;
+  c.stop_after = realValue(kv, "stop_after", c.stop_after);
+  c.start_delay = realValue(kv, "start_delay", c.start_delay);
+  validateNodeSettings(c);
+  return c;
 }
 
 NodeConfig loadNodeConfig(const ros::NodeHandle& pnh)
 {
   XmlRpc::XmlRpcValue all;
-  NodeConfig c;
   KeyValues kv;
   kv.nameKeysAsFlags(false);
+  for (const ParamSpec* spec : paramsIn(ParamSection::Node))
+  {
+    kv.set(spec->key, spec->fallback);  // the table's defaults, under the params given
+  }
   if (pnh.getParam(pnh.getNamespace(), all) && all.getType() == XmlRpc::XmlRpcValue::TypeStruct)
   {
     for (auto& item : all)
     {
-      const std::string& key = item.first;
-      XmlRpc::XmlRpcValue& v = item.second;
-      if (contains(modelKeys(), key))
+      const ParamSpec* spec = findParam(item.first);
+      if (spec != nullptr)
       {
-        if (isNumber(v))
-        {
-          char buf[40];
-          std::snprintf(buf, sizeof buf, "%.17g", toNumber(key, v));
-          kv.set(key, buf);
-        }
-        else if (v.getType() == XmlRpc::XmlRpcValue::TypeString)
-        {
-          kv.set(key, static_cast<std::string>(v));
-        }
-        else
-        {
-          throw UsageError(key + ": expected a number" + (key == "contact" ? " or forward/backward/none" : ""));
-        }
+        putValue(&kv, *spec, item.second);
       }
-      else if (key == "control_mode")
+      else if (item.second.getType() != XmlRpc::XmlRpcValue::TypeStruct)  // dynamic_reconfigure keeps groups
       {
-        const std::string mode = v.getType() == XmlRpc::XmlRpcValue::TypeInt ? (static_cast<int>(v) == 1   ? "effort"
-                                                                                : static_cast<int>(v) == 0 ? "position"
-                                                                                                           : "?")
-                                                                             : toText(key, v);
-        if (mode != "position" && mode != "effort")
-        {
-          throw UsageError("control_mode: must be position or effort");
-        }
-        c.control_mode = mode == "effort" ? ControlMode::Effort : ControlMode::Position;
-      }
-      else if (key == "motor_effort")
-      {
-        c.motor_effort = toNumber(key, v);
-      }
-      else if (key == "publish_rate")
-      {
-        c.publish_rate = toNumber(key, v);
-      }
-      else if (key == "real_time_factor")
-      {
-        c.real_time_factor = toNumber(key, v);
-      }
-      else if (key == "publish_clock")
-      {
-        c.publish_clock = toBool(key, v);
-      }
-      else if (key == "motor_joint_name")
-      {
-        c.motor_joint_name = toText(key, v);
-      }
-      else if (key == "load_joint_name")
-      {
-        c.load_joint_name = toText(key, v);
-      }
-      else if (key == "min_impact_speed")
-      {
-        c.min_impact_speed = toNumber(key, v);
-      }
-      else if (key == "paused")
-      {
-        c.paused = toBool(key, v);
-      }
-      else if (key == "stop_after")
-      {
-        c.stop_after = toNumber(key, v);
-      }
-      else if (key == "start_delay")
-      {
-        c.start_delay = toNumber(key, v);
-      }
-      else if (v.getType() != XmlRpc::XmlRpcValue::TypeStruct)  // dynamic_reconfigure keeps its groups as structs
-      {
-        ROS_WARN("backlash_servo_node: ignoring unknown parameter ~%s (typo?)", key.c_str());
+        ROS_WARN("backlash_servo_node: ignoring unknown parameter ~%s (typo?)", item.first.c_str());
       }
     }
   }
+  NodeConfig c = nodeSettingsFrom(kv, NodeConfig());
   c.run = runConfigFrom(kv);
-  validateNodeSettings(c);
   return c;
 }
 

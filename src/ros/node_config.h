@@ -1,9 +1,9 @@
 /**
  * @file node_config.h
- * @brief Everything backlash_servo_node reads from its private parameters (loaded from the YAML files in config/).
- *
- * The physical keys are parsed by the same code as backlash_sim's --config (sim_options.h), so a YAML file means
- * the same thing to both. Errors name the offending key.
+ * @brief Everything backlash_servo_node reads from its private parameters: ROS params (loaded from the YAML files in
+ *        config/) → key values → RunConfig by the shared loader (run_config_loader.h), so a YAML file means the
+ *        same to the node and to backlash_sim. Every key, unit, range and default is in the parameter table
+ *        (param_table.h); this file only binds the Node-section keys to NodeConfig. Errors name the key.
  */
 #pragma once
 
@@ -11,30 +11,38 @@
 
 #include <string>
 
+#include "backlash_servo/config/key_values.h"
 #include "backlash_servo/step_response.h"
 
 namespace backlash_servo
 {
+/// The node's settings; units, ranges and defaults are those of the parameter table (loadNodeConfig fills them).
 struct NodeConfig
 {
   RunConfig run;                                     ///< physical parameters, initial state, initial command θ_R [rad]
   ControlMode control_mode = ControlMode::Position;  ///< position (internal P loop) or effort (motor_effort topic)
   double motor_effort = 0.0;                         ///< initial motor torque in effort mode [N·m]
-  double publish_rate = 100.0;                       ///< joint_states / backlash_state rate [Hz of sim time], > 0
-  double real_time_factor = 1.0;  ///< sim seconds per wall second; 0 = as fast as possible (clock mode only)
-  bool publish_clock = false;     ///< the node publishes /clock (use with use_sim_time)
-  std::string motor_joint_name = "motor_joint";
-  std::string load_joint_name = "load_joint";
-  double min_impact_speed = 0.0;  ///< publish only impacts with approach speed >= this [rad/s]; 0 = all
-  bool paused = false;            ///< start paused (resume with ~resume)
-  double stop_after = 0.0;        ///< shut down after this much sim time [s]; 0 = run until stopped
-  double start_delay = 0.0;       ///< wall time to wait before sim time starts, e.g. for rosbag [s]
+  double publish_rate = 0.0;                         ///< joint_states / backlash_state rate [Hz of sim time]
+  double real_time_factor = 0.0;                     ///< sim seconds per wall second; 0 = as fast as possible
+  bool publish_clock = false;                        ///< the node publishes /clock (use with use_sim_time)
+  std::string motor_joint_name;                      ///< JointState name of the motor shaft
+  std::string load_joint_name;                       ///< JointState name of the load shaft
+  double min_impact_speed = 0.0;                     ///< publish only impacts at least this fast [rad/s]; 0 = all
+  bool paused = false;                               ///< start paused (resume with ~resume)
+  double stop_after = 0.0;                           ///< shut down after this much sim time [s]; 0 = never
+  double start_delay = 0.0;                          ///< wall time before sim time starts, e.g. for rosbag [s]
 };
 
 /// Reads and validates the private parameters; throws std::runtime_error naming the key on any problem.
 NodeConfig loadNodeConfig(const ros::NodeHandle& private_nh);
 
-/// Checks the node-only values (rates, names); throws std::runtime_error naming the key.
+/**
+ * Node settings from key values (Node-section keys; absent keys keep the values of `base`), validated by the table
+ * and by validateNodeSettings(). Throws ConfigError / InvalidParameterError naming the key.
+ */
+NodeConfig nodeSettingsFrom(const KeyValues& kv, const NodeConfig& base);
+
+/// Checks what the table cannot (combinations, names); throws ConfigError naming the keys.
 void validateNodeSettings(const NodeConfig& config);
 
 }  // namespace backlash_servo

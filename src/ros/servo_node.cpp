@@ -1,5 +1,6 @@
 #include "servo_node.h"
 
+#include <dynamic_reconfigure/config_tools.h>
 #include <rosgraph_msgs/Clock.h>
 #include <sensor_msgs/JointState.h>
 
@@ -10,6 +11,7 @@
 #include "backlash_servo/BacklashState.h"
 #include "backlash_servo/ImpactEvent.h"
 #include "backlash_servo/LimitCycleStatus.h"
+#include "backlash_servo/param_table.h"
 
 namespace backlash_servo
 {
@@ -90,20 +92,20 @@ ServoNode::ServoNode(ros::NodeHandle& nh, ros::NodeHandle& pnh, const NodeConfig
 
 BacklashServoConfig ServoNode::currentConfig() const
 {
-  BacklashServoConfig c;
+  // Every live key of the table, by name: the generated config is filled through its own message form.
+  dynamic_reconfigure::Config msg;
   const ServoParams& p = sim_.params();
-  c.motor_inertia = p.motor_inertia;
-  c.load_inertia = p.load_inertia;
-  c.motor_friction = p.motor_friction;
-  c.load_friction = p.load_friction;
-  c.gain = p.gain;
-  c.gear_ratio = p.gear_ratio;
-  c.backlash = p.backlash;
-  c.restitution = p.restitution;
-  c.control_mode = config_.control_mode == ControlMode::Effort ? 1 : 0;
-  c.publish_rate = config_.publish_rate;
-  c.real_time_factor = config_.real_time_factor;
-  c.min_impact_speed = config_.min_impact_speed;
+  for (const ParamSpec* spec : paramsIn(ParamSection::Servo))
+  {
+    dynamic_reconfigure::ConfigTools::appendParameter(msg, spec->key, p.*std::get<double ServoParams::*>(spec->field));
+  }
+  dynamic_reconfigure::ConfigTools::appendParameter(msg, "control_mode",
+                                                    config_.control_mode == ControlMode::Effort ? 1 : 0);
+  dynamic_reconfigure::ConfigTools::appendParameter(msg, "publish_rate", config_.publish_rate);
+  dynamic_reconfigure::ConfigTools::appendParameter(msg, "real_time_factor", config_.real_time_factor);
+  dynamic_reconfigure::ConfigTools::appendParameter(msg, "min_impact_speed", config_.min_impact_speed);
+  BacklashServoConfig c = BacklashServoConfig::__getDefault__();
+  c.__fromMessage__(msg);
   return c;
 }
 
@@ -390,24 +392,49 @@ bool ServoNode::onResume(std_srvs::Trigger::Request&, std_srvs::Trigger::Respons
 
 void ServoNode::onReconfigure(BacklashServoConfig& c, uint32_t)
 {
-  ServoParams p;
-  p.motor_inertia = c.motor_inertia;
-  p.load_inertia = c.load_inertia;
-  p.motor_friction = c.motor_friction;
-  p.load_friction = c.load_friction;
-  p.gain = c.gain;
-  p.gear_ratio = c.gear_ratio;
-  p.backlash = c.backlash;
-  p.restitution = c.restitution;
-  NodeConfig next = config_;
-  next.publish_rate = c.publish_rate;
-  next.real_time_factor = c.real_time_factor;
-  next.min_impact_speed = c.min_impact_speed;
-  next.control_mode = c.control_mode == 1 ? ControlMode::Effort : ControlMode::Position;
+  // The generated config → key values, by the names of the parameter table.
+  KeyValues kv;
+  kv.nameKeysAsFlags(false);
+  for (const auto& d : BacklashServoConfig::__getParamDescriptions__())
+  {
+    boost::any value;
+    d->getValue(c, value);
+    const ParamSpec* spec = findParam(d->name);
+    if (spec == nullptr)
+    {
+      continue;  // a .cfg entry the table does not know: the consistency test fails for it
+    }
+    if (d->type == "double")
+    {
+      kv.setNumber(d->name, boost::any_cast<double>(value));
+    }
+    else if (d->type == "int")
+    {
+      const int i = boost::any_cast<int>(value);
+      kv.set(d->name, i >= 0 && i < static_cast<int>(spec->choices.size()) ? spec->choices[i] : std::to_string(i));
+    }
+    else if (d->type == "bool")
+    {
+      kv.setBoolean(d->name, boost::any_cast<bool>(value));
+    }
+    else
+    {
+      kv.set(d->name, boost::any_cast<std::string>(value));
+    }
+  }
+  NodeConfig next;
+  ServoParams p = sim_.params();
   try
   {
+    for (const ParamSpec* spec : paramsIn(ParamSection::Servo))
+    {
+      if (kv.has(spec->key))
+      {
+        p.*std::get<double ServoParams::*>(spec->field) = kv.number(spec->key);
+      }
+    }
     p.validate();
-    validateNodeSettings(next);
+    next = nodeSettingsFrom(kv, config_);
     sim_.setParams(p);  // at this step boundary, no jump in θ_c or ω_c (see README for a shrinking backlash)
   }
   catch (const std::exception& e)

@@ -8,14 +8,15 @@
 #include <sstream>
 #include <vector>
 
+#include "backlash_servo/config/flag_parser.h"
+#include "backlash_servo/step_response.h"
 #include "json_writer.h"
-#include "sim_options.h"
 
 using namespace backlash_servo;
 
 namespace
 {
-const char* USAGE =
+const char* HEADER =
     R"(usage: backlash_design --motor-inertia J_m --motor-friction f_m --load-inertia J_L --load-friction f_L
                        --restitution e [--backlash D] [--gain K|LO:HI] [--gear-ratio rho|LO:HI]
                        [--find max-gain|gear-ratio] [--json]
@@ -98,57 +99,32 @@ void parseRange(const KeyValues& kv, const std::string& key, double* value, doub
   *hi = part.number(key);
   if (!(*lo > 0.0 && *hi > *lo))
   {
-    throw UsageError(flagName(key) + ": a range LO:HI needs 0 < LO < HI");
+    throw ConfigError(flagName(key) + ": a range LO:HI needs 0 < LO < HI");
   }
   *value = std::sqrt(*lo * *hi);
 }
 
 Design parse(int argc, char** argv)
 {
-  KeyValues kv;
+  FlagParser parser(
+      "backlash_design", HEADER,
+      {"motor_inertia", "motor_friction", "load_inertia", "load_friction", "restitution", "backlash", "gain",
+       "gear_ratio"},
+      {{"find", "max-gain|gear-ratio", "what to search (see above)"}, {"json", "", "one JSON object on stdout"}});
+  parser.parse(argc, argv);
+  const KeyValues& kv = parser.keys();
   Design d;
-  for (int i = 1; i < argc; ++i)
+  d.json = parser.given("json");
+  d.find = parser.option("find");
+  if (parser.given("find") && d.find != "max-gain" && d.find != "gear-ratio")
   {
-    const std::string arg = argv[i];
-    if (arg == "--help" || arg == "-h")
-    {
-      std::cout << USAGE;
-      std::exit(0);
-    }
-    if (arg == "--json")
-    {
-      d.json = true;
-      continue;
-    }
-    if (arg.rfind("--", 0) != 0 || i + 1 >= argc)
-    {
-      throw UsageError("unexpected argument '" + arg + "' (see --help)");
-    }
-    std::string key = arg.substr(2);
-    std::replace(key.begin(), key.end(), '-', '_');
-    const std::string value = argv[++i];
-    if (key == "find")
-    {
-      if (value != "max-gain" && value != "gear-ratio")
-      {
-        throw UsageError("--find must be max-gain or gear-ratio");
-      }
-      d.find = value;
-      continue;
-    }
-    const char* known[] = {"motor_inertia", "motor_friction", "load_inertia", "load_friction",
-                           "restitution",   "backlash",       "gain",         "gear_ratio"};
-    if (std::find(std::begin(known), std::end(known), key) == std::end(known))
-    {
-      throw UsageError("unknown option " + arg + " (see --help)");
-    }
-    kv.set(key, value);
+    throw ConfigError("--find must be max-gain or gear-ratio");
   }
   for (const char* required : {"motor_inertia", "motor_friction", "load_inertia", "load_friction", "restitution"})
   {
     if (!kv.has(required))
     {
-      throw UsageError(flagName(required) + " is required");
+      throw ConfigError(flagName(required) + " is required");
     }
   }
   d.base.motor_inertia = kv.number("motor_inertia");
@@ -156,7 +132,7 @@ Design parse(int argc, char** argv)
   d.base.load_inertia = kv.number("load_inertia");
   d.base.load_friction = kv.number("load_friction");
   d.base.restitution = kv.number("restitution");
-  d.base.backlash = kv.number("backlash", 0.3);
+  d.base.backlash = kv.number("backlash", param("backlash").fallbackNumber());
   parseRange(kv, "gain", &d.gain, &d.gain_lo, &d.gain_hi);
   parseRange(kv, "gear_ratio", &d.rho, &d.rho_lo, &d.rho_hi);
   if (d.gain_lo == 0.0)

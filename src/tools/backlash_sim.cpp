@@ -8,129 +8,31 @@
 #include <memory>
 #include <sstream>
 
+#include "backlash_servo/config/flag_parser.h"
+#include "backlash_servo/config/run_config_loader.h"
+#include "backlash_servo/gear_mesh.h"
 #include "backlash_servo/modes.h"
 #include "json_writer.h"
-#include "sim_options.h"
 
 using namespace backlash_servo;
 
 namespace
 {
-const char* USAGE = R"(usage: backlash_sim [options]
+const char* HEADER = R"(usage: backlash_sim [parameters] [options]
 Simulates a unit step (or any command) of the geared servo with backlash exactly and reports whether it settles
-or falls into a limit cycle. All quantities SI (rad, rad/s, N·m, kg·m², N·m·s/rad, s).
-
-physical form (defaults: the thesis' limit-cycle case):
-  --motor-inertia J_m   --load-inertia J_L   --motor-friction f_m   --load-friction f_L
-  --gain K              --gear-ratio rho
-chart form (instead of the physical form):
-  --zeta Z  --inertia-ratio rho^2 J_L/J_m  --friction-ratio rho^2 f_L/F_T
-  [--natural-frequency w_n (1)] [--total-inertia J (1)] [--gear-ratio rho (1)]
-always:
-  --backlash D (0.3)  --restitution e (1)  --command theta_R (1)  --duration s (0 = until settled)
-  --max-duration s (0 = 2000/w_n, cap when running until settled)
-initial state (default: all 0, forward contact):
-  --load-position --load-velocity --motor-position --motor-velocity --contact forward|backward|none
-input/output:
-  --config FILE.yaml   same keys in snake_case (flags override the file)
-  --json               one JSON object on stdout
-  --csv FILE           trajectory samples plus one row per event
-  --sample-rate HZ     CSV sample rate (100)
-  --help
+or falls into a limit cycle. Defaults: the thesis' limit-cycle case (App. D1). Physical and chart forms cannot be
+mixed; the chart form needs --zeta --inertia-ratio --friction-ratio.
 )";
 
-struct CliOptions
+FlagParser makeParser()
 {
-  KeyValues keys;
-  bool json = false;
-  std::string csv;
-  double sample_rate = 100.0;
-};
-
-CliOptions parseArgs(int argc, char** argv)
-{
-  CliOptions o;
-  KeyValues flags;
-  std::string config;
-  for (int i = 1; i < argc; ++i)
-  {
-    std::string arg = argv[i];
-    if (arg == "--help" || arg == "-h")
-    {
-      std::cout << USAGE;
-      std::exit(0);
-    }
-    if (arg == "--json")
-    {
-      o.json = true;
-      continue;
-    }
-    if (arg.rfind("--", 0) != 0)
-    {
-      throw UsageError("unexpected argument '" + arg + "' (options start with --; see --help)");
-    }
-    std::string value;
-    const auto eq = arg.find('=');
-    if (eq != std::string::npos)
-    {
-      value = arg.substr(eq + 1);
-      arg = arg.substr(0, eq);
-    }
-    else
-    {
-      if (i + 1 >= argc)
-      {
-        throw UsageError(arg + " needs a value");
-      }
-      value = argv[++i];
-    }
-    std::string key = arg.substr(2);
-    std::replace(key.begin(), key.end(), '-', '_');
-    if (key == "config")
-    {
-      config = value;
-    }
-    else if (key == "csv")
-    {
-      o.csv = value;
-    }
-    else if (key == "sample_rate")
-    {
-      KeyValues tmp;
-      tmp.set(key, value);
-      o.sample_rate = tmp.number(key);
-      if (!(o.sample_rate > 0.0))
-      {
-        throw UsageError("--sample-rate must be > 0 Hz");
-      }
-    }
-    else if (std::find(modelKeys().begin(), modelKeys().end(), key) != modelKeys().end())
-    {
-      flags.set(key, value);
-    }
-    else
-    {
-      throw UsageError("unknown option " + arg + " (see --help)");
-    }
-  }
-  if (!config.empty())
-  {
-    o.keys.loadYaml(config);
-    for (const auto& kv : o.keys.all())
-    {
-      const bool model = std::find(modelKeys().begin(), modelKeys().end(), kv.first) != modelKeys().end();
-      const bool node = std::find(nodeOnlyKeys().begin(), nodeOnlyKeys().end(), kv.first) != nodeOnlyKeys().end();
-      if (!model && !node)
-      {
-        throw UsageError("config file '" + config + "': unknown key '" + kv.first + "'");
-      }
-    }
-  }
-  for (const auto& kv : flags.all())
-  {
-    o.keys.set(kv.first, kv.second);
-  }
-  return o;
+  return FlagParser(
+      "backlash_sim", HEADER,
+      keysOfSections({ParamSection::Servo, ParamSection::Chart, ParamSection::Initial, ParamSection::Run}),
+      {{"config", "FILE.yaml", "the same keys in snake_case (the YAML the node loads; flags override it)"},
+       {"json", "", "one JSON object on stdout"},
+       {"csv", "FILE", "trajectory samples plus one row per event"},
+       {"sample_rate", "HZ", "CSV sample rate [Hz] (default 100)"}});
 }
 
 /// Writes trajectory samples and event rows as CSV.
@@ -150,8 +52,8 @@ class CsvWriter : public EventSink
   {
     char buf[512];
     std::snprintf(buf, sizeof buf, "%.15g,%.15g,%.15g,%.15g,%.15g,%.15g,%s,%.15g,%.15g,%s\n", s.time, s.load_position,
-                  s.load_velocity, s.motor_position, s.motor_velocity, mesh_.gap(s.load_position, s.motor_position), toString(s.contact),
-                  mesh_torque, motor_torque, event);
+                  s.load_velocity, s.motor_position, s.motor_velocity, mesh_.gap(s.load_position, s.motor_position),
+                  toString(s.contact), mesh_torque, motor_torque, event);
     out_ << buf;
   }
 
@@ -164,16 +66,12 @@ void writeJson(std::ostream& out, const RunConfig& c, const RunSummary& r, doubl
   const ServoParams& p = c.params;
   JsonWriter j(out);
   j.beginObject();
-  j.beginObject("params")
-      .field("motor_inertia", p.motor_inertia)
-      .field("load_inertia", p.load_inertia)
-      .field("motor_friction", p.motor_friction)
-      .field("load_friction", p.load_friction)
-      .field("gain", p.gain)
-      .field("gear_ratio", p.gear_ratio)
-      .field("backlash", p.backlash)
-      .field("restitution", p.restitution)
-      .field("command", c.command)
+  j.beginObject("params");
+  for (const ParamSpec* spec : paramsIn(ParamSection::Servo))
+  {
+    j.field(spec->key, p.*std::get<double ServoParams::*>(spec->field));
+  }
+  j.field("command", c.command)
       .field("zeta", p.dampingRatio())
       .field("natural_frequency", p.naturalFrequency())
       .field("inertia_ratio", p.inertiaRatio())
@@ -286,12 +184,20 @@ void writeSummary(std::ostream& out, const RunConfig& c, const RunSummary& r, do
 
 int main(int argc, char** argv)
 {
-  CliOptions options;
+  FlagParser options = makeParser();
   RunConfig config;
+  std::string csv_path;
+  double sample_rate = 100.0;
   try
   {
-    options = parseArgs(argc, argv);
-    config = runConfigFrom(options.keys);
+    options.parse(argc, argv);
+    config = runConfigFrom(options.keys());
+    csv_path = options.option("csv");
+    sample_rate = options.optionNumber("sample_rate", sample_rate);
+    if (!(sample_rate > 0.0))
+    {
+      throw ConfigError("--sample-rate must be > 0 Hz");
+    }
   }
   catch (const std::exception& e)
   {
@@ -304,10 +210,10 @@ int main(int argc, char** argv)
     std::unique_ptr<CsvWriter> csv;
     SampleCallback on_sample;
     double sample_period = 0.0;
-    if (!options.csv.empty())
+    if (!csv_path.empty())
     {
       csv = std::make_unique<CsvWriter>(csv_text, GearMesh(config.params));
-      sample_period = 1.0 / options.sample_rate;
+      sample_period = 1.0 / sample_rate;
       on_sample = [&](const Simulator& sim) { csv->sample(sim); };
     }
     const auto start = std::chrono::steady_clock::now();
@@ -316,18 +222,18 @@ int main(int argc, char** argv)
     if (csv)
     {
       // Written whole to a temporary then renamed: a failed run never leaves a half-written file.
-      const std::string tmp = options.csv + ".tmp";
+      const std::string tmp = csv_path + ".tmp";
       std::ofstream f(tmp);
       f << csv_text.str();
       f.close();
-      if (!f || std::rename(tmp.c_str(), options.csv.c_str()) != 0)
+      if (!f || std::rename(tmp.c_str(), csv_path.c_str()) != 0)
       {
         std::remove(tmp.c_str());
-        std::cerr << "backlash_sim: error: cannot write '" << options.csv << "'\n";
+        std::cerr << "backlash_sim: error: cannot write '" << csv_path << "'\n";
         return 2;
       }
     }
-    if (options.json)
+    if (options.given("json"))
     {
       writeJson(std::cout, config, result, wall);
     }

@@ -94,6 +94,20 @@ class NodeBasics(unittest.TestCase):
         n = len(self.joints.msgs)
         self.assertTrue(wait_for(lambda: len(self.joints.msgs) > n + 50, 10.0))
 
+    def test_5_values_are_never_clamped_behind_the_users_back(self):
+        # The .cfg is generated from the parameter table without slider bounds: dynamic_reconfigure passes every
+        # value through and the node either takes it as given or refuses it, keeping every value as it was.
+        client = dynamic_reconfigure.client.Client(NODE, timeout=10)
+        before = client.get_configuration(timeout=5)
+        taken = client.update_configuration({"gain": 5000.0})
+        self.assertEqual(taken["gain"], 5000.0)
+        for bad in ({"restitution": 2.0}, {"control_mode": 5}, {"gear_ratio": float("inf")},
+                    {"load_inertia": -1.0}):
+            after = client.update_configuration(bad)
+            for key in ("restitution", "control_mode", "gear_ratio", "load_inertia", "publish_rate"):
+                self.assertEqual(after[key], before[key], "%s after refusing %s" % (key, bad))
+        self.assertEqual(client.update_configuration({"gain": before["gain"]})["gain"], before["gain"])
+
 
 if __name__ == "__main__":
     rostest.rosrun("backlash_servo", "node_basics", NodeBasics)

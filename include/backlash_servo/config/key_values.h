@@ -1,0 +1,71 @@
+/**
+ * @file key_values.h
+ * @brief Raw parameter values by key, from a YAML file, command-line flags or ROS params, before they become a
+ *        RunConfig. Values keep their type (text from files and flags, numbers and booleans from ROS): no text
+ *        round trips. No ROS dependency.
+ */
+#pragma once
+
+#include <map>
+#include <stdexcept>
+#include <string>
+
+namespace backlash_servo
+{
+/// Bad command line, config file or parameter set; tools print it on one line and exit with code 2, the node logs it.
+class ConfigError : public std::runtime_error
+{
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+/// "--motor-inertia" for "motor_inertia".
+std::string flagName(const std::string& key);
+
+class KeyValues
+{
+ public:
+  /// Reads a flat YAML mapping of scalars; throws ConfigError naming the file and the problem.
+  void loadYaml(const std::string& path);
+  /// A value as text (flags, YAML); parsed when read.
+  void set(const std::string& key, const std::string& text);
+  /// A value that already is a number (ROS params, dynamic_reconfigure).
+  void setNumber(const std::string& key, double value);
+  /// A value that already is a boolean.
+  void setBoolean(const std::string& key, bool value);
+  bool has(const std::string& key) const { return values_.count(key) != 0; }
+  /// Later sources override earlier ones: copies every value of other over this.
+  void overrideWith(const KeyValues& other);
+
+  /// A finite number; throws ConfigError("--flag-name: expected a finite number, got 'abc'") otherwise.
+  double number(const std::string& key) const;
+  double number(const std::string& key, double fallback) const { return has(key) ? number(key) : fallback; }
+  /// true/false (also "true"/"false" text); throws ConfigError otherwise.
+  bool boolean(const std::string& key) const;
+  /// The value as text (numbers formatted exactly); fallback when absent.
+  std::string text(const std::string& key, const std::string& fallback) const;
+
+  /// How errors name a key: "--motor-inertia" (command line, the default) or "motor_inertia" (YAML / ROS params).
+  void nameKeysAsFlags(bool flags) { flags_ = flags; }
+  std::string name(const std::string& key) const { return flags_ ? flagName(key) : key; }
+  /// Every key present, in key order.
+  std::map<std::string, std::string> keys() const;
+
+ private:
+  struct Value
+  {
+    enum class Kind
+    {
+      Text,
+      Number,
+      Boolean
+    } kind = Kind::Text;
+    std::string text;
+    double number = 0.0;
+    bool boolean = false;
+  };
+  std::map<std::string, Value> values_;
+  bool flags_ = true;
+};
+
+}  // namespace backlash_servo

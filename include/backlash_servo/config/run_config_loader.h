@@ -1,0 +1,29 @@
+/**
+ * @file run_config_loader.h
+ * @brief Key values (flags, YAML, ROS params) → a validated RunConfig, by the parameter table (param_table.h).
+ *        Shared by every command-line tool and the ROS node, so a YAML file means the same to all of them.
+ *        No ROS dependency.
+ *
+ * Physical form (motor_inertia … gain) or chart form (zeta, inertia_ratio, friction_ratio, …), never both;
+ * gear_ratio, backlash and restitution belong to both. Keys of the Node section are ignored here.
+ */
+#pragma once
+
+#include <string>
+
+#include "backlash_servo/config/key_values.h"
+#include "backlash_servo/step_response.h"
+
+namespace backlash_servo
+{
+/**
+ * Builds a RunConfig from key values. Throws ConfigError for mixed forms, missing chart keys, bad numbers or
+ * choices, InvalidParameterError (naming key, value and range) for out-of-range values or a state that does not
+ * fit the mesh.
+ */
+RunConfig runConfigFrom(const KeyValues& kv);
+
+/// Throws ConfigError "<source>: unknown key 'x'" for a key that is not in the parameter table.
+void requireKnownKeys(const KeyValues& kv, const std::string& source);
+
+}  // namespace backlash_servo

@@ -1,0 +1,153 @@
+#include "backlash_servo/config/key_values.h"
+
+#include <yaml-cpp/yaml.h>
+
+#include <algorithm>
+#include <cerrno>
+#include <cmath>
+#include <cstdlib>
+
+#include "backlash_servo/params.h"
+
+namespace backlash_servo
+{
+std::string flagName(const std::string& key)
+{
+  std::string f = "--" + key;
+  std::replace(f.begin(), f.end(), '_', '-');
+  return f;
+}
+
+void KeyValues::loadYaml(const std::string& path)
+{
+  YAML::Node root;
+  try
+  {
+    root = YAML::LoadFile(path);
+  }
+  catch (const YAML::BadFile&)
+  {
+    throw ConfigError("cannot read config file '" + path + "'");
+  }
+  catch (const YAML::Exception& e)
+  {
+    throw ConfigError("config file '" + path + "' is not valid YAML: " + e.what());
+  }
+  if (root.IsNull())
+  {
+    return;  // empty file: nothing to set
+  }
+  if (!root.IsMap())
+  {
+    throw ConfigError("config file '" + path + "' must be a mapping of key: value");
+  }
+  for (const auto& item : root)
+  {
+    const std::string key = item.first.as<std::string>();
+    if (!item.second.IsScalar())
+    {
+      throw ConfigError("config file '" + path + "': key '" + key + "' must have a single value");
+    }
+    set(key, item.second.as<std::string>());
+  }
+}
+
+void KeyValues::set(const std::string& key, const std::string& text)
+{
+  Value v;
+  v.text = text;
+  values_[key] = v;
+}
+
+void KeyValues::setNumber(const std::string& key, double number)
+{
+  Value v;
+  v.kind = Value::Kind::Number;
+  v.number = number;
+  values_[key] = v;
+}
+
+void KeyValues::setBoolean(const std::string& key, bool boolean)
+{
+  Value v;
+  v.kind = Value::Kind::Boolean;
+  v.boolean = boolean;
+  values_[key] = v;
+}
+
+void KeyValues::overrideWith(const KeyValues& other)
+{
+  for (const auto& kv : other.values_)
+  {
+    values_[kv.first] = kv.second;
+  }
+}
+
+double KeyValues::number(const std::string& key) const
+{
+  const Value& v = values_.at(key);
+  if (v.kind == Value::Kind::Number)
+  {
+    if (!std::isfinite(v.number))
+    {
+      throw ConfigError(name(key) + ": expected a finite number, got " + formatNumber(v.number));
+    }
+    return v.number;
+  }
+  if (v.kind == Value::Kind::Boolean)
+  {
+    throw ConfigError(name(key) + ": expected a finite number, got " + (v.boolean ? "true" : "false"));
+  }
+  errno = 0;
+  char* end = nullptr;
+  const double d = std::strtod(v.text.c_str(), &end);
+  if (v.text.empty() || end == v.text.c_str() || *end != '\0' || errno == ERANGE || !std::isfinite(d))
+  {
+    throw ConfigError(name(key) + ": expected a finite number, got '" + v.text + "'");
+  }
+  return d;
+}
+
+bool KeyValues::boolean(const std::string& key) const
+{
+  const Value& v = values_.at(key);
+  if (v.kind == Value::Kind::Boolean)
+  {
+    return v.boolean;
+  }
+  if (v.kind == Value::Kind::Text && (v.text == "true" || v.text == "false"))
+  {
+    return v.text == "true";
+  }
+  throw ConfigError(name(key) + ": expected true or false, got '" + text(key, "") + "'");
+}
+
+std::string KeyValues::text(const std::string& key, const std::string& fallback) const
+{
+  auto it = values_.find(key);
+  if (it == values_.end())
+  {
+    return fallback;
+  }
+  switch (it->second.kind)
+  {
+    case Value::Kind::Number:
+      return formatNumber(it->second.number);
+    case Value::Kind::Boolean:
+      return it->second.boolean ? "true" : "false";
+    default:
+      return it->second.text;
+  }
+}
+
+std::map<std::string, std::string> KeyValues::keys() const
+{
+  std::map<std::string, std::string> out;
+  for (const auto& kv : values_)
+  {
+    out[kv.first] = text(kv.first, "");
+  }
+  return out;
+}
+
+}  // namespace backlash_servo

@@ -1,0 +1,114 @@
+#include "backlash_servo/config/run_config_loader.h"
+
+#include "backlash_servo/gear_mesh.h"
+#include "backlash_servo/param_table.h"
+#include "backlash_servo/simulator.h"
+
+namespace backlash_servo
+{
+namespace
+{
+bool anyPresent(const KeyValues& kv, bool chart_form)
+{
+  for (const ParamSpec& spec : parameterTable())
+  {
+    const bool physical_only = spec.section == ParamSection::Servo && !inChartForm(spec);
+    const bool chart_only = spec.section == ParamSection::Chart;
+    if ((chart_form ? chart_only : physical_only) && kv.has(spec.key))
+    {
+      return true;
+    }
+  }
+  return false;
+}
+
+/// The value of a Real key, or its table default; range-checked.
+double realValue(const KeyValues& kv, const ParamSpec& spec)
+{
+  const double v = kv.has(spec.key) ? kv.number(spec.key) : spec.fallbackNumber();
+  spec.check(v);
+  return v;
+}
+
+std::string choiceValue(const KeyValues& kv, const ParamSpec& spec)
+{
+  const std::string v = kv.text(spec.key, spec.fallback);
+  if (!spec.isChoice(v))
+  {
+    std::string list;
+    for (const char* c : spec.choices)
+    {
+      list += (list.empty() ? "" : ", ") + std::string(c);
+    }
+    throw ConfigError(kv.name(spec.key) + ": must be one of " + list + " (got '" + v + "')");
+  }
+  return v;
+}
+}  // namespace
+
+void requireKnownKeys(const KeyValues& kv, const std::string& source)
+{
+  for (const auto& item : kv.keys())
+  {
+    if (findParam(item.first) == nullptr)
+    {
+      throw ConfigError(source + ": unknown key '" + item.first + "'");
+    }
+  }
+}
+
+RunConfig runConfigFrom(const KeyValues& kv)
+{
+  RunConfig c;
+  const bool chart = anyPresent(kv, true);
+  if (chart && anyPresent(kv, false))
+  {
+    throw ConfigError("give either physical parameters (" + kv.name("motor_inertia") + " ... " + kv.name("gain") +
+                      ") or the chart form (" + kv.name("zeta") + " " + kv.name("inertia_ratio") + " " +
+                      kv.name("friction_ratio") + " ...), not both");
+  }
+  if (chart)
+  {
+    ChartParams ch;
+    for (const ParamSpec* spec : paramsIn(ParamSection::Chart))
+    {
+      if (*spec->fallback == '\0' && !kv.has(spec->key))
+      {
+        throw ConfigError(kv.name(spec->key) + " is required in the chart form");
+      }
+      ch.*std::get<double ChartParams::*>(spec->field) =
+          kv.has(spec->key) ? kv.number(spec->key) : spec->fallbackNumber();
+    }
+    // The keys both forms share.
+    ch.gear_ratio = kv.number("gear_ratio", param("gear_ratio").fallbackNumber());
+    ch.backlash = kv.number("backlash", param("backlash").fallbackNumber());
+    ch.restitution = kv.number("restitution", param("restitution").fallbackNumber());
+    c.params = ch.toServoParams();
+  }
+  else
+  {
+    for (const ParamSpec* spec : paramsIn(ParamSection::Servo))
+    {
+      c.params.*std::get<double ServoParams::*>(spec->field) =
+          kv.has(spec->key) ? kv.number(spec->key) : spec->fallbackNumber();
+    }
+    c.params.validate();
+  }
+  c.command = realValue(kv, param("command"));
+  c.duration = realValue(kv, param("duration"));
+  c.max_duration = realValue(kv, param("max_duration"));
+  State& s = c.initial;
+  s.contact = contactFromString(choiceValue(kv, param("contact")));
+  s.load_position = realValue(kv, param("load_position"));
+  s.load_velocity = realValue(kv, param("load_velocity"));
+  const GearMesh mesh(c.params);
+  s.motor_position = kv.has("motor_position") ? realValue(kv, param("motor_position"))
+                                              : mesh.motorPositionOnWall(s.load_position, s.contact);
+  s.motor_velocity =
+      kv.has("motor_velocity") ? realValue(kv, param("motor_velocity")) : mesh.motorVelocityInContact(s.load_velocity);
+  // Let the simulator's own validation (gap range, contact consistency) speak now, before any output is written.
+  Simulator check(c.params, s, c.command);
+  return c;
+}
+
+}  // namespace backlash_servo

@@ -1,0 +1,248 @@
+#include "backlash_servo/param_table.h"
+
+#include <cmath>
+#include <cstdlib>
+#include <stdexcept>
+
+#include "backlash_servo/step_response.h"
+
+namespace backlash_servo
+{
+namespace
+{
+constexpr double INF = std::numeric_limits<double>::infinity();
+const ParamRange POSITIVE{0.0, INF, true, false};
+const ParamRange NON_NEGATIVE{0.0, INF, false, false};
+const ParamRange UNIT{0.0, 1.0, false, false};
+const ParamRange FINITE{};
+
+using S = ParamSection;
+using T = ParamType;
+
+std::vector<ParamSpec> makeTable()
+{
+  // clang-format off
+  return {
+    // ---- the servo, physical form (defaults: the thesis' limit-cycle case, App. D1) ----
+    {"motor_inertia", "J_m", "kg·m²", T::Real, S::Servo, POSITIVE, "0.1", "motor inertia on the motor shaft", true, {},
+     &ServoParams::motor_inertia},
+    {"load_inertia", "J_L", "kg·m²", T::Real, S::Servo, POSITIVE, "0.9", "load inertia on the load shaft", true, {},
+     &ServoParams::load_inertia},
+    {"motor_friction", "f_m", "N·m·s/rad", T::Real, S::Servo, NON_NEGATIVE, "0.48", "viscous friction of the motor",
+     true, {}, &ServoParams::motor_friction},
+    {"load_friction", "f_L", "N·m·s/rad", T::Real, S::Servo, NON_NEGATIVE, "0.32", "viscous friction of the load",
+     true, {}, &ServoParams::load_friction},
+    {"gain", "K", "N·m/rad", T::Real, S::Servo, POSITIVE, "1", "servo gain: motor torque = K (command − load position)",
+     true, {}, &ServoParams::gain},
+    {"gear_ratio", "ρ", "-", T::Real, S::Servo, POSITIVE, "1",
+     "teeth(gear 1)/teeth(gear 2); rigid mesh θ_c = ρ θ_m (both forms)", true, {}, &ServoParams::gear_ratio},
+    {"backlash", "Δ", "rad", T::Real, S::Servo, NON_NEGATIVE, "0.3",
+     "free play at the load shaft, 0 = rigid mesh (both forms)", true, {}, &ServoParams::backlash},
+    {"restitution", "e", "-", T::Real, S::Servo, UNIT, "1",
+     "coefficient of restitution of tooth impacts, 0 plastic … 1 elastic (both forms)", true, {},
+     &ServoParams::restitution},
+    // ---- the servo, chart form (instead of J_m … K) ----
+    {"zeta", "ζ", "-", T::Real, S::Chart, NON_NEGATIVE, "", "damping ratio (required in the chart form)", false, {},
+     &ChartParams::zeta},
+    {"natural_frequency", "ω_n", "rad/s", T::Real, S::Chart, POSITIVE, "1", "natural frequency √(ρK/J)", false, {},
+     &ChartParams::natural_frequency},
+    {"total_inertia", "J", "kg·m²", T::Real, S::Chart, POSITIVE, "1", "J = J_m + ρ²J_L", false, {},
+     &ChartParams::total_inertia},
+    {"inertia_ratio", "ρ²J_L/J_m", "-", T::Real, S::Chart, POSITIVE, "", "inertia split (required in the chart form)",
+     false, {}, &ChartParams::inertia_ratio},
+    {"friction_ratio", "ρ²f_L/F_T", "-", T::Real, S::Chart, UNIT, "",
+     "friction split, F_T = f_m + ρ²f_L (required in the chart form)", false, {}, &ChartParams::friction_ratio},
+    // ---- command and initial state ----
+    {"command", "θ_R", "rad", T::Real, S::Initial, FINITE, "1", "load set-point, applied at t = 0", false, {},
+     &RunConfig::command},
+    {"load_position", "θ_c", "rad", T::Real, S::Initial, FINITE, "0", "initial load position", false, {},
+     &State::load_position},
+    {"load_velocity", "ω_c", "rad/s", T::Real, S::Initial, FINITE, "0", "initial load velocity", false, {},
+     &State::load_velocity},
+    {"motor_position", "θ_m", "rad", T::Real, S::Initial, FINITE, "", "initial motor position (default: on the wall of `contact`)",
+     false, {}, &State::motor_position},
+    {"motor_velocity", "ω_m", "rad/s", T::Real, S::Initial, FINITE, "", "initial motor velocity (default: ω_c/ρ)", false,
+     {}, &State::motor_velocity},
+    {"contact", "", "-", T::Choice, S::Initial, FINITE, "forward", "teeth at the start: gap 0, gap Δ, or floating",
+     false, {"forward", "backward", "none"}, {}},
+    // ---- length of a command-line run ----
+    {"duration", "", "s", T::Real, S::Run, NON_NEGATIVE, "0",
+     "simulate exactly this long (0 = until the verdict is settled)", false, {}, &RunConfig::duration},
+    {"max_duration", "", "s", T::Real, S::Run, NON_NEGATIVE, "0", "cap when running until settled (0 = 2000/ω_n)",
+     false, {}, &RunConfig::max_duration},
+    // ---- ROS node ----
+    {"control_mode", "", "-", T::Choice, S::Node, FINITE, "position",
+     "position: internal P law on `command`; effort: torque from `motor_effort`", true, {"position", "effort"}, {}},
+    {"motor_effort", "", "N·m", T::Real, S::Node, FINITE, "0", "initial motor torque in effort mode", false, {}, {}},
+    {"publish_rate", "", "Hz", T::Real, S::Node, POSITIVE, "100", "joint_states and backlash_state rate (sim time)",
+     true, {}, {}},
+    {"real_time_factor", "", "-", T::Real, S::Node, NON_NEGATIVE, "1",
+     "sim seconds per wall second; 0 = as fast as possible (publish_clock only)", true, {}, {}},
+    {"publish_clock", "", "-", T::Boolean, S::Node, FINITE, "false", "the node publishes /clock (with use_sim_time)",
+     false, {}, {}},
+    {"motor_joint_name", "", "-", T::Text, S::Node, FINITE, "motor_joint", "JointState name of the motor shaft", false,
+     {}, {}},
+    {"load_joint_name", "", "-", T::Text, S::Node, FINITE, "load_joint", "JointState name of the load shaft", false, {},
+     {}},
+    {"min_impact_speed", "", "rad/s", T::Real, S::Node, NON_NEGATIVE, "0",
+     "publish only impacts at least this fast (0 = all)", true, {}, {}},
+    {"paused", "", "-", T::Boolean, S::Node, FINITE, "false", "start paused (call ~resume)", false, {}, {}},
+    {"stop_after", "", "s", T::Real, S::Node, NON_NEGATIVE, "0", "shut down after this much sim time (0 = never)",
+     false, {}, {}},
+    {"start_delay", "", "s", T::Real, S::Node, NON_NEGATIVE, "0",
+     "wall time to wait before sim time starts (e.g. for rosbag)", false, {}, {}},
+  };
+  // clang-format on
+}
+}  // namespace
+
+bool ParamRange::contains(double v) const
+{
+  if (!std::isfinite(v))
+  {
+    return false;
+  }
+  const bool above = lower_open ? v > lower : v >= lower;
+  const bool below = upper_open ? v < upper : v <= upper;
+  return above && below;
+}
+
+std::string ParamRange::describe() const
+{
+  const bool has_lower = std::isfinite(lower);
+  const bool has_upper = std::isfinite(upper);
+  if (has_lower && has_upper)
+  {
+    return std::string("in ") + (lower_open ? "(" : "[") + formatNumber(lower) + ", " + formatNumber(upper) +
+           (upper_open ? ")" : "]");
+  }
+  if (has_lower)
+  {
+    return std::string(lower_open ? "> " : ">= ") + formatNumber(lower);
+  }
+  if (has_upper)
+  {
+    return std::string(upper_open ? "< " : "<= ") + formatNumber(upper);
+  }
+  return "finite";
+}
+
+std::string ParamSpec::flag() const
+{
+  std::string f = std::string("--") + key;
+  for (char& c : f)
+  {
+    c = c == '_' ? '-' : c;
+  }
+  return f;
+}
+
+void ParamSpec::check(double v) const
+{
+  if (!std::isfinite(v))
+  {
+    throw InvalidParameterError(key, "must be a finite number (got " + formatNumber(v) + ")");
+  }
+  if (!range.contains(v))
+  {
+    throw InvalidParameterError(key, "must be " + range.describe() + " (got " + formatNumber(v) + ")");
+  }
+}
+
+double ParamSpec::fallbackNumber() const
+{
+  return std::strtod(fallback, nullptr);
+}
+
+bool ParamSpec::isChoice(const std::string& value) const
+{
+  for (const char* c : choices)
+  {
+    if (value == c)
+    {
+      return true;
+    }
+  }
+  return false;
+}
+
+bool inChartForm(const ParamSpec& spec)
+{
+  const std::string key = spec.key;
+  return spec.section == ParamSection::Chart || key == "gear_ratio" || key == "backlash" || key == "restitution";
+}
+
+const std::vector<ParamSpec>& parameterTable()
+{
+  static const std::vector<ParamSpec> table = makeTable();
+  return table;
+}
+
+const ParamSpec* findParam(const std::string& key)
+{
+  for (const ParamSpec& p : parameterTable())
+  {
+    if (key == p.key)
+    {
+      return &p;
+    }
+  }
+  return nullptr;
+}
+
+const ParamSpec& param(const std::string& key)
+{
+  const ParamSpec* p = findParam(key);
+  if (p == nullptr)
+  {
+    throw std::logic_error("backlash_servo: '" + key + "' is not in the parameter table");
+  }
+  return *p;
+}
+
+std::vector<const ParamSpec*> paramsIn(ParamSection section)
+{
+  std::vector<const ParamSpec*> out;
+  for (const ParamSpec& p : parameterTable())
+  {
+    if (p.section == section)
+    {
+      out.push_back(&p);
+    }
+  }
+  return out;
+}
+
+const char* toString(ParamSection s)
+{
+  switch (s)
+  {
+    case ParamSection::Servo:
+      return "servo";
+    case ParamSection::Chart:
+      return "chart";
+    case ParamSection::Initial:
+      return "initial";
+    case ParamSection::Run:
+      return "run";
+    default:
+      return "node";
+  }
+}
+
+const char* toString(ParamType t)
+{
+  switch (t)
+  {
+    case ParamType::Real:
+      return "real";
+    case ParamType::Boolean:
+      return "bool";
+    case ParamType::Choice:
+      return "choice";
+    default:
+      return "text";
+  }
+}
+
+}  // namespace backlash_servo
