@@ -119,4 +119,7 @@ double contactAcceleration(const ServoParams& params, const MotorInput& input, d
 double contactMeshTorque(const ServoParams& params, const MotorInput& input, double load_position,
                          double load_velocity);
 
+/// Mesh torque on the load [N·m] in state s: the contact value, or 0 when the teeth are apart.
+double meshTorque(const ServoParams& params, const MotorInput& input, const State& s);
+
 }  // namespace backlash_servo

@@ -47,9 +47,8 @@ struct Event
 {
   EventType type = EventType::Impact;
   State state;
-  double motor_torque = 0.0;  ///< T_m just after the event [N·m]
-  double mesh_torque = 0.0;   ///< mesh torque on the load just after the event [N·m] (0 when apart)
-  ImpactInfo impact;          ///< filled for EventType::Impact
+  MotorInput law;     ///< motor-torque law in force just after the event: T_m = law.torque(θ_c) [N·m]
+  ImpactInfo impact;  ///< filled for EventType::Impact
 };
 
 /// Receives events in time order while the simulator advances.

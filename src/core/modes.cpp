@@ -112,6 +112,11 @@ double contactMeshTorque(const ServoParams& p, const MotorInput& in, double x, d
   return p.load_inertia * contactAcceleration(p, in, x, v) + p.load_friction * v;
 }
 
+double meshTorque(const ServoParams& p, const MotorInput& in, const State& s)
+{
+  return s.contact == Contact::Apart ? 0.0 : contactMeshTorque(p, in, s.load_position, s.load_velocity);
+}
+
 bool contactHolds(const ServoParams& p, const MotorInput& in, double x, double v, Contact wall)
 {
   const double j = p.totalInertia();

@@ -155,11 +155,7 @@ void Plant::setParams(const ServoParams& params, EventSink* sink)
 
 double Plant::meshTorque() const
 {
-  if (state_.contact == Contact::Apart)
-  {
-    return 0.0;
-  }
-  return contactMeshTorque(params_, law_, state_.load_position, state_.load_velocity);
+  return backlash_servo::meshTorque(params_, law_, state_);
 }
 
 double Plant::kineticEnergy() const
@@ -183,8 +179,7 @@ void Plant::emit(EventSink* sink, EventType type, const ImpactInfo* impact) cons
   Event e;
   e.type = type;
   e.state = state_;
-  e.motor_torque = motorTorque();
-  e.mesh_torque = meshTorque();
+  e.law = law_;
   if (impact != nullptr)
   {
     e.impact = *impact;

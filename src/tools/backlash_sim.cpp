@@ -39,12 +39,15 @@ FlagParser makeParser()
 class CsvWriter : public EventSink
 {
  public:
-  CsvWriter(std::ostream& out, const GearMesh& mesh) : out_(out), mesh_(mesh)
+  CsvWriter(std::ostream& out, const ServoParams& params) : out_(out), params_(params), mesh_(params)
   {
     out_ << "time,load_position,load_velocity,motor_position,motor_velocity,gap,contact,mesh_torque,motor_torque,"
             "event\n";
   }
-  void onEvent(const Event& e) override { row(e.state, e.mesh_torque, e.motor_torque, toString(e.type)); }
+  void onEvent(const Event& e) override
+  {
+    row(e.state, meshTorque(params_, e.law, e.state), e.law.torque(e.state.load_position), toString(e.type));
+  }
   void sample(const Simulator& sim) { row(sim.state(), sim.meshTorque(), sim.motorTorque(), ""); }
 
  private:
@@ -58,6 +61,7 @@ class CsvWriter : public EventSink
   }
 
   std::ostream& out_;
+  ServoParams params_;
   GearMesh mesh_;
 };
 
@@ -212,7 +216,7 @@ int main(int argc, char** argv)
     double sample_period = 0.0;
     if (!csv_path.empty())
     {
-      csv = std::make_unique<CsvWriter>(csv_text, GearMesh(config.params));
+      csv = std::make_unique<CsvWriter>(csv_text, config.params);
       sample_period = 1.0 / sample_rate;
       on_sample = [&](const Simulator& sim) { csv->sample(sim); };
     }
