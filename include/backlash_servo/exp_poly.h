@@ -19,23 +19,34 @@ namespace backlash_servo
 constexpr int EXP_POLY_MAX_DEGREE = 4;
 /// Most distinct exponential rates an ExpPoly can hold: products of two modes have {0, −α, −β} pairwise, 6.
 constexpr int EXP_POLY_MAX_TERMS = 6;
+/// Highest polynomial degree of the wide form used where slow exponentials are written as their Taylor polynomials
+/// (light damping, see modes.h): the gap is of degree ≤ 16 there, and the energy integrals multiply two of them.
+constexpr int EXP_POLY_WIDE_DEGREE = 34;
 /// Most sign-change roots reported by one call to signChangeRoots().
 constexpr int EXP_POLY_MAX_ROOTS = 64;
 /// Relative precision of critical points (see refineBracket).
 constexpr double CRITICAL_POINT_TOLERANCE = 1e-10;
 
 /// One term P(τ) e^{rate τ}; coef[k] multiplies τ^k.
-struct ExpTerm
+template <int MaxDegree>
+struct BasicExpTerm
 {
   double rate = 0.0;  ///< exponential rate r [1/s]
   int degree = 0;     ///< degree of the polynomial P
-  std::array<double, EXP_POLY_MAX_DEGREE + 1> coef{};
+  std::array<double, MaxDegree + 1> coef{};
 };
 
-class ExpPoly
+/// Σ_i P_i(τ) e^{r_i τ} with deg P_i ≤ MaxDegree (ExpPoly: the compact form of every ordinary mode; WideExpPoly:
+/// the form with slow exponentials expanded, used at light damping).
+template <int MaxDegree>
+class BasicExpPoly
 {
  public:
-  ExpPoly() = default;
+  using ExpTerm = BasicExpTerm<MaxDegree>;
+  using ExpPoly = BasicExpPoly<MaxDegree>;
+  static constexpr int MAX_DEGREE = MaxDegree;
+
+  BasicExpPoly() = default;
   /// A constant function c.
   static ExpPoly constant(double c);
   /// The single term c τ^k e^{rate τ}.
@@ -94,5 +105,11 @@ class ExpPoly
   std::array<ExpTerm, EXP_POLY_MAX_TERMS> terms_{};
   int n_ = 0;
 };
+
+using ExpTerm = BasicExpTerm<EXP_POLY_MAX_DEGREE>;
+using ExpPoly = BasicExpPoly<EXP_POLY_MAX_DEGREE>;
+using WideExpPoly = BasicExpPoly<EXP_POLY_WIDE_DEGREE>;
+extern template class BasicExpPoly<EXP_POLY_MAX_DEGREE>;
+extern template class BasicExpPoly<EXP_POLY_WIDE_DEGREE>;
 
 }  // namespace backlash_servo

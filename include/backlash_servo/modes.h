@@ -13,9 +13,15 @@
 
 namespace backlash_servo
 {
-/// Rates [1/s] below this fraction of the reference rate are treated as exactly 0, and two rates closer than
-/// this fraction as equal: this keeps the closed forms free of catastrophic cancellation (see README, accuracy).
+/// Overdamped or effort-mode contact: rates [1/s] below this fraction of the reference rate are treated as 0, and a
+/// root pair closer than this fraction as double (critically damped); see README, accuracy.
 constexpr double RATE_MERGE_FRACTION = 1e-7;
+/// Apart mode: a decay rate λ [1/s] with 0 < λ·W ≤ SLOW_RATE_WINDOW_PRODUCT over the search window W is "slow", and
+/// so is a difference of two rates: its exponential is written as a Taylor polynomial (WideExpPoly) instead of
+/// e^{−λτ} with coefficients ~1/λ that would cancel catastrophically (light damping).
+constexpr double SLOW_RATE_WINDOW_PRODUCT = 0.1;
+/// Two apart-mode rates closer than this fraction are the same rate (their difference is below rounding's reach).
+constexpr double EQUAL_RATE_FRACTION = 1e-12;
 
 /// Energy flows over a time interval [J].
 struct EnergyFlows
@@ -78,12 +84,20 @@ class ContactMotion
  * @brief Teeth apart: load and motor move separately.
  *
  * \f[ J_L\ddot\theta_c + f_L\dot\theta_c = 0,\qquad J_m\ddot\theta_m + f_m\dot\theta_m = a - k\,\theta_c \f]
- * Gap \f$ g = \theta_c - \rho\theta_m \f$ [rad].
+ * Gap \f$ g = \theta_c - \rho\theta_m \f$ [rad]. With the rates α = f_L/J_L, β = f_m/J_m the solution is a sum of
+ * P(τ)e^{−λτ} terms, λ ∈ {0, α, β}. In the compact form (Poly = ExpPoly) the exponentials are exact; when a rate is
+ * slow over the window W (0 < λW ≤ SLOW_RATE_WINDOW_PRODUCT) or two rates nearly coincide, those exponentials
+ * become Taylor polynomials around the nearest fast rate (Poly = WideExpPoly, see apartNeedsSeries()): e.g.
+ * \f$ \theta_c = x_0 + v_0 \sum_j (-\alpha)^j \tau^{j+1}/(j+1)! \f$ instead of \f$ x_0 + v_0(1 -
+ * e^{-\alpha\tau})/\alpha \f$, truncated where the terms fall below 1e-20 of the largest (the remainder is then below
+ * rounding on [0, W]).
  */
-class FreeMotion
+template <class Poly>
+class BasicFreeMotion
 {
  public:
-  FreeMotion(const ServoParams& params, const MotorInput& input, const State& start);
+  /// window W [s]: the longest local time the motion is asked about (the wide form is accurate on [0, W]).
+  BasicFreeMotion(const ServoParams& params, const MotorInput& input, const State& start, double window);
 
   /// Positions [rad] and velocities [rad/s] at local time tau [s] (time and contact of out are not touched).
   void at(double tau, State* out) const;
@@ -100,8 +114,24 @@ class FreeMotion
  private:
   ServoParams params_;
   MotorInput input_;
-  ExpPoly load_position_, load_velocity_, motor_position_, motor_velocity_, gap_;
+  Poly load_position_, load_velocity_, motor_position_, motor_velocity_, gap_;
 };
+using FreeMotion = BasicFreeMotion<ExpPoly>;
+using WideFreeMotion = BasicFreeMotion<WideExpPoly>;
+/// Compact form: every rate 0 or fast (the closed forms written out).
+template <>
+BasicFreeMotion<ExpPoly>::BasicFreeMotion(const ServoParams& params, const MotorInput& input, const State& start,
+                                          double window);
+/// Wide form: slow exponentials as Taylor polynomials.
+template <>
+BasicFreeMotion<WideExpPoly>::BasicFreeMotion(const ServoParams& params, const MotorInput& input, const State& start,
+                                              double window);
+extern template class BasicFreeMotion<ExpPoly>;
+extern template class BasicFreeMotion<WideExpPoly>;
+
+/// Whether the apart mode over a window W [s] needs the wide (series) form: a rate or a difference of two rates
+/// is slow but not zero.
+bool apartNeedsSeries(const ServoParams& params, double window);
 
 /**
  * Whether teeth at rest relative to each other on wall `wall` (Forward or Backward) stay in contact: the contact

@@ -113,6 +113,9 @@ class Plant
   void addFlows(const EnergyFlows& flows);
   void advanceContact(double horizon, double t_end, EventSink* sink);
   void advanceFree(double horizon, double t_end, EventSink* sink);
+  /// One apart segment with the compact or the wide (series) form of the motion.
+  template <class Motion>
+  void advanceFreeWith(const Motion& motion, double window, double horizon, double t_end, EventSink* sink);
   void handleImpact(Contact wall, EventSink* sink);
   /// Puts teeth at relative rest on `wall` into contact if the mesh torque presses, else leaves them apart.
   void settleOnWall(Contact wall);

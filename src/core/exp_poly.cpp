@@ -12,7 +12,8 @@ namespace
 constexpr double EPS = std::numeric_limits<double>::epsilon();
 
 /// Drops exactly-zero leading coefficients; returns false when the whole polynomial is zero.
-bool trimDegree(ExpTerm& t)
+template <class Term>
+bool trimDegree(Term& t)
 {
   while (t.degree > 0 && t.coef[t.degree] == 0.0)
   {
@@ -44,25 +45,28 @@ double seriesMomentIntegral(int k, double r, double upper)
 }
 }  // namespace
 
-ExpPoly ExpPoly::constant(double c)
+template <int D>
+typename BasicExpPoly<D>::ExpPoly BasicExpPoly<D>::constant(double c)
 {
   ExpPoly f;
   f.addTerm(0.0, &c, 0);
   return f;
 }
 
-ExpPoly ExpPoly::monomial(double c, int k, double rate)
+template <int D>
+typename BasicExpPoly<D>::ExpPoly BasicExpPoly<D>::monomial(double c, int k, double rate)
 {
-  std::array<double, EXP_POLY_MAX_DEGREE + 1> coef{};
+  std::array<double, D + 1> coef{};
   coef[k] = c;
   ExpPoly f;
   f.addTerm(rate, coef.data(), k);
   return f;
 }
 
-void ExpPoly::addTerm(double rate, const double* coef, int degree)
+template <int D>
+void BasicExpPoly<D>::addTerm(double rate, const double* coef, int degree)
 {
-  if (degree > EXP_POLY_MAX_DEGREE)
+  if (degree > D)
   {
     throw std::logic_error("ExpPoly: polynomial degree limit exceeded");
   }
@@ -99,7 +103,8 @@ void ExpPoly::addTerm(double rate, const double* coef, int degree)
   }
 }
 
-double ExpPoly::operator()(double tau) const
+template <int D>
+double BasicExpPoly<D>::operator()(double tau) const
 {
   double sum = 0.0;
   for (int i = 0; i < n_; ++i)
@@ -115,7 +120,8 @@ double ExpPoly::operator()(double tau) const
   return sum;
 }
 
-double ExpPoly::evaluate(double tau, double* rounding_bound) const
+template <int D>
+double BasicExpPoly<D>::evaluate(double tau, double* rounding_bound) const
 {
   double sum = 0.0;
   double magnitude = 0.0;
@@ -141,13 +147,14 @@ double ExpPoly::evaluate(double tau, double* rounding_bound) const
   return sum;
 }
 
-ExpPoly ExpPoly::derivative() const
+template <int D>
+typename BasicExpPoly<D>::ExpPoly BasicExpPoly<D>::derivative() const
 {
   ExpPoly d;
   for (int i = 0; i < n_; ++i)
   {
     const ExpTerm& t = terms_[i];
-    std::array<double, EXP_POLY_MAX_DEGREE + 1> c{};
+    std::array<double, D + 1> c{};
     for (int k = 0; k <= t.degree; ++k)
     {
       c[k] = t.rate * t.coef[k] + (k < t.degree ? (k + 1) * t.coef[k + 1] : 0.0);
@@ -157,20 +164,21 @@ ExpPoly ExpPoly::derivative() const
   return d;
 }
 
-ExpPoly ExpPoly::solveFirstOrder(double s) const
+template <int D>
+typename BasicExpPoly<D>::ExpPoly BasicExpPoly<D>::solveFirstOrder(double s) const
 {
   ExpPoly y;
   for (int i = 0; i < n_; ++i)
   {
     const ExpTerm& t = terms_[i];
     const double c = t.rate + s;
-    std::array<double, EXP_POLY_MAX_DEGREE + 1> q{};
+    std::array<double, D + 1> q{};
     int degree = t.degree;
     if (c == 0.0)
     {
       // Resonance: Q' = P, Q(0) = 0.
       ++degree;
-      if (degree > EXP_POLY_MAX_DEGREE)
+      if (degree > D)
       {
         throw std::logic_error("ExpPoly: polynomial degree limit exceeded");
       }
@@ -193,12 +201,14 @@ ExpPoly ExpPoly::solveFirstOrder(double s) const
   return y;
 }
 
-ExpPoly ExpPoly::antiderivative() const
+template <int D>
+typename BasicExpPoly<D>::ExpPoly BasicExpPoly<D>::antiderivative() const
 {
   return solveFirstOrder(0.0);
 }
 
-double ExpPoly::integral(double upper) const
+template <int D>
+double BasicExpPoly<D>::integral(double upper) const
 {
   double sum = 0.0;
   for (int i = 0; i < n_; ++i)
@@ -217,7 +227,7 @@ double ExpPoly::integral(double upper) const
     }
     else
     {
-      std::array<double, EXP_POLY_MAX_DEGREE + 1> q{};
+      std::array<double, D + 1> q{};
       q[t.degree] = t.coef[t.degree] / t.rate;
       for (int k = t.degree - 1; k >= 0; --k)
       {
@@ -234,7 +244,8 @@ double ExpPoly::integral(double upper) const
   return sum;
 }
 
-ExpPoly& ExpPoly::operator+=(const ExpPoly& other)
+template <int D>
+typename BasicExpPoly<D>::ExpPoly& BasicExpPoly<D>::operator+=(const ExpPoly& other)
 {
   for (int i = 0; i < other.n_; ++i)
   {
@@ -243,14 +254,16 @@ ExpPoly& ExpPoly::operator+=(const ExpPoly& other)
   return *this;
 }
 
-ExpPoly ExpPoly::operator+(const ExpPoly& other) const
+template <int D>
+typename BasicExpPoly<D>::ExpPoly BasicExpPoly<D>::operator+(const ExpPoly& other) const
 {
   ExpPoly r = *this;
   r += other;
   return r;
 }
 
-ExpPoly ExpPoly::operator*(double s) const
+template <int D>
+typename BasicExpPoly<D>::ExpPoly BasicExpPoly<D>::operator*(double s) const
 {
   ExpPoly r = *this;
   if (s == 0.0)
@@ -268,7 +281,8 @@ ExpPoly ExpPoly::operator*(double s) const
   return r;
 }
 
-ExpPoly ExpPoly::operator*(const ExpPoly& other) const
+template <int D>
+typename BasicExpPoly<D>::ExpPoly BasicExpPoly<D>::operator*(const ExpPoly& other) const
 {
   ExpPoly r;
   for (int i = 0; i < n_; ++i)
@@ -278,11 +292,11 @@ ExpPoly ExpPoly::operator*(const ExpPoly& other) const
       const ExpTerm& a = terms_[i];
       const ExpTerm& b = other.terms_[j];
       const int degree = a.degree + b.degree;
-      if (degree > EXP_POLY_MAX_DEGREE)
+      if (degree > D)
       {
         throw std::logic_error("ExpPoly: polynomial degree limit exceeded in product");
       }
-      std::array<double, EXP_POLY_MAX_DEGREE + 1> c{};
+      std::array<double, D + 1> c{};
       for (int k = 0; k <= a.degree; ++k)
       {
         for (int l = 0; l <= b.degree; ++l)
@@ -296,7 +310,8 @@ ExpPoly ExpPoly::operator*(const ExpPoly& other) const
   return r;
 }
 
-int ExpPoly::complexity() const
+template <int D>
+int BasicExpPoly<D>::complexity() const
 {
   int c = -1;
   for (int i = 0; i < n_; ++i)
@@ -306,7 +321,8 @@ int ExpPoly::complexity() const
   return c;
 }
 
-ExpPoly ExpPoly::deflatedDerivative() const
+template <int D>
+typename BasicExpPoly<D>::ExpPoly BasicExpPoly<D>::deflatedDerivative() const
 {
   // (f e^{-r0 τ})' e^{r0 τ}... written with shifted rates: Σ (P_i' + (r_i − r0) P_i) e^{(r_i − r0) τ}.
   // The reference is the largest rate, so every shifted rate is <= 0 and nothing overflows on long horizons.
@@ -324,7 +340,7 @@ ExpPoly ExpPoly::deflatedDerivative() const
   {
     const ExpTerm& t = terms_[i];
     const double dr = i == ref ? 0.0 : t.rate - r0;
-    std::array<double, EXP_POLY_MAX_DEGREE + 1> c{};
+    std::array<double, D + 1> c{};
     for (int k = 0; k <= t.degree; ++k)
     {
       c[k] = dr * t.coef[k] + (k < t.degree ? (k + 1) * t.coef[k + 1] : 0.0);
@@ -334,7 +350,8 @@ ExpPoly ExpPoly::deflatedDerivative() const
   return d;
 }
 
-int ExpPoly::signChangeRoots(double a, double b, double* out, double rel_tol) const
+template <int D>
+int BasicExpPoly<D>::signChangeRoots(double a, double b, double* out, double rel_tol) const
 {
   if (n_ == 0 || complexity() <= 0 || !(b > a))
   {
@@ -404,8 +421,9 @@ int ExpPoly::signChangeRoots(double a, double b, double* out, double rel_tol) co
   return count;
 }
 
-void ExpPoly::evaluateWithDerivative(double tau, double* value, double* slope, double* magnitude,
-                                     double* curvature) const
+template <int D>
+void BasicExpPoly<D>::evaluateWithDerivative(double tau, double* value, double* slope, double* magnitude,
+                                             double* curvature) const
 {
   double f = 0.0, df = 0.0, ddf = 0.0, mag = 0.0;
   const double at = std::fabs(tau);
@@ -440,7 +458,8 @@ void ExpPoly::evaluateWithDerivative(double tau, double* value, double* slope, d
   }
 }
 
-double ExpPoly::refineBracket(double level, double a, double fa, double b, double fb, double rel_tol) const
+template <int D>
+double BasicExpPoly<D>::refineBracket(double level, double a, double fa, double b, double fb, double rel_tol) const
 {
   const double tol = std::max(rel_tol, 2.0 * EPS);
   if (fa == 0.0)
@@ -508,5 +527,8 @@ double ExpPoly::refineBracket(double level, double a, double fa, double b, doubl
   }
   return x;
 }
+
+template class BasicExpPoly<EXP_POLY_MAX_DEGREE>;
+template class BasicExpPoly<EXP_POLY_WIDE_DEGREE>;
 
 }  // namespace backlash_servo

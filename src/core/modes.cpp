@@ -88,7 +88,8 @@ int walkDownCrossings(const ExpPoly& f, const Bound& bound, double horizon, bool
 
 /// Rounding bound of f(τ), including that of its value (merging like terms can cancel, hiding the magnitudes the
 /// rounding came from).
-double roundingBound(const ExpPoly& f, double tau)
+template <class Poly>
+double roundingBound(const Poly& f, double tau)
 {
   double b = 0.0;
   const double v = f.evaluate(tau, &b);
@@ -96,7 +97,8 @@ double roundingBound(const ExpPoly& f, double tau)
 }
 
 /// Rounding bound of a·f(τ) + b·g(τ) from the bounds of its parts.
-double combinedBound(const ExpPoly& f, double a, const ExpPoly& g, double b, double tau)
+template <class Poly>
+double combinedBound(const Poly& f, double a, const Poly& g, double b, double tau)
 {
   return std::fabs(a) * roundingBound(f, tau) + std::fabs(b) * roundingBound(g, tau);
 }
@@ -150,7 +152,8 @@ ContactMotion::ContactMotion(const ServoParams& params, const MotorInput& input,
 {
   const double j = params.totalInertia();
   const double ref = referenceRate(params);
-  const double p = canonicalRate(params.totalFriction() / j, ref);
+  const double p_raw = params.totalFriction() / j;  // the damped sinusoid needs no merging, however slow its decay
+  const double p = canonicalRate(p_raw, ref);
   const double q = params.gear_ratio * input.stiffness / j;
   const double r = params.gear_ratio * input.offset / j;
   if (q > 0.0)
@@ -161,8 +164,8 @@ ContactMotion::ContactMotion(const ServoParams& params, const MotorInput& input,
     if (disc < 0.0)
     {
       oscillatory_ = true;
-      sigma_ = 0.5 * p;
-      omega_ = 0.5 * std::sqrt(-disc);
+      sigma_ = 0.5 * p_raw;
+      omega_ = 0.5 * std::sqrt(4.0 * q - p_raw * p_raw);
       a_ = y0;
       b_ = (v0 + sigma_ * y0) / omega_;
       // d/dτ of e^{−στ}(C cos ωτ + D sin ωτ) is e^{−στ}((−σC + ωD) cos + (−σD − ωC) sin).
@@ -311,13 +314,103 @@ EnergyFlows ContactMotion::energy(double tau) const
 }
 
 // ---------------------------------------------------------------------------------------------------------------
-FreeMotion::FreeMotion(const ServoParams& params, const MotorInput& input, const State& s)
+namespace
+{
+bool slowRate(double rate, double window)
+{
+  return rate != 0.0 && std::fabs(rate) * window <= SLOW_RATE_WINDOW_PRODUCT;
+}
+
+bool equalRates(double a, double b)
+{
+  return std::fabs(a - b) <= EQUAL_RATE_FRACTION * std::max(std::fabs(a), std::fabs(b));
+}
+
+/// The rate a wide-form exponential is written around: 0 for a slow rate, the load rate α for a β that nearly
+/// coincides with it, else the rate itself.
+double clusterRate(double rate, double alpha, double window)
+{
+  if (rate == 0.0 || slowRate(rate, window))
+  {
+    return 0.0;
+  }
+  if (rate != alpha && !slowRate(alpha, window) && (equalRates(rate, alpha) || slowRate(rate - alpha, window)))
+  {
+    return alpha;
+  }
+  return rate;
+}
+
+/// Highest degree of the Taylor polynomials of the wide form (products of two of them must fit WideExpPoly).
+constexpr int SERIES_DEGREE = 15;
+
+/**
+ * y' + s y = f, y(0) = y0 in the wide form. Terms of f whose rate is far from −s get the usual particular solution
+ * (back substitution dividing by r + s); the term at the cluster rate −s̄ (s̄ = clusterRate(s)) and the free decay
+ * are solved together as Y(τ) e^{−s̄τ} with Y' + (s − s̄) Y = P, by the Taylor recursion
+ * Y_{j+1} = (P_j − (s − s̄) Y_j)/(j + 1), which never divides by the slow s − s̄.
+ */
+WideExpPoly solveWide(const WideExpPoly& f, double s, double s_bar, double y0, double window)
+{
+  WideExpPoly cluster;
+  WideExpPoly rest;
+  for (int i = 0; i < f.termCount(); ++i)
+  {
+    const auto& t = f.term(i);
+    (t.rate == -s_bar ? cluster : rest).addTerm(t.rate, t.coef.data(), t.degree);
+  }
+  WideExpPoly y = rest.solveFirstOrder(s);
+  const double delta = s - s_bar;
+  std::array<double, EXP_POLY_WIDE_DEGREE + 1> coef{};
+  std::array<double, EXP_POLY_WIDE_DEGREE + 1> p{};
+  int p_degree = -1;
+  if (cluster.termCount() == 1)
+  {
+    p_degree = cluster.term(0).degree;
+    std::copy(cluster.term(0).coef.begin(), cluster.term(0).coef.end(), p.begin());
+  }
+  coef[0] = y0 - y(0.0);
+  double largest = std::fabs(coef[0]);
+  int degree = 0;
+  double wj = 1.0;  // W^j
+  for (int j = 0; j < SERIES_DEGREE; ++j)
+  {
+    const double pj = j <= p_degree ? p[j] : 0.0;
+    coef[j + 1] = (pj - delta * coef[j]) / (j + 1);
+    wj *= window;
+    const double size = std::fabs(coef[j + 1]) * wj;
+    largest = std::max(largest, size);
+    if (coef[j + 1] != 0.0)
+    {
+      degree = j + 1;
+    }
+    if (j >= p_degree && size <= 1e-20 * largest)
+    {
+      break;
+    }
+  }
+  y.addTerm(-s_bar, coef.data(), degree);
+  return y;
+}
+}  // namespace
+
+bool apartNeedsSeries(const ServoParams& params, double window)
+{
+  const double alpha = params.load_friction / params.load_inertia;
+  const double beta = params.motor_friction / params.motor_inertia;
+  return slowRate(alpha, window) || slowRate(beta, window) ||
+         (alpha != 0.0 && beta != 0.0 && !equalRates(alpha, beta) && slowRate(beta - alpha, window));
+}
+
+template <>
+BasicFreeMotion<ExpPoly>::BasicFreeMotion(const ServoParams& params, const MotorInput& input, const State& s,
+                                          double /*window*/)
     : params_(params), input_(input)
 {
-  const double ref = referenceRate(params);
-  const double alpha = canonicalRate(params.load_friction / params.load_inertia, ref);
-  double beta = canonicalRate(params.motor_friction / params.motor_inertia, ref);
-  if (std::fabs(alpha - beta) <= RATE_MERGE_FRACTION * std::max(alpha, beta))
+  // Every rate here is 0 or fast over the window (apartNeedsSeries() is false); equal rates are merged exactly.
+  const double alpha = params.load_friction / params.load_inertia;
+  double beta = params.motor_friction / params.motor_inertia;
+  if (equalRates(alpha, beta))
   {
     beta = alpha;
   }
@@ -373,7 +466,29 @@ FreeMotion::FreeMotion(const ServoParams& params, const MotorInput& input, const
   gap_ += load_position_;
 }
 
-void FreeMotion::at(double tau, State* out) const
+template <>
+BasicFreeMotion<WideExpPoly>::BasicFreeMotion(const ServoParams& params, const MotorInput& input, const State& s,
+                                              double window)
+    : params_(params), input_(input)
+{
+  const double alpha = params.load_friction / params.load_inertia;
+  const double beta = params.motor_friction / params.motor_inertia;
+  // Load: ω_c' + α ω_c = 0; θ_c = x0 + ∫ω_c.
+  load_velocity_ = solveWide(WideExpPoly(), alpha, clusterRate(alpha, alpha, window), s.load_velocity, window);
+  load_position_ = load_velocity_.antiderivative();
+  load_position_.addConstant(s.load_position - load_position_(0.0));
+  // Motor: ω_m' + β ω_m = (a − k θ_c)/J_m; θ_m = θ_m0 + ∫ω_m.
+  WideExpPoly forcing = load_position_ * (-input.stiffness / params.motor_inertia);
+  forcing.addConstant(input.offset / params.motor_inertia);
+  motor_velocity_ = solveWide(forcing, beta, clusterRate(beta, alpha, window), s.motor_velocity, window);
+  motor_position_ = motor_velocity_.antiderivative();
+  motor_position_.addConstant(s.motor_position - motor_position_(0.0));
+  gap_ = motor_position_ * -params.gear_ratio;
+  gap_ += load_position_;
+}
+
+template <class Poly>
+void BasicFreeMotion<Poly>::at(double tau, State* out) const
 {
   out->load_position = load_position_(tau);
   out->load_velocity = load_velocity_(tau);
@@ -381,7 +496,8 @@ void FreeMotion::at(double tau, State* out) const
   out->motor_velocity = motor_velocity_(tau);
 }
 
-double FreeMotion::impactTime(double horizon, Contact* wall) const
+template <class Poly>
+double BasicFreeMotion<Poly>::impactTime(double horizon, Contact* wall) const
 {
   double crit[EXP_POLY_MAX_ROOTS];
   const int m = gap_.derivative().signChangeRoots(0.0, horizon, crit, CRITICAL_POINT_TOLERANCE);
@@ -410,9 +526,10 @@ double FreeMotion::impactTime(double horizon, Contact* wall) const
   return INF;
 }
 
-EnergyFlows FreeMotion::energy(double tau) const
+template <class Poly>
+EnergyFlows BasicFreeMotion<Poly>::energy(double tau) const
 {
-  ExpPoly torque = load_position_ * -input_.stiffness;
+  Poly torque = load_position_ * -input_.stiffness;
   torque.addConstant(input_.offset);
   EnergyFlows e;
   e.input = (torque * motor_velocity_).integral(tau);
@@ -420,5 +537,8 @@ EnergyFlows FreeMotion::energy(double tau) const
   e.load_friction = params_.load_friction * (load_velocity_ * load_velocity_).integral(tau);
   return e;
 }
+
+template class BasicFreeMotion<ExpPoly>;
+template class BasicFreeMotion<WideExpPoly>;
 
 }  // namespace backlash_servo

@@ -273,11 +273,24 @@ void Plant::advanceContact(double horizon, double t_end, EventSink* sink)
 
 void Plant::advanceFree(double horizon, double t_end, EventSink* sink)
 {
-  const FreeMotion motion(params_, law_, state_);
-  Contact wall = Contact::Forward;
   // Search at most half a natural period ahead: impacts come sooner almost always, and a short window keeps the
   // critical points and brackets of the search local (a longer flight simply continues in a new segment).
-  const double window = std::min(horizon, FREE_SEARCH_PERIODS * 2.0 * PI / params_.naturalFrequency());
+  const double nominal = FREE_SEARCH_PERIODS * 2.0 * PI / params_.naturalFrequency();
+  const double window = std::min(horizon, nominal);
+  if (apartNeedsSeries(params_, nominal))
+  {
+    advanceFreeWith(WideFreeMotion(params_, law_, state_, nominal), window, horizon, t_end, sink);
+  }
+  else
+  {
+    advanceFreeWith(FreeMotion(params_, law_, state_, nominal), window, horizon, t_end, sink);
+  }
+}
+
+template <class Motion>
+void Plant::advanceFreeWith(const Motion& motion, double window, double horizon, double t_end, EventSink* sink)
+{
+  Contact wall = Contact::Forward;
   const double impact = motion.impactTime(window, &wall);
   const double end = std::min(impact, window);
   if (track_energy_)

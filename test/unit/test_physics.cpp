@@ -242,7 +242,7 @@ TEST(Modes, ApartMotionSolvesItsOdeForEveryRateCase)
     s.motor_position = 0.1;
     s.motor_velocity = 1.1;
     s.contact = Contact::Apart;
-    const FreeMotion m(p, in, s);
+    const FreeMotion m(p, in, s, 3.14159265358979323846);
     State at0;
     m.at(0.0, &at0);
     EXPECT_NEAR(at0.load_position, s.load_position, 1e-14);
