@@ -1,15 +1,16 @@
 #!/usr/bin/env bash
-# One command: builds in Release (build-release/) and prints the speed/accuracy table of the core against the
+# One command: builds in Release (build/release/: inside build/, which rosrun does not search, so the relays in
+# bin/ stay the only backlash_sim it finds) and prints the speed/accuracy table of the core against the
 # methods users would write instead, the scipy rows, the thesis-grid sweep wall time and peak memory.
 # usage: bash bench/run_benchmarks.sh [--quick]
 set -euo pipefail
 cd "$(dirname "$0")/.."
 export PATH=/usr/bin:$PATH
 bash scripts/setup.sh >/dev/null   # dependencies (and the normal build)
-mkdir -p build-release/devel/lib/python3/dist-packages
-cmake -S . -B build-release -DPYTHON_EXECUTABLE=/usr/bin/python3 -DCMAKE_BUILD_TYPE=Release >/dev/null
-make -C build-release -j"$(nproc)" bench_core backlash_sweep >/dev/null
-bin=build-release/devel/lib/backlash_servo
+mkdir -p build/release/devel/lib/python3/dist-packages
+cmake -S . -B build/release -DPYTHON_EXECUTABLE=/usr/bin/python3 -DCMAKE_BUILD_TYPE=Release >/dev/null
+make -C build/release -j"$(nproc)" bench_core backlash_sweep >/dev/null
+bin=build/release/devel/lib/backlash_servo
 ref=$(mktemp)
 trap 'rm -f "$ref"' EXIT
 echo "== core vs baselines (ratios: wall time per simulated second, baseline / ours)"
