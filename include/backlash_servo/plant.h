@@ -8,6 +8,7 @@
 #pragma once
 
 #include <cstdint>
+#include <stdexcept>
 
 #include "backlash_servo/gear_mesh.h"
 #include "backlash_servo/modes.h"
@@ -59,6 +60,13 @@ class EventSink
   virtual void onEvent(const Event& event) = 0;
 };
 
+/// The run met more impacts than its budget allows (an impact storm): stopped instead of hanging.
+class EventBudgetExceeded : public std::runtime_error
+{
+ public:
+  using std::runtime_error::runtime_error;
+};
+
 /// Cumulative energy terms since the start (or the last reset) [J].
 struct EnergyLedger
 {
@@ -105,6 +113,8 @@ class Plant
   void setEnergyTracking(bool on) { track_energy_ = on; }
   double energyBalanceError() const;
   std::uint64_t impactCount() const { return impacts_; }
+  /// At most this many impacts since the last setState() (0 = no limit); one more throws EventBudgetExceeded.
+  void setEventBudget(std::uint64_t max_impacts) { event_budget_ = max_impacts; }
 
   /// Sends an event of the given type with the current state to sink (may be null).
   void emit(EventSink* sink, EventType type, const ImpactInfo* impact = nullptr) const;
@@ -126,6 +136,7 @@ class Plant
   MotorInput law_;
   EnergyLedger energy_;
   std::uint64_t impacts_ = 0;
+  std::uint64_t event_budget_ = 0;
   bool track_energy_ = true;
 };
 

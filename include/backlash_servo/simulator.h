@@ -63,6 +63,8 @@ class Simulator
   /// input − friction − impact losses − (kinetic − initial kinetic) [J]; zero up to rounding.
   double energyBalanceError() const { return plant_.energyBalanceError(); }
   std::uint64_t impactCount() const { return plant_.impactCount(); }
+  /// See Plant::setEventBudget.
+  void setEventBudget(std::uint64_t max_impacts) { plant_.setEventBudget(max_impacts); }
 
  private:
   Plant plant_;

@@ -9,6 +9,7 @@
 
 #include <cstdint>
 #include <functional>
+#include <string>
 #include <vector>
 
 #include "backlash_servo/response_monitor.h"
@@ -24,6 +25,7 @@ struct RunConfig
   double duration = 0.0;      ///< simulate exactly this long [s]; 0 = until the verdict is settled
   double max_duration = 0.0;  ///< cap when running until settled [s]; 0 = 2000/ω_n
   bool track_energy = true;   ///< energy ledger (off: ~25 % faster, energy fields of the summary are zero)
+  double max_events = 1e7;    ///< impact budget of the run; exceeded → stopped, verdict unsettled (not a hang)
 };
 
 struct RunSummary
@@ -37,10 +39,15 @@ struct RunSummary
   State final_state;
   double simulated = 0.0;  ///< simulated time [s]
   bool settled = false;    ///< the verdict was settled (not cut off by the duration or the cap)
+  /// Why the run ended: "settled", "duration" (the requested length), "max_duration" (the cap), "event_budget".
+  std::string stopped_by;
+  std::string message;  ///< for "event_budget": what was exceeded, where
 };
 
 /// Called at every sample time (sample_period > 0) with the simulator positioned there.
 using SampleCallback = std::function<void(const Simulator&)>;
+/// Called after every chunk with the fraction of the longest possible run done, in [0, 1].
+using ProgressCallback = std::function<void(double)>;
 
 /**
  * Runs config; events go to sink (may be null) as well as to the response monitor (checked every natural period,
@@ -48,6 +55,6 @@ using SampleCallback = std::function<void(const Simulator&)>;
  * sample_period [s] (0 = none) go to on_sample. Throws InvalidParameterError on bad parameters.
  */
 RunSummary runResponse(const RunConfig& config, EventSink* sink = nullptr, double sample_period = 0.0,
-                       const SampleCallback& on_sample = nullptr);
+                       const SampleCallback& on_sample = nullptr, const ProgressCallback& on_progress = nullptr);
 
 }  // namespace backlash_servo

@@ -357,6 +357,19 @@ int BasicExpPoly<D>::signChangeRoots(double a, double b, double* out, double rel
   {
     return 0;
   }
+  for (int i = 0; i < n_; ++i)
+  {
+    for (int k = 0; k <= terms_[i].degree; ++k)
+    {
+      if (!std::isfinite(terms_[i].coef[k]) || !std::isfinite(terms_[i].rate))
+      {
+        // A NaN never deflates away: refuse instead of recursing for ever.
+        throw std::domain_error(
+            "backlash_servo: the motion overflowed (non-finite closed form); the parameters or the "
+            "state lie outside the validated envelope (README)");
+      }
+    }
+  }
   // Closed forms for the two simplest shapes (the bottom of every recursion): c0 e^{r0 τ} + c1 e^{r1 τ} and a
   // linear polynomial times an exponential. Each has at most one root, a simple one.
   if (complexity() == 1)

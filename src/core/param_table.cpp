@@ -70,6 +70,9 @@ std::vector<ParamSpec> makeTable()
      "simulate exactly this long (0 = until the verdict is settled)", false, {}, &RunConfig::duration},
     {"max_duration", "", "s", T::Real, S::Run, NON_NEGATIVE, "0", "cap when running until settled (0 = 2000/ω_n)",
      false, {}, &RunConfig::max_duration},
+    {"max_events", "", "-", T::Real, S::Run, ParamRange{1.0, 1e12, false, false}, "1e7",
+     "impact budget of a run: beyond it the run stops, unsettled (an impact storm is not a hang)", false, {},
+     &RunConfig::max_events},
     // ---- ROS node ----
     {"control_mode", "", "-", T::Choice, S::Node, FINITE, "position",
      "position: internal P law on `command`; effort: torque from `motor_effort`", true, {"position", "effort"}, {}},

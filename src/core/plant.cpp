@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <limits>
 #include <stdexcept>
 #include <string>
@@ -309,8 +310,10 @@ void Plant::advanceFreeWith(const Motion& motion, double window, double horizon,
 void Plant::settleOnWall(Contact wall)
 {
   state_.motor_velocity = mesh_.motorVelocityInContact(state_.load_velocity);
-  state_.contact =
-      contactHolds(params_, law_, state_.load_position, state_.load_velocity, wall) ? wall : Contact::Apart;
+  // With Δ = 0 there is no floating: if this flank does not press, the other one (the same gap) does.
+  state_.contact = contactHolds(params_, law_, state_.load_position, state_.load_velocity, wall)
+                       ? wall
+                       : mesh_.afterSeparation(wall);
 }
 
 void Plant::handleImpact(Contact wall, EventSink* sink)
@@ -321,6 +324,10 @@ void Plant::handleImpact(Contact wall, EventSink* sink)
   state_.motor_position = mesh_.motorPositionOnWall(state_.load_position, wall);
   const double v = state_.load_velocity;
   const double w = state_.motor_velocity;
+  if (delta == 0.0 && mesh_.closingSpeed(wall, v, w) < 0.0)
+  {
+    wall = GearMesh::otherWall(wall);  // rigid mesh: leaving one flank is running into the other
+  }
   const double closing = mesh_.closingSpeed(wall, v, w);  // > 0: teeth approach
   // "Numerically zero" relative speed: below rounding of the velocities, or so small that the bounce it would start
   // against the pressing mesh torque could not rise above the rounding of the gap (h = s²/2a).
@@ -338,7 +345,9 @@ void Plant::handleImpact(Contact wall, EventSink* sink)
     return;
   }
   // A touch without closing (rounding) or a closing speed the stick rule calls zero is made plastic.
-  const double e = params_.restitution * closing <= stick_speed ? 0.0 : params_.restitution;
+  // A closing speed the stick rule calls zero is made plastic; so is every impact of a rigid mesh (Δ = 0, e.g. the
+  // backlash tuned to 0 while the teeth float): there is no room to bounce into.
+  const double e = params_.restitution * closing <= stick_speed || params_.backlash == 0.0 ? 0.0 : params_.restitution;
   const ImpactOutcome o = resolveImpact(params_, v, w, e);
   state_.load_velocity = o.load_velocity;
   state_.motor_velocity = o.motor_velocity;
@@ -349,6 +358,14 @@ void Plant::handleImpact(Contact wall, EventSink* sink)
     return;
   }
   ++impacts_;
+  if (event_budget_ != 0 && impacts_ > event_budget_)
+  {
+    char buf[200];
+    std::snprintf(buf, sizeof buf,
+                  "event budget of %llu impacts exceeded at t = %.9g s (an impact storm; raise max_events to go on)",
+                  static_cast<unsigned long long>(event_budget_), state_.time);
+    throw EventBudgetExceeded(buf);
+  }
   if (e == 0.0)
   {
     settleOnWall(wall);

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 
 namespace backlash_servo
 {
@@ -29,10 +30,13 @@ class Tee : public EventSink
 };
 }  // namespace
 
-RunSummary runResponse(const RunConfig& config, EventSink* sink, double sample_period, const SampleCallback& on_sample)
+RunSummary runResponse(const RunConfig& config, EventSink* sink, double sample_period, const SampleCallback& on_sample,
+                       const ProgressCallback& on_progress)
 {
   Simulator sim(config.params, config.initial, config.command);
   sim.setEnergyTracking(config.track_energy);
+  sim.setEventBudget(static_cast<std::uint64_t>(config.max_events));
+  RunSummary out;
   const double omega_n = config.params.naturalFrequency();
   ResponseMonitor monitor(config.params, config.command, config.initial);
   Tee tee(&monitor, sink);
@@ -48,18 +52,36 @@ RunSummary runResponse(const RunConfig& config, EventSink* sink, double sample_p
   for (long i = 1;; ++i)
   {
     const double t = std::min(t0 + static_cast<double>(i) * chunk, t_stop);
-    sim.advanceTo(t, &tee);
+    try
+    {
+      sim.advanceTo(t, &tee);
+    }
+    catch (const EventBudgetExceeded& e)
+    {
+      out.stopped_by = "event_budget";
+      out.message = e.what();
+      break;
+    }
     if (on_sample && sample_period > 0.0)
     {
       on_sample(sim);
     }
     monitor.check(sim.state());
-    if (t >= t_stop || (until_settled && monitor.settled()))
+    if (on_progress)
     {
+      on_progress((t - t0) / (t_stop - t0));
+    }
+    if (until_settled && monitor.settled())
+    {
+      out.stopped_by = "settled";
+      break;
+    }
+    if (t >= t_stop)
+    {
+      out.stopped_by = until_settled ? "max_duration" : "duration";
       break;
     }
   }
-  RunSummary out;
   out.status = monitor.status();
   out.maxima = monitor.maxima();
   out.impacts = sim.impactCount();

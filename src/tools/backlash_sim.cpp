@@ -1,4 +1,6 @@
 // backlash_sim: one exact run of the backlash servo from the command line (see README, "backlash_sim").
+#include <unistd.h>
+
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -13,6 +15,8 @@
 #include "backlash_servo/gear_mesh.h"
 #include "backlash_servo/modes.h"
 #include "json_writer.h"
+#include "output_file.h"
+#include "progress.h"
 
 using namespace backlash_servo;
 
@@ -84,6 +88,7 @@ void writeJson(std::ostream& out, const RunConfig& c, const RunSummary& r, doubl
   const bool lc = r.status.verdict == Verdict::LimitCycle || r.status.verdict == Verdict::Irregular;
   j.field("verdict", std::string(toString(r.status.verdict)));
   j.field("settled", r.settled);
+  j.field("stopped_by", r.stopped_by);
   j.field("limit_cycle", lc);
   j.field("limit_cycle_error", lc ? r.status.error : 0.0);
   if (lc)
@@ -210,32 +215,31 @@ int main(int argc, char** argv)
   }
   try
   {
-    std::ostringstream csv_text;
+    std::unique_ptr<OutputFile> csv_file;
     std::unique_ptr<CsvWriter> csv;
     SampleCallback on_sample;
     double sample_period = 0.0;
     if (!csv_path.empty())
     {
-      csv = std::make_unique<CsvWriter>(csv_text, config.params);
+      // Streamed to FILE.tmp and renamed only when complete: a failed run never leaves a half-written FILE.
+      csv_file = std::make_unique<OutputFile>("--csv", csv_path);
+      csv = std::make_unique<CsvWriter>(csv_file->stream(), config.params);
       sample_period = 1.0 / sample_rate;
       on_sample = [&](const Simulator& sim) { csv->sample(sim); };
     }
+    Progress progress(isatty(2) != 0, 1.0);
     const auto start = std::chrono::steady_clock::now();
-    const RunSummary result = runResponse(config, csv.get(), sample_period, on_sample);
+    const RunSummary result =
+        runResponse(config, csv.get(), sample_period, on_sample, [&](double done) { progress.update(done); });
+    progress.finish();
     const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-    if (csv)
+    if (csv_file)
     {
-      // Written whole to a temporary then renamed: a failed run never leaves a half-written file.
-      const std::string tmp = csv_path + ".tmp";
-      std::ofstream f(tmp);
-      f << csv_text.str();
-      f.close();
-      if (!f || std::rename(tmp.c_str(), csv_path.c_str()) != 0)
-      {
-        std::remove(tmp.c_str());
-        std::cerr << "backlash_sim: error: cannot write '" << csv_path << "'\n";
-        return 2;
-      }
+      csv_file->commit();
+    }
+    if (result.stopped_by == "event_budget")
+    {
+      std::cerr << "backlash_sim: stopped: " << result.message << "\n";
     }
     if (options.given("json"))
     {
@@ -245,6 +249,12 @@ int main(int argc, char** argv)
     {
       writeSummary(std::cout, config, result, wall);
     }
+    flushStdout();
+  }
+  catch (const ConfigError& e)
+  {
+    std::cerr << "backlash_sim: error: " << e.what() << "\n";
+    return 2;
   }
   catch (const std::exception& e)
   {

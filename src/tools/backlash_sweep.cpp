@@ -12,7 +12,7 @@
 #include <thread>
 
 #include "backlash_servo/config/flag_parser.h"
-#include "sweep/progress.h"
+#include "progress.h"
 #include "sweep/sweep_csv.h"
 #include "sweep/sweep_grid.h"
 #include "sweep/sweep_runner.h"

@@ -3,6 +3,7 @@
 
 #include "test_helpers.h"
 
+#include <sys/stat.h>
 #include <sys/wait.h>
 #include <algorithm>
 #include <cstdio>
@@ -143,3 +144,42 @@ TEST(Cli, BadInputIsOneClearLineAndExitCode2)
     EXPECT_FALSE(std::ifstream(csv).good()) << "half-written output for " << c.args;
   }
 }
+
+namespace
+{
+TEST(Cli, OutputNeverLies)
+{
+  // A failed write (a full disk) is an error, not exit 0 with a result nobody got.
+  Result full = run("--duration 5 --json >/dev/full");
+  EXPECT_EQ(full.code, 1) << full.err;
+  EXPECT_NE(full.err.find("standard output"), std::string::npos) << full.err;
+  // A device is never replaced by a regular file (as root, a rename over /dev/null would do exactly that).
+  Result dev = run("--duration 1 --csv /dev/null");
+  EXPECT_EQ(dev.code, 2);
+  EXPECT_NE(dev.err.find("not a regular file"), std::string::npos) << dev.err;
+  struct stat st;
+  ASSERT_EQ(stat("/dev/null", &st), 0);
+  EXPECT_TRUE(S_ISCHR(st.st_mode));
+  // The CSV is streamed to FILE.tmp and renamed when complete; no temporary is left behind.
+  const std::string csv = "/tmp/backlash_sim_stream.csv";
+  std::remove(csv.c_str());
+  Result ok = run("--duration 3 --csv " + csv);
+  EXPECT_EQ(ok.code, 0) << ok.err;
+  EXPECT_TRUE(std::ifstream(csv).good());
+  EXPECT_FALSE(std::ifstream(csv + ".tmp").good());
+}
+
+TEST(Cli, AnImpactStormStopsAtTheEventBudgetWithAClearMessage)
+{
+  // Elastic teeth under a pressing torque chatter physically for ever; the budget ends the run, unsettled.
+  Result r = run("--zeta 0.2 --inertia-ratio 0.04 --friction-ratio 0.8 --restitution 1 --max-events 1000 --json");
+  EXPECT_EQ(r.code, 0) << r.err;
+  EXPECT_NE(r.out.find("\"stopped_by\":\"event_budget\""), std::string::npos) << r.out.substr(0, 300);
+  EXPECT_NE(r.out.find("\"settled\":false"), std::string::npos);
+  EXPECT_NEAR(number(r.out, "impacts"), 1001.0, 0.5);
+  EXPECT_NE(r.err.find("event budget of 1000 impacts exceeded"), std::string::npos) << r.err;
+  Result bad = run("--max-events 0");
+  EXPECT_EQ(bad.code, 2);
+  EXPECT_NE(bad.err.find("max_events"), std::string::npos) << bad.err;
+}
+}  // namespace

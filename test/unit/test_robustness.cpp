@@ -1,0 +1,67 @@
+// Never crash, hang or lie (issue 14), in the core: live changes that used to stall the simulator, overflowing
+// inputs, impact storms.
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include "backlash_servo/simulator.h"
+#include "test_helpers.h"
+
+namespace
+{
+using namespace backlash_servo;
+
+TEST(Robustness, BacklashTunedToZeroWhileTheTeethFloatIsALegalTransition)
+{
+  // Before: "Simulator made no progress" (the teeth ping-ponged between two walls that had become one).
+  for (double e : {1.0, 0.6, 0.0})
+  {
+    for (double t_change : {2.0, 2.5, 3.3, 9.0, 14.2})
+    {
+      ServoParams p;
+      p.restitution = e;
+      Simulator sim(p, State(), 1.0);
+      sim.advanceTo(t_change);
+      const bool was_apart = sim.state().contact == Contact::Apart;
+      ServoParams rigid = p;
+      rigid.backlash = 0.0;
+      ASSERT_NO_THROW(sim.setParams(rigid)) << e << " " << t_change;
+      EXPECT_NE(sim.state().contact, Contact::Apart);
+      // A rigid mesh moves as one body: no relative velocity is left after the (plastic) closing.
+      EXPECT_NEAR(sim.state().load_velocity, p.gear_ratio * sim.state().motor_velocity, 1e-12);
+      ASSERT_NO_THROW(sim.advanceTo(t_change + 30.0));
+      EXPECT_NEAR(sim.gap(), 0.0, 1e-12);
+      const double scale = sim.energy().input + sim.energy().initial_kinetic;
+      EXPECT_LE(std::fabs(sim.energyBalanceError()), 1e-12 * scale) << e << " " << t_change;
+      if (was_apart)
+      {
+        EXPECT_GT(sim.energy().impact_loss, 0.0) << "closing a floating gap at once dissipates";
+      }
+      // ... and back: the teeth float again once there is play.
+      ASSERT_NO_THROW(sim.setParams(p));
+      ASSERT_NO_THROW(sim.advanceTo(t_change + 60.0));
+    }
+  }
+}
+
+TEST(Robustness, AnOverflowingMotionIsAnErrorNotACrash)
+{
+  // Before: unbounded recursion (segfault) in the root isolation once the coefficients were NaN.
+  ServoParams p;
+  State s;
+  s.load_velocity = 1e308;
+  s.motor_velocity = 1e308;
+  Simulator sim(p, s, 1.0);
+  EXPECT_THROW(sim.advanceTo(1.0), std::exception);
+}
+
+TEST(Robustness, TheEventBudgetStopsAnImpactStorm)
+{
+  // A light load dribbled by a heavy motor: tens of thousands of impacts per simulated second (physical chatter).
+  Simulator sim(test_helpers::chart(0.2, 0.04, 0.8, 1.0), State(), 1.0);
+  sim.setEventBudget(2000);
+  EXPECT_THROW(sim.advanceTo(100.0), EventBudgetExceeded);
+  EXPECT_EQ(sim.impactCount(), 2001u);
+}
+
+}  // namespace
