@@ -1,0 +1,58 @@
+// backlash_fuzz: runs N property-fuzz cases (fuzz_cases.h) and prints counts per outcome class and examples.
+// usage: backlash_fuzz [--cases N] [--seed S] [--first K] [--budget IMPACTS] [--verbose]
+#include <chrono>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <map>
+#include <string>
+
+#include "fuzz_cases.h"
+
+int main(int argc, char** argv)
+{
+  std::uint64_t cases = 2000, seed = 1, first = 0, budget = 100000;
+  bool verbose = false;
+  for (int i = 1; i < argc; ++i)
+  {
+    auto next = [&]() { return i + 1 < argc ? std::strtoull(argv[++i], nullptr, 10) : 0ull; };
+    if (!std::strcmp(argv[i], "--cases")) cases = next();
+    else if (!std::strcmp(argv[i], "--seed")) seed = next();
+    else if (!std::strcmp(argv[i], "--first")) first = next();
+    else if (!std::strcmp(argv[i], "--budget")) budget = next();
+    else if (!std::strcmp(argv[i], "--verbose")) verbose = true;
+    else
+    {
+      std::fprintf(stderr, "usage: backlash_fuzz [--cases N] [--seed S] [--first K] [--budget IMPACTS] [--verbose]\n");
+      return 2;
+    }
+  }
+  std::map<std::string, std::uint64_t> counts;
+  std::map<std::string, std::string> example;
+  const auto start = std::chrono::steady_clock::now();
+  for (std::uint64_t i = first; i < first + cases; ++i)
+  {
+    const fuzz::Case c = fuzz::makeCase(seed, i);
+    const fuzz::Outcome o = fuzz::check(c, budget);
+    ++counts[o.klass];
+    if (o.klass != "ok" && o.klass != "budget" && (verbose || !example.count(o.klass)))
+    {
+      example[o.klass] = "case " + std::to_string(i) + ": " + o.detail + "\n    backlash_sim " + c.describe();
+      if (verbose) std::printf("%s %s\n", o.klass.c_str(), example[o.klass].c_str());
+    }
+  }
+  const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  std::printf("backlash_fuzz: seed %llu, cases %llu..%llu in %.1f s\n", static_cast<unsigned long long>(seed),
+              static_cast<unsigned long long>(first), static_cast<unsigned long long>(first + cases - 1), wall);
+  std::uint64_t failures = 0;
+  for (const auto& kv : counts)
+  {
+    std::printf("  %-12s %llu\n", kv.first.c_str(), static_cast<unsigned long long>(kv.second));
+    failures += kv.first == "ok" || kv.first == "budget" ? 0 : kv.second;
+  }
+  for (const auto& kv : example)
+  {
+    std::printf("example %s %s\n", kv.first.c_str(), kv.second.c_str());
+  }
+  return failures == 0 ? 0 : 1;
+}

@@ -1,0 +1,175 @@
+// Property fuzzing of the core (issue 14): a deterministic random-case generator over the validated envelope and its
+// edges, and the properties every case must keep. Used by test/unit/test_fuzz.cpp (a bounded sample in CI) and by
+// backlash_fuzz (long runs, `bash scripts/fuzz_long.sh`). No ROS.
+#pragma once
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdint>
+#include <map>
+#include <random>
+#include <sstream>
+#include <string>
+
+#include "backlash_servo/simulator.h"
+
+namespace fuzz
+{
+using namespace backlash_servo;
+
+struct Case
+{
+  ServoParams params;
+  State start;
+  double command = 1.0;
+  double duration = 1.0;  ///< [s]
+  std::string describe() const
+  {
+    std::ostringstream o;
+    o.precision(17);
+    o << "--motor-inertia " << params.motor_inertia << " --load-inertia " << params.load_inertia
+      << " --motor-friction " << params.motor_friction << " --load-friction " << params.load_friction << " --gain "
+      << params.gain << " --gear-ratio " << params.gear_ratio << " --backlash " << params.backlash
+      << " --restitution " << params.restitution << " --command " << command << " --contact "
+      << (start.contact == Contact::Apart ? "none" : toString(start.contact)) << " --load-position "
+      << start.load_position << " --load-velocity " << start.load_velocity << " --motor-position "
+      << start.motor_position << " --motor-velocity " << start.motor_velocity << " --duration " << duration;
+    return o.str();
+  }
+};
+
+/// Case number `index` of the sequence `seed` (any case can be replayed alone).
+inline Case makeCase(std::uint64_t seed, std::uint64_t index)
+{
+  std::mt19937_64 rng(seed * 0x9E3779B97F4A7C15ull + index);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  auto logu = [&](double lo, double hi) { return lo * std::pow(hi / lo, u(rng)); };
+  auto pick = [&](std::initializer_list<double> v) { return *(v.begin() + static_cast<int>(u(rng) * v.size())); };
+  Case c;
+  const double omega_n = logu(1e-3, 1e4);
+  const double zeta = u(rng) < 0.05 ? 0.0 : (u(rng) < 0.05 ? pick({5.0, 10.0}) : logu(1e-9, 3.0));
+  const double ratio = u(rng) < 0.1 ? pick({1e-6, 1e6}) : logu(1e-6, 1e6);
+  const double fr = u(rng) < 0.1 ? 0.0 : (u(rng) < 0.1 ? 1.0 : u(rng));
+  const double total = logu(1e-4, 1e4);
+  const double rho = u(rng) < 0.3 ? 1.0 : logu(1e-3, 1e3);
+  ChartParams ch;
+  ch.zeta = zeta;
+  ch.natural_frequency = omega_n;
+  ch.total_inertia = total;
+  ch.inertia_ratio = ratio;
+  ch.friction_ratio = fr;
+  ch.gear_ratio = rho;
+  ch.backlash = u(rng) < 0.1 ? 0.0 : logu(1e-6, 10.0);
+  ch.restitution = u(rng) < 0.6 ? pick({0.0, 1e-12, 0.5, 1.0 - 1e-12, 1.0}) : u(rng);
+  c.params = ch.toServoParams();
+  const double delta = c.params.backlash;
+  const double scale = delta > 0.0 ? delta : 1.0;
+  c.command = (u(rng) < 0.5 ? -1.0 : 1.0) * scale * logu(1e-3, 1e3);
+  const GearMesh mesh(c.params);
+  const double kind = u(rng);
+  c.start.contact = kind < 0.4 ? Contact::Forward : (kind < 0.6 && delta > 0.0 ? Contact::Backward : Contact::Forward);
+  c.start.load_position = u(rng) < 0.5 ? 0.0 : (u(rng) - 0.5) * 4.0 * std::fabs(c.command);
+  const double v_scale = omega_n * std::fabs(c.command) * pick({0.0, 1e-6, 0.1, 1.0, 10.0});
+  c.start.load_velocity = (u(rng) - 0.5) * 2.0 * v_scale;
+  if (kind >= 0.6 && delta > 0.0)
+  {
+    // Floating, anywhere in the gap (walls included), velocities into or out of the walls.
+    c.start.contact = Contact::Apart;
+    const double g = pick({0.0, 1.0, u(rng)}) * delta;
+    c.start.motor_position = mesh.motorPosition(c.start.load_position, g);
+    c.start.motor_velocity = (c.start.load_velocity + (u(rng) - 0.5) * 2.0 * v_scale) / rho;
+  }
+  else
+  {
+    c.start.motor_position = mesh.motorPositionOnWall(c.start.load_position, c.start.contact);
+    c.start.motor_velocity = mesh.motorVelocityInContact(c.start.load_velocity);
+  }
+  c.duration = 20.0 * 2.0 * 3.14159265358979 / omega_n * pick({0.05, 1.0});
+  return c;
+}
+
+/// Records the worst excursion of the gap out of [0, Δ] over every event.
+struct GapWatch : EventSink
+{
+  GearMesh mesh;
+  double worst = 0.0;  // relative to the rounding scale
+  void onEvent(const Event& e) override
+  {
+    const State& s = e.state;
+    const double g = mesh.gap(s.load_position, s.motor_position);
+    const double tol = 1e-12 * (std::fabs(s.load_position) + mesh.ratio * std::fabs(s.motor_position) + mesh.backlash);
+    worst = std::max({worst, -g / tol, (g - mesh.backlash) / tol});
+  }
+};
+
+/// Outcome class of one case: "ok", "budget" (stopped by the event budget: allowed), or a failure class.
+struct Outcome
+{
+  std::string klass = "ok";
+  std::string detail;
+};
+
+inline Outcome check(const Case& c, std::uint64_t event_budget = 100000)
+{
+  Outcome o;
+  try
+  {
+    Simulator whole(c.params, c.start, c.command);
+    whole.setEventBudget(event_budget);
+    GapWatch watch;
+    watch.mesh = GearMesh(c.params);
+    whole.advanceTo(c.start.time + c.duration, &watch);
+    const State& s = whole.state();
+    if (!std::isfinite(s.load_position) || !std::isfinite(s.motor_position) || !std::isfinite(s.load_velocity) ||
+        !std::isfinite(s.motor_velocity))
+    {
+      return {"nonfinite", "final state not finite"};
+    }
+    if (watch.worst > 1.0)
+    {
+      return {"gap", "gap left [0, backlash] by " + std::to_string(watch.worst) + " x 1e-12 of the position scale"};
+    }
+    const EnergyLedger& e = whole.energy();
+    const double energy_scale = std::max({std::fabs(e.input), e.motor_friction + e.load_friction + e.impact_loss,
+                                          e.initial_kinetic, whole.kineticEnergy(), 1e-300});
+    if (std::fabs(whole.energyBalanceError()) > 1e-9 * energy_scale)
+    {
+      std::ostringstream d;
+      d << "energy balance " << whole.energyBalanceError() << " J of " << energy_scale << " J";
+      return {"energy", d.str()};
+    }
+    // The same run cut into 17 pieces (as output sampling or a node does) ends in the same state.
+    Simulator pieces(c.params, c.start, c.command);
+    pieces.setEventBudget(event_budget);
+    for (int i = 1; i <= 17; ++i)
+    {
+      pieces.advanceTo(c.start.time + c.duration * i / 17.0);
+    }
+    const State& p = pieces.state();
+    const double x_scale = std::max({std::fabs(s.load_position), std::fabs(c.command), c.params.backlash, 1e-300});
+    const double v_scale = std::max(x_scale * c.params.naturalFrequency(), std::fabs(s.load_velocity));
+    const double dx = std::max(std::fabs(p.load_position - s.load_position),
+                               c.params.gear_ratio * std::fabs(p.motor_position - s.motor_position)) / x_scale;
+    const double dv = std::max(std::fabs(p.load_velocity - s.load_velocity),
+                               c.params.gear_ratio * std::fabs(p.motor_velocity - s.motor_velocity)) / v_scale;
+    if (dx > 1e-9 || dv > 1e-9)
+    {
+      std::ostringstream d;
+      d << "chunked run differs: position " << dx << ", velocity " << dv << " (relative)";
+      return {"chunking", d.str()};
+    }
+  }
+  catch (const EventBudgetExceeded& e)
+  {
+    return {"budget", e.what()};
+  }
+  catch (const std::exception& e)
+  {
+    const std::string what = e.what();
+    return {what.find("no progress") != std::string::npos ? "no_progress" : "exception", what};
+  }
+  return o;
+}
+
+}  // namespace fuzz
