@@ -20,6 +20,9 @@ constexpr double RATE_MERGE_FRACTION = 1e-7;
 /// so is a difference of two rates: its exponential is written as a Taylor polynomial (WideExpPoly) instead of
 /// e^{−λτ} with coefficients ~1/λ that would cancel catastrophically (light damping).
 constexpr double SLOW_RATE_WINDOW_PRODUCT = 0.1;
+/// Inside the wide form, every rate with λ·W up to this is expanded too: a moderately slow rate left exponential
+/// there would need a polynomial particular solution by back substitution, which cancels (seen at λW ≈ 0.3).
+constexpr double SERIES_RATE_WINDOW_PRODUCT = 0.5;
 /// Two apart-mode rates closer than this fraction are the same rate (their difference is below rounding's reach).
 constexpr double EQUAL_RATE_FRACTION = 1e-12;
 

@@ -25,6 +25,13 @@ class InvalidParameterError : public std::invalid_argument
   std::string field_;
 };
 
+/// The validated envelope's derived limits (README, "Validated envelope"); the plain ranges are in param_table.cpp.
+constexpr double INERTIA_SPLIT_MIN = 1e-3;      ///< ρ²J_L/J_m [-]
+constexpr double INERTIA_SPLIT_MAX = 1e3;       ///< ρ²J_L/J_m [-]
+constexpr double NATURAL_FREQUENCY_MIN = 1e-3;  ///< ω_n [rad/s]
+constexpr double NATURAL_FREQUENCY_MAX = 1e4;   ///< ω_n [rad/s]
+constexpr double DAMPING_RATIO_MAX = 100.0;     ///< ζ [-]
+
 /**
  * @brief Physical parameters of the geared position servo with backlash.
  *

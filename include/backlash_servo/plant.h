@@ -7,8 +7,11 @@
  */
 #pragma once
 
+#include <array>
 #include <cstdint>
+#include <optional>
 #include <stdexcept>
+#include <variant>
 
 #include "backlash_servo/gear_mesh.h"
 #include "backlash_servo/modes.h"
@@ -95,14 +98,23 @@ class Plant
   const State& state() const { return state_; }
   /// The motor-torque law in force.
   const MotorInput& law() const { return law_; }
-  /// A new motor-torque law from now on (the state is not touched).
-  void setLaw(const MotorInput& law) { law_ = law; }
+  /// A new motor-torque law from now on (the state is not touched; the closed form restarts here).
+  void setLaw(const MotorInput& law)
+  {
+    law_ = law;
+    segment_.reset();
+  }
 
   /// See Simulator::setParams. Throws InvalidParameterError, keeping the old ones.
   void setParams(const ServoParams& params, EventSink* sink);
   /// Replaces the state (validated: finite, gap within [0, Δ], contact consistent); resets the energy ledger.
   void setState(const State& state);
-  /// Advances exactly to time t_end [s] under the current law, reporting events in order to sink (may be null).
+  /**
+   * Advances exactly to time t_end [s] under the current law, reporting events in order to sink (may be null).
+   * The closed form of the current segment stays anchored where the segment began (at the last event or window
+   * end, never at t_end), so how a run is cut into advanceTo() calls — output samples, node ticks — does not change
+   * a single bit of it. Only a change of law, parameters or state restarts the closed form.
+   */
   void advanceTo(double t_end, EventSink* sink);
 
   double gap() const { return mesh_.gap(state_.load_position, state_.motor_position); }
@@ -120,12 +132,32 @@ class Plant
   void emit(EventSink* sink, EventType type, const ImpactInfo* impact = nullptr) const;
 
  private:
+  /// One mode segment: its closed form anchored at its start, where it ends and why.
+  struct Segment
+  {
+    enum class End
+    {
+      Restart,     ///< window end (or maxima buffer full): a new segment continues the same mode
+      Separation,  ///< the mesh torque changes sign: the teeth separate
+      Impact       ///< the gap reaches a wall
+    };
+    std::variant<ContactMotion, FreeMotion, WideFreeMotion> motion;
+    State start;
+    EnergyLedger energy_at_start;
+    double end_tau = 0.0;  ///< local time of the end [s]
+    End end = End::Restart;
+    Contact wall = Contact::Forward;  ///< wall hit (Impact)
+    std::array<double, 16> maxima{};  ///< local times of θ_c maxima in (0, end_tau]
+    int maxima_count = 0;
+    int maxima_emitted = 0;
+  };
+
   void addFlows(const EnergyFlows& flows);
-  void advanceContact(double horizon, double t_end, EventSink* sink);
-  void advanceFree(double horizon, double t_end, EventSink* sink);
-  /// One apart segment with the compact or the wide (series) form of the motion.
-  template <class Motion>
-  void advanceFreeWith(const Motion& motion, double window, double horizon, double t_end, EventSink* sink);
+  /// Builds the segment starting at the current state (after checking a contact still holds).
+  void beginSegment();
+  /// Places state_ (and the ledger) at local time tau of the current segment.
+  void placeInSegment(double tau);
+  void emitMaximaUpTo(double tau, EventSink* sink);
   void handleImpact(Contact wall, EventSink* sink);
   /// Puts teeth at relative rest on `wall` into contact if the mesh torque presses, else leaves them apart.
   void settleOnWall(Contact wall);
@@ -134,6 +166,7 @@ class Plant
   GearMesh mesh_;
   State state_;
   MotorInput law_;
+  std::optional<Segment> segment_;
   EnergyLedger energy_;
   std::uint64_t impacts_ = 0;
   std::uint64_t event_budget_ = 0;

@@ -316,9 +316,9 @@ EnergyFlows ContactMotion::energy(double tau) const
 // ---------------------------------------------------------------------------------------------------------------
 namespace
 {
-bool slowRate(double rate, double window)
+bool slowRate(double rate, double window, double limit = SLOW_RATE_WINDOW_PRODUCT)
 {
-  return rate != 0.0 && std::fabs(rate) * window <= SLOW_RATE_WINDOW_PRODUCT;
+  return rate != 0.0 && std::fabs(rate) * window <= limit;
 }
 
 bool equalRates(double a, double b)
@@ -330,11 +330,12 @@ bool equalRates(double a, double b)
 /// coincides with it, else the rate itself.
 double clusterRate(double rate, double alpha, double window)
 {
-  if (rate == 0.0 || slowRate(rate, window))
+  if (rate == 0.0 || slowRate(rate, window, SERIES_RATE_WINDOW_PRODUCT))
   {
     return 0.0;
   }
-  if (rate != alpha && !slowRate(alpha, window) && (equalRates(rate, alpha) || slowRate(rate - alpha, window)))
+  if (rate != alpha && !slowRate(alpha, window, SERIES_RATE_WINDOW_PRODUCT) &&
+      (equalRates(rate, alpha) || slowRate(rate - alpha, window, SERIES_RATE_WINDOW_PRODUCT)))
   {
     return alpha;
   }

@@ -15,6 +15,14 @@ const ParamRange POSITIVE{0.0, INF, true, false};
 const ParamRange NON_NEGATIVE{0.0, INF, false, false};
 const ParamRange UNIT{0.0, 1.0, false, false};
 const ParamRange FINITE{};
+// The validated envelope (README, "Validated envelope"): measured with backlash_fuzz, refused beyond.
+const ParamRange INERTIA{1e-9, 1e9, false, false};
+const ParamRange FRICTION{0.0, 1e9, false, false};
+const ParamRange GAIN{0.0, 1e12, true, false};
+const ParamRange RATIO{1e-3, 1e3, false, false};
+const ParamRange BACKLASH{0.0, 1e3, false, false};
+const ParamRange POSITION{-1e6, 1e6, false, false};
+const ParamRange VELOCITY{-1e9, 1e9, false, false};
 
 using S = ParamSection;
 using T = ParamType;
@@ -24,44 +32,44 @@ std::vector<ParamSpec> makeTable()
   // clang-format off
   return {
     // ---- the servo, physical form (defaults: the thesis' limit-cycle case, App. D1) ----
-    {"motor_inertia", "J_m", "kg·m²", T::Real, S::Servo, POSITIVE, "0.1", "motor inertia on the motor shaft", true, {},
+    {"motor_inertia", "J_m", "kg·m²", T::Real, S::Servo, INERTIA, "0.1", "motor inertia on the motor shaft", true, {},
      &ServoParams::motor_inertia},
-    {"load_inertia", "J_L", "kg·m²", T::Real, S::Servo, POSITIVE, "0.9", "load inertia on the load shaft", true, {},
+    {"load_inertia", "J_L", "kg·m²", T::Real, S::Servo, INERTIA, "0.9", "load inertia on the load shaft", true, {},
      &ServoParams::load_inertia},
-    {"motor_friction", "f_m", "N·m·s/rad", T::Real, S::Servo, NON_NEGATIVE, "0.48", "viscous friction of the motor",
+    {"motor_friction", "f_m", "N·m·s/rad", T::Real, S::Servo, FRICTION, "0.48", "viscous friction of the motor",
      true, {}, &ServoParams::motor_friction},
-    {"load_friction", "f_L", "N·m·s/rad", T::Real, S::Servo, NON_NEGATIVE, "0.32", "viscous friction of the load",
+    {"load_friction", "f_L", "N·m·s/rad", T::Real, S::Servo, FRICTION, "0.32", "viscous friction of the load",
      true, {}, &ServoParams::load_friction},
-    {"gain", "K", "N·m/rad", T::Real, S::Servo, POSITIVE, "1", "servo gain: motor torque = K (command − load position)",
+    {"gain", "K", "N·m/rad", T::Real, S::Servo, GAIN, "1", "servo gain: motor torque = K (command − load position)",
      true, {}, &ServoParams::gain},
-    {"gear_ratio", "ρ", "-", T::Real, S::Servo, POSITIVE, "1",
+    {"gear_ratio", "ρ", "-", T::Real, S::Servo, RATIO, "1",
      "teeth(gear 1)/teeth(gear 2); rigid mesh θ_c = ρ θ_m (both forms)", true, {}, &ServoParams::gear_ratio},
-    {"backlash", "Δ", "rad", T::Real, S::Servo, NON_NEGATIVE, "0.3",
+    {"backlash", "Δ", "rad", T::Real, S::Servo, BACKLASH, "0.3",
      "free play at the load shaft, 0 = rigid mesh (both forms)", true, {}, &ServoParams::backlash},
     {"restitution", "e", "-", T::Real, S::Servo, UNIT, "1",
      "coefficient of restitution of tooth impacts, 0 plastic … 1 elastic (both forms)", true, {},
      &ServoParams::restitution},
     // ---- the servo, chart form (instead of J_m … K) ----
-    {"zeta", "ζ", "-", T::Real, S::Chart, NON_NEGATIVE, "", "damping ratio (required in the chart form)", false, {},
+    {"zeta", "ζ", "-", T::Real, S::Chart, ParamRange{0.0, 100.0, false, false}, "", "damping ratio (required in the chart form)", false, {},
      &ChartParams::zeta},
-    {"natural_frequency", "ω_n", "rad/s", T::Real, S::Chart, POSITIVE, "1", "natural frequency √(ρK/J)", false, {},
+    {"natural_frequency", "ω_n", "rad/s", T::Real, S::Chart, ParamRange{1e-3, 1e4, false, false}, "1", "natural frequency √(ρK/J)", false, {},
      &ChartParams::natural_frequency},
-    {"total_inertia", "J", "kg·m²", T::Real, S::Chart, POSITIVE, "1", "J = J_m + ρ²J_L", false, {},
+    {"total_inertia", "J", "kg·m²", T::Real, S::Chart, INERTIA, "1", "J = J_m + ρ²J_L", false, {},
      &ChartParams::total_inertia},
-    {"inertia_ratio", "ρ²J_L/J_m", "-", T::Real, S::Chart, POSITIVE, "", "inertia split (required in the chart form)",
+    {"inertia_ratio", "ρ²J_L/J_m", "-", T::Real, S::Chart, RATIO, "", "inertia split (required in the chart form)",
      false, {}, &ChartParams::inertia_ratio},
     {"friction_ratio", "ρ²f_L/F_T", "-", T::Real, S::Chart, UNIT, "",
      "friction split, F_T = f_m + ρ²f_L (required in the chart form)", false, {}, &ChartParams::friction_ratio},
     // ---- command and initial state ----
-    {"command", "θ_R", "rad", T::Real, S::Initial, FINITE, "1", "load set-point, applied at t = 0", false, {},
+    {"command", "θ_R", "rad", T::Real, S::Initial, POSITION, "1", "load set-point, applied at t = 0", false, {},
      &RunConfig::command},
-    {"load_position", "θ_c", "rad", T::Real, S::Initial, FINITE, "0", "initial load position", false, {},
+    {"load_position", "θ_c", "rad", T::Real, S::Initial, POSITION, "0", "initial load position", false, {},
      &State::load_position},
-    {"load_velocity", "ω_c", "rad/s", T::Real, S::Initial, FINITE, "0", "initial load velocity", false, {},
+    {"load_velocity", "ω_c", "rad/s", T::Real, S::Initial, VELOCITY, "0", "initial load velocity", false, {},
      &State::load_velocity},
-    {"motor_position", "θ_m", "rad", T::Real, S::Initial, FINITE, "", "initial motor position (default: on the wall of `contact`)",
+    {"motor_position", "θ_m", "rad", T::Real, S::Initial, ParamRange{-1e9, 1e9, false, false}, "", "initial motor position (default: on the wall of `contact`)",
      false, {}, &State::motor_position},
-    {"motor_velocity", "ω_m", "rad/s", T::Real, S::Initial, FINITE, "", "initial motor velocity (default: ω_c/ρ)", false,
+    {"motor_velocity", "ω_m", "rad/s", T::Real, S::Initial, ParamRange{-1e12, 1e12, false, false}, "", "initial motor velocity (default: ω_c/ρ)", false,
      {}, &State::motor_velocity},
     {"contact", "", "-", T::Choice, S::Initial, FINITE, "forward", "teeth at the start: gap 0, gap Δ, or floating",
      false, {"forward", "backward", "none"}, {}},
@@ -76,7 +84,7 @@ std::vector<ParamSpec> makeTable()
     // ---- ROS node ----
     {"control_mode", "", "-", T::Choice, S::Node, FINITE, "position",
      "position: internal P law on `command`; effort: torque from `motor_effort`", true, {"position", "effort"}, {}},
-    {"motor_effort", "", "N·m", T::Real, S::Node, FINITE, "0", "initial motor torque in effort mode", false, {}, {}},
+    {"motor_effort", "", "N·m", T::Real, S::Node, ParamRange{-1e12, 1e12, false, false}, "0", "initial motor torque in effort mode", false, {}, {}},
     {"publish_rate", "", "Hz", T::Real, S::Node, POSITIVE, "100", "joint_states and backlash_state rate (sim time)",
      true, {}, {}},
     {"real_time_factor", "", "-", T::Real, S::Node, NON_NEGATIVE, "1",

@@ -34,6 +34,30 @@ void ServoParams::validate() const
   {
     spec->check(this->*std::get<double ServoParams::*>(spec->field));
   }
+  // The derived quantities of the validated envelope (README): outside it the core's promises were not measured.
+  auto refuse = [&](const char* what, double value, const char* range) {
+    throw InvalidParameterError(what, formatNumber(value) + " lies outside the validated envelope " + range +
+                                          " (motor_inertia " + formatNumber(motor_inertia) + ", load_inertia " +
+                                          formatNumber(load_inertia) + ", gain " + formatNumber(gain) +
+                                          ", gear_ratio " + formatNumber(gear_ratio) + ")");
+  };
+  // Derived values get a rounding slack: the chart form's bounds must convert back inside.
+  constexpr double SLACK = 1e-9;
+  const double split = inertiaRatio();
+  if (!(split >= INERTIA_SPLIT_MIN * (1.0 - SLACK) && split <= INERTIA_SPLIT_MAX * (1.0 + SLACK)))
+  {
+    refuse("inertia split ρ²J_L/J_m", split, "[0.001, 1000]");
+  }
+  const double omega_n = naturalFrequency();
+  if (!(omega_n >= NATURAL_FREQUENCY_MIN * (1.0 - SLACK) && omega_n <= NATURAL_FREQUENCY_MAX * (1.0 + SLACK)))
+  {
+    refuse("natural frequency ω_n = √(ρK/J) [rad/s]", omega_n, "[0.001, 10000] rad/s");
+  }
+  const double zeta = dampingRatio();
+  if (!(zeta <= DAMPING_RATIO_MAX * (1.0 + SLACK)))
+  {
+    refuse("damping ratio ζ", zeta, "[0, 100]");
+  }
 }
 
 double ServoParams::naturalFrequency() const

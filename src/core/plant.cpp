@@ -6,6 +6,7 @@
 #include <limits>
 #include <stdexcept>
 #include <string>
+#include <type_traits>
 
 #include "backlash_servo/impact.h"
 
@@ -16,10 +17,10 @@ namespace
 constexpr double EPS = std::numeric_limits<double>::epsilon();
 /// Iterations without advancing time before the simulator declares a bug instead of hanging.
 constexpr int MAX_STALLED_ITERATIONS = 10000;
-/// Maxima reported per contact segment before it is restarted (bounds a fixed buffer).
-constexpr int MAXIMA_PER_SEGMENT = 16;
 /// Apart mode: impacts are searched this far ahead per segment [natural periods] (fastest on the benchmarks).
 constexpr double FREE_SEARCH_PERIODS = 0.5;
+/// Contact mode: separations and maxima are searched this far ahead per segment [natural periods].
+constexpr double CONTACT_SEARCH_PERIODS = 2.0;
 constexpr double PI = 3.14159265358979323846;
 }  // namespace
 
@@ -115,6 +116,7 @@ void Plant::setState(const State& s)
     n.motor_position = mesh_.motorPosition(s.load_position, std::min(std::max(g, 0.0), delta));
   }
   state_ = n;
+  segment_.reset();
   energy_ = EnergyLedger();
   energy_.initial_kinetic = kineticEnergy();
   impacts_ = 0;
@@ -123,6 +125,7 @@ void Plant::setState(const State& s)
 void Plant::setParams(const ServoParams& params, EventSink* sink)
 {
   params.validate();
+  segment_.reset();  // the closed form restarts from the state now
   const double balance_before = energyBalanceError();
   const double old_gap = gap();
   params_ = params;
@@ -205,15 +208,49 @@ void Plant::advanceTo(double t_end, EventSink* sink)
   int stalled = 0;
   while (state_.time < t_end)
   {
-    const double before = state_.time;
-    const double horizon = t_end - state_.time;
-    if (state_.contact == Contact::Apart)
+    if (!segment_)
     {
-      advanceFree(horizon, t_end, sink);
+      if (state_.contact != Contact::Apart &&
+          !contactHolds(params_, law_, state_.load_position, state_.load_velocity, state_.contact))
+      {
+        // The mesh torque pulls the teeth off this wall right now.
+        state_.contact = mesh_.afterSeparation(state_.contact);
+        emit(sink, EventType::Separation);
+        if (++stalled > MAX_STALLED_ITERATIONS)
+        {
+          throw std::logic_error("backlash_servo::Plant made no progress at t = " + std::to_string(state_.time) +
+                                 " s (internal error; please report with the parameters)");
+        }
+        continue;
+      }
+      beginSegment();
     }
-    else
+    Segment& seg = *segment_;
+    const double end_time = seg.start.time + seg.end_tau;
+    if (end_time > t_end)
     {
-      advanceContact(horizon, t_end, sink);
+      // t_end falls inside the segment: evaluate there, keep the segment anchored where it began.
+      const double tau = t_end - seg.start.time;
+      emitMaximaUpTo(tau, sink);
+      placeInSegment(tau);
+      state_.time = t_end;
+      break;
+    }
+    const double before = state_.time;
+    emitMaximaUpTo(seg.end_tau, sink);
+    placeInSegment(seg.end_tau);
+    state_.time = end_time;
+    const Segment::End end = seg.end;
+    const Contact wall = seg.wall;
+    segment_.reset();
+    if (end == Segment::End::Separation)
+    {
+      state_.contact = mesh_.afterSeparation(state_.contact);
+      emit(sink, EventType::Separation);
+    }
+    else if (end == Segment::End::Impact)
+    {
+      handleImpact(wall, sink);
     }
     stalled = state_.time == before ? stalled + 1 : 0;
     if (stalled > MAX_STALLED_ITERATIONS)
@@ -224,86 +261,94 @@ void Plant::advanceTo(double t_end, EventSink* sink)
   }
 }
 
-void Plant::advanceContact(double horizon, double t_end, EventSink* sink)
+void Plant::beginSegment()
 {
-  const MotorInput in = law_;
-  const Contact wall = state_.contact;
-  if (!contactHolds(params_, in, state_.load_position, state_.load_velocity, wall))
+  const double period = 2.0 * PI / params_.naturalFrequency();
+  if (state_.contact != Contact::Apart)
   {
-    // The mesh torque pulls the teeth off this wall right now.
-    state_.contact = mesh_.afterSeparation(wall);
-    emit(sink, EventType::Separation);
+    const Contact wall = state_.contact;
+    ContactMotion motion(params_, law_, state_.load_position, state_.load_velocity);
+    const double window = CONTACT_SEARCH_PERIODS * period;
+    const double separation = motion.separationTime(GearMesh::pressingSign(wall), window);
+    double end = std::min(separation, window);
+    Segment seg{std::move(motion), state_, energy_};
+    seg.end = separation <= window ? Segment::End::Separation : Segment::End::Restart;
+    const ContactMotion& m = std::get<ContactMotion>(seg.motion);
+    seg.maxima_count = m.velocityMaxima(end, seg.maxima.data(), static_cast<int>(seg.maxima.size()));
+    if (seg.maxima_count == static_cast<int>(seg.maxima.size()) && seg.maxima[seg.maxima_count - 1] < end)
+    {
+      end = seg.maxima[seg.maxima_count - 1];  // restart there; later maxima are found by the next segment
+      seg.end = Segment::End::Restart;
+    }
+    seg.end_tau = end;
+    segment_ = std::move(seg);
     return;
   }
-  const ContactMotion motion(params_, in, state_.load_position, state_.load_velocity);
-  double separation = motion.separationTime(GearMesh::pressingSign(wall), horizon);
-  double end = std::min(separation, horizon);
-  double maxima[MAXIMA_PER_SEGMENT];
-  const int n = motion.velocityMaxima(end, maxima, MAXIMA_PER_SEGMENT);
-  if (n == MAXIMA_PER_SEGMENT && maxima[n - 1] < end)
-  {
-    end = maxima[n - 1];  // restart the segment there; later maxima are found by the next one
-    separation = std::numeric_limits<double>::infinity();
-  }
-  const State start = state_;
-  auto place = [&](double tau) {
-    motion.at(tau, &state_.load_position, &state_.load_velocity);
-    state_.motor_position = mesh_.motorPositionOnWall(state_.load_position, wall);
-    state_.motor_velocity = mesh_.motorVelocityInContact(state_.load_velocity);
-    state_.time = tau >= horizon ? t_end : start.time + tau;
+  // Apart: search at most half a natural period ahead: impacts come sooner almost always, and a short window keeps
+  // the critical points and brackets of the search local (a longer flight simply continues in a new segment).
+  const double window = FREE_SEARCH_PERIODS * period;
+  auto build = [&](auto motion) {
+    Contact wall = Contact::Forward;
+    const double impact = motion.impactTime(window, &wall);
+    Segment seg{std::move(motion), state_, energy_};
+    seg.end = impact <= window ? Segment::End::Impact : Segment::End::Restart;
+    seg.end_tau = std::min(impact, window);
+    seg.wall = wall;
+    segment_ = std::move(seg);
   };
-  if (sink != nullptr)
+  if (apartNeedsSeries(params_, window))
   {
-    for (int i = 0; i < n; ++i)
-    {
-      place(maxima[i]);
-      emit(sink, EventType::Maximum);
-    }
-  }
-  if (track_energy_)
-  {
-    addFlows(motion.energy(end));
-  }
-  place(end);
-  if (separation <= horizon)
-  {
-    state_.contact = mesh_.afterSeparation(wall);
-    emit(sink, EventType::Separation);
-  }
-}
-
-void Plant::advanceFree(double horizon, double t_end, EventSink* sink)
-{
-  // Search at most half a natural period ahead: impacts come sooner almost always, and a short window keeps the
-  // critical points and brackets of the search local (a longer flight simply continues in a new segment).
-  const double nominal = FREE_SEARCH_PERIODS * 2.0 * PI / params_.naturalFrequency();
-  const double window = std::min(horizon, nominal);
-  if (apartNeedsSeries(params_, nominal))
-  {
-    advanceFreeWith(WideFreeMotion(params_, law_, state_, nominal), window, horizon, t_end, sink);
+    build(WideFreeMotion(params_, law_, state_, window));
   }
   else
   {
-    advanceFreeWith(FreeMotion(params_, law_, state_, nominal), window, horizon, t_end, sink);
+    build(FreeMotion(params_, law_, state_, window));
   }
 }
 
-template <class Motion>
-void Plant::advanceFreeWith(const Motion& motion, double window, double horizon, double t_end, EventSink* sink)
+void Plant::placeInSegment(double tau)
 {
-  Contact wall = Contact::Forward;
-  const double impact = motion.impactTime(window, &wall);
-  const double end = std::min(impact, window);
-  if (track_energy_)
+  const Segment& seg = *segment_;
+  const double t = state_.time;
+  std::visit(
+      [&](const auto& m) {
+        using M = std::decay_t<decltype(m)>;
+        if constexpr (std::is_same_v<M, ContactMotion>)
+        {
+          m.at(tau, &state_.load_position, &state_.load_velocity);
+          state_.motor_position = mesh_.motorPositionOnWall(state_.load_position, seg.start.contact);
+          state_.motor_velocity = mesh_.motorVelocityInContact(state_.load_velocity);
+        }
+        else
+        {
+          m.at(tau, &state_);
+        }
+        if (track_energy_)
+        {
+          energy_ = seg.energy_at_start;
+          addFlows(m.energy(tau));
+        }
+      },
+      seg.motion);
+  state_.time = t;
+}
+
+void Plant::emitMaximaUpTo(double tau, EventSink* sink)
+{
+  Segment& seg = *segment_;
+  while (seg.maxima_emitted < seg.maxima_count && seg.maxima[seg.maxima_emitted] <= tau)
   {
-    addFlows(motion.energy(end));
-  }
-  const double t0 = state_.time;
-  motion.at(end, &state_);
-  state_.time = end >= horizon ? t_end : t0 + end;
-  if (impact <= window)
-  {
-    handleImpact(wall, sink);
+    if (sink != nullptr)
+    {
+      const State keep = state_;
+      const EnergyLedger keep_energy = energy_;
+      placeInSegment(seg.maxima[seg.maxima_emitted]);
+      state_.time = seg.start.time + seg.maxima[seg.maxima_emitted];
+      emit(sink, EventType::Maximum);
+      state_ = keep;
+      energy_ = keep_energy;
+    }
+    ++seg.maxima_emitted;
   }
 }
 

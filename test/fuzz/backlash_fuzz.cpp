@@ -16,11 +16,16 @@ int main(int argc, char** argv)
   for (int i = 1; i < argc; ++i)
   {
     auto next = [&]() { return i + 1 < argc ? std::strtoull(argv[++i], nullptr, 10) : 0ull; };
-    if (!std::strcmp(argv[i], "--cases")) cases = next();
-    else if (!std::strcmp(argv[i], "--seed")) seed = next();
-    else if (!std::strcmp(argv[i], "--first")) first = next();
-    else if (!std::strcmp(argv[i], "--budget")) budget = next();
-    else if (!std::strcmp(argv[i], "--verbose")) verbose = true;
+    if (!std::strcmp(argv[i], "--cases"))
+      cases = next();
+    else if (!std::strcmp(argv[i], "--seed"))
+      seed = next();
+    else if (!std::strcmp(argv[i], "--first"))
+      first = next();
+    else if (!std::strcmp(argv[i], "--budget"))
+      budget = next();
+    else if (!std::strcmp(argv[i], "--verbose"))
+      verbose = true;
     else
     {
       std::fprintf(stderr, "usage: backlash_fuzz [--cases N] [--seed S] [--first K] [--budget IMPACTS] [--verbose]\n");
@@ -38,7 +43,8 @@ int main(int argc, char** argv)
     if (o.klass != "ok" && o.klass != "budget" && (verbose || !example.count(o.klass)))
     {
       example[o.klass] = "case " + std::to_string(i) + ": " + o.detail + "\n    backlash_sim " + c.describe();
-      if (verbose) std::printf("%s %s\n", o.klass.c_str(), example[o.klass].c_str());
+      if (verbose)
+        std::printf("%s %s\n", o.klass.c_str(), example[o.klass].c_str());
     }
   }
   const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();

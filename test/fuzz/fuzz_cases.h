@@ -17,6 +17,8 @@
 namespace fuzz
 {
 using namespace backlash_servo;
+const double INERTIA_RATIO_MIN = INERTIA_SPLIT_MIN;
+const double INERTIA_RATIO_MAX = INERTIA_SPLIT_MAX;
 
 struct Case
 {
@@ -28,10 +30,10 @@ struct Case
   {
     std::ostringstream o;
     o.precision(17);
-    o << "--motor-inertia " << params.motor_inertia << " --load-inertia " << params.load_inertia
-      << " --motor-friction " << params.motor_friction << " --load-friction " << params.load_friction << " --gain "
-      << params.gain << " --gear-ratio " << params.gear_ratio << " --backlash " << params.backlash
-      << " --restitution " << params.restitution << " --command " << command << " --contact "
+    o << "--motor-inertia " << params.motor_inertia << " --load-inertia " << params.load_inertia << " --motor-friction "
+      << params.motor_friction << " --load-friction " << params.load_friction << " --gain " << params.gain
+      << " --gear-ratio " << params.gear_ratio << " --backlash " << params.backlash << " --restitution "
+      << params.restitution << " --command " << command << " --contact "
       << (start.contact == Contact::Apart ? "none" : toString(start.contact)) << " --load-position "
       << start.load_position << " --load-velocity " << start.load_velocity << " --motor-position "
       << start.motor_position << " --motor-velocity " << start.motor_velocity << " --duration " << duration;
@@ -47,46 +49,58 @@ inline Case makeCase(std::uint64_t seed, std::uint64_t index)
   auto logu = [&](double lo, double hi) { return lo * std::pow(hi / lo, u(rng)); };
   auto pick = [&](std::initializer_list<double> v) { return *(v.begin() + static_cast<int>(u(rng) * v.size())); };
   Case c;
-  const double omega_n = logu(1e-3, 1e4);
-  const double zeta = u(rng) < 0.05 ? 0.0 : (u(rng) < 0.05 ? pick({5.0, 10.0}) : logu(1e-9, 3.0));
-  const double ratio = u(rng) < 0.1 ? pick({1e-6, 1e6}) : logu(1e-6, 1e6);
-  const double fr = u(rng) < 0.1 ? 0.0 : (u(rng) < 0.1 ? 1.0 : u(rng));
-  const double total = logu(1e-4, 1e4);
-  const double rho = u(rng) < 0.3 ? 1.0 : logu(1e-3, 1e3);
-  ChartParams ch;
-  ch.zeta = zeta;
-  ch.natural_frequency = omega_n;
-  ch.total_inertia = total;
-  ch.inertia_ratio = ratio;
-  ch.friction_ratio = fr;
-  ch.gear_ratio = rho;
-  ch.backlash = u(rng) < 0.1 ? 0.0 : logu(1e-6, 10.0);
-  ch.restitution = u(rng) < 0.6 ? pick({0.0, 1e-12, 0.5, 1.0 - 1e-12, 1.0}) : u(rng);
-  c.params = ch.toServoParams();
-  const double delta = c.params.backlash;
-  const double scale = delta > 0.0 ? delta : 1.0;
-  c.command = (u(rng) < 0.5 ? -1.0 : 1.0) * scale * logu(1e-3, 1e3);
-  const GearMesh mesh(c.params);
-  const double kind = u(rng);
-  c.start.contact = kind < 0.4 ? Contact::Forward : (kind < 0.6 && delta > 0.0 ? Contact::Backward : Contact::Forward);
-  c.start.load_position = u(rng) < 0.5 ? 0.0 : (u(rng) - 0.5) * 4.0 * std::fabs(c.command);
-  const double v_scale = omega_n * std::fabs(c.command) * pick({0.0, 1e-6, 0.1, 1.0, 10.0});
-  c.start.load_velocity = (u(rng) - 0.5) * 2.0 * v_scale;
-  if (kind >= 0.6 && delta > 0.0)
+  for (;;)  // draw until the point lies inside the validated envelope (the edges are drawn on purpose)
   {
-    // Floating, anywhere in the gap (walls included), velocities into or out of the walls.
-    c.start.contact = Contact::Apart;
-    const double g = pick({0.0, 1.0, u(rng)}) * delta;
-    c.start.motor_position = mesh.motorPosition(c.start.load_position, g);
-    c.start.motor_velocity = (c.start.load_velocity + (u(rng) - 0.5) * 2.0 * v_scale) / rho;
+    const double omega_n = logu(NATURAL_FREQUENCY_MIN, NATURAL_FREQUENCY_MAX);
+    const double zeta = u(rng) < 0.05 ? 0.0 : (u(rng) < 0.05 ? pick({5.0, 10.0}) : logu(1e-9, 3.0));
+    const double ratio =
+        u(rng) < 0.1 ? pick({INERTIA_RATIO_MIN, INERTIA_RATIO_MAX}) : logu(INERTIA_RATIO_MIN, INERTIA_RATIO_MAX);
+    const double fr = u(rng) < 0.1 ? 0.0 : (u(rng) < 0.1 ? 1.0 : u(rng));
+    const double total = logu(1e-4, 1e4);
+    const double rho = u(rng) < 0.3 ? 1.0 : logu(1e-3, 1e3);
+    ChartParams ch;
+    ch.zeta = zeta;
+    ch.natural_frequency = omega_n;
+    ch.total_inertia = total;
+    ch.inertia_ratio = ratio;
+    ch.friction_ratio = fr;
+    ch.gear_ratio = rho;
+    ch.backlash = u(rng) < 0.1 ? 0.0 : logu(1e-6, 10.0);
+    ch.restitution = u(rng) < 0.6 ? pick({0.0, 1e-12, 0.5, 1.0 - 1e-12, 1.0}) : u(rng);
+    try
+    {
+      c.params = ch.toServoParams();
+    }
+    catch (const InvalidParameterError&)
+    {
+      continue;
+    }
+    const double delta = c.params.backlash;
+    const double scale = delta > 0.0 ? delta : 1.0;
+    c.command = (u(rng) < 0.5 ? -1.0 : 1.0) * scale * logu(1e-3, 1e6);
+    const GearMesh mesh(c.params);
+    const double kind = u(rng);
+    c.start.contact =
+        kind < 0.4 ? Contact::Forward : (kind < 0.6 && delta > 0.0 ? Contact::Backward : Contact::Forward);
+    c.start.load_position = u(rng) < 0.5 ? 0.0 : (u(rng) - 0.5) * 4.0 * std::fabs(c.command);
+    const double v_scale = omega_n * std::fabs(c.command) * pick({0.0, 1e-6, 0.1, 1.0, 10.0});
+    c.start.load_velocity = (u(rng) - 0.5) * 2.0 * v_scale;
+    if (kind >= 0.6 && delta > 0.0)
+    {
+      // Floating, anywhere in the gap (walls included), velocities into or out of the walls.
+      c.start.contact = Contact::Apart;
+      const double g = pick({0.0, 1.0, u(rng)}) * delta;
+      c.start.motor_position = mesh.motorPosition(c.start.load_position, g);
+      c.start.motor_velocity = (c.start.load_velocity + (u(rng) - 0.5) * 2.0 * v_scale) / rho;
+    }
+    else
+    {
+      c.start.motor_position = mesh.motorPositionOnWall(c.start.load_position, c.start.contact);
+      c.start.motor_velocity = mesh.motorVelocityInContact(c.start.load_velocity);
+    }
+    c.duration = 20.0 * 2.0 * 3.14159265358979 / omega_n * pick({0.05, 1.0});
+    return c;
   }
-  else
-  {
-    c.start.motor_position = mesh.motorPositionOnWall(c.start.load_position, c.start.contact);
-    c.start.motor_velocity = mesh.motorVelocityInContact(c.start.load_velocity);
-  }
-  c.duration = 20.0 * 2.0 * 3.14159265358979 / omega_n * pick({0.05, 1.0});
-  return c;
 }
 
 /// Records the worst excursion of the gap out of [0, Δ] over every event.
@@ -130,9 +144,16 @@ inline Outcome check(const Case& c, std::uint64_t event_budget = 100000)
     {
       return {"gap", "gap left [0, backlash] by " + std::to_string(watch.worst) + " x 1e-12 of the position scale"};
     }
+    // The scale of the energies exchanged: the ledger's terms, the kinetic energies, and the energy stored in the
+    // P law's "spring" K(θ_R − θ_c)²/(2ρ) at both ends (the motor's work is its change).
     const EnergyLedger& e = whole.energy();
-    const double energy_scale = std::max({std::fabs(e.input), e.motor_friction + e.load_friction + e.impact_loss,
-                                          e.initial_kinetic, whole.kineticEnergy(), 1e-300});
+    const MotorInput law = whole.plant().law();
+    auto spring = [&](double x) {
+      return law.stiffness > 0.0 ? law.torque(x) * law.torque(x) / (2.0 * law.stiffness * c.params.gear_ratio) : 0.0;
+    };
+    const double energy_scale =
+        std::max({std::fabs(e.input), e.motor_friction + e.load_friction + e.impact_loss, e.initial_kinetic,
+                  whole.kineticEnergy(), spring(c.start.load_position), spring(s.load_position), 1e-300});
     if (std::fabs(whole.energyBalanceError()) > 1e-9 * energy_scale)
     {
       std::ostringstream d;
@@ -150,9 +171,11 @@ inline Outcome check(const Case& c, std::uint64_t event_budget = 100000)
     const double x_scale = std::max({std::fabs(s.load_position), std::fabs(c.command), c.params.backlash, 1e-300});
     const double v_scale = std::max(x_scale * c.params.naturalFrequency(), std::fabs(s.load_velocity));
     const double dx = std::max(std::fabs(p.load_position - s.load_position),
-                               c.params.gear_ratio * std::fabs(p.motor_position - s.motor_position)) / x_scale;
+                               c.params.gear_ratio * std::fabs(p.motor_position - s.motor_position)) /
+                      x_scale;
     const double dv = std::max(std::fabs(p.load_velocity - s.load_velocity),
-                               c.params.gear_ratio * std::fabs(p.motor_velocity - s.motor_velocity)) / v_scale;
+                               c.params.gear_ratio * std::fabs(p.motor_velocity - s.motor_velocity)) /
+                      v_scale;
     if (dx > 1e-9 || dv > 1e-9)
     {
       std::ostringstream d;

@@ -128,8 +128,8 @@ struct Trace : EventSink
     text += buf;
     if (e.type == EventType::Impact)
     {
-      std::snprintf(buf, sizeof buf, " speed=%.17g loss=%.17g stuck=%d", e.impact.approach_speed,
-                    e.impact.energy_loss, e.impact.stuck ? 1 : 0);
+      std::snprintf(buf, sizeof buf, " speed=%.17g loss=%.17g stuck=%d", e.impact.approach_speed, e.impact.energy_loss,
+                    e.impact.stuck ? 1 : 0);
       text += buf;
     }
     text += "\n";

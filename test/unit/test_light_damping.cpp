@@ -53,8 +53,9 @@ State rk4Apart(const ServoParams& p, double a, double k, const State& s0, double
 TEST(LightDamping, ApartModeMatchesAReferenceIntegratorForSlowAndNearlyEqualRates)
 {
   // (α = f_L/J_L, β = f_m/J_m) [1/s]: slow, very slow, one slow one fast, nearly equal (fast and slow), zero.
-  const double rates[][2] = {{1e-3, 2e-3},      {1e-6, 3e-7},         {1e-9, 0.5}, {0.8, 1e-7}, {0.5, 0.5 + 1e-9},
-                             {0.5, 0.5 + 1e-3}, {2e-5, 2e-5 + 1e-13}, {0.0, 1e-4}, {1e-4, 0.0}, {3e-2, 7e-2}};
+  const double rates[][2] = {{1e-3, 2e-3},      {1e-6, 3e-7},         {1e-9, 0.5},    {0.8, 1e-7}, {0.5, 0.5 + 1e-9},
+                             {0.5, 0.5 + 1e-3}, {2e-5, 2e-5 + 1e-13}, {0.0, 1e-4},    {1e-4, 0.0}, {3e-2, 7e-2},
+                             {1e-9, 0.0221},    {1e-9, 0.0200},       {1e-9, 0.0250}, {1e-9, 0.05}};
   for (const auto& r : rates)
   {
     ServoParams p;

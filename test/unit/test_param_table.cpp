@@ -78,7 +78,8 @@ TEST(ParamTable, RangesAcceptTheirBoundsAndRefuseBeyond)
 {
   // Independent expectations for each kind of range, written out here.
   EXPECT_THROW(param("motor_inertia").check(0.0), InvalidParameterError);
-  EXPECT_NO_THROW(param("motor_inertia").check(1e-300));
+  EXPECT_NO_THROW(param("motor_inertia").check(1e-9));  // the envelope's edge is inside
+  EXPECT_THROW(param("motor_inertia").check(0.99e-9), InvalidParameterError);
   EXPECT_NO_THROW(param("motor_friction").check(0.0));
   EXPECT_THROW(param("motor_friction").check(-1e-300), InvalidParameterError);
   EXPECT_NO_THROW(param("restitution").check(1.0));
@@ -94,6 +95,30 @@ TEST(ParamTable, RangesAcceptTheirBoundsAndRefuseBeyond)
     EXPECT_EQ(std::string(e.what()), "restitution: must be in [0, 1] (got 1.5)");
     EXPECT_EQ(e.field(), "restitution");
   }
+}
+
+TEST(ParamTable, DerivedQuantitiesOutsideTheEnvelopeAreRefusedNamingThem)
+{
+  ServoParams p;
+  p.motor_inertia = 1e-7;  // ρ²J_L/J_m = 9e6
+  try
+  {
+    p.validate();
+    FAIL();
+  }
+  catch (const InvalidParameterError& e)
+  {
+    const std::string what = e.what();
+    EXPECT_NE(what.find("inertia split"), std::string::npos) << what;
+    EXPECT_NE(what.find("9000000"), std::string::npos) << what;
+    EXPECT_NE(what.find("motor_inertia 1e-07"), std::string::npos) << what;
+  }
+  ServoParams fast;
+  fast.gain = 1e9;  // ω_n = 3.2e4 rad/s
+  EXPECT_THROW(fast.validate(), InvalidParameterError);
+  ServoParams edge;
+  edge.motor_inertia = 0.9e-3;  // ρ²J_L/J_m = 1000: inside
+  EXPECT_NO_THROW(edge.validate());
 }
 
 TEST(ParamTable, FlagParserTakesTableKeysAndToolOptions)
