@@ -1,11 +1,13 @@
 #include "servo_node.h"
 
+#include <diagnostic_msgs/DiagnosticArray.h>
 #include <dynamic_reconfigure/config_tools.h>
 #include <rosgraph_msgs/Clock.h>
 #include <sensor_msgs/JointState.h>
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <ctime>
 
 #include "backlash_servo/BacklashState.h"
@@ -57,6 +59,8 @@ ServoNode::ServoNode(ros::NodeHandle& nh, ros::NodeHandle& pnh, const NodeConfig
       ROS_WARN("backlash_servo_node: publish_clock is true but use_sim_time is false: other nodes will not follow");
     }
   }
+  diagnostics_pub_ = nh.advertise<diagnostic_msgs::DiagnosticArray>("/diagnostics", 10);
+  sim_.setEventBudget(static_cast<std::uint64_t>(config_.run.max_events));
   command_sub_ = nh.subscribe("command", 100, &ServoNode::onCommand, this);
   effort_sub_ = nh.subscribe("motor_effort", 100, &ServoNode::onEffort, this);
   reset_srv_ = pnh.advertiseService("reset", &ServoNode::onReset, this);
@@ -143,7 +147,11 @@ void ServoNode::run()
   while (ros::ok())
   {
     ros::spinOnce();  // commands, services and reconfigure act here, at a step boundary
-    if (paused_)
+    if ((ros::WallTime::now() - last_diagnostics_).toSec() >= 1.0)
+    {
+      publishDiagnostics();
+    }
+    if (paused_ || !fault_.empty())
     {
       ros::WallDuration(0.005).sleep();
       reanchorWallClock();
@@ -174,7 +182,15 @@ void ServoNode::run()
         ros::WallDuration(wait).sleep();
       }
     }
-    sim_.advanceTo(t, this);
+    try
+    {
+      sim_.advanceTo(t, this);
+    }
+    catch (const std::exception& e)
+    {
+      enterFault(e.what());
+      continue;
+    }
     ++sample_index_;
     if (sim_.controlMode() == ControlMode::Position)
     {
@@ -206,6 +222,42 @@ void ServoNode::run()
     }
   }
   ros::shutdown();
+}
+
+void ServoNode::enterFault(const std::string& what)
+{
+  fault_ = what;
+  const ServoParams& p = sim_.params();
+  ROS_ERROR(
+      "backlash_servo_node: simulation error at t = %.9g s: %s; parameters: motor_inertia %g, load_inertia %g, "
+      "motor_friction %g, load_friction %g, gain %g, gear_ratio %g, backlash %g, restitution %g, command %g rad. "
+      "Paused: topics, services and reconfigure keep working; ~reset or a valid parameter set resumes.",
+      sim_.state().time, what.c_str(), p.motor_inertia, p.load_inertia, p.motor_friction, p.load_friction, p.gain,
+      p.gear_ratio, p.backlash, p.restitution, command_);
+  publishDiagnostics();
+}
+
+void ServoNode::publishDiagnostics()
+{
+  last_diagnostics_ = ros::WallTime::now();
+  diagnostic_msgs::DiagnosticArray array;
+  array.header.stamp = ros::Time::now();
+  diagnostic_msgs::DiagnosticStatus status;
+  status.name = ros::this_node::getName() + ": simulation";
+  status.hardware_id = "backlash_servo";
+  status.level = fault_.empty() ? diagnostic_msgs::DiagnosticStatus::OK : diagnostic_msgs::DiagnosticStatus::ERROR;
+  status.message = fault_.empty() ? (paused_ ? "paused" : "running") : fault_;
+  auto value = [&](const std::string& key, const std::string& v) {
+    diagnostic_msgs::KeyValue kv;
+    kv.key = key;
+    kv.value = v;
+    status.values.push_back(kv);
+  };
+  value("sim_time [s]", formatNumber(sim_.state().time));
+  value("impacts", std::to_string(sim_.impactCount()));
+  value("verdict", toString(monitor_->status().verdict));
+  array.status.push_back(status);
+  diagnostics_pub_.publish(array);
 }
 
 void ServoNode::publishSample()
@@ -315,9 +367,13 @@ void ServoNode::publishLimitCycle(double sim_time, bool maximum)
 
 void ServoNode::onCommand(const std_msgs::Float64& msg)
 {
-  if (!std::isfinite(msg.data))
+  try
   {
-    ROS_WARN_THROTTLE(1.0, "backlash_servo_node: dropped non-finite command %f (keeping %g rad)", msg.data, command_);
+    param("command").check(msg.data);  // finite and inside the validated envelope
+  }
+  catch (const std::exception& e)
+  {
+    ROS_WARN_THROTTLE(1.0, "backlash_servo_node: dropped command (%s); keeping %g rad", e.what(), command_);
     return;
   }
   command_ = msg.data;
@@ -330,10 +386,13 @@ void ServoNode::onCommand(const std_msgs::Float64& msg)
 
 void ServoNode::onEffort(const std_msgs::Float64& msg)
 {
-  if (!std::isfinite(msg.data))
+  try
   {
-    ROS_WARN_THROTTLE(1.0, "backlash_servo_node: dropped non-finite motor_effort %f (keeping %g N·m)", msg.data,
-                      effort_);
+    param("motor_effort").check(msg.data);
+  }
+  catch (const std::exception& e)
+  {
+    ROS_WARN_THROTTLE(1.0, "backlash_servo_node: dropped motor_effort (%s); keeping %g N·m", e.what(), effort_);
     return;
   }
   effort_ = msg.data;
@@ -368,6 +427,13 @@ bool ServoNode::onReset(std_srvs::Trigger::Request&, std_srvs::Trigger::Response
     sim_.setCommand(command_);
   }
   restartMonitor();
+  if (!fault_.empty())
+  {
+    ROS_INFO("backlash_servo_node: reset clears the simulation error; running again");
+    fault_.clear();
+    reanchorWallClock();
+    publishDiagnostics();
+  }
   res.success = true;
   res.message = "reset to the initial state at t = " + std::to_string(initial.time) + " s";
   return true;
@@ -463,6 +529,12 @@ void ServoNode::onReconfigure(BacklashServoConfig& c, uint32_t)
   config_ = next;
   reanchorWallClock();
   last_good_ = c;
+  if (!fault_.empty())
+  {
+    ROS_INFO("backlash_servo_node: valid parameters clear the simulation error; running again");
+    fault_.clear();
+    publishDiagnostics();
+  }
 }
 
 }  // namespace backlash_servo

@@ -52,6 +52,10 @@ class ServoNode : public EventSink
   /// Waits (serving callbacks) until the sample at sim time t may be computed; false on shutdown.
   bool waitFor(double t);
   void publishSample();
+  /// /diagnostics: OK while running, ERROR with the fault while a core error holds the simulation.
+  void publishDiagnostics();
+  /// A core error at sim time t: logged with the parameters, the simulation paused until ~reset or good parameters.
+  void enterFault(const std::string& what);
   /// Publishes the monitor's status on limit_cycle (latched) and logs it; `maximum`: a new maximum caused it.
   void publishLimitCycle(double sim_time, bool maximum);
   /// A fresh monitor from the current state and command (after a command step, a reset, a mode switch).
@@ -63,8 +67,8 @@ class ServoNode : public EventSink
   NodeConfig config_;
   ClockMode clock_mode_;
   Simulator sim_;
-  double command_;  // θ_R [rad], kept also in effort mode for switching back
-  double effort_;   // effort-mode torque [N·m]
+  double command_;                            // θ_R [rad], kept also in effort mode for switching back
+  double effort_;                             // effort-mode torque [N·m]
   std::unique_ptr<ResponseMonitor> monitor_;  // the same judge as backlash_sim (rest and quiet rules included)
   Verdict announced_ = Verdict::Undecided;
 
@@ -81,6 +85,9 @@ class ServoNode : public EventSink
   ros::WallTime wall_anchor_;  // wall time at which the sim was at sim_anchor_
   double sim_anchor_ = 0.0;
   bool paused_ = false;
+  std::string fault_;  // the core error holding the simulation; empty while healthy
+  ros::Publisher diagnostics_pub_;
+  ros::WallTime last_diagnostics_;
 };
 
 }  // namespace backlash_servo

@@ -1,0 +1,120 @@
+#!/usr/bin/python3
+"""The node survives: backlash tuned to 0 while the teeth float, and a concurrent flood of commands, efforts and
+reconfigures (valid and invalid, NaN, inf, huge). It keeps publishing, the gap stays in [0, backlash]."""
+import math
+import os
+import random
+import sys
+import threading
+import time
+import unittest
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import dynamic_reconfigure.client  # noqa: E402
+import rospy  # noqa: E402
+import rostest  # noqa: E402
+from std_msgs.msg import Float64  # noqa: E402
+
+from backlash_servo.msg import BacklashState  # noqa: E402
+from helpers import Collector, call_trigger, wait_for  # noqa: E402
+
+NODE = "/backlash_servo"
+MAX_BACKLASH = 0.5  # largest backlash the flood sets [rad]
+
+
+class NodeSurvives(unittest.TestCase):
+    @classmethod
+    def setUpClass(cls):
+        rospy.init_node("test_node_survives")
+        cls.states = Collector("/backlash_state", BacklashState)
+        cls.command = rospy.Publisher("/command", Float64, queue_size=100)
+        cls.effort = rospy.Publisher("/motor_effort", Float64, queue_size=100)
+        assert cls.states.wait_connected()
+        assert wait_for(lambda: cls.command.get_num_connections() > 0, 10.0)
+        assert wait_for(lambda: cls.effort.get_num_connections() > 0, 10.0)
+        cls.client = dynamic_reconfigure.client.Client(NODE, timeout=10)
+        assert call_trigger(NODE + "/resume").success
+
+    def test_1_backlash_zero_while_apart_is_a_legal_transition(self):
+        self.assertTrue(wait_for(lambda: self.states.msgs and self.states.msgs[-1].contact == BacklashState.APART,
+                                 60.0))
+        self.client.update_configuration({"backlash": 0.0})
+        n = len(self.states.msgs)
+        self.assertTrue(wait_for(lambda: len(self.states.msgs) > n + 200, 30.0), "node stopped publishing")
+        later = self.states.msgs[n + 5:]
+        self.assertTrue(all(abs(s.gap) <= 1e-9 for s in later), max(abs(s.gap) for s in later))
+        self.assertTrue(all(s.contact != BacklashState.APART for s in later))
+        self.client.update_configuration({"backlash": 0.3})
+
+    def test_2_a_flood_of_valid_and_invalid_input(self):
+        stop = threading.Event()
+        bad = [float("nan"), float("inf"), -float("inf"), 1e300, -1e12, 1e7]
+        counts = {"command": 0, "effort": 0, "reconfigure": 0}
+
+        def commands():
+            r = random.Random(1)
+            while not stop.is_set():
+                self.command.publish(Float64(r.choice(bad) if r.random() < 0.3 else r.uniform(-2.0, 2.0)))
+                counts["command"] += 1
+                time.sleep(0.005)
+
+        def efforts():
+            r = random.Random(2)
+            while not stop.is_set():
+                self.effort.publish(Float64(r.choice(bad) if r.random() < 0.3 else r.uniform(-1.0, 1.0)))
+                counts["effort"] += 1
+                time.sleep(0.005)
+
+        def reconfigures():
+            r = random.Random(3)
+            invalid = [{"restitution": 2.0}, {"load_inertia": -1.0}, {"gear_ratio": float("inf")},
+                       {"backlash": -0.1}, {"gain": 1e9}, {"control_mode": 7}, {"publish_rate": 0.0},
+                       {"motor_inertia": 1e-9}]
+            while not stop.is_set():
+                if r.random() < 0.4:
+                    change = r.choice(invalid)
+                else:
+                    change = {"backlash": r.choice([0.0, r.uniform(0.0, MAX_BACKLASH)]),
+                              "restitution": r.uniform(0.0, 1.0), "gain": r.uniform(0.5, 3.0)}
+                try:
+                    self.client.update_configuration(change)
+                except Exception:  # a refused set may come back as an error to the client
+                    pass
+                counts["reconfigure"] += 1
+
+        n = len(self.states.msgs)
+        threads = [threading.Thread(target=f) for f in (commands, efforts, reconfigures)]
+        start = time.time()
+        for t in threads:
+            t.start()
+        arrivals = []
+        while time.time() - start < 8.0:
+            arrivals.append((time.time(), len(self.states.msgs)))
+            time.sleep(0.01)
+        stop.set()
+        for t in threads:
+            t.join()
+        seen = self.states.msgs[n:]
+        silence, last_t, last_n = 0.0, start, n
+        for t, k in arrivals:
+            if k > last_n:
+                silence = max(silence, t - last_t)
+                last_t, last_n = t, k
+        rate = len(seen) / (time.time() - start)
+        print("flood: %s sent in 8 s; backlash_state %.0f msg/s, longest silence %.3f s" % (counts, rate, silence))
+        self.assertGreater(len(seen), 100)
+        self.assertLess(silence, 1.0)
+        for s in seen:
+            for v in (s.gap, s.mesh_torque, s.motor_torque, s.command, s.energy_kinetic):
+                self.assertTrue(math.isfinite(v))
+            self.assertGreaterEqual(s.gap, -1e-9)
+            self.assertLessEqual(s.gap, MAX_BACKLASH + 1e-9)
+            self.assertLessEqual(abs(s.command), 2.0)  # no invalid command got through
+        # Still alive and serving.
+        self.assertTrue(call_trigger(NODE + "/reset").success)
+        n = len(self.states.msgs)
+        self.assertTrue(wait_for(lambda: len(self.states.msgs) > n + 50, 20.0))
+
+
+if __name__ == "__main__":
+    rostest.rosrun("backlash_servo", "node_survives", NodeSurvives)
