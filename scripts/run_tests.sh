@@ -8,4 +8,24 @@ bash scripts/setup.sh || { echo "0 passed, 1 failed"; exit 1; }
 rm -rf build/test_results
 make -C build -j"$(nproc)" tests || { echo "0 passed, 1 failed"; exit 1; }
 make -C build run_tests -j1 2>&1 | tail -n 200
+# The core's unit tests and the fuzz sample again under AddressSanitizer + UndefinedBehaviorSanitizer.
+mkdir -p build/sanitize/devel/lib/python3/dist-packages build/test_results/backlash_servo
+if cmake -S . -B build/sanitize -DPYTHON_EXECUTABLE=/usr/bin/python3 -DBACKLASH_SANITIZE=ON >/dev/null &&
+   make -C build/sanitize -j"$(nproc)" backlash_servo_core_test backlash_servo_fuzz_test >/dev/null; then
+  for t in core fuzz; do
+    xml="build/test_results/backlash_servo/gtest-sanitize-${t}.xml"
+    if ! ASAN_OPTIONS=detect_leaks=1 UBSAN_OPTIONS=print_stacktrace=1 \
+        "build/sanitize/devel/lib/backlash_servo/backlash_servo_${t}_test" --gtest_output="xml:$xml" \
+        >"build/sanitize/${t}.log" 2>&1; then
+      tail -n 30 "build/sanitize/${t}.log"
+      # A sanitizer abort writes no result file: count it as a failure.
+      [ -s "$xml" ] || echo "<testsuite tests=\"1\"><testcase name=\"sanitize_${t}\"><failure/></testcase></testsuite>" >"$xml"
+    fi
+    tail -n 3 "build/sanitize/${t}.log"
+  done
+else
+  echo "sanitizer build failed"
+  echo '<testsuite tests="1" failures="1"><testcase name="sanitize_build"><failure/></testcase></testsuite>' \
+    >build/test_results/backlash_servo/gtest-sanitize-build.xml
+fi
 /usr/bin/python3 scripts/count_results.py build/test_results
