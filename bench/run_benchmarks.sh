@@ -18,4 +18,5 @@ echo "== core vs baselines (ratios: wall time per simulated second, baseline / o
 echo "== scipy solve_ivp with events (python; first 200 s of each case, or 20 s with --quick)"
 /usr/bin/python3 bench/scipy_baseline.py "$ref" --max-sim "$([ "${1:-}" = --quick ] && echo 20 || echo 200)"
 echo "== thesis grid (1344 points, until each verdict is settled)"
-/usr/bin/time -f "peak memory %M kB" "$bin/backlash_sweep" --preset thesis --output /dev/null
+/usr/bin/time -f "peak memory %M kB" "$bin/backlash_sweep" --preset thesis --output "$ref.sweep.csv"
+rm -f "$ref.sweep.csv"

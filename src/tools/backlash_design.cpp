@@ -11,6 +11,7 @@
 #include "backlash_servo/config/flag_parser.h"
 #include "backlash_servo/step_response.h"
 #include "json_writer.h"
+#include "output_file.h"
 
 using namespace backlash_servo;
 
@@ -137,8 +138,12 @@ Design parse(int argc, char** argv)
   parseRange(kv, "gear_ratio", &d.rho, &d.rho_lo, &d.rho_hi);
   if (d.gain_lo == 0.0)
   {
-    d.gain_lo = d.gain / 1000.0;
-    d.gain_hi = d.gain * 1000.0;
+    // The default search range stays inside the validated envelope (ω_n ≤ NATURAL_FREQUENCY_MAX, K within the table).
+    const double j = d.base.motor_inertia + d.rho * d.rho * d.base.load_inertia;
+    const double envelope_max = std::min(1e12, NATURAL_FREQUENCY_MAX * NATURAL_FREQUENCY_MAX * j / d.rho);
+    const double envelope_min = NATURAL_FREQUENCY_MIN * NATURAL_FREQUENCY_MIN * j / d.rho;
+    d.gain_lo = std::max(d.gain / 1000.0, envelope_min);
+    d.gain_hi = std::min(d.gain * 1000.0, envelope_max);
   }
   if (d.rho_lo == 0.0)
   {
@@ -336,5 +341,14 @@ int main(int argc, char** argv)
   }
   j.endObject();
   std::cout << (d.json ? json_text.str() + "\n" : text.str());
+  try
+  {
+    flushStdout();
+  }
+  catch (const std::exception& e)
+  {
+    std::cerr << "backlash_design: error: " << e.what() << "\n";
+    return 1;
+  }
   return 0;
 }

@@ -12,6 +12,7 @@
 #include <thread>
 
 #include "backlash_servo/config/flag_parser.h"
+#include "output_file.h"
 #include "progress.h"
 #include "sweep/sweep_csv.h"
 #include "sweep/sweep_grid.h"
@@ -126,6 +127,15 @@ int main(int argc, char** argv)
   std::ostream* out = &std::cout;
   if (o.output != "-")
   {
+    try
+    {
+      requireRegularTarget("--output", o.output);
+    }
+    catch (const std::exception& e)
+    {
+      std::cerr << "backlash_sweep: error: " << e.what() << "\n";
+      return 2;
+    }
     file.open(o.output, std::ios::trunc);
     if (!file)
     {

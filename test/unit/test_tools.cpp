@@ -210,3 +210,29 @@ TEST(Bench, HarnessRunsAndTheAccuracyComparisonHolds)
   EXPECT_EQ(code, 0) << py;
   EXPECT_NE(py.find("thesis_d1"), std::string::npos) << py;
 }
+
+namespace
+{
+TEST(SweepOutput, RefusesDevicesAndGridsItDidNotWrite)
+{
+  int code = 0;
+  const std::string err = runCapture(std::string(BACKLASH_SWEEP_EXE) + " --output /dev/null 2>&1", &code);
+  EXPECT_EQ(code, 2);
+  EXPECT_NE(err.find("not a regular file"), std::string::npos) << err;
+  // --resume with a file from a different grid is refused, and the file is left as it was.
+  const std::string part = ::testing::TempDir() + "sweep_other_grid.csv";
+  runCapture(std::string(BACKLASH_SWEEP_EXE) + " --zeta 0.3,0.4 --output " + part + " 2>/dev/null", &code);
+  ASSERT_EQ(code, 0);
+  const std::string before = readFile(part);
+  const std::string refused =
+      runCapture(std::string(BACKLASH_SWEEP_EXE) + " --zeta 0.5,0.6 --output " + part + " --resume 2>&1", &code);
+  EXPECT_EQ(code, 2);
+  EXPECT_NE(refused.find("different grid"), std::string::npos) << refused;
+  EXPECT_EQ(readFile(part), before);
+  // A grid too large to hold is refused before anything is allocated.
+  runCapture(
+      std::string(BACKLASH_SWEEP_EXE) + " --zeta 0:1:10000 --inertia-ratio 1:2:10000 --friction-ratio 0:1:10000 2>&1",
+      &code);
+  EXPECT_EQ(code, 2);
+}
+}  // namespace
