@@ -98,6 +98,8 @@ class BasicExpPoly
   double refineBracket(double level, double a, double fa, double b, double fb, double rel_tol = 0.0) const;
 
  private:
+  /// signChangeRoots() without the finiteness check (done once at the top of the recursion).
+  int isolateRoots(double a, double b, double* out, double rel_tol) const;
   /// d/dτ (f e^{−r_0 τ}) e^{...}: the sign-equivalent derivative with one term or one degree fewer.
   ExpPoly deflatedDerivative() const;
   int complexity() const;

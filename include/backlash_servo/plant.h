@@ -9,9 +9,9 @@
 
 #include <array>
 #include <cstdint>
+#include <memory>
 #include <optional>
 #include <stdexcept>
-#include <variant>
 
 #include "backlash_servo/gear_mesh.h"
 #include "backlash_servo/modes.h"
@@ -141,7 +141,10 @@ class Plant
       Separation,  ///< the mesh torque changes sign: the teeth separate
       Impact       ///< the gap reaches a wall
     };
-    std::variant<ContactMotion, FreeMotion, WideFreeMotion> motion;
+    // Exactly one motion is set; built in place (the wide form, kilobytes and rare, lives on the heap).
+    std::optional<ContactMotion> contact;
+    std::optional<FreeMotion> free;
+    std::shared_ptr<const WideFreeMotion> wide;  // immutable: copies of the plant may share it
     State start;
     EnergyLedger energy_at_start;
     double end_tau = 0.0;  ///< local time of the end [s]
@@ -155,6 +158,9 @@ class Plant
   void addFlows(const EnergyFlows& flows);
   /// Builds the segment starting at the current state (after checking a contact still holds).
   void beginSegment();
+  /// Calls f with the segment's motion (ContactMotion, FreeMotion or WideFreeMotion).
+  template <class F>
+  static void visitMotion(const Segment& seg, F&& f);
   /// Places state_ (and the ledger) at local time tau of the current segment.
   void placeInSegment(double tau);
   void emitMaximaUpTo(double tau, EventSink* sink);
@@ -167,6 +173,7 @@ class Plant
   State state_;
   MotorInput law_;
   std::optional<Segment> segment_;
+  bool apart_needs_series_ = false;  // apartNeedsSeries() for the current parameters (fixed window)
   EnergyLedger energy_;
   std::uint64_t impacts_ = 0;
   std::uint64_t event_budget_ = 0;

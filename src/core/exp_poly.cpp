@@ -353,10 +353,6 @@ typename BasicExpPoly<D>::ExpPoly BasicExpPoly<D>::deflatedDerivative() const
 template <int D>
 int BasicExpPoly<D>::signChangeRoots(double a, double b, double* out, double rel_tol) const
 {
-  if (n_ == 0 || complexity() <= 0 || !(b > a))
-  {
-    return 0;
-  }
   for (int i = 0; i < n_; ++i)
   {
     for (int k = 0; k <= terms_[i].degree; ++k)
@@ -369,6 +365,16 @@ int BasicExpPoly<D>::signChangeRoots(double a, double b, double* out, double rel
             "state lie outside the validated envelope (README)");
       }
     }
+  }
+  return isolateRoots(a, b, out, rel_tol);
+}
+
+template <int D>
+int BasicExpPoly<D>::isolateRoots(double a, double b, double* out, double rel_tol) const
+{
+  if (n_ == 0 || complexity() <= 0 || !(b > a))
+  {
+    return 0;
   }
   // Closed forms for the two simplest shapes (the bottom of every recursion): c0 e^{r0 τ} + c1 e^{r1 τ} and a
   // linear polynomial times an exponential. Each has at most one root, a simple one.
@@ -398,7 +404,7 @@ int BasicExpPoly<D>::signChangeRoots(double a, double b, double* out, double rel
     return 1;
   }
   double crit[EXP_POLY_MAX_ROOTS];
-  const int m = deflatedDerivative().signChangeRoots(a, b, crit, CRITICAL_POINT_TOLERANCE);
+  const int m = deflatedDerivative().isolateRoots(a, b, crit, CRITICAL_POINT_TOLERANCE);
   int count = 0;
   double prev = a;
   double fprev = (*this)(a);

@@ -20,7 +20,7 @@ constexpr int MAX_STALLED_ITERATIONS = 10000;
 /// Apart mode: impacts are searched this far ahead per segment [natural periods] (fastest on the benchmarks).
 constexpr double FREE_SEARCH_PERIODS = 0.5;
 /// Contact mode: separations and maxima are searched this far ahead per segment [natural periods].
-constexpr double CONTACT_SEARCH_PERIODS = 2.0;
+constexpr double CONTACT_SEARCH_PERIODS = 1.0;
 constexpr double PI = 3.14159265358979323846;
 }  // namespace
 
@@ -75,6 +75,7 @@ Plant::Plant(const ServoParams& params, const State& initial, const MotorInput& 
     : params_(params), mesh_(params), law_(law)
 {
   params_.validate();
+  apart_needs_series_ = apartNeedsSeries(params_, FREE_SEARCH_PERIODS * 2.0 * PI / params_.naturalFrequency());
   setState(initial);
 }
 
@@ -130,6 +131,7 @@ void Plant::setParams(const ServoParams& params, EventSink* sink)
   const double old_gap = gap();
   params_ = params;
   mesh_ = GearMesh(params_);
+  apart_needs_series_ = apartNeedsSeries(params_, FREE_SEARCH_PERIODS * 2.0 * PI / params_.naturalFrequency());
   const double delta = params_.backlash;
   // θ_c and ω_c are kept; the motor is re-expressed on the new mesh with the gap clamped into [0, Δ].
   double g = std::min(std::max(old_gap, 0.0), delta);
@@ -261,19 +263,38 @@ void Plant::advanceTo(double t_end, EventSink* sink)
   }
 }
 
+template <class F>
+void Plant::visitMotion(const Segment& seg, F&& f)
+{
+  if (seg.contact)
+  {
+    f(*seg.contact);
+  }
+  else if (seg.free)
+  {
+    f(*seg.free);
+  }
+  else
+  {
+    f(*seg.wide);
+  }
+}
+
 void Plant::beginSegment()
 {
   const double period = 2.0 * PI / params_.naturalFrequency();
+  segment_.emplace();
+  Segment& seg = *segment_;
+  seg.start = state_;
+  seg.energy_at_start = energy_;
   if (state_.contact != Contact::Apart)
   {
     const Contact wall = state_.contact;
-    ContactMotion motion(params_, law_, state_.load_position, state_.load_velocity);
+    const ContactMotion& m = seg.contact.emplace(params_, law_, state_.load_position, state_.load_velocity);
     const double window = CONTACT_SEARCH_PERIODS * period;
-    const double separation = motion.separationTime(GearMesh::pressingSign(wall), window);
+    const double separation = m.separationTime(GearMesh::pressingSign(wall), window);
     double end = std::min(separation, window);
-    Segment seg{std::move(motion), state_, energy_};
     seg.end = separation <= window ? Segment::End::Separation : Segment::End::Restart;
-    const ContactMotion& m = std::get<ContactMotion>(seg.motion);
     seg.maxima_count = m.velocityMaxima(end, seg.maxima.data(), static_cast<int>(seg.maxima.size()));
     if (seg.maxima_count == static_cast<int>(seg.maxima.size()) && seg.maxima[seg.maxima_count - 1] < end)
     {
@@ -281,55 +302,48 @@ void Plant::beginSegment()
       seg.end = Segment::End::Restart;
     }
     seg.end_tau = end;
-    segment_ = std::move(seg);
     return;
   }
   // Apart: search at most half a natural period ahead: impacts come sooner almost always, and a short window keeps
   // the critical points and brackets of the search local (a longer flight simply continues in a new segment).
   const double window = FREE_SEARCH_PERIODS * period;
-  auto build = [&](auto motion) {
-    Contact wall = Contact::Forward;
-    const double impact = motion.impactTime(window, &wall);
-    Segment seg{std::move(motion), state_, energy_};
-    seg.end = impact <= window ? Segment::End::Impact : Segment::End::Restart;
-    seg.end_tau = std::min(impact, window);
-    seg.wall = wall;
-    segment_ = std::move(seg);
-  };
-  if (apartNeedsSeries(params_, window))
+  if (apart_needs_series_)
   {
-    build(WideFreeMotion(params_, law_, state_, window));
+    seg.wide = std::make_shared<const WideFreeMotion>(params_, law_, state_, window);
   }
   else
   {
-    build(FreeMotion(params_, law_, state_, window));
+    seg.free.emplace(params_, law_, state_, window);
   }
+  Contact wall = Contact::Forward;
+  const double impact = seg.wide ? seg.wide->impactTime(window, &wall) : seg.free->impactTime(window, &wall);
+  seg.end = impact <= window ? Segment::End::Impact : Segment::End::Restart;
+  seg.end_tau = std::min(impact, window);
+  seg.wall = wall;
 }
 
 void Plant::placeInSegment(double tau)
 {
   const Segment& seg = *segment_;
   const double t = state_.time;
-  std::visit(
-      [&](const auto& m) {
-        using M = std::decay_t<decltype(m)>;
-        if constexpr (std::is_same_v<M, ContactMotion>)
-        {
-          m.at(tau, &state_.load_position, &state_.load_velocity);
-          state_.motor_position = mesh_.motorPositionOnWall(state_.load_position, seg.start.contact);
-          state_.motor_velocity = mesh_.motorVelocityInContact(state_.load_velocity);
-        }
-        else
-        {
-          m.at(tau, &state_);
-        }
-        if (track_energy_)
-        {
-          energy_ = seg.energy_at_start;
-          addFlows(m.energy(tau));
-        }
-      },
-      seg.motion);
+  visitMotion(seg, [&](const auto& m) {
+    using M = std::decay_t<decltype(m)>;
+    if constexpr (std::is_same_v<M, ContactMotion>)
+    {
+      m.at(tau, &state_.load_position, &state_.load_velocity);
+      state_.motor_position = mesh_.motorPositionOnWall(state_.load_position, seg.start.contact);
+      state_.motor_velocity = mesh_.motorVelocityInContact(state_.load_velocity);
+    }
+    else
+    {
+      m.at(tau, &state_);
+    }
+    if (track_energy_)
+    {
+      energy_ = seg.energy_at_start;
+      addFlows(m.energy(tau));
+    }
+  });
   state_.time = t;
 }
 
