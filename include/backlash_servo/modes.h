@@ -32,6 +32,7 @@ struct EnergyFlows
   double input = 0.0;           ///< ∫ T_m ω_m dt, work done by the motor torque [J]
   double motor_friction = 0.0;  ///< ∫ f_m ω_m² dt [J]
   double load_friction = 0.0;   ///< ∫ f_L ω_c² dt [J]
+  double load_work = 0.0;       ///< ∫ T_ext ω_c dt = T_ext Δθ_c, work of the external load torque [J]
 };
 
 /**
@@ -72,9 +73,13 @@ class ContactMotion
   int downCrossings(Signal signal, double sign, double horizon, bool require_positive_first, double* out,
                     int max_out) const;
 
+  /// Separation where the mesh torque has a constant part (load torque): a damped sinusoid crossing a level.
+  double levelSeparationTime(double side, double horizon) const;
+
   ServoParams params_;
   MotorInput input_;
   double x0_, v0_;
+  double torque_level_ = 0.0;  // constant part of the mesh torque, −T_ext [N·m]
   bool oscillatory_ = false;
   // Oscillatory: θ_c = x_eq + e^{−στ}(A cos ωτ + B sin ωτ); velocity and mesh torque as e^{−στ}(C cos + D sin).
   double x_eq_ = 0.0, sigma_ = 0.0, omega_ = 0.0, a_ = 0.0, b_ = 0.0;

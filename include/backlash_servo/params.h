@@ -48,6 +48,7 @@ struct ServoParams
   double gear_ratio = 1.0;       ///< ρ = teeth(gear 1)/teeth(gear 2) [-], > 0; rigid mesh gives θ_c = ρ θ_m
   double backlash = 0.3;         ///< Δ, free play measured at the load shaft [rad], >= 0 (0 = rigid mesh)
   double restitution = 1.0;      ///< e, coefficient of restitution of the tooth impact [-], in [0, 1]
+  double load_torque = 0.0;      ///< T_ext, external torque on the load (gravity preload, process load) [N·m]
 
   /// Throws InvalidParameterError naming the first bad field, its value and its allowed range (param_table.h).
   void validate() const;
@@ -82,6 +83,7 @@ struct ChartParams
   double gear_ratio = 1.0;         ///< ρ [-], > 0
   double backlash = 0.3;           ///< Δ [rad], >= 0
   double restitution = 1.0;        ///< e [-], in [0, 1]
+  double load_torque = 0.0;        ///< T_ext [N·m]
 
   /// Converts to physical SI parameters; throws InvalidParameterError on bad input.
   ServoParams toServoParams() const;

@@ -77,6 +77,7 @@ struct EnergyLedger
   double motor_friction = 0.0;   ///< ∫ f_m ω_m² dt [J]
   double load_friction = 0.0;    ///< ∫ f_L ω_c² dt [J]
   double impact_loss = 0.0;      ///< Σ energy lost in impacts [J]
+  double load_work = 0.0;        ///< work of the external load torque ∫ T_ext ω_c dt [J]
   double initial_kinetic = 0.0;  ///< kinetic energy at the start [J]
 };
 

@@ -6,10 +6,11 @@
  *        No ROS dependency.
  *
  * Rules applied at each check (a time the caller chooses: a natural period, an output sample):
- * - **rest**: |θ_c − θ_R|, |ω_c|/ω_n and |ρ ω_m|/ω_n all within LimitCycleDetector::ZERO_FRACTION of the scale
- *   max(Δ, |θ_R − θ_c(0)|) → converged;
+ * - **rest**: |θ_c − θ_eq|, |ω_c|/ω_n and |ρ ω_m|/ω_n all within LimitCycleDetector::ZERO_FRACTION of the scale
+ *   max(Δ, |θ_R − θ_c(0)|, |θ_eq − θ_R|) → converged, where θ_eq = θ_R + ρ T_ext / K is where a load torque shifts
+ *   the P law's rest (the steady error);
  * - **quiet**: no new positive maximum for max(10 natural periods, 5 × the longest interval between maxima so far)
- *   while |θ_c − θ_R| ≤ QUIET_ERROR_FRACTION × scale → converged (the motor creeping across the backlash under a
+ *   while |θ_c − θ_eq| ≤ QUIET_ERROR_FRACTION × scale → converged (the motor creeping across the backlash under a
  *   vanishing torque is not an oscillation).
  */
 #pragma once
@@ -39,6 +40,8 @@ class ResponseMonitor : public EventSink
 
   /// Maxima (EventType::Maximum) go to the detector; every other event is ignored.
   void onEvent(const Event& event) override;
+  /// Where the P law comes to rest: θ_R + ρ T_ext / K [rad].
+  double equilibrium() const { return equilibrium_; }
   /// Applies the rest and quiet rules to the state at a check time.
   void check(const State& state);
 
@@ -52,6 +55,7 @@ class ResponseMonitor : public EventSink
 
  private:
   double command_;
+  double equilibrium_;  // rest position of the P law: θ_R + ρ T_ext / K [rad]
   double omega_n_;
   double rho_;
   double scale_;

@@ -83,6 +83,7 @@ RunConfig runConfigFrom(const KeyValues& kv)
     ch.gear_ratio = kv.number("gear_ratio", param("gear_ratio").fallbackNumber());
     ch.backlash = kv.number("backlash", param("backlash").fallbackNumber());
     ch.restitution = kv.number("restitution", param("restitution").fallbackNumber());
+    ch.load_torque = kv.number("load_torque", param("load_torque").fallbackNumber());
     c.params = ch.toServoParams();
   }
   else

@@ -106,12 +106,13 @@ double combinedBound(const Poly& f, double a, const Poly& g, double b, double ta
 
 double contactAcceleration(const ServoParams& p, const MotorInput& in, double x, double v)
 {
-  return (p.gear_ratio * in.torque(x) - p.totalFriction() * v) / p.totalInertia();
+  const double rho = p.gear_ratio;
+  return (rho * in.torque(x) + rho * rho * p.load_torque - p.totalFriction() * v) / p.totalInertia();
 }
 
 double contactMeshTorque(const ServoParams& p, const MotorInput& in, double x, double v)
 {
-  return p.load_inertia * contactAcceleration(p, in, x, v) + p.load_friction * v;
+  return p.load_inertia * contactAcceleration(p, in, x, v) + p.load_friction * v - p.load_torque;
 }
 
 double meshTorque(const ServoParams& p, const MotorInput& in, const State& s)
@@ -126,14 +127,16 @@ bool contactHolds(const ServoParams& p, const MotorInput& in, double x, double v
   const double rk = p.gear_ratio * in.stiffness;
   // Derivatives of θ_c from the contact ODE, and magnitudes to bound their rounding.
   const double x2 = contactAcceleration(p, in, x, v);
-  const double m2 = (p.gear_ratio * (std::fabs(in.offset) + std::fabs(in.stiffness * x)) + std::fabs(f * v)) / j;
+  const double m2 = (p.gear_ratio * (std::fabs(in.offset) + std::fabs(in.stiffness * x)) +
+                     p.gear_ratio * p.gear_ratio * std::fabs(p.load_torque) + std::fabs(f * v)) /
+                    j;
   const double x3 = (-rk * v - f * x2) / j;
   const double m3 = (rk * std::fabs(v) + f * m2) / j;
   const double x4 = (-rk * x2 - f * x3) / j;
   const double m4 = (rk * m2 + f * m3) / j;
-  const double values[3] = {p.load_inertia * x2 + p.load_friction * v, p.load_inertia * x3 + p.load_friction * x2,
-                            p.load_inertia * x4 + p.load_friction * x3};
-  const double bounds[3] = {p.load_inertia * m2 + p.load_friction * std::fabs(v),
+  const double values[3] = {p.load_inertia * x2 + p.load_friction * v - p.load_torque,
+                            p.load_inertia * x3 + p.load_friction * x2, p.load_inertia * x4 + p.load_friction * x3};
+  const double bounds[3] = {p.load_inertia * m2 + p.load_friction * std::fabs(v) + std::fabs(p.load_torque),
                             p.load_inertia * m3 + p.load_friction * m2, p.load_inertia * m4 + p.load_friction * m3};
   const double side = wall == Contact::Backward ? -1.0 : 1.0;
   for (int k = 0; k < 3; ++k)
@@ -155,10 +158,13 @@ ContactMotion::ContactMotion(const ServoParams& params, const MotorInput& input,
   const double p_raw = params.totalFriction() / j;  // the damped sinusoid needs no merging, however slow its decay
   const double p = canonicalRate(p_raw, ref);
   const double q = params.gear_ratio * input.stiffness / j;
-  const double r = params.gear_ratio * input.offset / j;
+  // The load torque acts like a motor offset ρ T_ext on the meshed pair: ρ T_m + ρ² T_ext = ρ (a + ρ T_ext − kθ_c).
+  const double offset = input.offset + params.gear_ratio * params.load_torque;
+  const double r = params.gear_ratio * offset / j;
+  torque_level_ = -params.load_torque;
   if (q > 0.0)
   {
-    x_eq_ = input.offset / input.stiffness;
+    x_eq_ = offset / input.stiffness;
     const double y0 = x0 - x_eq_;
     const double disc = p * p - 4.0 * q;
     if (disc < 0.0)
@@ -207,6 +213,10 @@ ContactMotion::ContactMotion(const ServoParams& params, const MotorInput& input,
   velocity_ = position_.derivative();
   acceleration_ = velocity_.derivative();
   torque_ = acceleration_ * params.load_inertia + velocity_ * params.load_friction;
+  if (torque_level_ != 0.0)
+  {
+    torque_.addConstant(torque_level_);
+  }
 }
 
 void ContactMotion::at(double tau, double* x, double* v) const
@@ -228,7 +238,8 @@ double ContactMotion::meshTorque(double tau) const
 {
   if (oscillatory_)
   {
-    return std::exp(-sigma_ * tau) * (torque_c_ * std::cos(omega_ * tau) + torque_d_ * std::sin(omega_ * tau));
+    return torque_level_ +
+           std::exp(-sigma_ * tau) * (torque_c_ * std::cos(omega_ * tau) + torque_d_ * std::sin(omega_ * tau));
   }
   return torque_(tau);
 }
@@ -277,8 +288,61 @@ int ContactMotion::downCrossings(Signal signal, double sign, double horizon, boo
 
 double ContactMotion::separationTime(double side, double horizon) const
 {
+  if (oscillatory_ && torque_level_ != 0.0)
+  {
+    return levelSeparationTime(side, horizon);
+  }
   double t;
   return downCrossings(Signal::MeshTorque, side, horizon, false, &t, 1) == 1 ? t : INF;
+}
+
+double ContactMotion::levelSeparationTime(double side, double horizon) const
+{
+  // f(τ) = side·(L + e^{−στ}(C cos ωτ + D sin ωτ)): monotone between the critical points of the sinusoid, which
+  // come every π/ω (zeros of e^{−στ}((−σC + ωD) cos + (−σD − ωC) sin)); the first piece that ends below −rounding
+  // holds the separation, refined by bisection to full precision.
+  auto f = [&](double tau) { return side * meshTorque(tau); };
+  auto bound = [&](double tau) {
+    return 64.0 * EPS *
+           (std::fabs(torque_level_) + std::exp(-sigma_ * tau) * (std::fabs(torque_c_) + std::fabs(torque_d_)));
+  };
+  const double dc = -sigma_ * torque_c_ + omega_ * torque_d_;
+  const double dd = -sigma_ * torque_d_ - omega_ * torque_c_;
+  double crit = (dc == 0.0 && dd == 0.0) ? INF : (std::atan2(dd, dc) + 0.5 * PI) / omega_;
+  const double half = PI / omega_;
+  while (crit <= 0.0)
+  {
+    crit += half;
+  }
+  double p = 0.0;
+  double fp = f(0.0);
+  for (int guard = 0; guard < 100000; ++guard)
+  {
+    const double q = std::min(crit, horizon);
+    const double fq = f(q);
+    if (fq < -bound(q))
+    {
+      if (!(fp > 0.0))
+      {
+        return p;  // already at or below zero at the piece's start (rounding level there)
+      }
+      double a = p, b = q;
+      for (int it = 0; it < 200 && b - a > 2.0 * EPS * b; ++it)
+      {
+        const double m = 0.5 * (a + b);
+        (f(m) > 0.0 ? a : b) = m;
+      }
+      return b;
+    }
+    if (q >= horizon)
+    {
+      return INF;
+    }
+    p = q;
+    fp = fq;
+    crit += half;
+  }
+  return INF;
 }
 
 int ContactMotion::velocityMaxima(double horizon, double* out, int max_out) const
@@ -310,6 +374,7 @@ EnergyFlows ContactMotion::energy(double tau) const
   e.input = (input_.offset * dx - input_.stiffness * dx * 0.5 * (x1 + x0_)) / rho;
   e.motor_friction = params_.motor_friction / (rho * rho) * v2;
   e.load_friction = params_.load_friction * v2;
+  e.load_work = params_.load_torque * dx;
   return e;
 }
 
@@ -417,7 +482,16 @@ BasicFreeMotion<ExpPoly>::BasicFreeMotion(const ServoParams& params, const Motor
   }
   const double x0 = s.load_position;
   const double v0 = s.load_velocity;
-  if (alpha > 0.0)
+  if (params.load_torque != 0.0)
+  {
+    // J_L ω̇_c + f_L ω_c = T_ext: the particular solution plus the free decay matching ω_c(0).
+    load_velocity_ = ExpPoly::constant(params.load_torque / params.load_inertia).solveFirstOrder(alpha);
+    const double decay = v0 - load_velocity_(0.0);
+    load_velocity_.addTerm(-alpha, &decay, 0);
+    load_position_ = load_velocity_.antiderivative();
+    load_position_.addConstant(x0 - load_position_(0.0));
+  }
+  else if (alpha > 0.0)
   {
     const double c = v0 / alpha;
     const double constant = x0 + c, decaying = -c;
@@ -431,7 +505,7 @@ BasicFreeMotion<ExpPoly>::BasicFreeMotion(const ServoParams& params, const Motor
     load_position_.addTerm(0.0, line, 1);
     load_velocity_.addTerm(0.0, &v0, 0);
   }
-  if (alpha > 0.0 && beta > 0.0 && alpha != beta)
+  if (alpha > 0.0 && beta > 0.0 && alpha != beta && params.load_torque == 0.0)
   {
     // The generic case written out (same solution as the general path below, without its intermediate ExpPolys):
     // θ_c = C0 + C1 e^{−ατ}; ω_m = W0 + W1 e^{−ατ} + W2 e^{−βτ}; θ_m = M0 + W0 τ + M1 e^{−ατ} + M2 e^{−βτ}.
@@ -474,8 +548,13 @@ BasicFreeMotion<WideExpPoly>::BasicFreeMotion(const ServoParams& params, const M
 {
   const double alpha = params.load_friction / params.load_inertia;
   const double beta = params.motor_friction / params.motor_inertia;
-  // Load: ω_c' + α ω_c = 0; θ_c = x0 + ∫ω_c.
-  load_velocity_ = solveWide(WideExpPoly(), alpha, clusterRate(alpha, alpha, window), s.load_velocity, window);
+  // Load: ω_c' + α ω_c = T_ext/J_L; θ_c = x0 + ∫ω_c.
+  WideExpPoly load_forcing;
+  if (params.load_torque != 0.0)
+  {
+    load_forcing.addConstant(params.load_torque / params.load_inertia);
+  }
+  load_velocity_ = solveWide(load_forcing, alpha, clusterRate(alpha, alpha, window), s.load_velocity, window);
   load_position_ = load_velocity_.antiderivative();
   load_position_.addConstant(s.load_position - load_position_(0.0));
   // Motor: ω_m' + β ω_m = (a − k θ_c)/J_m; θ_m = θ_m0 + ∫ω_m.
@@ -536,6 +615,7 @@ EnergyFlows BasicFreeMotion<Poly>::energy(double tau) const
   e.input = (torque * motor_velocity_).integral(tau);
   e.motor_friction = params_.motor_friction * (motor_velocity_ * motor_velocity_).integral(tau);
   e.load_friction = params_.load_friction * (load_velocity_ * load_velocity_).integral(tau);
+  e.load_work = params_.load_torque * (load_position_(tau) - load_position_(0.0));
   return e;
 }
 

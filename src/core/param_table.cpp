@@ -49,6 +49,9 @@ std::vector<ParamSpec> makeTable()
     {"restitution", "e", "-", T::Real, S::Servo, UNIT, "1",
      "coefficient of restitution of tooth impacts, 0 plastic … 1 elastic (both forms)", true, {},
      &ServoParams::restitution},
+    {"load_torque", "T_ext", "N·m", T::Real, S::Servo, ParamRange{-1e9, 1e9, false, false}, "0",
+     "external torque on the load: gravity preload, process load, disturbance (both forms)", true, {},
+     &ServoParams::load_torque},
     // ---- the servo, chart form (instead of J_m … K) ----
     {"zeta", "ζ", "-", T::Real, S::Chart, ParamRange{0.0, 100.0, false, false}, "", "damping ratio (required in the chart form)", false, {},
      &ChartParams::zeta},
@@ -180,7 +183,8 @@ bool ParamSpec::isChoice(const std::string& value) const
 bool inChartForm(const ParamSpec& spec)
 {
   const std::string key = spec.key;
-  return spec.section == ParamSection::Chart || key == "gear_ratio" || key == "backlash" || key == "restitution";
+  return spec.section == ParamSection::Chart || key == "gear_ratio" || key == "backlash" || key == "restitution" ||
+         key == "load_torque";
 }
 
 const std::vector<ParamSpec>& parameterTable()

@@ -96,6 +96,7 @@ ServoParams ChartParams::toServoParams() const
   p.gain = natural_frequency * natural_frequency * total_inertia / gear_ratio;
   p.backlash = backlash;
   p.restitution = restitution;
+  p.load_torque = load_torque;
   p.validate();
   return p;
 }

@@ -154,8 +154,8 @@ void Plant::setParams(const ServoParams& params, EventSink* sink)
     handleImpact(g == 0.0 ? Contact::Forward : Contact::Backward, sink);
   }
   // A parameter change is not a physical process: re-base the kinetic energy so the ledger keeps its balance.
-  energy_.initial_kinetic = kineticEnergy() - energy_.input + energy_.motor_friction + energy_.load_friction +
-                            energy_.impact_loss + balance_before;
+  energy_.initial_kinetic = kineticEnergy() - energy_.input - energy_.load_work + energy_.motor_friction +
+                            energy_.load_friction + energy_.impact_loss + balance_before;
   emit(sink, EventType::ParameterChange);
 }
 
@@ -172,7 +172,7 @@ double Plant::kineticEnergy() const
 
 double Plant::energyBalanceError() const
 {
-  return energy_.input - energy_.motor_friction - energy_.load_friction - energy_.impact_loss -
+  return energy_.input + energy_.load_work - energy_.motor_friction - energy_.load_friction - energy_.impact_loss -
          (kineticEnergy() - energy_.initial_kinetic);
 }
 
@@ -198,6 +198,7 @@ void Plant::addFlows(const EnergyFlows& f)
   energy_.input += f.input;
   energy_.motor_friction += f.motor_friction;
   energy_.load_friction += f.load_friction;
+  energy_.load_work += f.load_work;
 }
 
 void Plant::advanceTo(double t_end, EventSink* sink)

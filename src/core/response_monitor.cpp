@@ -9,14 +9,22 @@ namespace
 {
 constexpr double PI = 3.14159265358979323846;
 
+/// Where the P law comes to rest: the command, shifted by a load torque (ρ T_ext / K) [rad].
+double equilibriumOf(const ServoParams& params, double command)
+{
+  return command + params.gear_ratio * params.load_torque / params.gain;
+}
+
 double scaleOf(const ServoParams& params, double command, const State& start)
 {
-  return std::max({params.backlash, std::fabs(command - start.load_position), 1e-12});
+  return std::max({params.backlash, std::fabs(command - start.load_position),
+                   std::fabs(equilibriumOf(params, command) - command), 1e-12});
 }
 }  // namespace
 
 ResponseMonitor::ResponseMonitor(const ServoParams& params, double command, const State& start)
     : command_(command),
+      equilibrium_(equilibriumOf(params, command)),
       omega_n_(params.naturalFrequency()),
       rho_(params.gear_ratio),
       scale_(scaleOf(params, command, start)),
@@ -35,7 +43,7 @@ void ResponseMonitor::onEvent(const Event& e)
 void ResponseMonitor::check(const State& s)
 {
   const double rest = LimitCycleDetector::ZERO_FRACTION * scale_;
-  if (std::fabs(s.load_position - command_) <= rest && std::fabs(s.load_velocity) <= rest * omega_n_ &&
+  if (std::fabs(s.load_position - equilibrium_) <= rest && std::fabs(s.load_velocity) <= rest * omega_n_ &&
       std::fabs(rho_ * s.motor_velocity) <= rest * omega_n_)
   {
     detector_.markAtRest();
@@ -48,7 +56,7 @@ void ResponseMonitor::check(const State& s)
   const double last = m.empty() ? start_time_ : m.back().time;
   const double quiet_floor = QUIET_PERIODS * 2.0 * PI / omega_n_;
   if (s.time - last > std::max(quiet_floor, 5.0 * longest_) &&
-      std::fabs(s.load_position - command_) <= QUIET_ERROR_FRACTION * scale_)
+      std::fabs(s.load_position - equilibrium_) <= QUIET_ERROR_FRACTION * scale_)
   {
     detector_.markAtRest();
   }

@@ -100,6 +100,14 @@ void writeJson(std::ostream& out, const RunConfig& c, const RunSummary& r, doubl
     j.null("period");
   }
   j.field("maxima_per_period", static_cast<long long>(r.status.multiplicity));
+  if (r.status.verdict == Verdict::Converged)
+  {
+    j.field("steady_error", r.final_state.load_position - c.command);  // θ_c − θ_R at the end [rad]
+  }
+  else
+  {
+    j.null("steady_error");
+  }
   j.beginArray("maxima");
   for (const Maximum& m : r.maxima)
   {
@@ -112,6 +120,7 @@ void writeJson(std::ostream& out, const RunConfig& c, const RunSummary& r, doubl
       .field("motor_friction", r.energy.motor_friction)
       .field("load_friction", r.energy.load_friction)
       .field("impact_loss", r.energy.impact_loss)
+      .field("load_work", r.energy.load_work)
       .field("kinetic", r.kinetic)
       .field("initial_kinetic", r.energy.initial_kinetic)
       .field("balance_error", r.balance_error)

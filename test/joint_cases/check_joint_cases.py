@@ -1,0 +1,69 @@
+#!/usr/bin/python3
+"""Runs the reference cases of ../shared/joint_cases_public.json (an independent exact implementation of MODEL.md
+Part 2) through backlash_sim and compares verdict, limit-cycle error, steady error and the first maxima (1e-6 rad,
+1e-6 s). Cases that use a Part-2 feature not implemented yet are listed as SKIPPED with the keys that need it.
+usage: check_joint_cases.py BACKLASH_SIM [CASES.json]   exit 1 if an implemented case disagrees."""
+import json
+import os
+import subprocess
+import sys
+
+NEUTRAL = {"controller_rate": 0.0, "controller_delay": 0, "motor_encoder_resolution": 0, "load_encoder_resolution": 0,
+           "integral_gain": 0.0, "derivative_gain": 0.0, "position_loop_gain": 0.0, "velocity_loop_gain": 0.0,
+           "velocity_loop_integral_gain": 0.0, "torque_limit": 0.0, "motor_coulomb_friction": 0.0,
+           "motor_static_friction": 0.0, "load_coulomb_friction": 0.0, "load_static_friction": 0.0,
+           "control_law": "proportional", "feedback": "load"}
+TOL = 1e-6
+
+
+def main():
+    sim = sys.argv[1]
+    path = sys.argv[2] if len(sys.argv) > 2 else os.path.join(os.path.dirname(__file__), "..", "..", "..", "shared",
+                                                               "joint_cases_public.json")
+    cases = json.load(open(path))["cases"]
+    failed = checked = 0
+    for case in cases:
+        params = dict(case["params"])
+        needs = sorted(k for k, v in params.items() if k in NEUTRAL and v != NEUTRAL[k])
+        if needs:
+            print("SKIPPED %-18s needs %s" % (case["name"], ", ".join(needs)))
+            continue
+        args = [sim, "--json", "--duration", str(case["duration"])]
+        for k, v in params.items():
+            if k not in NEUTRAL:
+                args += ["--" + k.replace("_", "-"), repr(float(v))]
+        for k, v in (case.get("initial") or {}).items():
+            args += ["--" + k.replace("_", "-"), str(v)]
+        out = json.loads(subprocess.run(args, check=True, capture_output=True, text=True).stdout)
+        exp = case["expected"]
+        problems = []
+        verdict = {"limit_cycle": "limit_cycle", "converged": "converged"}.get(exp["verdict"], exp["verdict"])
+        if out["verdict"] != verdict:
+            problems.append("verdict %s, expected %s" % (out["verdict"], verdict))
+        if exp["verdict"] == "limit_cycle" and abs(out["limit_cycle_error"] - exp["limit_cycle_error"]) > TOL:
+            problems.append("limit-cycle error %.9g, expected %.9g" % (out["limit_cycle_error"],
+                                                                        exp["limit_cycle_error"]))
+        if exp.get("steady_error") is not None and (out["steady_error"] is None or
+                                                    abs(out["steady_error"] - exp["steady_error"]) > TOL):
+            problems.append("steady error %s, expected %.9g" % (out["steady_error"], exp["steady_error"]))
+        n = min(len(exp["maxima"]), len(out["maxima"]))
+        if len(out["maxima"]) < len(exp["maxima"]) and out["settled"] is False:
+            problems.append("%d maxima, expected at least %d" % (len(out["maxima"]), len(exp["maxima"])))
+        for i in range(n):
+            a, b = out["maxima"][i], exp["maxima"][i]
+            if abs(a["time"] - b["time"]) > TOL or abs(a["position"] - b["position"]) > TOL:
+                problems.append("maximum %d at (%.9g s, %.9g rad), expected (%.9g, %.9g)" %
+                                (i + 1, a["time"], a["position"], b["time"], b["position"]))
+                break
+        checked += 1
+        if problems:
+            failed += 1
+            print("FAILED  %-18s %s" % (case["name"], "; ".join(problems)))
+        else:
+            print("PASSED  %-18s %d maxima to 1e-6, verdict %s" % (case["name"], n, out["verdict"]))
+    print("joint cases: %d checked, %d failed, %d skipped" % (checked, failed, len(cases) - checked))
+    return 1 if failed or checked == 0 else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

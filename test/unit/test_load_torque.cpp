@@ -1,0 +1,121 @@
+// External load torque T_ext (MODEL.md Part 2; issue 10 item 2): checked against closed forms written here, the
+// reference case of ../shared/joint_cases_public.json, conservation of energy, and T_ext = 0 reproducing the servo.
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include "backlash_servo/step_response.h"
+#include "test_helpers.h"
+
+namespace
+{
+using namespace backlash_servo;
+
+TEST(LoadTorque, RigidMeshFollowsTheClosedFormStepWithAShiftedEquilibrium)
+{
+  // Δ = 0: J θ'' + F θ' + ρK θ = ρK θ_R + ρ² T_ext, an underdamped step towards θ_eq = θ_R + ρ T_ext / K.
+  ServoParams p;
+  p.backlash = 0.0;
+  p.gear_ratio = 2.0;
+  p.load_torque = -0.15;
+  Simulator sim(p, State(), 1.0);
+  const double j = p.totalInertia(), f = p.totalFriction(), k = p.gear_ratio * p.gain;
+  const double eq = 1.0 + p.gear_ratio * p.load_torque / p.gain;
+  const double sigma = f / (2 * j), omega = std::sqrt(k / j - sigma * sigma);
+  for (double t : {0.5, 2.0, 7.3, 20.0})
+  {
+    sim.advanceTo(t);
+    const double y0 = -eq;  // θ(0) = 0
+    const double x = eq + std::exp(-sigma * t) * (y0 * std::cos(omega * t) + sigma * y0 / omega * std::sin(omega * t));
+    EXPECT_NEAR(sim.state().load_position, x, 1e-12) << t;
+  }
+  EXPECT_NEAR(eq, 1.0 - 0.3, 1e-15);
+}
+
+TEST(LoadTorque, ReferenceCasePreloadLargeD1)
+{
+  // joint_cases_public.json "preload_large_D1": D1 with e = 0.8 and T_ext = −0.3 N·m: the teeth never leave the
+  // forward flank, no maxima, converged with steady error ρ T_ext / K = −0.3 rad.
+  RunConfig c;
+  c.params.restitution = 0.8;
+  c.params.load_torque = -0.3;
+  c.duration = 300.0;
+  struct Flanks : EventSink
+  {
+    int left = 0;
+    void onEvent(const Event& e) override { left += e.type == EventType::Separation || e.type == EventType::Impact; }
+  } flanks;
+  const RunSummary r = runResponse(c, &flanks);
+  EXPECT_EQ(flanks.left, 0);
+  EXPECT_TRUE(r.maxima.empty());
+  EXPECT_EQ(r.status.verdict, Verdict::Converged);
+  EXPECT_NEAR(r.final_state.load_position - 1.0, -0.30000000000000004, 1e-9);
+}
+
+TEST(LoadTorque, SeparationsHappenWhereTheMeshTorqueVanishes)
+{
+  // A load torque large enough to pull the teeth apart against the P law: at every separation the contact mesh
+  // torque Q = J_L θc'' + f_L θc' − T_ext evaluated from the state is zero (to rounding).
+  for (double text : {0.4, -0.05, 0.9})
+  {
+    ServoParams p;
+    p.load_torque = text;
+    p.restitution = 0.7;
+    struct Seps : EventSink
+    {
+      ServoParams p;
+      MotorInput law;
+      int n = 0;
+      double worst = 0.0;
+      void onEvent(const Event& e) override
+      {
+        if (e.type == EventType::Separation && p.backlash > 0.0)
+        {
+          ++n;
+          worst = std::max(worst, std::fabs(contactMeshTorque(p, e.law, e.state.load_position, e.state.load_velocity)));
+        }
+      }
+    } seps;
+    seps.p = p;
+    Simulator sim(p, State(), 1.0);
+    sim.advanceTo(60.0, &seps);
+    EXPECT_GT(seps.n, 0) << text;
+    EXPECT_LE(seps.worst, 1e-12) << text;
+    const double scale = sim.energy().input + std::fabs(sim.energy().load_work) + sim.energy().initial_kinetic;
+    EXPECT_LE(std::fabs(sim.energyBalanceError()), 1e-12 * scale) << text;
+    EXPECT_NE(sim.energy().load_work, 0.0);
+  }
+}
+
+TEST(LoadTorque, FloatingLoadFallsUnderItsTorqueExactly)
+{
+  // Apart, the load alone: J_L ω' + f_L ω = T_ext ⇒ ω = v∞ + (v0 − v∞) e^{−αt}, v∞ = T_ext / f_L; also slow α.
+  for (double fl : {0.32, 3e-6, 0.0})
+  {
+    ServoParams p;
+    p.load_friction = fl;
+    p.load_torque = 0.05;
+    p.backlash = 1000.0;  // the motor never reaches it
+    p.gain = 1e-3;
+    State s;
+    s.contact = Contact::Apart;
+    s.load_position = 500.0;
+    s.load_velocity = 0.2;
+    s.motor_position = 0.0;
+    Simulator sim(p, s, 0.0);
+    sim.setMotorTorque(0.0);
+    sim.advanceTo(5.0);
+    const double alpha = fl / p.load_inertia, t = 5.0;
+    const double v = fl > 0.0 ? p.load_torque / fl + (0.2 - p.load_torque / fl) * std::exp(-alpha * t)
+                              : 0.2 + p.load_torque / p.load_inertia * t;
+    // Position: integral of the above, written with expm1 so that the slow case does not cancel.
+    const double x = fl > 0.0
+                         ? 500.0 + p.load_torque / fl * t - (0.2 - p.load_torque / fl) * std::expm1(-alpha * t) / alpha
+                         : 500.0 + 0.2 * t + 0.5 * p.load_torque / p.load_inertia * t * t;
+    EXPECT_NEAR(sim.state().load_velocity, v, 1e-12) << fl;
+    EXPECT_NEAR(sim.state().load_position, x, fl == 3e-6 ? 1e-8 : 1e-12) << fl;
+    EXPECT_NEAR(sim.energy().load_work, p.load_torque * (sim.state().load_position - 500.0), 1e-15);
+  }
+}
+
+}  // namespace
