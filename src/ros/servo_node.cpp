@@ -63,6 +63,7 @@ ServoNode::ServoNode(ros::NodeHandle& nh, ros::NodeHandle& pnh, const NodeConfig
   sim_.setEventBudget(static_cast<std::uint64_t>(config_.run.max_events));
   command_sub_ = nh.subscribe("command", 100, &ServoNode::onCommand, this);
   effort_sub_ = nh.subscribe("motor_effort", 100, &ServoNode::onEffort, this);
+  load_torque_sub_ = nh.subscribe("load_torque", 100, &ServoNode::onLoadTorque, this);
   reset_srv_ = pnh.advertiseService("reset", &ServoNode::onReset, this);
   pause_srv_ = pnh.advertiseService("pause", &ServoNode::onPause, this);
   resume_srv_ = pnh.advertiseService("resume", &ServoNode::onResume, this);
@@ -404,6 +405,25 @@ void ServoNode::onEffort(const std_msgs::Float64& msg)
   {
     ROS_WARN_THROTTLE(5.0, "backlash_servo_node: motor_effort ignored in position mode (set control_mode: effort)");
   }
+}
+
+void ServoNode::onLoadTorque(const std_msgs::Float64& msg)
+{
+  ServoParams p = sim_.params();
+  p.load_torque = msg.data;
+  try
+  {
+    p.validate();
+    sim_.setParams(p);  // at this step boundary, no jump in θ_c or ω_c
+  }
+  catch (const std::exception& e)
+  {
+    ROS_WARN_THROTTLE(1.0, "backlash_servo_node: dropped load_torque (%s); keeping %g N·m", e.what(),
+                      sim_.params().load_torque);
+    return;
+  }
+  last_good_ = currentConfig();
+  reconfigure_->updateConfig(last_good_);
 }
 
 bool ServoNode::onReset(std_srvs::Trigger::Request&, std_srvs::Trigger::Response& res)

@@ -44,6 +44,8 @@ class ServoNode : public EventSink
 
   void onCommand(const std_msgs::Float64& msg);
   void onEffort(const std_msgs::Float64& msg);
+  /// External load torque T_ext [N·m] from now on (a disturbance input); validated, reflected in reconfigure.
+  void onLoadTorque(const std_msgs::Float64& msg);
   bool onReset(std_srvs::Trigger::Request& req, std_srvs::Trigger::Response& res);
   bool onPause(std_srvs::Trigger::Request& req, std_srvs::Trigger::Response& res);
   bool onResume(std_srvs::Trigger::Request& req, std_srvs::Trigger::Response& res);
@@ -73,7 +75,7 @@ class ServoNode : public EventSink
   Verdict announced_ = Verdict::Undecided;
 
   ros::Publisher joint_pub_, impact_pub_, state_pub_, limit_cycle_pub_, clock_pub_;
-  ros::Subscriber command_sub_, effort_sub_;
+  ros::Subscriber command_sub_, effort_sub_, load_torque_sub_;
   ros::ServiceServer reset_srv_, pause_srv_, resume_srv_;
   boost::recursive_mutex reconfigure_mutex_;
   std::unique_ptr<dynamic_reconfigure::Server<BacklashServoConfig>> reconfigure_;

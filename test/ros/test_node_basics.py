@@ -108,6 +108,25 @@ class NodeBasics(unittest.TestCase):
                 self.assertEqual(after[key], before[key], "%s after refusing %s" % (key, bad))
         self.assertEqual(client.update_configuration({"gain": before["gain"]})["gain"], before["gain"])
 
+    def test_6_load_torque_topic_is_a_live_disturbance(self):
+        # A preload on the load_torque topic shifts where the P law comes to rest by ρ T_ext / K (here −0.2 rad),
+        # shows in dynamic_reconfigure, and a non-finite value is dropped.
+        client = dynamic_reconfigure.client.Client(NODE, timeout=10)
+        pub = rospy.Publisher("/load_torque", Float64, queue_size=10)
+        self.assertTrue(wait_for(lambda: pub.get_num_connections() > 0, 10.0))
+        cfg = client.get_configuration(timeout=5)
+        shift = cfg["gear_ratio"] * -0.1 / cfg["gain"]
+        pub.publish(Float64(-0.1))
+        self.assertTrue(wait_for(lambda: client.get_configuration(timeout=5)["load_torque"] == -0.1, 10.0))
+        pub.publish(Float64(float("nan")))
+        rospy.sleep(rospy.Duration(0.5))
+        self.assertEqual(client.get_configuration(timeout=5)["load_torque"], -0.1)
+        command = self.latest_state().command
+        # Settled position: the command shifted by ρ T_ext / K.
+        self.assertTrue(wait_for(lambda: abs(self.joints.msgs[-1].position[1] - (command + shift)) < 2e-3, 60.0),
+                        "load at %g, expected %g" % (self.joints.msgs[-1].position[1], command + shift))
+        pub.publish(Float64(0.0))
+
 
 if __name__ == "__main__":
     rostest.rosrun("backlash_servo", "node_basics", NodeBasics)
