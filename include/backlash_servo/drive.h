@@ -15,12 +15,34 @@
 
 #include <limits>
 #include <memory>
+#include <string>
 
 #include "backlash_servo/params.h"
 #include "backlash_servo/state.h"
 
 namespace backlash_servo
 {
+/// Settings of the drive (MODEL.md Part 2, "Digital drive"); the P gain K is ServoParams::gain.
+struct DriveParams
+{
+  std::string control_law = "proportional";  ///< proportional | pid | cascade
+  double controller_rate = 0.0;              ///< f_s [Hz]; 0 = continuous (proportional only)
+  double controller_delay = 0.0;             ///< samples of computation delay, 0 or 1
+  double motor_encoder_resolution = 0.0;     ///< counts/rev, 0 = ideal
+  double load_encoder_resolution = 0.0;      ///< counts/rev, 0 = ideal
+  std::string feedback = "load";             ///< load | motor (the motor reading is referred to the load shaft)
+  double integral_gain = 0.0;                ///< K_i [N·m/(rad·s)] (pid)
+  double derivative_gain = 0.0;              ///< K_d [N·m·s/rad] (pid, on the measurement)
+  double position_loop_gain = 0.0;           ///< K_p [1/s] (cascade, outer loop)
+  double velocity_loop_gain = 0.0;           ///< K_v [N·m·s/rad] (cascade, inner loop)
+  double velocity_loop_integral_gain = 0.0;  ///< K_vi [N·m/rad] (cascade, inner loop)
+  double torque_limit = 0.0;                 ///< T_max [N·m], 0 = none
+
+  bool sampled() const { return controller_rate > 0.0; }
+  /// Throws InvalidParameterError for combinations the model does not define (pid without a rate, …).
+  void validate() const;
+};
+
 class Drive
 {
  public:
@@ -76,6 +98,51 @@ class EffortDrive : public Drive
 
  private:
   double torque_;
+};
+
+/**
+ * A digital drive: samples at t_k = t_0 + k/f_s, reads its encoders, holds u_k (zero-order hold) on [t_k, t_{k+1})
+ * — or one sample later with controller_delay 1 (u = 0 on [t_0, t_0 + T)) — saturated at ±T_max.
+ * Encoder reading of an angle θ: \f$ q(\theta) = \frac{2\pi}{N}\lfloor N\theta/2\pi \rfloor \f$ (N = 0: ideal);
+ * feedback y_k = q_L(θ_c) or ρ q_m(θ_m); e_k = θ_R − y_k. Laws:
+ * - proportional: u_k = K e_k;
+ * - pid: \f$ u_k = K e_k + I_k - K_d (y_k - y_{k-1})/T,\; I_k = I_{k-1} + K_i T e_k \f$;
+ * - cascade: ω_ref = K_p e_k, ω̂_k = ρ (q_m(θ_m,k) − q_m(θ_m,k−1))/T (0 at k = 0), u_k = K_v (ω_ref − ω̂_k) + I_k,
+ *   I_k = I_{k−1} + K_vi T (ω_ref − ω̂_k).
+ * Anti-windup (conditional integration): with T_max > 0, when the unsaturated u_k lies beyond the limit on the side
+ * of the integrated error's sign, I_k = I_{k−1}.
+ */
+class SampledDrive : public Drive
+{
+ public:
+  /// gain K [N·m/rad], gear ratio ρ, command θ_R [rad], t0 [s] the time of sample 0.
+  SampledDrive(const DriveParams& drive, double gain, double gear_ratio, double command, double t0);
+  ControlMode mode() const override { return ControlMode::Position; }
+  MotorInput law() const override { return {held_, 0.0}; }
+  double nextEventTime(double t) const override;
+  void sample(const State& state) override;
+  void configure(const ServoParams& params) override;
+  std::unique_ptr<Drive> clone() const override { return std::make_unique<SampledDrive>(*this); }
+
+  /// A new set-point θ_R [rad] from the next sample on.
+  void setCommand(double command);
+  double command() const { return command_; }
+  /// The controller's latest readings [rad] (what it sees): motor (referred to the load shaft) and load.
+  double motorReading() const { return motor_reading_; }
+  double loadReading() const { return load_reading_; }
+
+ private:
+  double read(double angle, double resolution) const;
+
+  DriveParams p_;
+  double gain_, rho_, command_, t0_;
+  long next_ = 0;          // index of the next sample
+  double held_ = 0.0;      // torque held now [N·m]
+  double pending_ = 0.0;   // computed, applied at the next sample (delay 1) [N·m]
+  double integral_ = 0.0;  // I_{k−1} [N·m]
+  double y_prev_ = 0.0;    // y_{k−1} [rad]
+  double qm_prev_ = 0.0;   // q_m(θ_m,k−1) [rad]
+  double motor_reading_ = 0.0, load_reading_ = 0.0;
 };
 
 }  // namespace backlash_servo

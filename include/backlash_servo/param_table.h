@@ -15,6 +15,7 @@
 #include <variant>
 #include <vector>
 
+#include "backlash_servo/drive.h"
 #include "backlash_servo/params.h"
 #include "backlash_servo/state.h"
 
@@ -36,6 +37,7 @@ enum class ParamSection
   Servo,    ///< physical form of the servo (ServoParams)
   Chart,    ///< the thesis' chart form (ChartParams), instead of the physical form
   Initial,  ///< command and initial state
+  Drive,    ///< the control law and the digital drive (DriveParams)
   Run,      ///< length of a command-line run
   Node      ///< ROS node only
 };
@@ -54,8 +56,8 @@ struct ParamRange
 };
 
 /// Struct field a parameter is stored in (the node's own settings are bound in the node's adapter).
-using ParamField =
-    std::variant<std::monostate, double ServoParams::*, double ChartParams::*, double State::*, double RunConfig::*>;
+using ParamField = std::variant<std::monostate, double ServoParams::*, double ChartParams::*, double State::*,
+                                double RunConfig::*, double DriveParams::*>;
 
 struct ParamSpec
 {

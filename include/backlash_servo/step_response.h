@@ -20,6 +20,7 @@ namespace backlash_servo
 struct RunConfig
 {
   ServoParams params;
+  DriveParams drive;          ///< the control law (default: the thesis' continuous P law)
   State initial;              ///< default: everything 0, forward contact
   double command = 1.0;       ///< θ_R [rad], applied at the initial time
   double duration = 0.0;      ///< simulate exactly this long [s]; 0 = until the verdict is settled

@@ -95,6 +95,16 @@ RunConfig runConfigFrom(const KeyValues& kv)
     }
     c.params.validate();
   }
+  for (const ParamSpec* spec : paramsIn(ParamSection::Drive))
+  {
+    if (const auto* f = std::get_if<double DriveParams::*>(&spec->field))
+    {
+      c.drive.*(*f) = realValue(kv, *spec);
+    }
+  }
+  c.drive.control_law = choiceValue(kv, param("control_law"));
+  c.drive.feedback = choiceValue(kv, param("feedback"));
+  c.drive.validate();
   c.command = realValue(kv, param("command"));
   c.duration = realValue(kv, param("duration"));
   c.max_duration = realValue(kv, param("max_duration"));

@@ -1,5 +1,8 @@
 #include "backlash_servo/drive.h"
 
+#include <algorithm>
+#include <cmath>
+
 namespace backlash_servo
 {
 ProportionalDrive::ProportionalDrive(double gain, double command) : gain_(gain), command_(0.0)
@@ -28,6 +31,152 @@ void EffortDrive::setTorque(double torque)
 {
   requireFinite("motor_torque", torque);
   torque_ = torque;
+}
+
+void DriveParams::validate() const
+{
+  if (control_law != "proportional" && control_law != "pid" && control_law != "cascade")
+  {
+    throw InvalidParameterError("control_law", "must be proportional, pid or cascade (got '" + control_law + "')");
+  }
+  if (feedback != "load" && feedback != "motor")
+  {
+    throw InvalidParameterError("feedback", "must be load or motor (got '" + feedback + "')");
+  }
+  if (!sampled())
+  {
+    if (control_law != "proportional")
+    {
+      throw InvalidParameterError("control_law",
+                                  control_law + " is a sampled law: it needs controller_rate > 0 Hz (got 0)");
+    }
+    if (feedback != "load")
+    {
+      throw InvalidParameterError("feedback",
+                                  "the continuous law feeds back the load position (motor feedback needs "
+                                  "controller_rate > 0 Hz)");
+    }
+    if (torque_limit > 0.0)
+    {
+      throw InvalidParameterError("torque_limit",
+                                  "with the continuous law is not implemented yet (exact saturation "
+                                  "switching); use controller_rate > 0 Hz or torque_limit 0");
+    }
+    if (motor_encoder_resolution > 0.0 || load_encoder_resolution > 0.0 || controller_delay > 0.0)
+    {
+      throw InvalidParameterError("controller_rate",
+                                  "encoders and delay belong to a sampled drive: set controller_rate > 0 Hz");
+    }
+  }
+  if (controller_delay != 0.0 && controller_delay != 1.0)
+  {
+    throw InvalidParameterError("controller_delay",
+                                "must be 0 or 1 sample (got " + formatNumber(controller_delay) + ")");
+  }
+  for (double n : {motor_encoder_resolution, load_encoder_resolution})
+  {
+    if (n != std::floor(n))
+    {
+      throw InvalidParameterError(
+          n == motor_encoder_resolution ? "motor_encoder_resolution" : "load_encoder_resolution",
+          "must be a whole number of counts per revolution (got " + formatNumber(n) + ")");
+    }
+  }
+}
+
+SampledDrive::SampledDrive(const DriveParams& drive, double gain, double gear_ratio, double command, double t0)
+    : p_(drive), gain_(gain), rho_(gear_ratio), command_(command), t0_(t0)
+{
+  drive.validate();
+  requireFinite("command", command);
+}
+
+void SampledDrive::configure(const ServoParams& params)
+{
+  gain_ = params.gain;
+  rho_ = params.gear_ratio;
+}
+
+void SampledDrive::setCommand(double command)
+{
+  requireFinite("command", command);
+  command_ = command;
+}
+
+double SampledDrive::nextEventTime(double /*t*/) const
+{
+  return t0_ + static_cast<double>(next_) / p_.controller_rate;  // t_k from the integer k: no drift
+}
+
+double SampledDrive::read(double angle, double resolution) const
+{
+  if (resolution <= 0.0)
+  {
+    return angle;
+  }
+  constexpr double TWO_PI = 6.283185307179586476925;
+  return TWO_PI / resolution * std::floor(resolution * angle / TWO_PI);
+}
+
+void SampledDrive::sample(const State& s)
+{
+  const double period = 1.0 / p_.controller_rate;
+  const double qm = read(s.motor_position, p_.motor_encoder_resolution);
+  motor_reading_ = rho_ * qm;
+  load_reading_ = read(s.load_position, p_.load_encoder_resolution);
+  const double y = p_.feedback == "motor" ? motor_reading_ : load_reading_;
+  const double e = command_ - y;
+  const bool first = next_ == 0;
+  const double limit = p_.torque_limit;
+  auto beyond = [&](double u, double sign) { return limit > 0.0 && std::fabs(u) > limit && u * sign > 0.0; };
+  double u = 0.0;
+  if (p_.control_law == "pid")
+  {
+    const double y_prev = first ? y : y_prev_;
+    const double derivative = p_.derivative_gain * (y - y_prev) / period;
+    double integral = integral_ + p_.integral_gain * period * e;
+    u = gain_ * e + integral - derivative;
+    if (beyond(u, e))
+    {
+      integral = integral_;  // conditional integration: no wind-up against the limit
+      u = gain_ * e + integral - derivative;
+    }
+    integral_ = integral;
+  }
+  else if (p_.control_law == "cascade")
+  {
+    const double w_ref = p_.position_loop_gain * e;
+    const double w_hat = first ? 0.0 : rho_ * (qm - qm_prev_) / period;
+    const double err = w_ref - w_hat;
+    double integral = integral_ + p_.velocity_loop_integral_gain * period * err;
+    u = p_.velocity_loop_gain * err + integral;
+    if (beyond(u, err))
+    {
+      integral = integral_;
+      u = p_.velocity_loop_gain * err + integral;
+    }
+    integral_ = integral;
+  }
+  else
+  {
+    u = gain_ * e;
+  }
+  if (limit > 0.0)
+  {
+    u = std::min(std::max(u, -limit), limit);
+  }
+  y_prev_ = y;
+  qm_prev_ = qm;
+  if (p_.controller_delay > 0.0)
+  {
+    held_ = pending_;
+    pending_ = u;
+  }
+  else
+  {
+    held_ = u;
+  }
+  ++next_;
 }
 
 }  // namespace backlash_servo

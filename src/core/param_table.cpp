@@ -76,6 +76,34 @@ std::vector<ParamSpec> makeTable()
      {}, &State::motor_velocity},
     {"contact", "", "-", T::Choice, S::Initial, FINITE, "forward", "teeth at the start: gap 0, gap Δ, or floating",
      false, {"forward", "backward", "none"}, {}},
+    // ---- the drive (MODEL.md Part 2, "Digital drive"); the P gain is `gain` ----
+    {"control_law", "", "-", T::Choice, S::Drive, FINITE, "proportional",
+     "proportional (continuous or sampled), pid or cascade (sampled laws)", false, {"proportional", "pid", "cascade"},
+     {}},
+    {"controller_rate", "f_s", "Hz", T::Real, S::Drive, ParamRange{0.0, 1e6, false, false}, "0",
+     "sample rate of the digital drive (zero-order hold); 0 = continuous, the thesis' servo", false, {},
+     &DriveParams::controller_rate},
+    {"controller_delay", "", "samples", T::Real, S::Drive, UNIT, "0", "computation delay: 0 or 1 sample", false, {},
+     &DriveParams::controller_delay},
+    {"motor_encoder_resolution", "N_m", "counts/rev", T::Real, S::Drive, ParamRange{0.0, 1e9, false, false}, "0",
+     "motor encoder resolution, 0 = ideal", false, {}, &DriveParams::motor_encoder_resolution},
+    {"load_encoder_resolution", "N_L", "counts/rev", T::Real, S::Drive, ParamRange{0.0, 1e9, false, false}, "0",
+     "load encoder resolution, 0 = ideal", false, {}, &DriveParams::load_encoder_resolution},
+    {"feedback", "", "-", T::Choice, S::Drive, FINITE, "load",
+     "position the controller reads: load encoder, or motor encoder referred through ρ (semi-closed loop)", false,
+     {"load", "motor"}, {}},
+    {"integral_gain", "K_i", "N·m/(rad·s)", T::Real, S::Drive, ParamRange{0.0, 1e12, false, false}, "0",
+     "pid: integral gain", false, {}, &DriveParams::integral_gain},
+    {"derivative_gain", "K_d", "N·m·s/rad", T::Real, S::Drive, ParamRange{0.0, 1e12, false, false}, "0",
+     "pid: derivative gain, on the measurement", false, {}, &DriveParams::derivative_gain},
+    {"position_loop_gain", "K_p", "1/s", T::Real, S::Drive, ParamRange{0.0, 1e9, false, false}, "0",
+     "cascade: outer position loop gain", false, {}, &DriveParams::position_loop_gain},
+    {"velocity_loop_gain", "K_v", "N·m·s/rad", T::Real, S::Drive, ParamRange{0.0, 1e12, false, false}, "0",
+     "cascade: inner velocity loop gain", false, {}, &DriveParams::velocity_loop_gain},
+    {"velocity_loop_integral_gain", "K_vi", "N·m/rad", T::Real, S::Drive, ParamRange{0.0, 1e12, false, false}, "0",
+     "cascade: inner velocity loop integral gain", false, {}, &DriveParams::velocity_loop_integral_gain},
+    {"torque_limit", "T_max", "N·m", T::Real, S::Drive, ParamRange{0.0, 1e12, false, false}, "0",
+     "saturation of the motor torque, 0 = none (sampled laws)", false, {}, &DriveParams::torque_limit},
     // ---- length of a command-line run ----
     {"duration", "", "s", T::Real, S::Run, NON_NEGATIVE, "0",
      "simulate exactly this long (0 = until the verdict is settled)", false, {}, &RunConfig::duration},
@@ -238,6 +266,8 @@ const char* toString(ParamSection s)
       return "chart";
     case ParamSection::Initial:
       return "initial";
+    case ParamSection::Drive:
+      return "drive";
     case ParamSection::Run:
       return "run";
     default:

@@ -43,6 +43,12 @@ void Simulator::setCommand(double command, EventSink* sink)
 {
   requireFinite("command", command);
   command_ = command;
+  if (auto* sampled = dynamic_cast<SampledDrive*>(drive_.get()))
+  {
+    sampled->setCommand(command);  // read at the next sample; the held torque stays until then
+    plant_.emit(sink, EventType::InputChange);
+    return;
+  }
   setDrive(std::make_unique<ProportionalDrive>(plant_.params().gain, command), sink);
 }
 
@@ -69,6 +75,12 @@ void Simulator::advanceTo(double t_end, EventSink* sink)
   while (state().time < t_end)
   {
     const double next = drive_->nextEventTime(state().time);
+    if (next <= state().time)
+    {
+      drive_->sample(plant_.state());  // a sample due now (at a step boundary)
+      plant_.setLaw(drive_->law());
+      continue;
+    }
     if (!(next < t_end))
     {
       plant_.advanceTo(t_end, sink);

@@ -46,6 +46,10 @@ ServoNode::ServoNode(ros::NodeHandle& nh, ros::NodeHandle& pnh, const NodeConfig
   {
     sim_.setMotorTorque(effort_);
   }
+  else
+  {
+    applyPositionDrive();
+  }
   restartMonitor();
   joint_pub_ = nh.advertise<sensor_msgs::JointState>("joint_states", 1000);
   impact_pub_ = nh.advertise<ImpactEvent>("impact", 10000);
@@ -407,6 +411,20 @@ void ServoNode::onEffort(const std_msgs::Float64& msg)
   }
 }
 
+void ServoNode::applyPositionDrive()
+{
+  if (config_.run.drive.sampled())
+  {
+    // The digital drive of the YAML (control_law, controller_rate, encoders, …), sampling from now on.
+    sim_.setDrive(std::make_unique<SampledDrive>(config_.run.drive, sim_.params().gain, sim_.params().gear_ratio,
+                                                 command_, sim_.state().time));
+  }
+  else
+  {
+    sim_.setCommand(command_);
+  }
+}
+
 void ServoNode::onLoadTorque(const std_msgs::Float64& msg)
 {
   ServoParams p = sim_.params();
@@ -444,7 +462,7 @@ bool ServoNode::onReset(std_srvs::Trigger::Request&, std_srvs::Trigger::Response
   command_ = config_.run.command;
   if (sim_.controlMode() == ControlMode::Position)
   {
-    sim_.setCommand(command_);
+    applyPositionDrive();  // a fresh controller: integrators and sample clock restart with the state
   }
   restartMonitor();
   if (!fault_.empty())
@@ -537,7 +555,7 @@ void ServoNode::onReconfigure(BacklashServoConfig& c, uint32_t)
     }
     else
     {
-      sim_.setCommand(command_);
+      applyPositionDrive();
     }
     restartMonitor();
   }

@@ -46,6 +46,8 @@ class ServoNode : public EventSink
   void onEffort(const std_msgs::Float64& msg);
   /// External load torque T_ext [N·m] from now on (a disturbance input); validated, reflected in reconfigure.
   void onLoadTorque(const std_msgs::Float64& msg);
+  /// Position mode with the configured law: the continuous P law, or the YAML's digital drive (fresh state).
+  void applyPositionDrive();
   bool onReset(std_srvs::Trigger::Request& req, std_srvs::Trigger::Response& res);
   bool onPause(std_srvs::Trigger::Request& req, std_srvs::Trigger::Response& res);
   bool onResume(std_srvs::Trigger::Request& req, std_srvs::Trigger::Response& res);

@@ -166,7 +166,7 @@ int main(int argc, char** argv)
     }
     else if (format == "markdown")
     {
-      printMarkdown(std::cout, parser.option("sections", "servo,chart,initial,run,node"));
+      printMarkdown(std::cout, parser.option("sections", "servo,chart,drive,initial,run,node"));
     }
     else if (format == "json")
     {

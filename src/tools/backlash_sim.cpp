@@ -32,7 +32,8 @@ FlagParser makeParser()
 {
   return FlagParser(
       "backlash_sim", HEADER,
-      keysOfSections({ParamSection::Servo, ParamSection::Chart, ParamSection::Initial, ParamSection::Run}),
+      keysOfSections(
+          {ParamSection::Servo, ParamSection::Chart, ParamSection::Drive, ParamSection::Initial, ParamSection::Run}),
       {{"config", "FILE.yaml", "the same keys in snake_case (the YAML the node loads; flags override it)"},
        {"json", "", "one JSON object on stdout"},
        {"csv", "FILE", "trajectory samples plus one row per event"},
@@ -79,6 +80,16 @@ void writeJson(std::ostream& out, const RunConfig& c, const RunSummary& r, doubl
   {
     j.field(spec->key, p.*std::get<double ServoParams::*>(spec->field));
   }
+  j.beginObject("drive");
+  for (const ParamSpec* spec : paramsIn(ParamSection::Drive))
+  {
+    if (const auto* f = std::get_if<double DriveParams::*>(&spec->field))
+    {
+      j.field(spec->key, c.drive.*(*f));
+    }
+  }
+  j.field("control_law", c.drive.control_law).field("feedback", c.drive.feedback);
+  j.endObject();
   j.field("command", c.command)
       .field("zeta", p.dampingRatio())
       .field("natural_frequency", p.naturalFrequency())
