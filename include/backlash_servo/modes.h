@@ -61,6 +61,8 @@ class ContactMotion
   int velocityMaxima(double horizon, double* out, int max_out) const;
   /// Energy flows over [0, tau].
   EnergyFlows energy(double tau) const;
+  /// θ_c(τ) − θ_c(0) [rad], from the closed form (no difference of large positions).
+  double displacement(double tau) const;
 
  private:
   /// The two signals of the contact mode whose zeros are events.
@@ -81,11 +83,20 @@ class ContactMotion
   double x0_, v0_;
   double torque_level_ = 0.0;  // constant part of the mesh torque, −T_ext [N·m]
   bool oscillatory_ = false;
+  // Constant motor torque (effort mode, sampled drives) with a slow decay p (p·W ≤ 0.5 over a natural period):
+  // θ_c = x0 + v0 Φ1 + r Φ2, Φ1 = (1 − e^{−pτ})/p, Φ2 = (τ − Φ1)/p evaluated with expm1/series (no cancellation);
+  // velocity and mesh torque are monotone, so their zeros are closed forms (log1p).
+  bool slow_effort_ = false;
+  double p_ = 0.0, r_ = 0.0;
+  double phi1(double tau) const;
+  double phi2(double tau) const;
+  /// The τ in (0, horizon] where ω_c reaches v (monotone), or +inf.
+  double timeOfVelocity(double v, double horizon) const;
   // Oscillatory: θ_c = x_eq + e^{−στ}(A cos ωτ + B sin ωτ); velocity and mesh torque as e^{−στ}(C cos + D sin).
   double x_eq_ = 0.0, sigma_ = 0.0, omega_ = 0.0, a_ = 0.0, b_ = 0.0;
   double vel_c_ = 0.0, vel_d_ = 0.0, torque_c_ = 0.0, torque_d_ = 0.0;
   // Real exponents: closed forms as exponential polynomials.
-  ExpPoly position_, velocity_, acceleration_, torque_;
+  ExpPoly position_, velocity_, acceleration_, torque_, displacement_;
 };
 
 /**

@@ -78,6 +78,8 @@ struct EnergyLedger
   double load_friction = 0.0;    ///< ∫ f_L ω_c² dt [J]
   double impact_loss = 0.0;      ///< Σ energy lost in impacts [J]
   double load_work = 0.0;        ///< work of the external load torque ∫ T_ext ω_c dt [J]
+  double input_magnitude = 0.0;  ///< Σ |motor work| over the segments [J]: the rounding scale of `input` when the
+                                 ///< drive's torque alternates (a sampled loop pumping energy in and out)
   double initial_kinetic = 0.0;  ///< kinetic energy at the start [J]
 };
 

@@ -190,6 +190,8 @@ ContactMotion::ContactMotion(const ServoParams& params, const MotorInput& input,
       // Critically damped: y = (A + Bτ) e^{λτ}.
       const double lambda = -0.5 * p;
       position_ = position_ + ExpPoly::monomial(y0, 0, lambda) + ExpPoly::monomial(v0 - lambda * y0, 1, lambda);
+      displacement_ =
+          ExpPoly::constant(-y0) + ExpPoly::monomial(y0, 0, lambda) + ExpPoly::monomial(v0 - lambda * y0, 1, lambda);
     }
     else
     {
@@ -197,7 +199,16 @@ ContactMotion::ContactMotion(const ServoParams& params, const MotorInput& input,
       const double l2 = q / l1;  // product of the roots is q; avoids cancellation
       const double c1 = (v0 - l2 * y0) / (l1 - l2);
       position_ = position_ + ExpPoly::monomial(c1, 0, l1) + ExpPoly::monomial(y0 - c1, 0, l2);
+      displacement_ = ExpPoly::constant(-y0) + ExpPoly::monomial(c1, 0, l1) + ExpPoly::monomial(y0 - c1, 0, l2);
     }
+  }
+  else if (p_raw > 0.0 && p_raw * 2.0 * PI / params.naturalFrequency() <= 0.5)
+  {
+    // Constant torque, slow decay: the φ-function form (see modes.h); no ExpPoly, no cancellation, no rate merged.
+    slow_effort_ = true;
+    p_ = p_raw;
+    r_ = r;
+    return;
   }
   else if (p > 0.0)
   {
@@ -205,10 +216,12 @@ ContactMotion::ContactMotion(const ServoParams& params, const MotorInput& input,
     const double v_inf = r / p;
     const double c = (v0 - v_inf) / p;
     position_ = ExpPoly::constant(x0 + c) + ExpPoly::monomial(v_inf, 1, 0.0) + ExpPoly::monomial(-c, 0, -p);
+    displacement_ = ExpPoly::constant(c) + ExpPoly::monomial(v_inf, 1, 0.0) + ExpPoly::monomial(-c, 0, -p);
   }
   else
   {
     position_ = ExpPoly::constant(x0) + ExpPoly::monomial(v0, 1, 0.0) + ExpPoly::monomial(0.5 * r, 2, 0.0);
+    displacement_ = ExpPoly::monomial(v0, 1, 0.0) + ExpPoly::monomial(0.5 * r, 2, 0.0);
   }
   velocity_ = position_.derivative();
   acceleration_ = velocity_.derivative();
@@ -219,8 +232,55 @@ ContactMotion::ContactMotion(const ServoParams& params, const MotorInput& input,
   }
 }
 
+double ContactMotion::phi1(double tau) const
+{
+  const double z = p_ * tau;
+  return std::fabs(z) < 1e-3 ? tau * (1.0 - z / 2.0 * (1.0 - z / 3.0 * (1.0 - z / 4.0 * (1.0 - z / 5.0))))
+                             : -std::expm1(-z) / p_;
+}
+
+double ContactMotion::phi2(double tau) const
+{
+  // (τ − Φ1)/p = τ² Σ_j (−z)^j/(j+2)!, by its series where z = pτ is small.
+  const double z = p_ * tau;
+  if (std::fabs(z) < 0.5)
+  {
+    double term = 0.5, sum = 0.0;  // (−z)^j/(j+2)!
+    for (int j = 0; j < 40 && std::fabs(term) > 1e-18 * std::fabs(sum); ++j)
+    {
+      sum += term;
+      term *= -z / (j + 3);
+    }
+    return tau * tau * sum;
+  }
+  return (tau - phi1(tau)) / p_;
+}
+
+double ContactMotion::timeOfVelocity(double v, double horizon) const
+{
+  // ω(τ) − v0 = (r − p v0) Φ1(τ), Φ1 increasing from 0 to 1/p: Φ1(τ*) = φ ⇒ τ* = −log1p(−pφ)/p.
+  const double slope = r_ - p_ * v0_;
+  if (slope == 0.0)
+  {
+    return INF;
+  }
+  const double phi = (v - v0_) / slope;
+  if (!(phi > 0.0) || !(p_ * phi < 1.0))
+  {
+    return INF;
+  }
+  const double tau = -std::log1p(-p_ * phi) / p_;
+  return tau > 0.0 && tau <= horizon ? tau : INF;
+}
+
 void ContactMotion::at(double tau, double* x, double* v) const
 {
+  if (slow_effort_)
+  {
+    *x = x0_ + v0_ * phi1(tau) + r_ * phi2(tau);
+    *v = v0_ * std::exp(-p_ * tau) + r_ * phi1(tau);
+    return;
+  }
   if (oscillatory_)
   {
     const double e = std::exp(-sigma_ * tau);
@@ -236,6 +296,12 @@ void ContactMotion::at(double tau, double* x, double* v) const
 
 double ContactMotion::meshTorque(double tau) const
 {
+  if (slow_effort_)
+  {
+    double x, v;
+    at(tau, &x, &v);
+    return params_.load_inertia * (r_ - p_ * v) + params_.load_friction * v + torque_level_;
+  }
   if (oscillatory_)
   {
     return torque_level_ +
@@ -288,6 +354,26 @@ int ContactMotion::downCrossings(Signal signal, double sign, double horizon, boo
 
 double ContactMotion::separationTime(double side, double horizon) const
 {
+  if (slow_effort_)
+  {
+    // Q = J_L (r − p ω) + f_L ω − T_ext is affine in the monotone ω: one crossing at most, where ω = ω*.
+    const double slope = params_.load_friction - params_.load_inertia * p_;
+    if (slope == 0.0)
+    {
+      return INF;
+    }
+    const double q_end = side * meshTorque(horizon);
+    const double bound = 64.0 * EPS *
+                         (params_.load_inertia * (std::fabs(r_) + p_ * std::fabs(v0_)) + std::fabs(torque_level_) +
+                          params_.load_friction * std::fabs(v0_) + std::fabs(slope * r_ * horizon));
+    if (!(q_end < -bound))
+    {
+      return INF;
+    }
+    const double v_star = -(params_.load_inertia * r_ + torque_level_) / slope;
+    const double t = timeOfVelocity(v_star, horizon);
+    return t < INF ? t : (side * meshTorque(0.0) <= 0.0 ? 0.0 : horizon);
+  }
   if (oscillatory_ && torque_level_ != 0.0)
   {
     return levelSeparationTime(side, horizon);
@@ -310,6 +396,11 @@ double ContactMotion::levelSeparationTime(double side, double horizon) const
   const double dd = -sigma_ * torque_d_ - omega_ * torque_c_;
   double crit = (dc == 0.0 && dd == 0.0) ? INF : (std::atan2(dd, dc) + 0.5 * PI) / omega_;
   const double half = PI / omega_;
+  // The first critical point after 0: both maxima and minima of the sinusoid bound monotone pieces.
+  while (crit > half)
+  {
+    crit -= half;
+  }
   while (crit <= 0.0)
   {
     crit += half;
@@ -347,16 +438,63 @@ double ContactMotion::levelSeparationTime(double side, double horizon) const
 
 int ContactMotion::velocityMaxima(double horizon, double* out, int max_out) const
 {
+  if (slow_effort_)
+  {
+    // ω is monotone: a maximum of θ_c needs ω going from clearly + to clearly −.
+    double x, v_end;
+    at(horizon, &x, &v_end);
+    const double bound = 64.0 * EPS * (std::fabs(v0_) + std::fabs(r_) * horizon);
+    if (max_out < 1 || !(v0_ > bound) || !(v_end < -bound))
+    {
+      return 0;
+    }
+    const double t = timeOfVelocity(0.0, horizon);
+    out[0] = t < INF ? t : horizon;
+    return 1;
+  }
   return downCrossings(Signal::LoadVelocity, 1.0, horizon, true, out, max_out);
+}
+
+double ContactMotion::displacement(double tau) const
+{
+  if (slow_effort_)
+  {
+    return v0_ * phi1(tau) + r_ * phi2(tau);
+  }
+  if (oscillatory_)
+  {
+    return std::exp(-sigma_ * tau) * (a_ * std::cos(omega_ * tau) + b_ * std::sin(omega_ * tau)) - a_;
+  }
+  return displacement_(tau);
 }
 
 EnergyFlows ContactMotion::energy(double tau) const
 {
-  double x1, v1;
-  at(tau, &x1, &v1);
-  const double dx = x1 - x0_;
+  // θ_c(τ) − θ_c(0) from its own closed form: far from the origin (|θ| ≫ the motion) a difference of positions
+  // would lose the digits the energy needs.
+  const double dx = displacement(tau);
+  const double x1 = x0_ + dx;
   double v2;  // ∫ θ̇_c² dτ
-  if (oscillatory_)
+  if (slow_effort_)
+  {
+    // 16-point Gauss–Legendre: ω² is e^{−2pτ}, e^{−pτ} and 1 with pτ ≤ 0.5 — exact to rounding.
+    static const double nodes[8] = {0.0950125098376374, 0.2816035507792589, 0.4580167776572274, 0.6178762444026438,
+                                    0.7554044083550030, 0.8656312023878318, 0.9445750230732326, 0.9894009349916499};
+    static const double weights[8] = {0.1894506104550685, 0.1826034150449236, 0.1691565193950025, 0.1495959888165767,
+                                      0.1246289712555339, 0.0951585116824928, 0.0622535239386479, 0.0271524594117541};
+    v2 = 0.0;
+    for (int i = 0; i < 8; ++i)
+    {
+      for (double sgn : {-1.0, 1.0})
+      {
+        double x, v;
+        at(0.5 * tau * (1.0 + sgn * nodes[i]), &x, &v);
+        v2 += weights[i] * v * v;
+      }
+    }
+    v2 *= 0.5 * tau;
+  }
+  else if (oscillatory_)
   {
     // v² = e^{−2στ}[(C²+D²)/2 + (C²−D²)/2 cos 2ωτ + CD sin 2ωτ]
     const std::complex<double> osc = integralExp({-2.0 * sigma_, 2.0 * omega_}, tau);
@@ -464,6 +602,12 @@ bool apartNeedsSeries(const ServoParams& params, double window)
 {
   const double alpha = params.load_friction / params.load_inertia;
   const double beta = params.motor_friction / params.motor_inertia;
+  // A load torque on a frictionless body raises the polynomial degrees beyond the compact form's (θ_c quadratic,
+  // θ_m quartic, and their products in the energy integrals).
+  if (params.load_torque != 0.0 && (alpha == 0.0 || beta == 0.0))
+  {
+    return true;
+  }
   return slowRate(alpha, window) || slowRate(beta, window) ||
          (alpha != 0.0 && beta != 0.0 && !equalRates(alpha, beta) && slowRate(beta - alpha, window));
 }
@@ -615,7 +759,7 @@ EnergyFlows BasicFreeMotion<Poly>::energy(double tau) const
   e.input = (torque * motor_velocity_).integral(tau);
   e.motor_friction = params_.motor_friction * (motor_velocity_ * motor_velocity_).integral(tau);
   e.load_friction = params_.load_friction * (load_velocity_ * load_velocity_).integral(tau);
-  e.load_work = params_.load_torque * (load_position_(tau) - load_position_(0.0));
+  e.load_work = params_.load_torque * load_velocity_.integral(tau);
   return e;
 }
 

@@ -199,6 +199,7 @@ void Plant::addFlows(const EnergyFlows& f)
   energy_.motor_friction += f.motor_friction;
   energy_.load_friction += f.load_friction;
   energy_.load_work += f.load_work;
+  energy_.input_magnitude += std::fabs(f.input);
 }
 
 void Plant::advanceTo(double t_end, EventSink* sink)

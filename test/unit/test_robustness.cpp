@@ -94,3 +94,30 @@ TEST(Robustness, HowARunIsCutIntoStepsChangesNotOneBit)
 }
 
 }  // namespace
+
+namespace
+{
+TEST(Robustness, RigidMeshWithALoadTorqueDoesNotFlipFlanksForEver)
+{
+  // Fuzz case (seed 11, #31): Δ = 0, a large load torque, the mesh torque at rounding level. The level-crossing
+  // search skipped its first monotone piece and reported a separation at τ = 0 on the flank that holds; the two
+  // flanks then took turns for ever ("made no progress").
+  ServoParams p;
+  p.motor_inertia = 0.29429766605145347;
+  p.load_inertia = 25.890763837608279;
+  p.motor_friction = 0.0025343175909771851;
+  p.load_friction = 0.01206889133010744;
+  p.gain = 0.088359281940251111;
+  p.gear_ratio = 0.11447054780407151;
+  p.backlash = 0.0;
+  p.restitution = 0.079410606104206055;
+  p.load_torque = -990.36509081817815;
+  State s;
+  s.load_velocity = 418.50929608758037;
+  s.motor_velocity = 3656.0434462487542;
+  Simulator sim(p, s, -5338.1883777535932);
+  EXPECT_NO_THROW(sim.advanceTo(994.5));
+  EXPECT_LE(std::fabs(sim.energyBalanceError()),
+            1e-9 * (std::fabs(sim.energy().input) + sim.energy().initial_kinetic + std::fabs(sim.energy().load_work)));
+}
+}  // namespace
