@@ -41,6 +41,7 @@ struct SweepOptions
   int jobs = 1;
   bool resume = false;
   double max_duration = 0.0;
+  std::size_t shard_k = 1, shard_n = 1;  // --shard K/N
 };
 
 SweepOptions parse(int argc, char** argv)
@@ -54,7 +55,9 @@ SweepOptions parse(int argc, char** argv)
         "e {0,.6,.8,1}, backlash 0.3 (1344 points); axes given as flags replace its axes"},
        {"output", "FILE", "CSV file, '-' = stdout (default)"},
        {"jobs", "N", "worker threads (default: all cores)"},
-       {"resume", "", "keep the rows already in FILE (same grid only) and compute the missing points"}});
+       {"resume", "", "keep the rows already in FILE (same grid only) and compute the missing points"},
+       {"shard", "K/N", "compute only part K of N (contiguous points by grid index) into a part file for --merge"},
+       {"merge", "PART...", "join part files (any order) into --output: exactly the CSV of an unsharded run"}});
   parser.parse(argc, argv);
   SweepOptions o;
   if (parser.given("preset"))
@@ -79,6 +82,18 @@ SweepOptions parse(int argc, char** argv)
     throw ConfigError("--jobs must be in [1, 4096]");
   }
   o.resume = parser.given("resume");
+  if (parser.given("shard"))
+  {
+    unsigned long long k = 0, n = 0;
+    char tail = 0;
+    if (std::sscanf(parser.option("shard").c_str(), "%llu/%llu%c", &k, &n, &tail) != 2 || n < 1 || k < 1 || k > n ||
+        n > 100000)
+    {
+      throw ConfigError("--shard: expected K/N with 1 <= K <= N <= 100000 (got '" + parser.option("shard") + "')");
+    }
+    o.shard_k = k;
+    o.shard_n = n;
+  }
   o.max_duration = parser.keys().number("max_duration", 0.0);
   param("max_duration").check(o.max_duration);
   if (o.resume && o.output == "-")
@@ -104,16 +119,76 @@ std::string evaluate(const SweepPoint& p, double max_duration)
 }
 }  // namespace
 
+/// `--merge PART... --output FILE`: the parts of a sharded sweep joined into the unsharded CSV.
+int merge(int argc, char** argv)
+{
+  std::vector<std::string> parts;
+  std::string output;
+  for (int i = 1; i < argc; ++i)
+  {
+    const std::string arg = argv[i];
+    if (arg == "--merge")
+    {
+      continue;
+    }
+    if (arg == "--output" && i + 1 < argc)
+    {
+      output = argv[++i];
+    }
+    else if (arg.rfind("--", 0) == 0)
+    {
+      std::cerr << "backlash_sweep: error: --merge takes only part files and --output FILE (got " << arg << ")\n";
+      return 2;
+    }
+    else
+    {
+      parts.push_back(arg);
+    }
+  }
+  try
+  {
+    if (output.empty() || output == "-")
+    {
+      throw ConfigError("--merge needs --output FILE");
+    }
+    const std::string csv = mergeParts(parts);
+    OutputFile file("--output", output);
+    file.stream() << csv;
+    file.commit();
+  }
+  catch (const ConfigError& e)
+  {
+    std::cerr << "backlash_sweep: error: " << e.what() << "\n";
+    return 2;
+  }
+  catch (const std::exception& e)
+  {
+    std::cerr << "backlash_sweep: error: " << e.what() << "\n";
+    return 1;
+  }
+  std::fprintf(stderr, "backlash_sweep: merged %zu parts into '%s'\n", parts.size(), output.c_str());
+  return 0;
+}
+
 int main(int argc, char** argv)
 {
+  for (int i = 1; i < argc; ++i)
+  {
+    if (std::string(argv[i]) == "--merge")
+    {
+      return merge(argc, argv);
+    }
+  }
   SweepOptions o;
+  SweepShard shard;
   std::vector<std::string> kept;
   try
   {
     o = parse(argc, argv);
+    shard = shardOf(o.shard_k, o.shard_n, o.grid.size());
     if (o.resume)
     {
-      kept = resumableRows(o.output, o.grid);
+      kept = resumableRows(o.output, o.grid, shard);
     }
   }
   catch (const std::exception& e)
@@ -145,6 +220,10 @@ int main(int argc, char** argv)
     out = &file;
   }
   SweepCsvWriter csv(*out);
+  if (!shard.whole())
+  {
+    *out << shard.headerLine(o.grid) << "\n";
+  }
   csv.header();
   for (const std::string& line : kept)
   {
@@ -155,19 +234,21 @@ int main(int argc, char** argv)
   std::signal(SIGINT, onSignal);
   std::signal(SIGTERM, onSignal);
   Progress progress(isatty(2) && o.output != "-");
+  const std::size_t first = shard.whole() ? 0 : shard.first;
+  const std::size_t last = shard.whole() ? total : shard.last;
   const SweepRunResult run = runSweepPoints(
-      kept.size(), total, o.jobs, [&](std::size_t i) { return evaluate(o.grid.point(i), o.max_duration); },
+      first + kept.size(), last, o.jobs, [&](std::size_t i) { return evaluate(o.grid.point(i), o.max_duration); },
       [&](std::size_t i, const std::string& row) {
         csv.row(row);
         csv.flush();
-        progress.update(i + 1, total);
+        progress.update(i + 1 - first, last - first);
       },
       g_interrupted);
   progress.finish();
   if (!csv.flush())
   {
     std::cerr << "backlash_sweep: error: writing '" << o.output << "' failed after " << kept.size() + run.delivered
-              << " of " << total << " rows (disk full?)\n";
+              << " of " << last - first << " rows (disk full?)\n";
     return 1;
   }
   if (!run.failure.empty())
@@ -177,11 +258,13 @@ int main(int argc, char** argv)
   }
   if (g_interrupted)
   {
-    std::cerr << "backlash_sweep: interrupted: " << kept.size() + run.delivered << " of " << total
+    std::cerr << "backlash_sweep: interrupted: " << kept.size() + run.delivered << " of " << last - first
               << " points written; rerun with --resume to finish\n";
     return 130;
   }
-  std::fprintf(stderr, "backlash_sweep: %zu points (%zu computed) in %.3f s wall with %d jobs\n", total,
-               total - kept.size(), progress.elapsed(), o.jobs);
+  std::fprintf(
+      stderr, "backlash_sweep: %zu points (%zu computed) in %.3f s wall with %d jobs%s\n", last - first,
+      last - first - kept.size(), progress.elapsed(), o.jobs,
+      shard.whole() ? "" : (" (part " + std::to_string(shard.k) + "/" + std::to_string(shard.n) + ")").c_str());
   return 0;
 }

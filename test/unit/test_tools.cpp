@@ -252,3 +252,55 @@ TEST(JointCases, ImplementedReferenceCasesAgreeToOneMicro)
   EXPECT_NE(out.find("PASSED  preload_large_D1"), std::string::npos) << out;
 }
 }  // namespace
+
+namespace
+{
+TEST(SweepShards, PartsInAnyOrderMergeIntoExactlyTheUnshardedCsv)
+{
+  const std::string dir = ::testing::TempDir();
+  const std::string grid = " --zeta 0.1,0.3,0.5 --inertia-ratio 0.25,9 --friction-ratio 0,0.5 --restitution 0.6,1";
+  const std::string sweep = std::string(BACKLASH_SWEEP_EXE) + grid;
+  int code = 0;
+  runCapture(sweep + " --output " + dir + "shard_whole.csv 2>/dev/null", &code);
+  ASSERT_EQ(code, 0);
+  for (int k : {4, 2, 1, 3})
+  {
+    runCapture(sweep + " --shard " + std::to_string(k) + "/4 --output " + dir + "shard_" + std::to_string(k) +
+                   ".csv 2>/dev/null",
+               &code);
+    ASSERT_EQ(code, 0) << k;
+  }
+  const std::string merge = std::string(BACKLASH_SWEEP_EXE) + " --merge ";
+  runCapture(merge + dir + "shard_3.csv " + dir + "shard_1.csv " + dir + "shard_4.csv " + dir +
+                 "shard_2.csv --output " + dir + "shard_merged.csv 2>/dev/null",
+             &code);
+  ASSERT_EQ(code, 0);
+  EXPECT_EQ(readFile(dir + "shard_merged.csv"), readFile(dir + "shard_whole.csv"));
+  // Missing, twice, another grid, incomplete: refused, nothing written.
+  const std::string out = " --output " + dir + "shard_bad.csv 2>&1";
+  std::remove((dir + "shard_bad.csv").c_str());
+  std::string err = runCapture(merge + dir + "shard_1.csv " + dir + "shard_2.csv " + dir + "shard_3.csv" + out, &code);
+  EXPECT_EQ(code, 2);
+  EXPECT_NE(err.find("missing part(s) 4"), std::string::npos) << err;
+  err = runCapture(merge + dir + "shard_1.csv " + dir + "shard_1.csv " + dir + "shard_2.csv " + dir + "shard_3.csv " +
+                       dir + "shard_4.csv" + out,
+                   &code);
+  EXPECT_NE(err.find("given twice"), std::string::npos) << err;
+  runCapture(std::string(BACKLASH_SWEEP_EXE) + " --zeta 0.2,0.4 --shard 4/4 --output " + dir + "shard_other.csv 2>&1",
+             &code);
+  err = runCapture(
+      merge + dir + "shard_1.csv " + dir + "shard_2.csv " + dir + "shard_3.csv " + dir + "shard_other.csv" + out,
+      &code);
+  EXPECT_NE(err.find("another sweep"), std::string::npos) << err;
+  const std::string part = readFile(dir + "shard_2.csv");
+  std::ofstream(dir + "shard_torn.csv") << part.substr(0, part.size() - 20);
+  err = runCapture(
+      merge + dir + "shard_1.csv " + dir + "shard_torn.csv " + dir + "shard_3.csv " + dir + "shard_4.csv" + out, &code);
+  EXPECT_NE(err.find("finish it with --resume"), std::string::npos) << err;
+  EXPECT_FALSE(std::ifstream(dir + "shard_bad.csv").good());
+  // A torn part is finished by --resume into the same part.
+  runCapture(sweep + " --shard 2/4 --resume --output " + dir + "shard_torn.csv 2>/dev/null", &code);
+  EXPECT_EQ(code, 0);
+  EXPECT_EQ(readFile(dir + "shard_torn.csv"), part);
+}
+}  // namespace

@@ -29,7 +29,118 @@ std::string sweepRow(const SweepPoint& p, const RunSummary& r)
   return buf;
 }
 
-std::vector<std::string> resumableRows(const std::string& path, const SweepGrid& grid)
+SweepShard shardOf(std::size_t k, std::size_t n, std::size_t total)
+{
+  SweepShard s;
+  s.k = k;
+  s.n = n;
+  s.first = (k - 1) * total / n;
+  s.last = k * total / n;
+  return s;
+}
+
+std::string SweepShard::headerLine(const SweepGrid& grid) const
+{
+  return "# backlash_sweep part " + std::to_string(k) + "/" + std::to_string(n) + ": points [" + std::to_string(first) +
+         ", " + std::to_string(last) + ") of " + std::to_string(grid.size()) + ", grid " + grid.fingerprint();
+}
+
+std::string mergeParts(const std::vector<std::string>& paths)
+{
+  struct Part
+  {
+    std::size_t k, n, first, last, total;
+    std::string grid, path;
+    std::vector<std::string> rows;
+  };
+  std::vector<Part> parts;
+  for (const std::string& path : paths)
+  {
+    std::ifstream in(path);
+    if (!in)
+    {
+      throw ConfigError("--merge: cannot read '" + path + "'");
+    }
+    const std::string content((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    std::stringstream ss(content);
+    std::string line;
+    std::getline(ss, line);
+    Part p;
+    p.path = path;
+    char grid[64] = {0};
+    unsigned long long k, n, first, last, total;
+    if (std::sscanf(line.c_str(), "# backlash_sweep part %llu/%llu: points [%llu, %llu) of %llu, grid %63s", &k, &n,
+                    &first, &last, &total, grid) != 6 ||
+        k < 1 || k > n || last < first)
+    {
+      throw ConfigError("--merge: '" + path + "' is not a part of a sharded sweep (no part line)");
+    }
+    p.k = k, p.n = n, p.first = first, p.last = last, p.total = total, p.grid = grid;
+    std::getline(ss, line);
+    if (line != SWEEP_CSV_HEADER)
+    {
+      throw ConfigError("--merge: '" + path + "' has no sweep CSV header");
+    }
+    while (std::getline(ss, line))
+    {
+      const bool complete = ss.good() || (!content.empty() && content.back() == '\n');
+      if (complete)
+      {
+        p.rows.push_back(line);
+      }
+    }
+    if (p.rows.size() != p.last - p.first)
+    {
+      throw ConfigError("--merge: part " + std::to_string(p.k) + "/" + std::to_string(p.n) + " ('" + path + "') has " +
+                        std::to_string(p.rows.size()) + " of " + std::to_string(p.last - p.first) +
+                        " rows: finish it with --resume first");
+    }
+    parts.push_back(std::move(p));
+  }
+  if (parts.empty())
+  {
+    throw ConfigError("--merge: no part files given");
+  }
+  const Part& ref = parts.front();
+  std::vector<const Part*> by_k(ref.n + 1, nullptr);
+  for (const Part& p : parts)
+  {
+    if (p.n != ref.n || p.total != ref.total || p.grid != ref.grid)
+    {
+      throw ConfigError("--merge: '" + p.path + "' belongs to another sweep (part of " + std::to_string(p.n) +
+                        ", grid " + p.grid + ") than '" + ref.path + "'");
+    }
+    if (by_k[p.k] != nullptr)
+    {
+      throw ConfigError("--merge: part " + std::to_string(p.k) + "/" + std::to_string(p.n) + " given twice ('" +
+                        by_k[p.k]->path + "', '" + p.path + "')");
+    }
+    by_k[p.k] = &p;
+  }
+  std::string missing;
+  for (std::size_t k = 1; k <= ref.n; ++k)
+  {
+    if (by_k[k] == nullptr)
+    {
+      missing += (missing.empty() ? "" : ", ") + std::to_string(k);
+    }
+  }
+  if (!missing.empty())
+  {
+    throw ConfigError("--merge: missing part(s) " + missing + " of " + std::to_string(ref.n));
+  }
+  std::string out = std::string(SWEEP_CSV_HEADER) + "\n";
+  for (std::size_t k = 1; k <= ref.n; ++k)
+  {
+    for (const std::string& row : by_k[k]->rows)
+    {
+      out += row + "\n";
+    }
+  }
+  return out;
+}
+
+std::vector<std::string> resumableRows(const std::string& path, const SweepGrid& grid, const SweepShard& shard)
 {
   std::ifstream in(path);
   const std::string content((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
@@ -37,10 +148,21 @@ std::vector<std::string> resumableRows(const std::string& path, const SweepGrid&
   std::string line;
   std::vector<std::string> kept;
   bool first = true;
+  bool part_line = !shard.whole();
   const std::size_t n = grid.size();
   while (std::getline(ss, line))
   {
     const bool complete = ss.good() || (!content.empty() && content.back() == '\n');
+    if (part_line)
+    {
+      part_line = false;
+      if (line != shard.headerLine(grid))
+      {
+        throw ConfigError("'" + path + "' is not part " + std::to_string(shard.k) + "/" + std::to_string(shard.n) +
+                          " of this grid; refusing to resume");
+      }
+      continue;
+    }
     if (first)
     {
       first = false;
@@ -54,8 +176,8 @@ std::vector<std::string> resumableRows(const std::string& path, const SweepGrid&
     {
       break;  // torn last line of an interrupted run
     }
-    const std::size_t index = kept.size();
-    const std::string expected = index < n ? grid.point(index).columns() : "";
+    const std::size_t index = shard.first + kept.size();
+    const std::string expected = index < (shard.whole() ? n : shard.last) ? grid.point(index).columns() : "";
     if (line.compare(0, expected.size() + 1, expected + ",") != 0)
     {
       throw ConfigError("'" + path + "' row " + std::to_string(index + 1) + " (" +

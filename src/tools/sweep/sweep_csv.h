@@ -17,12 +17,30 @@ extern const char* const SWEEP_CSV_HEADER;
 /// time [s], settled.
 std::string sweepRow(const SweepPoint& point, const RunSummary& run);
 
+/// Points first … last−1 of part K of N (1-based K): contiguous blocks by grid index.
+struct SweepShard
+{
+  std::size_t k = 1, n = 1;
+  std::size_t first = 0, last = 0;
+  bool whole() const { return n == 1; }
+  /// The part file's first line: "# backlash_sweep part K/N: points [F, L) of T, grid HASH" (none for n = 1).
+  std::string headerLine(const SweepGrid& grid) const;
+};
+SweepShard shardOf(std::size_t k, std::size_t n, std::size_t total);
+
+/**
+ * Joins part files of one sharded sweep (any order) into exactly the CSV a single run writes, checking that they
+ * are complete parts of the same grid, none missing and none twice. Throws ConfigError naming the problem.
+ */
+std::string mergeParts(const std::vector<std::string>& paths);
+
 /**
  * Rows of an earlier run that --resume keeps: the complete rows at the start of the file (a torn last line is
  * dropped), each checked to be the point of the same index in `grid`. Throws ConfigError when the file is not a
  * sweep CSV or was written for a different grid.
  */
-std::vector<std::string> resumableRows(const std::string& path, const SweepGrid& grid);
+std::vector<std::string> resumableRows(const std::string& path, const SweepGrid& grid,
+                                       const SweepShard& shard = SweepShard());
 
 /// Writes the header and rows in grid order and checks every write; flush() reports a failed write.
 class SweepCsvWriter

@@ -1,7 +1,9 @@
 #include "sweep_grid.h"
 
 #include <cmath>
+#include <cstdint>
 #include <cstdio>
+#include <cstring>
 #include <sstream>
 #include <stdexcept>
 
@@ -89,6 +91,30 @@ SweepPoint SweepGrid::point(std::size_t index) const
     index /= axes_[i].size();
   }
   return {v[0], v[1], v[2], v[3], v[4]};
+}
+
+std::string SweepGrid::fingerprint() const
+{
+  std::uint64_t h = 1469598103934665603ull;
+  auto mix = [&](std::uint64_t v) {
+    for (int b = 0; b < 8; ++b)
+    {
+      h = (h ^ ((v >> (8 * b)) & 0xffu)) * 1099511628211ull;
+    }
+  };
+  for (const auto& axis : axes_)
+  {
+    mix(axis.size());
+    for (double v : axis)
+    {
+      std::uint64_t bits;
+      std::memcpy(&bits, &v, sizeof bits);
+      mix(bits);
+    }
+  }
+  char buf[20];
+  std::snprintf(buf, sizeof buf, "%016llx", static_cast<unsigned long long>(h));
+  return buf;
 }
 
 std::vector<double> parseAxis(const std::string& flag, const std::string& text)

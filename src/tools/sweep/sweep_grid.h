@@ -46,6 +46,8 @@ class SweepGrid
   std::size_t size() const;
   /// Point `index` in [0, size()): nested loops over the axes in column order, the last axis fastest.
   SweepPoint point(std::size_t index) const;
+  /// A fingerprint of the axes' values (FNV-1a over their bits, hex): parts of one grid carry the same.
+  std::string fingerprint() const;
 
  private:
   std::array<std::vector<double>, AXES> axes_;
