@@ -57,30 +57,52 @@ class Drive
   virtual void sample(const State& /*state*/) {}
   /// New parameters (e.g. the gain) from now on; throws InvalidParameterError keeping the old ones.
   virtual void configure(const ServoParams& /*params*/) {}
+  /// A continuous law whose form depends on the state (saturation) re-evaluates it here: at a watch event (the load
+  /// left watchInterval()) or after a change of parameters or set-point. Sampled laws change only at samples.
+  virtual void reevaluate(const State& /*state*/) {}
+  /// The interval [lo, hi] of θ_c [rad] in which law() stays valid; the plant stops exactly where θ_c leaves it.
+  virtual void watchInterval(double* lo, double* hi) const
+  {
+    *lo = -std::numeric_limits<double>::infinity();
+    *hi = std::numeric_limits<double>::infinity();
+  }
   virtual std::unique_ptr<Drive> clone() const = 0;
 };
 
 /**
- * The thesis' continuous proportional law on the load position:
- * \f[ T_m = K(\theta_R - \theta_c) \f]  (a = Kθ_R [N·m], k = K [N·m/rad]).
+ * The thesis' continuous proportional law on the load position, optionally saturated:
+ * \f[ T_m = \mathrm{sat}_{T_{max}}\big(K(\theta_R - \theta_c)\big) \f]
+ * Linear (a = Kθ_R [N·m], k = K [N·m/rad]) while θ_c ∈ [θ_R − T_max/K, θ_R + T_max/K], else the constant ±T_max;
+ * the switches are watch events located exactly by the plant (the load reaching a band edge). At an edge the side
+ * the load is moving to decides, so a switch never repeats at the same instant.
  */
 class ProportionalDrive : public Drive
 {
  public:
-  /// gain K [N·m/rad] > 0, command θ_R [rad] (finite).
-  ProportionalDrive(double gain, double command);
+  /// gain K [N·m/rad] > 0, command θ_R [rad] (finite), torque_limit T_max [N·m] (0 = none).
+  ProportionalDrive(double gain, double command, double torque_limit = 0.0);
   ControlMode mode() const override { return ControlMode::Position; }
-  MotorInput law() const override { return {gain_ * command_, gain_}; }
+  MotorInput law() const override;
   void configure(const ServoParams& params) override;
+  void reevaluate(const State& state) override;
+  void watchInterval(double* lo, double* hi) const override;
   std::unique_ptr<Drive> clone() const override { return std::make_unique<ProportionalDrive>(*this); }
 
   double command() const { return command_; }
-  /// A step of the set-point θ_R [rad] (finite).
+  /// A step of the set-point θ_R [rad] (finite); call reevaluate() with the state after it.
   void setCommand(double command);
 
  private:
+  enum class Region
+  {
+    Linear,
+    High,  ///< θ_c below the band: +T_max
+    Low    ///< θ_c above the band: −T_max
+  };
   double gain_;
   double command_;
+  double limit_;
+  Region region_ = Region::Linear;
 };
 
 /// Torque given directly by an external controller: \f$ T_m = u \f$ [N·m], held until the next input.

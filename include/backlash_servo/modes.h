@@ -63,6 +63,8 @@ class ContactMotion
   EnergyFlows energy(double tau) const;
   /// θ_c(τ) − θ_c(0) [rad], from the closed form (no difference of large positions).
   double displacement(double tau) const;
+  /// First τ in (0, horizon] where θ_c leaves [lo, hi] beyond rounding (a drive's watch event), or +inf.
+  double exitTime(double lo, double hi, double horizon) const;
 
  private:
   /// The two signals of the contact mode whose zeros are events.
@@ -129,6 +131,8 @@ class BasicFreeMotion
   double impactTime(double horizon, Contact* wall) const;
   /// Energy flows over [0, tau].
   EnergyFlows energy(double tau) const;
+  /// First τ in (0, horizon] where θ_c leaves [lo, hi] beyond rounding (a drive's watch event), or +inf.
+  double exitTime(double lo, double hi, double horizon) const;
 
  private:
   ServoParams params_;

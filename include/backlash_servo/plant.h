@@ -9,6 +9,7 @@
 
 #include <array>
 #include <cstdint>
+#include <limits>
 #include <memory>
 #include <optional>
 #include <stdexcept>
@@ -107,6 +108,13 @@ class Plant
     law_ = law;
     segment_.reset();
   }
+  /// The plant stops (advanceTo() returns true) where θ_c leaves [lo, hi] [rad]: a drive's switch. ±inf: none.
+  void setWatch(double lo, double hi)
+  {
+    watch_lo_ = lo;
+    watch_hi_ = hi;
+    segment_.reset();
+  }
 
   /// See Simulator::setParams. Throws InvalidParameterError, keeping the old ones.
   void setParams(const ServoParams& params, EventSink* sink);
@@ -118,7 +126,7 @@ class Plant
    * end, never at t_end), so how a run is cut into advanceTo() calls — output samples, node ticks — does not change
    * a single bit of it. Only a change of law, parameters or state restarts the closed form.
    */
-  void advanceTo(double t_end, EventSink* sink);
+  bool advanceTo(double t_end, EventSink* sink);
 
   double gap() const { return mesh_.gap(state_.load_position, state_.motor_position); }
   double motorTorque() const { return law_.torque(state_.load_position); }
@@ -142,7 +150,8 @@ class Plant
     {
       Restart,     ///< window end (or maxima buffer full): a new segment continues the same mode
       Separation,  ///< the mesh torque changes sign: the teeth separate
-      Impact       ///< the gap reaches a wall
+      Impact,      ///< the gap reaches a wall
+      Watch        ///< θ_c leaves the watch interval: the drive switches its law
     };
     // Exactly one motion is set; built in place (the wide form, kilobytes and rare, lives on the heap).
     std::optional<ContactMotion> contact;
@@ -167,6 +176,8 @@ class Plant
   /// Places state_ (and the ledger) at local time tau of the current segment.
   void placeInSegment(double tau);
   void emitMaximaUpTo(double tau, EventSink* sink);
+  /// Ends the segment early where θ_c leaves the watch interval.
+  void applyWatch(Segment& seg) const;
   void handleImpact(Contact wall, EventSink* sink);
   /// Puts teeth at relative rest on `wall` into contact if the mesh torque presses, else leaves them apart.
   void settleOnWall(Contact wall);
@@ -176,7 +187,10 @@ class Plant
   State state_;
   MotorInput law_;
   std::optional<Segment> segment_;
-  bool apart_needs_series_ = false;  // apartNeedsSeries() for the current parameters (fixed window)
+  bool apart_needs_series_ = false;
+  double watch_lo_ = -std::numeric_limits<double>::infinity();
+  double watch_hi_ =
+      std::numeric_limits<double>::infinity();  // apartNeedsSeries() for the current parameters (fixed window)
   EnergyLedger energy_;
   std::uint64_t impacts_ = 0;
   std::uint64_t event_budget_ = 0;

@@ -63,13 +63,25 @@ class Simulator
   /// input − friction − impact losses − (kinetic − initial kinetic) [J]; zero up to rounding.
   double energyBalanceError() const { return plant_.energyBalanceError(); }
   std::uint64_t impactCount() const { return plant_.impactCount(); }
-  /// See Plant::setEventBudget.
-  void setEventBudget(std::uint64_t max_impacts) { plant_.setEventBudget(max_impacts); }
+  /// At most this many impacts and, separately, this many drive samples (0 = no limit); one more throws
+  /// EventBudgetExceeded (an impact storm, or a sampled loop asked for billions of samples).
+  void setEventBudget(std::uint64_t max_events)
+  {
+    plant_.setEventBudget(max_events);
+    event_budget_ = max_events;
+  }
 
  private:
+  /// The drive's current law and watch interval to the plant.
+  void applyDriveLaw();
+  /// One drive sample, counted against the event budget.
+  void takeSample();
+
   Plant plant_;
   std::unique_ptr<Drive> drive_;
   double command_;  // θ_R [rad] kept for switching back to position mode
+  std::uint64_t event_budget_ = 0;
+  std::uint64_t samples_ = 0;
 };
 
 }  // namespace backlash_servo

@@ -5,10 +5,65 @@
 
 namespace backlash_servo
 {
-ProportionalDrive::ProportionalDrive(double gain, double command) : gain_(gain), command_(0.0)
+ProportionalDrive::ProportionalDrive(double gain, double command, double torque_limit)
+    : gain_(gain), command_(0.0), limit_(torque_limit)
 {
   requireFinite("gain", gain);
+  requireFinite("torque_limit", torque_limit);
   setCommand(command);
+}
+
+MotorInput ProportionalDrive::law() const
+{
+  switch (region_)
+  {
+    case Region::High:
+      return {limit_, 0.0};
+    case Region::Low:
+      return {-limit_, 0.0};
+    default:
+      return {gain_ * command_, gain_};
+  }
+}
+
+void ProportionalDrive::reevaluate(const State& s)
+{
+  if (!(limit_ > 0.0))
+  {
+    region_ = Region::Linear;
+    return;
+  }
+  const double lo = command_ - limit_ / gain_;
+  const double hi = command_ + limit_ / gain_;
+  const double x = s.load_position;
+  const double v = s.load_velocity;
+  if (x > hi || (x >= hi && v > 0.0))
+  {
+    region_ = Region::Low;
+  }
+  else if (x < lo || (x <= lo && v < 0.0))
+  {
+    region_ = Region::High;
+  }
+  else
+  {
+    region_ = Region::Linear;
+  }
+}
+
+void ProportionalDrive::watchInterval(double* lo, double* hi) const
+{
+  constexpr double INF = std::numeric_limits<double>::infinity();
+  if (!(limit_ > 0.0))
+  {
+    *lo = -INF;
+    *hi = INF;
+    return;
+  }
+  const double band_lo = command_ - limit_ / gain_;
+  const double band_hi = command_ + limit_ / gain_;
+  *lo = region_ == Region::High ? -INF : (region_ == Region::Low ? band_hi : band_lo);
+  *hi = region_ == Region::High ? band_lo : (region_ == Region::Low ? INF : band_hi);
 }
 
 void ProportionalDrive::configure(const ServoParams& params)
@@ -55,12 +110,6 @@ void DriveParams::validate() const
       throw InvalidParameterError("feedback",
                                   "the continuous law feeds back the load position (motor feedback needs "
                                   "controller_rate > 0 Hz)");
-    }
-    if (torque_limit > 0.0)
-    {
-      throw InvalidParameterError("torque_limit",
-                                  "with the continuous law is not implemented yet (exact saturation "
-                                  "switching); use controller_rate > 0 Hz or torque_limit 0");
     }
     if (motor_encoder_resolution > 0.0 || load_encoder_resolution > 0.0 || controller_delay > 0.0)
     {

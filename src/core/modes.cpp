@@ -104,6 +104,38 @@ double combinedBound(const Poly& f, double a, const Poly& g, double b, double ta
 }
 }  // namespace
 
+/**
+ * First τ where θ(τ) leaves [lo, hi] by more than its rounding, given the critical points of θ in (0, horizon)
+ * (θ is monotone between them): the piece where it happens is bisected to full precision. +inf if none.
+ */
+template <class Theta>
+double firstExit(const Theta& theta, const double* crit, int m, double horizon, double lo, double hi)
+{
+  const double edge = std::max(std::isfinite(lo) ? std::fabs(lo) : 0.0, std::isfinite(hi) ? std::fabs(hi) : 0.0);
+  double p = 0.0;
+  for (int i = 0; i <= m; ++i)
+  {
+    const double q = i < m ? crit[i] : horizon;
+    const double xq = theta(q);
+    const double bound = 64.0 * EPS * (std::fabs(xq) + edge);
+    const bool above = xq > hi + bound;
+    if (above || xq < lo - bound)
+    {
+      const double level = above ? hi : lo;
+      double a = p, b = q;
+      for (int it = 0; it < 200 && b - a > 2.0 * EPS * b; ++it)
+      {
+        const double mid = 0.5 * (a + b);
+        const double xm = theta(mid);
+        ((above ? xm > level : xm < level) ? b : a) = mid;
+      }
+      return b;
+    }
+    p = q;
+  }
+  return INF;
+}
+
 double contactAcceleration(const ServoParams& p, const MotorInput& in, double x, double v)
 {
   const double rho = p.gear_ratio;
@@ -455,6 +487,48 @@ int ContactMotion::velocityMaxima(double horizon, double* out, int max_out) cons
   return downCrossings(Signal::LoadVelocity, 1.0, horizon, true, out, max_out);
 }
 
+double ContactMotion::exitTime(double lo, double hi, double horizon) const
+{
+  auto theta = [&](double tau) {
+    double x, v;
+    at(tau, &x, &v);
+    return x;
+  };
+  double crit[EXP_POLY_MAX_ROOTS];
+  int m = 0;
+  if (slow_effort_)
+  {
+    const double t = timeOfVelocity(0.0, horizon);  // ω is monotone: one turning point at most
+    if (t < INF)
+    {
+      crit[m++] = t;
+    }
+  }
+  else if (oscillatory_)
+  {
+    // Zeros of ω = e^{−στ}(C cos ωτ + D sin ωτ): every π/ω from the first one after 0.
+    const double half = PI / omega_;
+    double t = (vel_c_ == 0.0 && vel_d_ == 0.0) ? INF : (std::atan2(vel_d_, vel_c_) + 0.5 * PI) / omega_;
+    while (t > half)
+    {
+      t -= half;
+    }
+    while (t <= 0.0)
+    {
+      t += half;
+    }
+    for (; t < horizon && m < EXP_POLY_MAX_ROOTS; t += half)
+    {
+      crit[m++] = t;
+    }
+  }
+  else
+  {
+    m = velocity_.signChangeRoots(0.0, horizon, crit, CRITICAL_POINT_TOLERANCE);
+  }
+  return firstExit(theta, crit, m, horizon, lo, hi);
+}
+
 double ContactMotion::displacement(double tau) const
 {
   if (slow_effort_)
@@ -748,6 +822,14 @@ double BasicFreeMotion<Poly>::impactTime(double horizon, Contact* wall) const
     gp = gq;
   }
   return INF;
+}
+
+template <class Poly>
+double BasicFreeMotion<Poly>::exitTime(double lo, double hi, double horizon) const
+{
+  double crit[EXP_POLY_MAX_ROOTS];
+  const int m = load_velocity_.signChangeRoots(0.0, horizon, crit, CRITICAL_POINT_TOLERANCE);
+  return firstExit([&](double tau) { return load_position_(tau); }, crit, m, horizon, lo, hi);
 }
 
 template <class Poly>

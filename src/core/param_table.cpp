@@ -103,7 +103,7 @@ std::vector<ParamSpec> makeTable()
     {"velocity_loop_integral_gain", "K_vi", "N·m/rad", T::Real, S::Drive, ParamRange{0.0, 1e12, false, false}, "0",
      "cascade: inner velocity loop integral gain", false, {}, &DriveParams::velocity_loop_integral_gain},
     {"torque_limit", "T_max", "N·m", T::Real, S::Drive, ParamRange{0.0, 1e12, false, false}, "0",
-     "saturation of the motor torque, 0 = none (sampled laws)", false, {}, &DriveParams::torque_limit},
+     "saturation of the motor torque, 0 = none (every law)", false, {}, &DriveParams::torque_limit},
     // ---- length of a command-line run ----
     {"duration", "", "s", T::Real, S::Run, NON_NEGATIVE, "0",
      "simulate exactly this long (0 = until the verdict is settled)", false, {}, &RunConfig::duration},

@@ -202,7 +202,7 @@ void Plant::addFlows(const EnergyFlows& f)
   energy_.input_magnitude += std::fabs(f.input);
 }
 
-void Plant::advanceTo(double t_end, EventSink* sink)
+bool Plant::advanceTo(double t_end, EventSink* sink)
 {
   if (!(t_end >= state_.time) || !std::isfinite(t_end))
   {
@@ -238,7 +238,7 @@ void Plant::advanceTo(double t_end, EventSink* sink)
       emitMaximaUpTo(tau, sink);
       placeInSegment(tau);
       state_.time = t_end;
-      break;
+      return false;
     }
     const double before = state_.time;
     emitMaximaUpTo(seg.end_tau, sink);
@@ -256,6 +256,10 @@ void Plant::advanceTo(double t_end, EventSink* sink)
     {
       handleImpact(wall, sink);
     }
+    else if (end == Segment::End::Watch)
+    {
+      return true;
+    }
     stalled = state_.time == before ? stalled + 1 : 0;
     if (stalled > MAX_STALLED_ITERATIONS)
     {
@@ -263,6 +267,7 @@ void Plant::advanceTo(double t_end, EventSink* sink)
                              " s (internal error; please report with the parameters)");
     }
   }
+  return false;
 }
 
 template <class F>
@@ -304,6 +309,7 @@ void Plant::beginSegment()
       seg.end = Segment::End::Restart;
     }
     seg.end_tau = end;
+    applyWatch(seg);
     return;
   }
   // Apart: search at most half a natural period ahead: impacts come sooner almost always, and a short window keeps
@@ -322,6 +328,22 @@ void Plant::beginSegment()
   seg.end = impact <= window ? Segment::End::Impact : Segment::End::Restart;
   seg.end_tau = std::min(impact, window);
   seg.wall = wall;
+  applyWatch(seg);
+}
+
+void Plant::applyWatch(Segment& seg) const
+{
+  if (std::isinf(watch_lo_) && std::isinf(watch_hi_))
+  {
+    return;
+  }
+  double exit = INFINITY;
+  visitMotion(seg, [&](const auto& m) { exit = m.exitTime(watch_lo_, watch_hi_, seg.end_tau); });
+  if (exit < seg.end_tau || (exit == seg.end_tau && seg.end == Segment::End::Restart))
+  {
+    seg.end_tau = exit;
+    seg.end = Segment::End::Watch;
+  }
 }
 
 void Plant::placeInSegment(double tau)

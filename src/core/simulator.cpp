@@ -16,7 +16,11 @@ Simulator::Simulator(const ServoParams& params, const State& initial, double com
 }
 
 Simulator::Simulator(const Simulator& other)
-    : plant_(other.plant_), drive_(other.drive_->clone()), command_(other.command_)
+    : plant_(other.plant_),
+      drive_(other.drive_->clone()),
+      command_(other.command_),
+      event_budget_(other.event_budget_),
+      samples_(other.samples_)
 {}
 
 Simulator& Simulator::operator=(const Simulator& other)
@@ -26,16 +30,39 @@ Simulator& Simulator::operator=(const Simulator& other)
     plant_ = other.plant_;
     drive_ = other.drive_->clone();
     command_ = other.command_;
+    event_budget_ = other.event_budget_;
+    samples_ = other.samples_;
   }
   return *this;
+}
+
+void Simulator::takeSample()
+{
+  if (event_budget_ != 0 && ++samples_ > event_budget_)
+  {
+    throw EventBudgetExceeded("event budget of " + std::to_string(event_budget_) +
+                              " controller samples exceeded at t = " + std::to_string(state().time) +
+                              " s (raise max_events to go on)");
+  }
+  drive_->sample(plant_.state());
+  applyDriveLaw();
+}
+
+void Simulator::applyDriveLaw()
+{
+  plant_.setLaw(drive_->law());
+  double lo, hi;
+  drive_->watchInterval(&lo, &hi);
+  plant_.setWatch(lo, hi);
 }
 
 void Simulator::setDrive(std::unique_ptr<Drive> drive, EventSink* sink)
 {
   drive->configure(plant_.params());
   drive->sample(plant_.state());
+  drive->reevaluate(plant_.state());
   drive_ = std::move(drive);
-  plant_.setLaw(drive_->law());
+  applyDriveLaw();
   plant_.emit(sink, EventType::InputChange);
 }
 
@@ -46,6 +73,14 @@ void Simulator::setCommand(double command, EventSink* sink)
   if (auto* sampled = dynamic_cast<SampledDrive*>(drive_.get()))
   {
     sampled->setCommand(command);  // read at the next sample; the held torque stays until then
+    plant_.emit(sink, EventType::InputChange);
+    return;
+  }
+  if (auto* proportional = dynamic_cast<ProportionalDrive*>(drive_.get()))
+  {
+    proportional->setCommand(command);  // keeps its torque limit
+    proportional->reevaluate(plant_.state());
+    applyDriveLaw();
     plant_.emit(sink, EventType::InputChange);
     return;
   }
@@ -61,7 +96,8 @@ void Simulator::setParams(const ServoParams& params, EventSink* sink)
 {
   params.validate();
   drive_->configure(params);
-  plant_.setLaw(drive_->law());
+  drive_->reevaluate(plant_.state());
+  applyDriveLaw();
   plant_.setParams(params, sink);
 }
 
@@ -77,18 +113,21 @@ void Simulator::advanceTo(double t_end, EventSink* sink)
     const double next = drive_->nextEventTime(state().time);
     if (next <= state().time)
     {
-      drive_->sample(plant_.state());  // a sample due now (at a step boundary)
-      plant_.setLaw(drive_->law());
+      takeSample();  // a sample due now (at a step boundary)
       continue;
     }
-    if (!(next < t_end))
+    const bool sample_due = next < t_end;
+    if (plant_.advanceTo(sample_due ? next : t_end, sink))
     {
-      plant_.advanceTo(t_end, sink);
+      drive_->reevaluate(plant_.state());  // the load left the law's interval: switch (saturation)
+      applyDriveLaw();
+      continue;
+    }
+    if (!sample_due)
+    {
       break;
     }
-    plant_.advanceTo(next, sink);
-    drive_->sample(plant_.state());
-    plant_.setLaw(drive_->law());
+    takeSample();
   }
 }
 

@@ -39,6 +39,10 @@ RunSummary runResponse(const RunConfig& config, EventSink* sink, double sample_p
     sim.setDrive(std::make_unique<SampledDrive>(config.drive, config.params.gain, config.params.gear_ratio,
                                                 config.command, config.initial.time));
   }
+  else if (config.drive.torque_limit > 0.0)
+  {
+    sim.setDrive(std::make_unique<ProportionalDrive>(config.params.gain, config.command, config.drive.torque_limit));
+  }
   sim.setEnergyTracking(config.track_energy);
   sim.setEventBudget(static_cast<std::uint64_t>(config.max_events));
   RunSummary out;

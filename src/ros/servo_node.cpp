@@ -419,6 +419,10 @@ void ServoNode::applyPositionDrive()
     sim_.setDrive(std::make_unique<SampledDrive>(config_.run.drive, sim_.params().gain, sim_.params().gear_ratio,
                                                  command_, sim_.state().time));
   }
+  else if (config_.run.drive.torque_limit > 0.0)
+  {
+    sim_.setDrive(std::make_unique<ProportionalDrive>(sim_.params().gain, command_, config_.run.drive.torque_limit));
+  }
   else
   {
     sim_.setCommand(command_);

@@ -38,6 +38,10 @@ struct Case
       << (start.contact == Contact::Apart ? "none" : toString(start.contact)) << " --load-position "
       << start.load_position << " --load-velocity " << start.load_velocity << " --motor-position "
       << start.motor_position << " --motor-velocity " << start.motor_velocity << " --duration " << duration;
+    if (!drive.sampled() && drive.torque_limit > 0.0)
+    {
+      o << " --torque-limit " << drive.torque_limit;
+    }
     if (drive.sampled())
     {
       o << " --control-law " << drive.control_law << " --controller-rate " << drive.controller_rate
@@ -62,6 +66,7 @@ inline Case makeCase(std::uint64_t seed, std::uint64_t index)
   Case c;
   for (;;)  // draw until the point lies inside the validated envelope (the edges are drawn on purpose)
   {
+    c = Case();  // nothing of a refused draw carries over
     const double omega_n = logu(NATURAL_FREQUENCY_MIN, NATURAL_FREQUENCY_MAX);
     const double zeta = u(rng) < 0.05 ? 0.0 : (u(rng) < 0.05 ? pick({5.0, 10.0}) : logu(1e-9, 3.0));
     const double ratio =
@@ -133,6 +138,11 @@ inline Case makeCase(std::uint64_t seed, std::uint64_t index)
       d.motor_encoder_resolution = u(rng) < 0.3 ? std::floor(logu(64.0, 1e6)) : 0.0;
       d.load_encoder_resolution = u(rng) < 0.3 ? std::floor(logu(64.0, 1e6)) : 0.0;
       d.torque_limit = u(rng) < 0.3 ? c.params.gain * std::fabs(c.command) * logu(0.05, 2.0) : 0.0;
+    }
+    else if (u(rng) < 0.15)
+    {
+      // The continuous law saturated: switches located where K|θ_R − θ_c| = T_max.
+      c.drive.torque_limit = c.params.gain * std::fabs(c.command) * logu(0.05, 2.0);
     }
     try
     {

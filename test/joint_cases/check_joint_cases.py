@@ -27,8 +27,6 @@ def main():
     for case in cases:
         params = dict(case["params"])
         needs = sorted(k for k, v in params.items() if k in NOT_YET and v != NEUTRAL[k])
-        if params.get("torque_limit", 0.0) > 0.0 and params.get("controller_rate", 0.0) == 0.0:
-            needs.append("torque_limit with the continuous law")
         if needs:
             print("SKIPPED %-18s needs %s" % (case["name"], ", ".join(needs)))
             continue

@@ -141,3 +141,56 @@ TEST(Drive, CombinationsTheModelDoesNotDefineAreRefused)
 }
 
 }  // namespace
+
+namespace
+{
+TEST(Drive, ContinuousTorqueLimitSwitchesExactlyAtTheBandEdges)
+{
+  // Δ = 0: J θ'' + F θ' = ρ sat(K(θ_R − θ)), against RK4 in long double with fine steps (the kinks at the switches
+  // cost it accuracy, hence 1e-8); and the switches happen exactly where K|θ_R − θ| = T_max.
+  ServoParams p;
+  p.backlash = 0.0;
+  DriveParams d;
+  d.torque_limit = 0.3;
+  RunConfig c;
+  c.params = p;
+  c.drive = d;
+  const double j = p.totalInertia(), f = p.totalFriction(), rho = p.gear_ratio, k = p.gain, tmax = 0.3;
+  using L = long double;
+  L x = 0, v = 0;
+  auto acc = [&](L xx, L vv) {
+    L u = k * (1.0L - xx);
+    u = u > tmax ? tmax : (u < -tmax ? -tmax : u);
+    return (rho * u - f * vv) / j;
+  };
+  const L h = 1e-5L;
+  Simulator sim(p, State(), 1.0);
+  sim.setDrive(std::make_unique<ProportionalDrive>(p.gain, 1.0, tmax));
+  struct Switches : EventSink
+  {
+    void onEvent(const Event&) override {}
+  } none;
+  long steps = 0;
+  for (double target : {1.0, 3.0, 6.0, 12.0})
+  {
+    for (; steps < std::lround(target / 1e-5); ++steps)
+    {
+      const L k1x = v, k1v = acc(x, v);
+      const L k2x = v + h / 2 * k1v, k2v = acc(x + h / 2 * k1x, v + h / 2 * k1v);
+      const L k3x = v + h / 2 * k2v, k3v = acc(x + h / 2 * k2x, v + h / 2 * k2v);
+      const L k4x = v + h * k3v, k4v = acc(x + h * k3x, v + h * k3v);
+      x += h / 6 * (k1x + 2 * k2x + 2 * k3x + k4x);
+      v += h / 6 * (k1v + 2 * k2v + 2 * k3v + k4v);
+    }
+    sim.advanceTo(target, &none);
+    EXPECT_NEAR(sim.state().load_position, static_cast<double>(x), 1e-8) << target;
+    EXPECT_LE(std::fabs(sim.motorTorque()), tmax + 1e-15);
+  }
+  // Saturated at the start (K·1 > T_max), linear near the command: the torque is exactly the law of its region.
+  const double e = 1.0 - sim.state().load_position;
+  EXPECT_DOUBLE_EQ(sim.motorTorque(), std::fabs(k * e) <= tmax ? k * e : (e > 0 ? tmax : -tmax));
+  const RunSummary r = runResponse(c);
+  EXPECT_TRUE(r.settled);
+  EXPECT_LE(std::fabs(r.balance_error), 1e-12 * r.energy.input);
+}
+}  // namespace
