@@ -18,6 +18,7 @@
 namespace
 {
 using namespace backlash_servo;
+using test_helpers::readFile;
 using test_helpers::runCapture;
 
 const std::string GOLDEN_DIR = std::string(SOURCE_DIR) + "/test/golden/";
@@ -26,14 +27,6 @@ bool recording()
 {
   const char* r = std::getenv("BACKLASH_GOLDEN_RECORD");
   return r != nullptr && std::string(r) == "1";
-}
-
-std::string readFile(const std::string& path)
-{
-  std::ifstream f(path);
-  std::stringstream s;
-  s << f.rdbuf();
-  return s.str();
 }
 
 std::vector<std::string> lines(const std::string& text)

@@ -4,6 +4,8 @@
 #include <sys/wait.h>
 
 #include <cstdio>
+#include <fstream>
+#include <sstream>
 #include <string>
 #include <vector>
 
@@ -54,6 +56,15 @@ struct Recorder : backlash_servo::EventSink
     return out;
   }
 };
+
+/// The whole content of a file ("" if unreadable).
+inline std::string readFile(const std::string& path)
+{
+  std::ifstream f(path);
+  std::stringstream s;
+  s << f.rdbuf();
+  return s.str();
+}
 
 /// Runs a shell command; returns its stdout and sets *code to its exit status.
 inline std::string runCapture(const std::string& cmd, int* code = nullptr)

@@ -18,15 +18,8 @@
 namespace
 {
 using namespace backlash_servo;
+using test_helpers::readFile;
 using test_helpers::runCapture;
-
-std::string readFile(const std::string& path)
-{
-  std::ifstream f(path);
-  std::stringstream s;
-  s << f.rdbuf();
-  return s.str();
-}
 
 std::string params(const std::string& args)
 {

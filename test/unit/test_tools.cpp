@@ -18,15 +18,8 @@
 
 namespace
 {
+using test_helpers::readFile;
 using test_helpers::runCapture;
-
-std::string readFile(const std::string& path)
-{
-  std::ifstream f(path);
-  std::stringstream s;
-  s << f.rdbuf();
-  return s.str();
-}
 
 std::vector<std::vector<std::string>> csvRows(const std::string& text)
 {
