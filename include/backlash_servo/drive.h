@@ -93,6 +93,9 @@ class ProportionalDrive : public Drive
   void setCommand(double command);
 
  private:
+  /// The linear band [θ_R − T_max/K, θ_R + T_max/K] [rad].
+  void band(double* lo, double* hi) const;
+
   enum class Region
   {
     Linear,
@@ -166,5 +169,12 @@ class SampledDrive : public Drive
   double qm_prev_ = 0.0;   // q_m(θ_m,k−1) [rad]
   double motor_reading_ = 0.0, load_reading_ = 0.0;
 };
+
+/**
+ * The position-mode drive a DriveParams describes: the SampledDrive when controller_rate > 0, else the continuous
+ * P law (saturated when torque_limit > 0). gain K [N·m/rad], gear ratio ρ, command θ_R [rad], t0 [s] of sample 0.
+ */
+std::unique_ptr<Drive> makePositionDrive(const DriveParams& drive, double gain, double gear_ratio, double command,
+                                         double t0);
 
 }  // namespace backlash_servo

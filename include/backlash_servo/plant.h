@@ -173,8 +173,8 @@ class Plant
   /// Calls f with the segment's motion (ContactMotion, FreeMotion or WideFreeMotion).
   template <class F>
   static void visitMotion(const Segment& seg, F&& f);
-  /// Places state_ (and the ledger) at local time tau of the current segment.
-  void placeInSegment(double tau);
+  /// Places state_ (and, with_energy, the ledger) at local time tau of the current segment.
+  void placeInSegment(double tau, bool with_energy = true);
   void emitMaximaUpTo(double tau, EventSink* sink);
   /// Ends the segment early where θ_c leaves the watch interval.
   void applyWatch(Segment& seg) const;

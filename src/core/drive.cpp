@@ -5,6 +5,16 @@
 
 namespace backlash_servo
 {
+std::unique_ptr<Drive> makePositionDrive(const DriveParams& drive, double gain, double gear_ratio, double command,
+                                         double t0)
+{
+  if (drive.sampled())
+  {
+    return std::make_unique<SampledDrive>(drive, gain, gear_ratio, command, t0);
+  }
+  return std::make_unique<ProportionalDrive>(gain, command, drive.torque_limit);
+}
+
 ProportionalDrive::ProportionalDrive(double gain, double command, double torque_limit)
     : gain_(gain), command_(0.0), limit_(torque_limit)
 {
@@ -33,8 +43,8 @@ void ProportionalDrive::reevaluate(const State& s)
     region_ = Region::Linear;
     return;
   }
-  const double lo = command_ - limit_ / gain_;
-  const double hi = command_ + limit_ / gain_;
+  double lo, hi;
+  band(&lo, &hi);
   const double x = s.load_position;
   const double v = s.load_velocity;
   if (x > hi || (x >= hi && v > 0.0))
@@ -60,10 +70,16 @@ void ProportionalDrive::watchInterval(double* lo, double* hi) const
     *hi = INF;
     return;
   }
-  const double band_lo = command_ - limit_ / gain_;
-  const double band_hi = command_ + limit_ / gain_;
+  double band_lo, band_hi;
+  band(&band_lo, &band_hi);
   *lo = region_ == Region::High ? -INF : (region_ == Region::Low ? band_hi : band_lo);
   *hi = region_ == Region::High ? band_lo : (region_ == Region::Low ? INF : band_hi);
+}
+
+void ProportionalDrive::band(double* lo, double* hi) const
+{
+  *lo = command_ - limit_ / gain_;
+  *hi = command_ + limit_ / gain_;
 }
 
 void ProportionalDrive::configure(const ServoParams& params)

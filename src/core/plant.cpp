@@ -346,7 +346,7 @@ void Plant::applyWatch(Segment& seg) const
   }
 }
 
-void Plant::placeInSegment(double tau)
+void Plant::placeInSegment(double tau, bool with_energy)
 {
   const Segment& seg = *segment_;
   const double t = state_.time;
@@ -362,7 +362,7 @@ void Plant::placeInSegment(double tau)
     {
       m.at(tau, &state_);
     }
-    if (track_energy_)
+    if (track_energy_ && with_energy)
     {
       energy_ = seg.energy_at_start;
       addFlows(m.energy(tau));
@@ -379,12 +379,10 @@ void Plant::emitMaximaUpTo(double tau, EventSink* sink)
     if (sink != nullptr)
     {
       const State keep = state_;
-      const EnergyLedger keep_energy = energy_;
-      placeInSegment(seg.maxima[seg.maxima_emitted]);
+      placeInSegment(seg.maxima[seg.maxima_emitted], false);  // an event carries the state, not the ledger
       state_.time = seg.start.time + seg.maxima[seg.maxima_emitted];
       emit(sink, EventType::Maximum);
       state_ = keep;
-      energy_ = keep_energy;
     }
     ++seg.maxima_emitted;
   }
@@ -427,10 +425,9 @@ void Plant::handleImpact(Contact wall, EventSink* sink)
     state_.contact = Contact::Apart;  // clearly moving away: only rounding put the gap on the wall
     return;
   }
-  // A touch without closing (rounding) or a closing speed the stick rule calls zero is made plastic.
-  // A closing speed the stick rule calls zero is made plastic; so is every impact of a rigid mesh (Δ = 0, e.g. the
-  // backlash tuned to 0 while the teeth float): there is no room to bounce into.
-  const double e = params_.restitution * closing <= stick_speed || params_.backlash == 0.0 ? 0.0 : params_.restitution;
+  // A touch without closing (rounding) or a closing speed the stick rule calls zero is made plastic; so is every
+  // impact of a rigid mesh (Δ = 0, e.g. the backlash tuned to 0 while the teeth float): no room to bounce into.
+  const double e = params_.restitution * closing <= stick_speed || delta == 0.0 ? 0.0 : params_.restitution;
   const ImpactOutcome o = resolveImpact(params_, v, w, e);
   state_.load_velocity = o.load_velocity;
   state_.motor_velocity = o.motor_velocity;

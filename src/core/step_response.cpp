@@ -34,14 +34,10 @@ RunSummary runResponse(const RunConfig& config, EventSink* sink, double sample_p
                        const ProgressCallback& on_progress)
 {
   Simulator sim(config.params, config.initial, config.command);
-  if (config.drive.sampled())
+  if (config.drive.sampled() || config.drive.torque_limit > 0.0)
   {
-    sim.setDrive(std::make_unique<SampledDrive>(config.drive, config.params.gain, config.params.gear_ratio,
-                                                config.command, config.initial.time));
-  }
-  else if (config.drive.torque_limit > 0.0)
-  {
-    sim.setDrive(std::make_unique<ProportionalDrive>(config.params.gain, config.command, config.drive.torque_limit));
+    sim.setDrive(makePositionDrive(config.drive, config.params.gain, config.params.gear_ratio, config.command,
+                                   config.initial.time));
   }
   sim.setEnergyTracking(config.track_energy);
   sim.setEventBudget(static_cast<std::uint64_t>(config.max_events));

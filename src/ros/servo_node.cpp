@@ -413,15 +413,11 @@ void ServoNode::onEffort(const std_msgs::Float64& msg)
 
 void ServoNode::applyPositionDrive()
 {
-  if (config_.run.drive.sampled())
+  const DriveParams& drive = config_.run.drive;
+  if (drive.sampled() || drive.torque_limit > 0.0)
   {
-    // The digital drive of the YAML (control_law, controller_rate, encoders, …), sampling from now on.
-    sim_.setDrive(std::make_unique<SampledDrive>(config_.run.drive, sim_.params().gain, sim_.params().gear_ratio,
-                                                 command_, sim_.state().time));
-  }
-  else if (config_.run.drive.torque_limit > 0.0)
-  {
-    sim_.setDrive(std::make_unique<ProportionalDrive>(sim_.params().gain, command_, config_.run.drive.torque_limit));
+    // The YAML's digital drive or saturated law, fresh from now on (integrators and sample clock restart).
+    sim_.setDrive(makePositionDrive(drive, sim_.params().gain, sim_.params().gear_ratio, command_, sim_.state().time));
   }
   else
   {
