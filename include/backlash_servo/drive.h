@@ -67,6 +67,11 @@ class Drive
     *hi = std::numeric_limits<double>::infinity();
   }
   virtual std::unique_ptr<Drive> clone() const = 0;
+  /// Whether the drive's own state still moves its output with the plant standing still (an integrator whose input
+  /// is beyond rounding of zero): a joint stuck by dry friction is not converged while this holds.
+  virtual bool winding() const { return false; }
+  /// A digital drive (samples at known instants) rather than a continuous law.
+  virtual bool sampled() const { return false; }
 };
 
 /**
@@ -148,6 +153,9 @@ class SampledDrive : public Drive
   void sample(const State& state) override;
   void configure(const ServoParams& params) override;
   std::unique_ptr<Drive> clone() const override { return std::make_unique<SampledDrive>(*this); }
+  /// The integrator moved beyond rounding at the latest sample (pid, cascade).
+  bool winding() const override { return winding_; }
+  bool sampled() const override { return true; }
 
   /// A new set-point θ_R [rad] from the next sample on.
   void setCommand(double command);
@@ -168,6 +176,7 @@ class SampledDrive : public Drive
   double y_prev_ = 0.0;    // y_{k−1} [rad]
   double qm_prev_ = 0.0;   // q_m(θ_m,k−1) [rad]
   double motor_reading_ = 0.0, load_reading_ = 0.0;
+  bool winding_ = false;
 };
 
 /**

@@ -41,6 +41,11 @@ struct LimitCycleReport
   double period = 0.0;        ///< limit-cycle period [s]; 0 if none (Irregular: mean time between maxima)
   int multiplicity = 0;       ///< maxima per period of the cycle
   double extrapolated = 0.0;  ///< Aitken estimate of the fixed point x* [rad] (latest)
+  /// LimitCycle of a sampled, quantised or stick–slip loop whose maxima wander in a narrow settled band instead of
+  /// repeating (MODEL.md Part 2): error = the band's top, period = mean time between maxima.
+  bool quasi_periodic = false;
+  double band_low = 0.0;   ///< quasi-periodic: lowest error of the settled band [rad]
+  double band_high = 0.0;  ///< quasi-periodic: highest error of the settled band [rad]
 };
 
 class LimitCycleDetector
@@ -56,6 +61,9 @@ class LimitCycleDetector
   void addMaximum(const Maximum& m);
   /// Tells the detector the servo is at rest on its command: settles a Converged verdict.
   void markAtRest();
+  /// Whether a settled narrow band of maxima counts as a (quasi-periodic) limit cycle: on for sampled drives and dry
+  /// friction (MODEL.md Part 2), off for the continuous thesis servo, whose wandering maxima stay Irregular.
+  void allowBands(bool on) { bands_ = on; }
 
   const std::vector<Maximum>& maxima() const { return maxima_; }
   const LimitCycleReport& status() const { return status_; }
@@ -68,6 +76,11 @@ class LimitCycleDetector
   static constexpr double ZERO_FRACTION = 1e-7;
   /// Largest cycle multiplicity (maxima per period) looked for.
   static constexpr int MAX_MULTIPLICITY = 8;
+  /// Quasi-periodic: two consecutive windows of this many maxima ...
+  static constexpr int BAND_WINDOW = 10;
+  /// ... each within this fraction of its mean error, the later one not shrinking (range ≥ half the earlier) and
+  /// not monotone: a settled band, not a slow approach to a fixed point.
+  static constexpr double BAND_FRACTION = 2e-2;
   /// Irregular: two consecutive windows of this many maxima show no decay.
   static constexpr int IRREGULAR_WINDOW = 30;
 
@@ -76,6 +89,7 @@ class LimitCycleDetector
 
  private:
   void update();
+  bool bands_ = false;
 
   double command_;
   double scale_;

@@ -29,10 +29,14 @@ constexpr double EQUAL_RATE_FRACTION = 1e-12;
 /// Energy flows over a time interval [J].
 struct EnergyFlows
 {
-  double input = 0.0;           ///< ∫ T_m ω_m dt, work done by the motor torque [J]
-  double motor_friction = 0.0;  ///< ∫ f_m ω_m² dt [J]
-  double load_friction = 0.0;   ///< ∫ f_L ω_c² dt [J]
-  double load_work = 0.0;       ///< ∫ T_ext ω_c dt = T_ext Δθ_c, work of the external load torque [J]
+  double input = 0.0;               ///< ∫ T_m ω_m dt, work done by the motor torque [J]
+  double motor_friction = 0.0;      ///< ∫ f_m ω_m² dt [J]
+  double load_friction = 0.0;       ///< ∫ f_L ω_c² dt [J]
+  double load_work = 0.0;           ///< ∫ T_ext ω_c dt = T_ext Δθ_c, work of the external load torque [J]
+  double motor_dry_friction = 0.0;  ///< ∫ T_cm |ω_m| dt, dissipated by the motor's dry friction [J]
+  double load_dry_friction = 0.0;   ///< ∫ T_cL |ω_c| dt, dissipated by the load's dry friction [J]
+  double motor_displacement = 0.0;  ///< θ_m(τ) − θ_m(0) [rad], from the closed form (accounts dry friction)
+  double load_displacement = 0.0;   ///< θ_c(τ) − θ_c(0) [rad], from the closed form
 };
 
 /**
@@ -57,6 +61,9 @@ class ContactMotion
    * −1: T_L ≤ 0 in backward contact), i.e. where the teeth separate. +inf if none.
    */
   double separationTime(double side, double horizon) const;
+  /// First τ in (0, horizon] where sign·ω_c, positive first (or starting from rest), falls to zero: the sliding
+  /// pair comes to rest (dry friction, dry_friction.h). +inf if none.
+  double restTime(double sign, double horizon) const;
   /// Times in (0, horizon] where the load velocity goes from + to − (positive maxima of θ_c), ascending.
   int velocityMaxima(double horizon, double* out, int max_out) const;
   /// Energy flows over [0, tau].
@@ -133,6 +140,9 @@ class BasicFreeMotion
   EnergyFlows energy(double tau) const;
   /// First τ in (0, horizon] where θ_c leaves [lo, hi] beyond rounding (a drive's watch event), or +inf.
   double exitTime(double lo, double hi, double horizon) const;
+  /// First τ in (0, horizon] where sign·ω of the motor (motor = true) or the load falls below zero beyond rounding:
+  /// a body with dry friction comes to rest (dry_friction.h). +inf if none.
+  double restTime(bool motor, double sign, double horizon) const;
 
  private:
   ServoParams params_;

@@ -72,16 +72,24 @@ struct ParamSpec
   bool live;                         ///< tunable while the node runs (dynamic_reconfigure)
   std::vector<const char*> choices;  ///< Choice only
   ParamField field;                  ///< where the value goes
+  const char* same_as = nullptr;     ///< fallback "": the default is the value of this (earlier) key
 
   /// "--motor-inertia".
   std::string flag() const;
   /// Throws InvalidParameterError(key, "must be > 0 (got -1)") when v is not finite or out of range.
   void check(double v) const;
   double fallbackNumber() const;
+  /// The default of a Real key given the values read so far (value_of(key) for same_as).
+  template <class ValueOf>
+  double defaultValue(const ValueOf& value_of) const
+  {
+    return same_as != nullptr ? value_of(same_as) : fallbackNumber();
+  }
   bool isChoice(const std::string& value) const;
 };
 
-/// Part of the chart form: the Chart section and the keys both forms share (gear_ratio, backlash, restitution).
+/// Part of the chart form: the Chart section and the keys both forms share (gear_ratio, backlash, restitution, load
+/// torque, dry friction).
 bool inChartForm(const ParamSpec& spec);
 
 /// Every parameter, in the order of the docs (Servo, Chart, Initial, Run, Node).

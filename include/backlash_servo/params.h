@@ -40,15 +40,19 @@ constexpr double DAMPING_RATIO_MAX = 100.0;     ///< ζ [-]
  */
 struct ServoParams
 {
-  double motor_inertia = 0.1;    ///< J_m, motor inertia on the motor shaft [kg·m²], > 0
-  double load_inertia = 0.9;     ///< J_L, load inertia on the load shaft [kg·m²], > 0
-  double motor_friction = 0.48;  ///< f_m, viscous friction of the motor [N·m·s/rad], >= 0
-  double load_friction = 0.32;   ///< f_L, viscous friction of the load [N·m·s/rad], >= 0
-  double gain = 1.0;             ///< K, servo gain [N·m/rad], > 0
-  double gear_ratio = 1.0;       ///< ρ = teeth(gear 1)/teeth(gear 2) [-], > 0; rigid mesh gives θ_c = ρ θ_m
-  double backlash = 0.3;         ///< Δ, free play measured at the load shaft [rad], >= 0 (0 = rigid mesh)
-  double restitution = 1.0;      ///< e, coefficient of restitution of the tooth impact [-], in [0, 1]
-  double load_torque = 0.0;      ///< T_ext, external torque on the load (gravity preload, process load) [N·m]
+  double motor_inertia = 0.1;           ///< J_m, motor inertia on the motor shaft [kg·m²], > 0
+  double load_inertia = 0.9;            ///< J_L, load inertia on the load shaft [kg·m²], > 0
+  double motor_friction = 0.48;         ///< f_m, viscous friction of the motor [N·m·s/rad], >= 0
+  double load_friction = 0.32;          ///< f_L, viscous friction of the load [N·m·s/rad], >= 0
+  double gain = 1.0;                    ///< K, servo gain [N·m/rad], > 0
+  double gear_ratio = 1.0;              ///< ρ = teeth(gear 1)/teeth(gear 2) [-], > 0; rigid mesh gives θ_c = ρ θ_m
+  double backlash = 0.3;                ///< Δ, free play measured at the load shaft [rad], >= 0 (0 = rigid mesh)
+  double restitution = 1.0;             ///< e, coefficient of restitution of the tooth impact [-], in [0, 1]
+  double load_torque = 0.0;             ///< T_ext, external torque on the load (gravity preload, process load) [N·m]
+  double motor_coulomb_friction = 0.0;  ///< T_cm, kinetic dry friction of the sliding motor [N·m], >= 0
+  double motor_static_friction = 0.0;   ///< T_sm, breakaway torque of the motor at rest [N·m], >= T_cm
+  double load_coulomb_friction = 0.0;   ///< T_cL, kinetic dry friction of the sliding load [N·m], >= 0
+  double load_static_friction = 0.0;    ///< T_sL, breakaway torque of the load at rest [N·m], >= T_cL
 
   /// Throws InvalidParameterError naming the first bad field, its value and its allowed range (param_table.h).
   void validate() const;
@@ -61,6 +65,12 @@ struct ServoParams
   double naturalFrequency() const;
   /// ζ = F_T / (2 ω_n J), damping ratio of the meshed servo [-].
   double dampingRatio() const;
+  /// Whether any dry friction acts (then bodies can stick; see dry_friction.h).
+  bool hasDryFriction() const
+  {
+    return motor_static_friction > 0.0 || load_static_friction > 0.0 || motor_coulomb_friction > 0.0 ||
+           load_coulomb_friction > 0.0;
+  }
   /// ρ² J_L / J_m, the thesis' inertia split [-].
   double inertiaRatio() const { return gear_ratio * gear_ratio * load_inertia / motor_inertia; }
   /// ρ² f_L / F_T, the thesis' friction split [-] (0 when F_T = 0).
@@ -75,15 +85,19 @@ struct ServoParams
  */
 struct ChartParams
 {
-  double zeta = 0.4;               ///< ζ, damping ratio [-], >= 0
-  double natural_frequency = 1.0;  ///< ω_n [rad/s], > 0
-  double total_inertia = 1.0;      ///< J = J_m + ρ² J_L [kg·m²], > 0
-  double inertia_ratio = 9.0;      ///< ρ² J_L / J_m [-], > 0
-  double friction_ratio = 0.4;     ///< ρ² f_L / F_T [-], in [0, 1]
-  double gear_ratio = 1.0;         ///< ρ [-], > 0
-  double backlash = 0.3;           ///< Δ [rad], >= 0
-  double restitution = 1.0;        ///< e [-], in [0, 1]
-  double load_torque = 0.0;        ///< T_ext [N·m]
+  double zeta = 0.4;                    ///< ζ, damping ratio [-], >= 0
+  double natural_frequency = 1.0;       ///< ω_n [rad/s], > 0
+  double total_inertia = 1.0;           ///< J = J_m + ρ² J_L [kg·m²], > 0
+  double inertia_ratio = 9.0;           ///< ρ² J_L / J_m [-], > 0
+  double friction_ratio = 0.4;          ///< ρ² f_L / F_T [-], in [0, 1]
+  double gear_ratio = 1.0;              ///< ρ [-], > 0
+  double backlash = 0.3;                ///< Δ [rad], >= 0
+  double restitution = 1.0;             ///< e [-], in [0, 1]
+  double load_torque = 0.0;             ///< T_ext [N·m]
+  double motor_coulomb_friction = 0.0;  ///< T_cm [N·m]
+  double motor_static_friction = 0.0;   ///< T_sm [N·m]
+  double load_coulomb_friction = 0.0;   ///< T_cL [N·m]
+  double load_static_friction = 0.0;    ///< T_sL [N·m]
 
   /// Converts to physical SI parameters; throws InvalidParameterError on bad input.
   ServoParams toServoParams() const;

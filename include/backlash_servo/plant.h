@@ -14,10 +14,12 @@
 #include <optional>
 #include <stdexcept>
 
+#include "backlash_servo/dry_friction.h"
 #include "backlash_servo/gear_mesh.h"
 #include "backlash_servo/modes.h"
 #include "backlash_servo/params.h"
 #include "backlash_servo/state.h"
+#include "backlash_servo/stuck_motion.h"
 
 namespace backlash_servo
 {
@@ -27,6 +29,8 @@ enum class EventType
   Separation,      ///< mesh torque reached zero and changed sign: teeth came apart (Δ = 0: pushing side flipped)
   Maximum,         ///< load velocity went from + to − (smoothly or at an impact): a maximum of θ_c (kinematic event
                    ///< located exactly by the plant; the response monitor decides what it means)
+  Rest,            ///< a body with dry friction came to rest: it sticks or breaks away again (rest rule,
+                   ///< dry_friction.h); also a stuck motor pulled free by the continuous law
   InputChange,     ///< command θ_R or motor torque changed
   ParameterChange  ///< parameters replaced
 };
@@ -74,14 +78,16 @@ class EventBudgetExceeded : public std::runtime_error
 /// Cumulative energy terms since the start (or the last reset) [J].
 struct EnergyLedger
 {
-  double input = 0.0;            ///< work of the motor torque ∫ T_m ω_m dt [J]
-  double motor_friction = 0.0;   ///< ∫ f_m ω_m² dt [J]
-  double load_friction = 0.0;    ///< ∫ f_L ω_c² dt [J]
-  double impact_loss = 0.0;      ///< Σ energy lost in impacts [J]
-  double load_work = 0.0;        ///< work of the external load torque ∫ T_ext ω_c dt [J]
-  double input_magnitude = 0.0;  ///< Σ |motor work| over the segments [J]: the rounding scale of `input` when the
-                                 ///< drive's torque alternates (a sampled loop pumping energy in and out)
-  double initial_kinetic = 0.0;  ///< kinetic energy at the start [J]
+  double input = 0.0;               ///< work of the motor torque ∫ T_m ω_m dt [J]
+  double motor_friction = 0.0;      ///< ∫ f_m ω_m² dt [J]
+  double load_friction = 0.0;       ///< ∫ f_L ω_c² dt [J]
+  double impact_loss = 0.0;         ///< Σ energy lost in impacts [J]
+  double load_work = 0.0;           ///< work of the external load torque ∫ T_ext ω_c dt [J]
+  double motor_dry_friction = 0.0;  ///< ∫ T_cm |ω_m| dt, dissipated by the motor's dry friction [J]
+  double load_dry_friction = 0.0;   ///< ∫ T_cL |ω_c| dt, dissipated by the load's dry friction [J]
+  double input_magnitude = 0.0;     ///< Σ |motor work| over the segments [J]: the rounding scale of `input` when the
+                                    ///< drive's torque alternates (a sampled loop pumping energy in and out)
+  double initial_kinetic = 0.0;     ///< kinetic energy at the start [J]
 };
 
 /**
@@ -151,12 +157,20 @@ class Plant
       Restart,     ///< window end (or maxima buffer full): a new segment continues the same mode
       Separation,  ///< the mesh torque changes sign: the teeth separate
       Impact,      ///< the gap reaches a wall
-      Watch        ///< θ_c leaves the watch interval: the drive switches its law
+      Watch,       ///< θ_c leaves the watch interval: the drive switches its law
+      Rest,        ///< a sliding body with dry friction reaches zero velocity (rest_motor: which)
+      Breakaway    ///< the continuous law's torque on the stuck motor leaves its static band
     };
     // Exactly one motion is set; built in place (the wide form, kilobytes and rare, lives on the heap).
     std::optional<ContactMotion> contact;
     std::optional<FreeMotion> free;
     std::shared_ptr<const WideFreeMotion> wide;  // immutable: copies of the plant may share it
+    std::optional<StuckMotion> stuck;            // dry friction holds a body (or the pair)
+    // Dry friction: slide directions of the bodies in this segment (0 stuck), kinetic friction folded into the
+    // linear motions' inputs (dry_friction.h).
+    bool dry = false;
+    Slide motor_slide = 0, load_slide = 0;
+    bool rest_motor = false;  ///< End::Rest: the motor (true) or the load (false, or the pair) came to rest
     State start;
     EnergyLedger energy_at_start;
     double end_tau = 0.0;  ///< local time of the end [s]
@@ -170,6 +184,13 @@ class Plant
   void addFlows(const EnergyFlows& flows);
   /// Builds the segment starting at the current state (after checking a contact still holds).
   void beginSegment();
+  /// Dry friction: the rest rule and the contact check at the current state; the slide directions go to *motor and
+  /// *load. A contact that no longer holds is left (Separation emitted).
+  void chooseDryMode(EventSink* sink, Slide* motor, Slide* load);
+  /// Builds the segment with dry friction (slide directions from chooseDryMode()).
+  void beginDrySegment(Slide motor, Slide load);
+  /// Ends a segment at a Rest or Breakaway: the body comes to rest exactly, the rule decides at the next segment.
+  void handleRest(const Segment& seg, EventSink* sink);
   /// Calls f with the segment's motion (ContactMotion, FreeMotion or WideFreeMotion).
   template <class F>
   static void visitMotion(const Segment& seg, F&& f);
@@ -195,6 +216,8 @@ class Plant
   std::uint64_t impacts_ = 0;
   std::uint64_t event_budget_ = 0;
   bool track_energy_ = true;
+  bool dry_ = false;                  // params_.hasDryFriction()
+  Slide forced_motor_breakaway_ = 0;  // set at a Breakaway: the motor slides this way from rest (no re-decision)
 };
 
 }  // namespace backlash_servo

@@ -35,15 +35,18 @@ class ResponseMonitor : public EventSink
    * @param params the servo (ω_n [rad/s] sets the time scales, ρ the motor-velocity test)
    * @param command θ_R [rad] the response is judged against
    * @param start the state the response starts from (its time starts the quiet clock, its θ_c sets the scale)
+   * @param sampled_drive a digital drive runs the loop: with it (or with dry friction) sustained oscillations may
+   *        be quasi-periodic bands (LimitCycleDetector::allowBands); the continuous thesis servo keeps its verdicts
    */
-  ResponseMonitor(const ServoParams& params, double command, const State& start);
+  ResponseMonitor(const ServoParams& params, double command, const State& start, bool sampled_drive = false);
 
   /// Maxima (EventType::Maximum) go to the detector; every other event is ignored.
   void onEvent(const Event& event) override;
   /// Where the P law comes to rest: θ_R + ρ T_ext / K [rad].
   double equilibrium() const { return equilibrium_; }
-  /// Applies the rest and quiet rules to the state at a check time.
-  void check(const State& state);
+  /// Applies the rest and quiet rules to the state at a check time. drive_winding: the drive's integrator still
+  /// moves (Drive::winding()): a joint standing still is then not converged (stick–slip hunting), neither rule applies.
+  void check(const State& state, bool drive_winding = false);
 
   const LimitCycleReport& status() const { return detector_.status(); }
   const std::vector<Maximum>& maxima() const { return detector_.maxima(); }

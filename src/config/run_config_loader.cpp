@@ -30,6 +30,20 @@ double realValue(const KeyValues& kv, const ParamSpec& spec)
   return v;
 }
 
+/// The Servo keys (only those shared with the chart form if chart_shared) into p: given, or their default.
+void readServoKeys(const KeyValues& kv, bool chart_shared, ServoParams* p)
+{
+  auto value_of = [&](const char* key) { return p->*std::get<double ServoParams::*>(param(key).field); };
+  for (const ParamSpec* spec : paramsIn(ParamSection::Servo))
+  {
+    if (!chart_shared || inChartForm(*spec))
+    {
+      p->*std::get<double ServoParams::*>(spec->field) =
+          kv.has(spec->key) ? kv.number(spec->key) : spec->defaultValue(value_of);
+    }
+  }
+}
+
 std::string choiceValue(const KeyValues& kv, const ParamSpec& spec)
 {
   const std::string v = kv.text(spec.key, spec.fallback);
@@ -83,16 +97,18 @@ RunConfig runConfigFrom(const KeyValues& kv)
     ch.gear_ratio = kv.number("gear_ratio", param("gear_ratio").fallbackNumber());
     ch.backlash = kv.number("backlash", param("backlash").fallbackNumber());
     ch.restitution = kv.number("restitution", param("restitution").fallbackNumber());
-    ch.load_torque = kv.number("load_torque", param("load_torque").fallbackNumber());
+    ServoParams shared;
+    readServoKeys(kv, true, &shared);
+    ch.load_torque = shared.load_torque;
+    ch.motor_coulomb_friction = shared.motor_coulomb_friction;
+    ch.motor_static_friction = shared.motor_static_friction;
+    ch.load_coulomb_friction = shared.load_coulomb_friction;
+    ch.load_static_friction = shared.load_static_friction;
     c.params = ch.toServoParams();
   }
   else
   {
-    for (const ParamSpec* spec : paramsIn(ParamSection::Servo))
-    {
-      c.params.*std::get<double ServoParams::*>(spec->field) =
-          kv.has(spec->key) ? kv.number(spec->key) : spec->fallbackNumber();
-    }
+    readServoKeys(kv, false, &c.params);
     c.params.validate();
   }
   for (const ParamSpec* spec : paramsIn(ParamSection::Drive))

@@ -2,9 +2,15 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 
 namespace backlash_servo
 {
+namespace
+{
+constexpr double EPS = std::numeric_limits<double>::epsilon();
+}  // namespace
+
 std::unique_ptr<Drive> makePositionDrive(const DriveParams& drive, double gain, double gear_ratio, double command,
                                          double t0)
 {
@@ -206,6 +212,7 @@ void SampledDrive::sample(const State& s)
       integral = integral_;  // conditional integration: no wind-up against the limit
       u = gain_ * e + integral - derivative;
     }
+    winding_ = std::fabs(integral - integral_) > 4.0 * EPS * std::fabs(integral);
     integral_ = integral;
   }
   else if (p_.control_law == "cascade")
@@ -220,6 +227,7 @@ void SampledDrive::sample(const State& s)
       integral = integral_;
       u = p_.velocity_loop_gain * err + integral;
     }
+    winding_ = std::fabs(integral - integral_) > 4.0 * EPS * std::fabs(integral);
     integral_ = integral;
   }
   else

@@ -113,6 +113,47 @@ void LimitCycleDetector::update()
       return;
     }
   }
+  // Quasi-periodic: the maxima wander inside a narrow band that no longer shrinks (sampled, quantised or stick–slip
+  // loops whose period is not a whole number of samples).
+  const int b = BAND_WINDOW;
+  if (bands_ && n >= 2 * b)
+  {
+    auto window = [&](int first, double* lo, double* hi, double* mean, int* turns) {
+      *lo = x(first);
+      *hi = x(first);
+      *mean = 0.0;
+      *turns = 0;
+      for (int i = first; i < first + b; ++i)
+      {
+        *lo = std::min(*lo, x(i));
+        *hi = std::max(*hi, x(i));
+        *mean += x(i) / b;
+        if (i >= first + 2 && (x(i) - x(i - 1)) * (x(i - 1) - x(i - 2)) < 0.0)
+        {
+          ++*turns;
+        }
+      }
+    };
+    double lo_a, hi_a, mean_a, lo_b, hi_b, mean_b;
+    int turns_a, turns_b;
+    window(n - 2 * b, &lo_a, &hi_a, &mean_a, &turns_a);
+    window(n - b, &lo_b, &hi_b, &mean_b, &turns_b);
+    const bool narrow = mean_b > 10.0 * ZERO_FRACTION * scale_ && hi_a - lo_a <= BAND_FRACTION * mean_a &&
+                        hi_b - lo_b <= BAND_FRACTION * mean_b;
+    const bool settled_band =
+        hi_b - lo_b >= 0.5 * (hi_a - lo_a) && std::fabs(mean_b - mean_a) <= hi_a - lo_a && turns_b >= 2 && turns_a >= 2;
+    if (narrow && settled_band)
+    {
+      status_.verdict = Verdict::LimitCycle;
+      status_.quasi_periodic = true;
+      status_.error = hi_b;
+      status_.band_low = lo_b;
+      status_.band_high = hi_b;
+      status_.period = (maxima_[n - 1].time - maxima_[n - b].time) / (b - 1);
+      status_.multiplicity = 1;
+      return;
+    }
+  }
   // Irregular: the latest window of maxima neither settled nor decays relative to the window before it.
   const int w = IRREGULAR_WINDOW;
   if (n >= 2 * w)

@@ -468,6 +468,16 @@ double ContactMotion::levelSeparationTime(double side, double horizon) const
   return INF;
 }
 
+double ContactMotion::restTime(double sign, double horizon) const
+{
+  if (slow_effort_)
+  {
+    return timeOfVelocity(0.0, horizon);  // ω is monotone: at most one zero
+  }
+  double t;
+  return downCrossings(Signal::LoadVelocity, sign, horizon, true, &t, 1) == 1 ? t : INF;
+}
+
 int ContactMotion::velocityMaxima(double horizon, double* out, int max_out) const
 {
   if (slow_effort_)
@@ -587,6 +597,8 @@ EnergyFlows ContactMotion::energy(double tau) const
   e.motor_friction = params_.motor_friction / (rho * rho) * v2;
   e.load_friction = params_.load_friction * v2;
   e.load_work = params_.load_torque * dx;
+  e.load_displacement = dx;
+  e.motor_displacement = dx / rho;
   return e;
 }
 
@@ -833,6 +845,39 @@ double BasicFreeMotion<Poly>::exitTime(double lo, double hi, double horizon) con
 }
 
 template <class Poly>
+double BasicFreeMotion<Poly>::restTime(bool motor, double sign, double horizon) const
+{
+  const Poly& v = motor ? motor_velocity_ : load_velocity_;
+  double crit[EXP_POLY_MAX_ROOTS];
+  const int m = v.derivative().signChangeRoots(0.0, horizon, crit, CRITICAL_POINT_TOLERANCE);
+  // sign·ω is monotone between the critical points: the first piece that ends below −rounding holds the zero.
+  double p = 0.0;
+  double fp = sign * v(0.0);
+  for (int i = 0; i <= m; ++i)
+  {
+    const double q = i < m ? crit[i] : horizon;
+    const double fq = sign * v(q);
+    if (fq < -roundingBound(v, q))
+    {
+      if (!(fp > 0.0))
+      {
+        return p > 0.0 ? p : q;  // already at zero where the piece begins (a critical point within rounding)
+      }
+      double a = p, b = q;
+      for (int it = 0; it < 200 && b - a > 2.0 * EPS * b; ++it)
+      {
+        const double mid = 0.5 * (a + b);
+        (sign * v(mid) > 0.0 ? a : b) = mid;
+      }
+      return b;
+    }
+    p = q;
+    fp = fq;
+  }
+  return INF;
+}
+
+template <class Poly>
 EnergyFlows BasicFreeMotion<Poly>::energy(double tau) const
 {
   Poly torque = load_position_ * -input_.stiffness;
@@ -841,7 +886,9 @@ EnergyFlows BasicFreeMotion<Poly>::energy(double tau) const
   e.input = (torque * motor_velocity_).integral(tau);
   e.motor_friction = params_.motor_friction * (motor_velocity_ * motor_velocity_).integral(tau);
   e.load_friction = params_.load_friction * (load_velocity_ * load_velocity_).integral(tau);
-  e.load_work = params_.load_torque * load_velocity_.integral(tau);
+  e.load_displacement = load_velocity_.integral(tau);
+  e.motor_displacement = motor_velocity_.integral(tau);
+  e.load_work = params_.load_torque * e.load_displacement;
   return e;
 }
 

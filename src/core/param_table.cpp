@@ -52,6 +52,16 @@ std::vector<ParamSpec> makeTable()
     {"load_torque", "T_ext", "N·m", T::Real, S::Servo, ParamRange{-1e9, 1e9, false, false}, "0",
      "external torque on the load: gravity preload, process load, disturbance (both forms)", true, {},
      &ServoParams::load_torque},
+    {"motor_coulomb_friction", "T_cm", "N·m", T::Real, S::Servo, FRICTION, "0",
+     "dry (Coulomb) friction of the sliding motor (both forms)", true, {}, &ServoParams::motor_coulomb_friction},
+    {"motor_static_friction", "T_sm", "N·m", T::Real, S::Servo, FRICTION, "",
+     "breakaway torque of the motor at rest, >= motor_coulomb_friction (default: that value; both forms)", true, {},
+     &ServoParams::motor_static_friction, "motor_coulomb_friction"},
+    {"load_coulomb_friction", "T_cL", "N·m", T::Real, S::Servo, FRICTION, "0",
+     "dry (Coulomb) friction of the sliding load (both forms)", true, {}, &ServoParams::load_coulomb_friction},
+    {"load_static_friction", "T_sL", "N·m", T::Real, S::Servo, FRICTION, "",
+     "breakaway torque of the load at rest, >= load_coulomb_friction (default: that value; both forms)", true, {},
+     &ServoParams::load_static_friction, "load_coulomb_friction"},
     // ---- the servo, chart form (instead of J_m … K) ----
     {"zeta", "ζ", "-", T::Real, S::Chart, ParamRange{0.0, 100.0, false, false}, "", "damping ratio (required in the chart form)", false, {},
      &ChartParams::zeta},
@@ -212,7 +222,8 @@ bool inChartForm(const ParamSpec& spec)
 {
   const std::string key = spec.key;
   return spec.section == ParamSection::Chart || key == "gear_ratio" || key == "backlash" || key == "restitution" ||
-         key == "load_torque";
+         key == "load_torque" || key == "motor_coulomb_friction" || key == "motor_static_friction" ||
+         key == "load_coulomb_friction" || key == "load_static_friction";
 }
 
 const std::vector<ParamSpec>& parameterTable()

@@ -34,6 +34,18 @@ void ServoParams::validate() const
   {
     spec->check(this->*std::get<double ServoParams::*>(spec->field));
   }
+  // A body that sticks must need at least the sliding torque to break away (MODEL.md Part 2).
+  auto requireStaticAtLeastCoulomb = [](const char* key, double static_value, const char* coulomb_key, double coulomb) {
+    if (static_value < coulomb)
+    {
+      throw InvalidParameterError(key, "must be >= " + std::string(coulomb_key) + " " + formatNumber(coulomb) +
+                                           " N·m (got " + formatNumber(static_value) + ")");
+    }
+  };
+  requireStaticAtLeastCoulomb("motor_static_friction", motor_static_friction, "motor_coulomb_friction",
+                              motor_coulomb_friction);
+  requireStaticAtLeastCoulomb("load_static_friction", load_static_friction, "load_coulomb_friction",
+                              load_coulomb_friction);
   // The derived quantities of the validated envelope (README): outside it the core's promises were not measured.
   auto refuse = [&](const char* what, double value, const char* range) {
     throw InvalidParameterError(what, formatNumber(value) + " lies outside the validated envelope " + range +
@@ -97,6 +109,10 @@ ServoParams ChartParams::toServoParams() const
   p.backlash = backlash;
   p.restitution = restitution;
   p.load_torque = load_torque;
+  p.motor_coulomb_friction = motor_coulomb_friction;
+  p.motor_static_friction = motor_static_friction;
+  p.load_coulomb_friction = load_coulomb_friction;
+  p.load_static_friction = load_static_friction;
   p.validate();
   return p;
 }

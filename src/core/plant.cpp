@@ -3,10 +3,12 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <initializer_list>
 #include <limits>
 #include <stdexcept>
 #include <string>
 #include <type_traits>
+#include <utility>
 
 #include "backlash_servo/impact.h"
 
@@ -64,6 +66,8 @@ const char* toString(EventType t)
       return "separation";
     case EventType::Maximum:
       return "maximum";
+    case EventType::Rest:
+      return "rest";
     case EventType::InputChange:
       return "input_change";
     default:
@@ -75,6 +79,7 @@ Plant::Plant(const ServoParams& params, const State& initial, const MotorInput& 
     : params_(params), mesh_(params), law_(law)
 {
   params_.validate();
+  dry_ = params_.hasDryFriction();
   apart_needs_series_ = apartNeedsSeries(params_, FREE_SEARCH_PERIODS * 2.0 * PI / params_.naturalFrequency());
   setState(initial);
 }
@@ -118,6 +123,7 @@ void Plant::setState(const State& s)
   }
   state_ = n;
   segment_.reset();
+  forced_motor_breakaway_ = 0;
   energy_ = EnergyLedger();
   energy_.initial_kinetic = kineticEnergy();
   impacts_ = 0;
@@ -130,6 +136,8 @@ void Plant::setParams(const ServoParams& params, EventSink* sink)
   const double balance_before = energyBalanceError();
   const double old_gap = gap();
   params_ = params;
+  dry_ = params_.hasDryFriction();
+  forced_motor_breakaway_ = 0;
   mesh_ = GearMesh(params_);
   apart_needs_series_ = apartNeedsSeries(params_, FREE_SEARCH_PERIODS * 2.0 * PI / params_.naturalFrequency());
   const double delta = params_.backlash;
@@ -155,12 +163,23 @@ void Plant::setParams(const ServoParams& params, EventSink* sink)
   }
   // A parameter change is not a physical process: re-base the kinetic energy so the ledger keeps its balance.
   energy_.initial_kinetic = kineticEnergy() - energy_.input - energy_.load_work + energy_.motor_friction +
-                            energy_.load_friction + energy_.impact_loss + balance_before;
+                            energy_.load_friction + energy_.motor_dry_friction + energy_.load_dry_friction +
+                            energy_.impact_loss + balance_before;
   emit(sink, EventType::ParameterChange);
 }
 
 double Plant::meshTorque() const
 {
+  if (dry_ && state_.contact != Contact::Apart)
+  {
+    // The kinetic friction of the sliding pair is part of the load's balance (at rest: the static share is not
+    // determined by the model; reported without it).
+    const Slide dir = slideOf(state_.load_velocity, 0);
+    ServoParams folded;
+    MotorInput law;
+    foldKineticFriction(params_, law_, dir, dir, &folded, &law);
+    return backlash_servo::meshTorque(folded, law, state_);
+  }
   return backlash_servo::meshTorque(params_, law_, state_);
 }
 
@@ -172,7 +191,8 @@ double Plant::kineticEnergy() const
 
 double Plant::energyBalanceError() const
 {
-  return energy_.input + energy_.load_work - energy_.motor_friction - energy_.load_friction - energy_.impact_loss -
+  return energy_.input + energy_.load_work - energy_.motor_friction - energy_.load_friction -
+         energy_.motor_dry_friction - energy_.load_dry_friction - energy_.impact_loss -
          (kineticEnergy() - energy_.initial_kinetic);
 }
 
@@ -199,6 +219,8 @@ void Plant::addFlows(const EnergyFlows& f)
   energy_.motor_friction += f.motor_friction;
   energy_.load_friction += f.load_friction;
   energy_.load_work += f.load_work;
+  energy_.motor_dry_friction += f.motor_dry_friction;
+  energy_.load_dry_friction += f.load_dry_friction;
   energy_.input_magnitude += std::fabs(f.input);
 }
 
@@ -212,6 +234,12 @@ bool Plant::advanceTo(double t_end, EventSink* sink)
   int stalled = 0;
   while (state_.time < t_end)
   {
+    if (!segment_ && dry_)
+    {
+      Slide motor = 0, load = 0;
+      chooseDryMode(sink, &motor, &load);
+      beginDrySegment(motor, load);
+    }
     if (!segment_)
     {
       if (state_.contact != Contact::Apart &&
@@ -246,6 +274,19 @@ bool Plant::advanceTo(double t_end, EventSink* sink)
     state_.time = end_time;
     const Segment::End end = seg.end;
     const Contact wall = seg.wall;
+    if (end == Segment::End::Rest || end == Segment::End::Breakaway)
+    {
+      const Segment ended = seg;
+      segment_.reset();
+      handleRest(ended, sink);
+      stalled = state_.time == before ? stalled + 1 : 0;
+      if (stalled > MAX_STALLED_ITERATIONS)
+      {
+        throw std::logic_error("backlash_servo::Plant made no progress at t = " + std::to_string(before) +
+                               " s (dry friction; internal error, please report with the parameters)");
+      }
+      continue;
+    }
     segment_.reset();
     if (end == Segment::End::Separation)
     {
@@ -280,6 +321,10 @@ void Plant::visitMotion(const Segment& seg, F&& f)
   else if (seg.free)
   {
     f(*seg.free);
+  }
+  else if (seg.stuck)
+  {
+    f(*seg.stuck);
   }
   else
   {
@@ -331,6 +376,167 @@ void Plant::beginSegment()
   applyWatch(seg);
 }
 
+void Plant::chooseDryMode(EventSink* sink, Slide* motor, Slide* load)
+{
+  State& s = state_;
+  if (s.contact != Contact::Apart && s.load_velocity != 0.0)
+  {
+    // The pair slides: does the contact hold with its kinetic friction?
+    const Slide dir = s.load_velocity > 0.0 ? 1 : -1;
+    *motor = dir;
+    *load = dir;
+    ServoParams folded;
+    MotorInput law;
+    foldKineticFriction(params_, law_, dir, dir, &folded, &law);
+    if (contactHolds(folded, law, s.load_position, s.load_velocity, s.contact))
+    {
+      return;
+    }
+    s.contact = mesh_.afterSeparation(s.contact);  // Δ = 0: the other flank, the pair still sliding
+    emit(sink, EventType::Separation);
+    if (s.contact == Contact::Apart)
+    {
+      *motor = slideOf(s.motor_velocity, dir);
+    }
+    return;
+  }
+  if (s.contact != Contact::Apart)
+  {
+    s.motor_velocity = 0.0;  // the pair at rest
+  }
+  RestDecision d = decideAtRest(params_, law_.torque(s.load_position), s);
+  if (forced_motor_breakaway_ != 0 && s.motor_velocity == 0.0 && d.contact == Contact::Apart)
+  {
+    d.motor = forced_motor_breakaway_;  // pulled free at a located event: rounding must not re-stick it there
+  }
+  forced_motor_breakaway_ = 0;
+  if (d.contact == Contact::Apart && s.contact != Contact::Apart)
+  {
+    s.contact = Contact::Apart;
+    emit(sink, EventType::Separation);
+  }
+  else if (d.contact != Contact::Apart)
+  {
+    s.contact = d.contact;
+  }
+  *motor = d.motor;
+  *load = d.load;
+}
+
+void Plant::beginDrySegment(Slide motor, Slide load)
+{
+  const double period = 2.0 * PI / params_.naturalFrequency();
+  segment_.emplace();
+  Segment& seg = *segment_;
+  seg.start = state_;
+  seg.energy_at_start = energy_;
+  seg.dry = true;
+  seg.motor_slide = motor;
+  seg.load_slide = load;
+  const bool motor_dry = params_.motor_static_friction > 0.0 || params_.motor_coulomb_friction > 0.0;
+  const bool load_dry = params_.load_static_friction > 0.0 || params_.load_coulomb_friction > 0.0;
+  auto finish = [&](double window, std::initializer_list<std::pair<double, Segment::End>> ends) {
+    seg.end_tau = window;
+    seg.end = Segment::End::Restart;
+    for (const auto& e : ends)
+    {
+      if (e.first <= seg.end_tau && (e.first < seg.end_tau || seg.end == Segment::End::Restart))
+      {
+        seg.end_tau = e.first;
+        seg.end = e.second;
+      }
+    }
+    applyWatch(seg);
+  };
+  if (motor == 0 && load == 0)
+  {
+    // Everything stuck (apart, or the pair pressed together): nothing moves until an input changes.
+    seg.stuck.emplace(params_, law_, state_, StuckMotion::Moving::None, 0);
+    finish(INFINITY, {});
+    return;
+  }
+  if (state_.contact != Contact::Apart)
+  {
+    ServoParams folded;
+    MotorInput law;
+    foldKineticFriction(params_, law_, motor, load, &folded, &law);
+    const ContactMotion& m = seg.contact.emplace(folded, law, state_.load_position, state_.load_velocity);
+    const double window = CONTACT_SEARCH_PERIODS * period;
+    seg.rest_motor = false;
+    finish(window, {{m.separationTime(GearMesh::pressingSign(state_.contact), window), Segment::End::Separation},
+                    {m.restTime(motor, window), Segment::End::Rest}});
+    return;
+  }
+  const double window = FREE_SEARCH_PERIODS * period;
+  Contact wall = Contact::Forward;
+  if (motor != 0 && load != 0)
+  {
+    ServoParams folded;
+    MotorInput law;
+    foldKineticFriction(params_, law_, motor, load, &folded, &law);
+    double impact, motor_rest = INFINITY, load_rest = INFINITY;
+    auto search = [&](const auto& m) {
+      impact = m.impactTime(window, &wall);
+      motor_rest = motor_dry ? m.restTime(true, motor, window) : INFINITY;
+      load_rest = load_dry ? m.restTime(false, load, window) : INFINITY;
+    };
+    if (apartNeedsSeries(folded, window))
+    {
+      seg.wide = std::make_shared<const WideFreeMotion>(folded, law, state_, window);
+      search(*seg.wide);
+    }
+    else
+    {
+      search(seg.free.emplace(folded, law, state_, window));
+    }
+    seg.wall = wall;
+    seg.rest_motor = motor_rest < load_rest;
+    finish(window, {{impact, Segment::End::Impact}, {std::min(motor_rest, load_rest), Segment::End::Rest}});
+    return;
+  }
+  // One body slides, the other is held by its static friction.
+  const bool motor_moves = motor != 0;
+  const StuckMotion& m =
+      seg.stuck.emplace(params_, law_, state_, motor_moves ? StuckMotion::Moving::Motor : StuckMotion::Moving::Load,
+                        motor_moves ? motor : load);
+  const double impact = m.impactTime(window, &wall);
+  seg.wall = wall;
+  seg.rest_motor = motor_moves;
+  const bool moving_dry = motor_moves ? motor_dry : load_dry;
+  finish(window, {{impact, Segment::End::Impact},
+                  {moving_dry ? m.restTime(window) : INFINITY, Segment::End::Rest},
+                  {m.breakawayTime(window), Segment::End::Breakaway}});
+}
+
+void Plant::handleRest(const Segment& seg, EventSink* sink)
+{
+  if (seg.end == Segment::End::Breakaway)
+  {
+    forced_motor_breakaway_ = law_.torque(state_.load_position) > 0.0 ? 1 : -1;
+    emit(sink, EventType::Rest);
+    return;
+  }
+  const bool load_stops = !seg.rest_motor;
+  if (state_.contact != Contact::Apart)
+  {
+    state_.load_velocity = 0.0;
+    state_.motor_velocity = 0.0;
+  }
+  else if (seg.rest_motor)
+  {
+    state_.motor_velocity = 0.0;
+  }
+  else
+  {
+    state_.load_velocity = 0.0;
+  }
+  if (load_stops && seg.load_slide > 0)
+  {
+    emit(sink, EventType::Maximum);  // a maximum of θ_c where the load comes to rest (MODEL.md Part 2)
+  }
+  emit(sink, EventType::Rest);
+}
+
 void Plant::applyWatch(Segment& seg) const
 {
   if (std::isinf(watch_lo_) && std::isinf(watch_hi_))
@@ -365,7 +571,18 @@ void Plant::placeInSegment(double tau, bool with_energy)
     if (track_energy_ && with_energy)
     {
       energy_ = seg.energy_at_start;
-      addFlows(m.energy(tau));
+      EnergyFlows flows = m.energy(tau);
+      if (seg.dry && !std::is_same_v<M, StuckMotion>)
+      {
+        // The motion ran with the kinetic friction folded into its inputs: split it back out of them.
+        const double motor_dry = seg.motor_slide * params_.motor_coulomb_friction * flows.motor_displacement;
+        const double load_dry = seg.load_slide * params_.load_coulomb_friction * flows.load_displacement;
+        flows.input += motor_dry;
+        flows.motor_dry_friction = motor_dry;
+        flows.load_work += load_dry;
+        flows.load_dry_friction = load_dry;
+      }
+      addFlows(flows);
     }
   });
   state_.time = t;
@@ -391,6 +608,11 @@ void Plant::emitMaximaUpTo(double tau, EventSink* sink)
 void Plant::settleOnWall(Contact wall)
 {
   state_.motor_velocity = mesh_.motorVelocityInContact(state_.load_velocity);
+  if (dry_)
+  {
+    state_.contact = wall;  // the next segment decides with friction (chooseDryMode)
+    return;
+  }
   // With Δ = 0 there is no floating: if this flank does not press, the other one (the same gap) does.
   state_.contact = contactHolds(params_, law_, state_.load_position, state_.load_velocity, wall)
                        ? wall

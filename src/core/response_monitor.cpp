@@ -22,7 +22,7 @@ double scaleOf(const ServoParams& params, double command, const State& start)
 }
 }  // namespace
 
-ResponseMonitor::ResponseMonitor(const ServoParams& params, double command, const State& start)
+ResponseMonitor::ResponseMonitor(const ServoParams& params, double command, const State& start, bool sampled_drive)
     : command_(command),
       equilibrium_(equilibriumOf(params, command)),
       omega_n_(params.naturalFrequency()),
@@ -30,7 +30,9 @@ ResponseMonitor::ResponseMonitor(const ServoParams& params, double command, cons
       scale_(scaleOf(params, command, start)),
       start_time_(start.time),
       detector_(command, scale_)
-{}
+{
+  detector_.allowBands(sampled_drive || params.hasDryFriction());
+}
 
 void ResponseMonitor::onEvent(const Event& e)
 {
@@ -40,8 +42,12 @@ void ResponseMonitor::onEvent(const Event& e)
   }
 }
 
-void ResponseMonitor::check(const State& s)
+void ResponseMonitor::check(const State& s, bool drive_winding)
 {
+  if (drive_winding)
+  {
+    return;
+  }
   const double rest = LimitCycleDetector::ZERO_FRACTION * scale_;
   if (std::fabs(s.load_position - equilibrium_) <= rest && std::fabs(s.load_velocity) <= rest * omega_n_ &&
       std::fabs(rho_ * s.motor_velocity) <= rest * omega_n_)

@@ -43,7 +43,7 @@ RunSummary runResponse(const RunConfig& config, EventSink* sink, double sample_p
   sim.setEventBudget(static_cast<std::uint64_t>(config.max_events));
   RunSummary out;
   const double omega_n = config.params.naturalFrequency();
-  ResponseMonitor monitor(config.params, config.command, config.initial);
+  ResponseMonitor monitor(config.params, config.command, config.initial, sim.drive().sampled());
   Tee tee(&monitor, sink);
   const double t0 = config.initial.time;
   const bool until_settled = config.duration <= 0.0;
@@ -71,7 +71,7 @@ RunSummary runResponse(const RunConfig& config, EventSink* sink, double sample_p
     {
       on_sample(sim);
     }
-    monitor.check(sim.state());
+    monitor.check(sim.state(), sim.drive().winding());
     if (on_progress)
     {
       on_progress((t - t0) / (t_stop - t0));

@@ -126,7 +126,7 @@ void ServoNode::reanchorWallClock()
 
 void ServoNode::restartMonitor()
 {
-  monitor_ = std::make_unique<ResponseMonitor>(sim_.params(), command_, sim_.state());
+  monitor_ = std::make_unique<ResponseMonitor>(sim_.params(), command_, sim_.state(), sim_.drive().sampled());
   announced_ = Verdict::Undecided;
 }
 
@@ -199,7 +199,7 @@ void ServoNode::run()
     ++sample_index_;
     if (sim_.controlMode() == ControlMode::Position)
     {
-      monitor_->check(sim_.state());  // rest and quiet rules, as backlash_sim applies them
+      monitor_->check(sim_.state(), sim_.drive().winding());  // rest and quiet rules, as backlash_sim applies them
       if (monitor_->status().verdict != announced_)
       {
         publishLimitCycle(t, false);

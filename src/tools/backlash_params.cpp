@@ -96,7 +96,8 @@ void printCfg(std::ostream& out)
           std::string(*p->symbol != '\0' ? std::string(p->symbol) + ", " : "") + p->doc + " [" + p->unit + "]";
       if (p->type == ParamType::Real)
       {
-        out << group << ".add(\"" << p->key << "\", double_t, 0, " << pyString(doc) << ", " << p->fallback << ")\n";
+        out << group << ".add(\"" << p->key << "\", double_t, 0, " << pyString(doc) << ", "
+            << (*p->fallback != '\0' ? std::string(p->fallback) : formatNumber(p->fallbackNumber())) << ")\n";
       }
       else if (p->type == ParamType::Choice)
       {
@@ -129,8 +130,10 @@ void printMarkdown(std::ostream& out, const std::string& sections)
       continue;
     }
     out << "| `" << p.key << "` | " << p.symbol << " | " << p.unit << " | " << range(p) << " | "
-        << (*p.fallback != '\0' ? std::string("`") + p.fallback + "`" : std::string("–")) << " | "
-        << (p.live ? "yes" : "") << " | " << p.doc << " |\n";
+        << (*p.fallback != '\0'    ? std::string("`") + p.fallback + "`"
+            : p.same_as != nullptr ? std::string("= `") + p.same_as + "`"
+                                   : std::string("–"))
+        << " | " << (p.live ? "yes" : "") << " | " << p.doc << " |\n";
   }
 }
 

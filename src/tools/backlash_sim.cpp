@@ -132,6 +132,8 @@ void writeJson(std::ostream& out, const RunConfig& c, const RunSummary& r, doubl
       .field("load_friction", r.energy.load_friction)
       .field("impact_loss", r.energy.impact_loss)
       .field("load_work", r.energy.load_work)
+      .field("motor_dry_friction", r.energy.motor_dry_friction)
+      .field("load_dry_friction", r.energy.load_dry_friction)
       .field("kinetic", r.kinetic)
       .field("initial_kinetic", r.energy.initial_kinetic)
       .field("balance_error", r.balance_error)
