@@ -110,6 +110,19 @@ TEST(Cli, CsvHasSamplesAndEventRows)
   EXPECT_GE(maxima, 2);
 }
 
+TEST(Cli, StaticFrictionDefaultsToTheCoulombValueInBothForms)
+{
+  for (const std::string form : {"", "--zeta 0.4 --inertia-ratio 9 --friction-ratio 0.4 "})
+  {
+    const Result r = run(form +
+                         "--duration 1 --json --load-coulomb-friction 0.02 --motor-coulomb-friction 0.01 "
+                         "--motor-static-friction 0.03");
+    ASSERT_EQ(r.code, 0) << r.err;
+    EXPECT_EQ(number(r.out, "load_static_friction"), 0.02) << form;
+    EXPECT_EQ(number(r.out, "motor_static_friction"), 0.03) << form;
+  }
+}
+
 TEST(Cli, BadInputIsOneClearLineAndExitCode2)
 {
   struct Case
@@ -131,7 +144,14 @@ TEST(Cli, BadInputIsOneClearLineAndExitCode2)
                         {"--contact forward --motor-position 0.2", "motor_position"},
                         {"--config /nonexistent.yaml", "cannot read"},
                         {"--config " + bad_yaml, "not valid YAML"},
-                        {"--config " + unknown_key, "backlsh"}};
+                        {"--config " + unknown_key, "backlsh"},
+                        {"--load-coulomb-friction 0.2 --load-static-friction 0.1", "load_static_friction"},
+                        {"--motor-coulomb-friction -0.1", "motor_coulomb_friction"},
+                        {"--motor-static-friction inf", "--motor-static-friction"},
+                        {"--controller-rate nan", "--controller-rate"},
+                        {"--controller-rate 100 --controller-delay 2", "controller_delay"},
+                        {"--control-law bangbang", "--control-law"},
+                        {"--control-law pid", "controller_rate"}};
   for (const Case& c : cases)
   {
     const std::string csv = "/tmp/backlash_sim_never.csv";
