@@ -23,9 +23,11 @@ using namespace backlash_servo;
 namespace
 {
 const char* HEADER = R"(usage: backlash_sweep [axes] [--preset thesis] [--output FILE|-] [--jobs N] [--resume]
-Runs every combination of the axes (chart form, w_n = 1 rad/s, J = 1 kg·m², rho = 1, unit step from rest in
-forward contact), each until its limit-cycle verdict is settled, and writes one CSV row per point in a fixed order.
-An axis is a list "0.1,0.2,0.5", a range "start:stop:count", or "log:start:stop:count"; defaults: App. D1.
+Runs every combination of the axes (by default the chart form, w_n = 1 rad/s, J = 1 kg·m², rho = 1, unit step from
+rest in forward contact), each until its limit-cycle verdict is settled, and writes one CSV row per point in a fixed
+order. Any numeric parameter below is an axis when given a list "0.1,0.2,0.5", a range "start:stop:count" or
+"log:start:stop:count"; given one value (or in --config FILE) it is a setting every point shares. Physical keys
+(--motor-inertia ... --gain) switch to the physical form. Defaults: App. D1.
 )";
 
 std::atomic<bool> g_interrupted{false};
@@ -46,8 +48,10 @@ struct SweepOptions
 
 SweepOptions parse(int argc, char** argv)
 {
-  std::vector<std::string> keys(SweepGrid::keys().begin(), SweepGrid::keys().end());
+  std::vector<std::string> keys =
+      keysOfSections({ParamSection::Servo, ParamSection::Chart, ParamSection::Drive, ParamSection::Initial});
   keys.push_back("max_duration");
+  keys.push_back("max_events");
   FlagParser parser(
       "backlash_sweep", HEADER, keys,
       {{"preset", "thesis",
@@ -68,13 +72,34 @@ SweepOptions parse(int argc, char** argv)
     }
     o.grid = SweepGrid::thesis();
   }
-  for (const char* key : SweepGrid::keys())
+  // A numeric key given a list or a range (or a chart axis given one value) is an axis; everything else is a
+  // setting every point shares.
+  const KeyValues& kv = parser.keys();
+  KeyValues fixed;
+  const auto& chart_axes = SweepGrid::chartAxes();
+  for (const ParamSpec& spec : parameterTable())  // table order: the order of the axis columns
   {
-    if (parser.keys().has(key))
+    const std::string key = spec.key;
+    if (!kv.has(key) || key == "max_duration")
     {
-      o.grid.setAxis(key, parseAxis(key, parser.keys().text(key, "")));
+      continue;
+    }
+    const bool chart_axis = std::find(chart_axes.begin(), chart_axes.end(), key) != chart_axes.end();
+    if (spec.type == ParamType::Real && spec.section != ParamSection::Run &&
+        (chart_axis || isAxisText(kv.text(key, ""))))
+    {
+      o.grid.setAxis(key, parseAxis(key, kv.text(key, "")));
+    }
+    else if (spec.type == ParamType::Real)
+    {
+      fixed.setNumber(key, kv.number(key));
+    }
+    else
+    {
+      fixed.set(key, kv.text(key, ""));
     }
   }
+  o.grid.setFixed(fixed);
   o.output = parser.option("output", "-");
   o.jobs = static_cast<int>(parser.optionNumber("jobs", std::max(1u, std::thread::hardware_concurrency())));
   if (o.jobs < 1 || o.jobs > 4096)
@@ -104,18 +129,20 @@ SweepOptions parse(int argc, char** argv)
   const std::size_t n = o.grid.size();
   for (std::size_t i = 0; i < n; ++i)
   {
-    o.grid.point(i).params();
+    o.grid.point(i).config();
   }
   return o;
 }
 
 std::string evaluate(const SweepPoint& p, double max_duration)
 {
-  RunConfig c;
-  c.params = p.params();
-  c.max_duration = max_duration;
+  RunConfig c = p.config();
+  if (max_duration > 0.0)
+  {
+    c.max_duration = max_duration;
+  }
   c.track_energy = false;  // verdicts only
-  return sweepRow(p, runResponse(c));
+  return sweepRow(p, runResponse(c), c.command);
 }
 }  // namespace
 
@@ -224,7 +251,7 @@ int main(int argc, char** argv)
   {
     *out << shard.headerLine(o.grid) << "\n";
   }
-  csv.header();
+  csv.header(o.grid);
   for (const std::string& line : kept)
   {
     csv.row(line);

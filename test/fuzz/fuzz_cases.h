@@ -34,7 +34,10 @@ struct Case
     o << "--motor-inertia " << params.motor_inertia << " --load-inertia " << params.load_inertia << " --motor-friction "
       << params.motor_friction << " --load-friction " << params.load_friction << " --gain " << params.gain
       << " --gear-ratio " << params.gear_ratio << " --backlash " << params.backlash << " --restitution "
-      << params.restitution << " --load-torque " << params.load_torque << " --command " << command << " --contact "
+      << params.restitution << " --load-torque " << params.load_torque << " --motor-coulomb-friction "
+      << params.motor_coulomb_friction << " --motor-static-friction " << params.motor_static_friction
+      << " --load-coulomb-friction " << params.load_coulomb_friction << " --load-static-friction "
+      << params.load_static_friction << " --command " << command << " --contact "
       << (start.contact == Contact::Apart ? "none" : toString(start.contact)) << " --load-position "
       << start.load_position << " --load-velocity " << start.load_velocity << " --motor-position "
       << start.motor_position << " --motor-velocity " << start.motor_velocity << " --duration " << duration;
@@ -145,6 +148,16 @@ inline Case makeCase(std::uint64_t seed, std::uint64_t index)
       // mesh under a constant torque can flip flanks for ever at Q ≈ 0 — seed 2 #342, open in issue 14's note.)
       c.drive.torque_limit = c.params.gain * std::fabs(c.command) * logu(0.05, 2.0);
     }
+    // Dry friction and stiction, up to about the torque the P law exerts at the step (stick–slip, stuck off the
+    // command, held bodies hit by the other).
+    if (u(rng) < 0.3)
+    {
+      const double torque = c.params.gain * std::max(std::fabs(c.command), scale);
+      c.params.motor_coulomb_friction = u(rng) < 0.3 ? 0.0 : torque * logu(1e-4, 0.5);
+      c.params.motor_static_friction = c.params.motor_coulomb_friction * pick({1.0, 1.5, 3.0});
+      c.params.load_coulomb_friction = u(rng) < 0.3 ? 0.0 : torque / rho * logu(1e-4, 0.5);
+      c.params.load_static_friction = c.params.load_coulomb_friction * pick({1.0, 1.5, 3.0});
+    }
     try
     {
       c.params.validate();
@@ -231,7 +244,8 @@ inline Outcome check(const Case& c, std::uint64_t event_budget = 100000)
       return law.stiffness > 0.0 ? law.torque(x) * law.torque(x) / (2.0 * law.stiffness * c.params.gear_ratio) : 0.0;
     };
     const double energy_scale = std::max(
-        {std::fabs(e.input), std::fabs(e.load_work), e.motor_friction + e.load_friction + e.impact_loss,
+        {std::fabs(e.input), std::fabs(e.load_work),
+         e.motor_friction + e.load_friction + e.impact_loss + e.motor_dry_friction + e.load_dry_friction,
          e.initial_kinetic, whole.kineticEnergy(), spring(c.start.load_position), spring(s.load_position), 1e-300});
     if (std::fabs(whole.energyBalanceError()) > 1e-9 * energy_scale)
     {

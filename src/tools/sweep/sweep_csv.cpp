@@ -10,23 +10,22 @@
 
 namespace backlash_servo
 {
-const char* const SWEEP_CSV_HEADER =
-    "zeta,inertia_ratio,friction_ratio,restitution,backlash,verdict,limit_cycle,limit_cycle_error,period,impacts,"
-    "simulated_time,settled";
 
-namespace
-{
-constexpr int COLUMNS = 12;
-}
-
-std::string sweepRow(const SweepPoint& p, const RunSummary& r)
+std::string sweepRow(const SweepPoint& p, const RunSummary& r, double command)
 {
   const bool lc = r.status.verdict == Verdict::LimitCycle || r.status.verdict == Verdict::Irregular;
   char buf[400];
-  std::snprintf(buf, sizeof buf, "%s,%s,%d,%.17g,%.17g,%llu,%.17g,%d", p.columns().c_str(), toString(r.status.verdict),
-                lc ? 1 : 0, lc ? r.status.error : 0.0, lc ? r.status.period : 0.0,
-                static_cast<unsigned long long>(r.impacts), r.simulated, r.settled ? 1 : 0);
-  return buf;
+  std::snprintf(buf, sizeof buf, "%s,%d,%.17g,%.17g,%llu,%.17g,%d,", toString(r.status.verdict), lc ? 1 : 0,
+                lc ? r.status.error : 0.0, lc ? r.status.period : 0.0, static_cast<unsigned long long>(r.impacts),
+                r.simulated, r.settled ? 1 : 0);
+  std::string row = p.columns();
+  row += (row.empty() ? "" : ",") + std::string(buf);
+  if (r.status.verdict == Verdict::Converged)
+  {
+    std::snprintf(buf, sizeof buf, "%.17g", r.final_state.load_position - command);
+    row += buf;
+  }
+  return row;
 }
 
 SweepShard shardOf(std::size_t k, std::size_t n, std::size_t total)
@@ -54,6 +53,7 @@ std::string mergeParts(const std::vector<std::string>& paths)
     std::vector<std::string> rows;
   };
   std::vector<Part> parts;
+  std::string header;
   for (const std::string& path : paths)
   {
     std::ifstream in(path);
@@ -77,10 +77,11 @@ std::string mergeParts(const std::vector<std::string>& paths)
     }
     p.k = k, p.n = n, p.first = first, p.last = last, p.total = total, p.grid = grid;
     std::getline(ss, line);
-    if (line != SWEEP_CSV_HEADER)
+    if (line.find("verdict,limit_cycle,") == std::string::npos || (!header.empty() && line != header))
     {
-      throw ConfigError("--merge: '" + path + "' has no sweep CSV header");
+      throw ConfigError("--merge: '" + path + "' has no sweep CSV header, or another grid's");
     }
+    header = line;
     while (std::getline(ss, line))
     {
       const bool complete = ss.good() || (!content.empty() && content.back() == '\n');
@@ -129,7 +130,7 @@ std::string mergeParts(const std::vector<std::string>& paths)
   {
     throw ConfigError("--merge: missing part(s) " + missing + " of " + std::to_string(ref.n));
   }
-  std::string out = std::string(SWEEP_CSV_HEADER) + "\n";
+  std::string out = header + "\n";
   for (std::size_t k = 1; k <= ref.n; ++k)
   {
     for (const std::string& row : by_k[k]->rows)
@@ -166,19 +167,20 @@ std::vector<std::string> resumableRows(const std::string& path, const SweepGrid&
     if (first)
     {
       first = false;
-      if (line != SWEEP_CSV_HEADER)
+      if (line != grid.header())
       {
         throw ConfigError("'" + path + "' is not a backlash_sweep CSV (header differs)");
       }
       continue;
     }
-    if (!complete || std::count(line.begin(), line.end(), ',') != COLUMNS - 1)
+    const std::string header = grid.header();
+    if (!complete || std::count(line.begin(), line.end(), ',') != std::count(header.begin(), header.end(), ','))
     {
       break;  // torn last line of an interrupted run
     }
     const std::size_t index = shard.first + kept.size();
-    const std::string expected = index < (shard.whole() ? n : shard.last) ? grid.point(index).columns() : "";
-    if (line.compare(0, expected.size() + 1, expected + ",") != 0)
+    const std::string expected = index < (shard.whole() ? n : shard.last) ? grid.point(index).columns() + "," : "";
+    if (line.compare(0, expected.size(), expected) != 0)
     {
       throw ConfigError("'" + path + "' row " + std::to_string(index + 1) + " (" +
                         line.substr(0, std::min<std::size_t>(line.size(), 60)) + ") is not point " +

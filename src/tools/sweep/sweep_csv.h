@@ -11,11 +11,9 @@
 
 namespace backlash_servo
 {
-extern const char* const SWEEP_CSV_HEADER;
-
 /// The row of one point: its parameter columns, verdict, limit-cycle error [rad], period [s], impacts, simulated
-/// time [s], settled.
-std::string sweepRow(const SweepPoint& point, const RunSummary& run);
+/// time [s], settled, steady error [rad] (converged runs; empty otherwise).
+std::string sweepRow(const SweepPoint& point, const RunSummary& run, double command);
 
 /// Points first … last−1 of part K of N (1-based K): contiguous blocks by grid index.
 struct SweepShard
@@ -47,7 +45,7 @@ class SweepCsvWriter
 {
  public:
   explicit SweepCsvWriter(std::ostream& out) : out_(out) {}
-  void header() { out_ << SWEEP_CSV_HEADER << "\n"; }
+  void header(const SweepGrid& grid) { out_ << grid.header() << "\n"; }
   void row(const std::string& row) { out_ << row << "\n"; }
   /// Flushes; false when any write so far failed (disk full, closed pipe).
   bool flush();

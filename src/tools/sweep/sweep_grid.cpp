@@ -8,70 +8,183 @@
 #include <stdexcept>
 
 #include "backlash_servo/config/key_values.h"
+#include "backlash_servo/config/run_config_loader.h"
+#include "backlash_servo/param_table.h"
 
 namespace backlash_servo
 {
-ServoParams SweepPoint::params() const
+namespace
 {
-  ChartParams ch;
-  ch.zeta = zeta;
-  ch.inertia_ratio = inertia_ratio;
-  ch.friction_ratio = friction_ratio;
-  ch.restitution = restitution;
-  ch.backlash = backlash;
-  return ch.toServoParams();
+/// Result columns after the axis columns.
+const char* const RESULT_COLUMNS =
+    "verdict,limit_cycle,limit_cycle_error,period,impacts,simulated_time,settled,steady_error";
+
+bool physicalOnly(const std::string& key)
+{
+  const ParamSpec* spec = findParam(key);
+  return spec != nullptr && spec->section == ParamSection::Servo && !inChartForm(*spec);
+}
+
+bool chartOnly(const std::string& key)
+{
+  const ParamSpec* spec = findParam(key);
+  return spec != nullptr && spec->section == ParamSection::Chart;
+}
+}  // namespace
+
+RunConfig SweepPoint::config() const
+{
+  KeyValues kv = grid->fixed();
+  for (std::size_t i = 0; i < values.size(); ++i)
+  {
+    kv.setNumber(grid->axes()[i].key, values[i]);
+  }
+  return runConfigFrom(kv);
 }
 
 std::string SweepPoint::columns() const
 {
-  char buf[160];
-  std::snprintf(buf, sizeof buf, "%.10g,%.10g,%.10g,%.10g,%.10g", zeta, inertia_ratio, friction_ratio, restitution,
-                backlash);
-  return buf;
+  std::string out;
+  char buf[40];
+  for (std::size_t i = 0; i < values.size(); ++i)
+  {
+    std::snprintf(buf, sizeof buf, "%s%.10g", i == 0 ? "" : ",", values[i]);
+    out += buf;
+  }
+  return out;
 }
 
-const std::array<const char*, SweepGrid::AXES>& SweepGrid::keys()
+const std::vector<std::string>& SweepGrid::chartAxes()
 {
-  static const std::array<const char*, AXES> k = {"zeta", "inertia_ratio", "friction_ratio", "restitution", "backlash"};
+  static const std::vector<std::string> k = {"zeta", "inertia_ratio", "friction_ratio", "restitution", "backlash"};
   return k;
 }
 
-SweepGrid::SweepGrid() : axes_{{{0.4}, {9.0}, {0.4}, {1.0}, {0.3}}} {}
+SweepGrid::SweepGrid()
+    : axes_{{"zeta", {0.4}},
+            {"inertia_ratio", {9.0}},
+            {"friction_ratio", {0.4}},
+            {"restitution", {1.0}},
+            {"backlash", {0.3}}},
+      given_(5, false)
+{
+  fixed_.nameKeysAsFlags(true);
+}
 
 SweepGrid SweepGrid::thesis()
 {
   SweepGrid g;
-  g.axes_[0] = {0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.8, 1.0};
-  g.axes_[1] = {0.04, 0.1, 1.0 / 9.0, 0.25, 1.0, 4.0, 9.0};
-  g.axes_[2] = {0.0, 0.2, 0.4, 0.6, 0.8, 1.0};
-  g.axes_[3] = {0.0, 0.6, 0.8, 1.0};
-  g.axes_[4] = {0.3};
+  g.axes_[0].values = {0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.8, 1.0};
+  g.axes_[1].values = {0.04, 0.1, 1.0 / 9.0, 0.25, 1.0, 4.0, 9.0};
+  g.axes_[2].values = {0.0, 0.2, 0.4, 0.6, 0.8, 1.0};
+  g.axes_[3].values = {0.0, 0.6, 0.8, 1.0};
+  g.axes_[4].values = {0.3};
   return g;
 }
 
 void SweepGrid::setAxis(const std::string& key, std::vector<double> values)
 {
-  for (int i = 0; i < AXES; ++i)
+  const ParamSpec* spec = findParam(key);
+  if (spec == nullptr || spec->type != ParamType::Real ||
+      !(spec->section == ParamSection::Servo || spec->section == ParamSection::Chart ||
+        spec->section == ParamSection::Drive || spec->section == ParamSection::Initial))
   {
-    if (key == keys()[i])
+    throw ConfigError("'" + key + "' is not a numeric parameter a sweep can vary");
+  }
+  if (values.empty())
+  {
+    throw ConfigError(flagName(key) + ": no values");
+  }
+  for (double v : values)
+  {
+    spec->check(v);
+  }
+  bool found = false;
+  for (std::size_t i = 0; i < axes_.size(); ++i)
+  {
+    if (axes_[i].key == key)
     {
-      if (values.empty())
-      {
-        throw std::invalid_argument(key + ": no values");
-      }
-      axes_[i] = std::move(values);
-      return;
+      axes_[i].values = std::move(values);
+      given_[i] = true;
+      found = true;
+      break;
     }
   }
-  throw std::invalid_argument("'" + key + "' is not an axis of the sweep");
+  if (!found)
+  {
+    axes_.push_back({key, std::move(values)});
+    given_.push_back(true);
+  }
+  requireOneForm();
+}
+
+void SweepGrid::setFixed(const KeyValues& fixed)
+{
+  fixed_ = fixed;
+  fixed_.nameKeysAsFlags(true);
+  requireOneForm();
+}
+
+void SweepGrid::requireOneForm()
+{
+  bool physical = false;
+  for (const auto& item : fixed_.keys())
+  {
+    physical = physical || physicalOnly(item.first);
+  }
+  for (const SweepAxis& a : axes_)
+  {
+    physical = physical || physicalOnly(a.key);
+  }
+  if (!physical)
+  {
+    return;
+  }
+  for (std::size_t i = 0; i < axes_.size(); ++i)
+  {
+    if (chartOnly(axes_[i].key) && given_[i])
+    {
+      throw ConfigError(
+          "give either physical parameters (--motor-inertia ... --gain) or the chart form (--zeta "
+          "--inertia-ratio --friction-ratio ...), not both");
+    }
+  }
+  for (const auto& item : fixed_.keys())
+  {
+    if (chartOnly(item.first))
+    {
+      throw ConfigError(
+          "give either physical parameters (--motor-inertia ... --gain) or the chart form (--zeta "
+          "--inertia-ratio --friction-ratio ...), not both");
+    }
+  }
+  // The physical form: the chart axes left at their defaults are not parameters of this grid.
+  for (std::size_t i = axes_.size(); i-- > 0;)
+  {
+    if (chartOnly(axes_[i].key) && !given_[i])
+    {
+      axes_.erase(axes_.begin() + static_cast<long>(i));
+      given_.erase(given_.begin() + static_cast<long>(i));
+    }
+  }
+}
+
+std::string SweepGrid::header() const
+{
+  std::string h;
+  for (const SweepAxis& a : axes_)
+  {
+    h += a.key + ",";
+  }
+  return h + RESULT_COLUMNS;
 }
 
 std::size_t SweepGrid::size() const
 {
   double n = 1.0;
-  for (const auto& a : axes_)
+  for (const SweepAxis& a : axes_)
   {
-    n *= static_cast<double>(a.size());
+    n *= static_cast<double>(a.values.size());
   }
   if (n > MAX_POINTS)
   {
@@ -84,13 +197,16 @@ std::size_t SweepGrid::size() const
 
 SweepPoint SweepGrid::point(std::size_t index) const
 {
-  double v[AXES];
-  for (int i = AXES - 1; i >= 0; --i)
+  SweepPoint p;
+  p.grid = this;
+  p.values.resize(axes_.size());
+  for (std::size_t i = axes_.size(); i-- > 0;)
   {
-    v[i] = axes_[i][index % axes_[i].size()];
-    index /= axes_[i].size();
+    const std::vector<double>& v = axes_[i].values;
+    p.values[i] = v[index % v.size()];
+    index /= v.size();
   }
-  return {v[0], v[1], v[2], v[3], v[4]};
+  return p;
 }
 
 std::string SweepGrid::fingerprint() const
@@ -102,19 +218,37 @@ std::string SweepGrid::fingerprint() const
       h = (h ^ ((v >> (8 * b)) & 0xffu)) * 1099511628211ull;
     }
   };
-  for (const auto& axis : axes_)
+  auto mixText = [&](const std::string& s) {
+    mix(s.size());
+    for (char c : s)
+    {
+      mix(static_cast<unsigned char>(c));
+    }
+  };
+  for (const SweepAxis& axis : axes_)
   {
-    mix(axis.size());
-    for (double v : axis)
+    mixText(axis.key);
+    mix(axis.values.size());
+    for (double v : axis.values)
     {
       std::uint64_t bits;
       std::memcpy(&bits, &v, sizeof bits);
       mix(bits);
     }
   }
+  for (const auto& item : fixed_.keys())
+  {
+    mixText(item.first);
+    mixText(item.second);
+  }
   char buf[20];
   std::snprintf(buf, sizeof buf, "%016llx", static_cast<unsigned long long>(h));
   return buf;
+}
+
+bool isAxisText(const std::string& text)
+{
+  return text.find(',') != std::string::npos || text.find(':') != std::string::npos;
 }
 
 std::vector<double> parseAxis(const std::string& flag, const std::string& text)

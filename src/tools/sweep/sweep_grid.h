@@ -1,26 +1,34 @@
-// The sweep's grid: five chart-form axes, a point identified by its index (last axis fastest), its parameters.
+// The sweep's grid: axes over any numeric parameter (by default the five chart-form axes of the 1961 study), a
+// point identified by its index (last axis fastest), and the run configuration of a point.
 #pragma once
 
-#include <array>
 #include <cstddef>
 #include <string>
 #include <vector>
 
-#include "backlash_servo/params.h"
+#include "backlash_servo/config/key_values.h"
+#include "backlash_servo/step_response.h"
 
 namespace backlash_servo
 {
-/// One point of the chart-form study (ω_n = 1 rad/s, J = 1 kg·m², ρ = 1).
+/// One axis: a Real parameter-table key and its values.
+struct SweepAxis
+{
+  std::string key;
+  std::vector<double> values;
+};
+
+class SweepGrid;
+
+/// One point of the grid: a value per axis.
 struct SweepPoint
 {
-  double zeta;            ///< ζ [-]
-  double inertia_ratio;   ///< ρ²J_L/J_m [-]
-  double friction_ratio;  ///< ρ²f_L/F_T [-]
-  double restitution;     ///< e [-]
-  double backlash;        ///< Δ [rad]
+  const SweepGrid* grid = nullptr;
+  std::vector<double> values;
 
-  /// Physical parameters; throws InvalidParameterError naming the bad one.
-  ServoParams params() const;
+  /// The run of this point: the grid's fixed settings plus the axis values; throws ConfigError /
+  /// InvalidParameterError naming the bad key.
+  RunConfig config() const;
   /// The CSV's parameter columns ("%.10g" each), as written and read back by --resume.
   std::string columns() const;
 };
@@ -28,33 +36,49 @@ struct SweepPoint
 class SweepGrid
 {
  public:
-  static constexpr int AXES = 5;
-  /// Parameter-table keys of the axes, in column order.
-  static const std::array<const char*, AXES>& keys();
+  /// The chart-form axes, in column order (always columns in the chart form, so the thesis CSV keeps its shape).
+  static const std::vector<std::string>& chartAxes();
   /// Largest grid accepted (points); a bigger one is refused before anything is allocated.
   static constexpr double MAX_POINTS = 1e9;
 
-  /// One value per axis: the thesis' App. D1 case.
+  /// One value per chart axis: the thesis' App. D1 case.
   SweepGrid();
   /// The 1961 grid (1344 points).
   static SweepGrid thesis();
 
-  /// Replaces the values of axis `key`; throws std::invalid_argument for an unknown key or no values.
+  /**
+   * Axis `key` (a Real key of the servo — physical or chart form —, drive or initial section of the parameter
+   * table): replaces that axis or adds it after the others. Physical-only keys (motor_inertia … gain) switch the
+   * grid to the physical form, which drops the chart axes; mixing both forms throws ConfigError.
+   */
   void setAxis(const std::string& key, std::vector<double> values);
-  const std::vector<double>& axis(int i) const { return axes_[i]; }
+  /// Settings every point shares (drive law, fixed parameters, run length); checked for the form like axes.
+  void setFixed(const KeyValues& fixed);
+  const std::vector<SweepAxis>& axes() const { return axes_; }
+  const KeyValues& fixed() const { return fixed_; }
+  /// The CSV header: the axis keys, then the result columns.
+  std::string header() const;
   /// Number of points; throws std::length_error when above MAX_POINTS.
   std::size_t size() const;
   /// Point `index` in [0, size()): nested loops over the axes in column order, the last axis fastest.
   SweepPoint point(std::size_t index) const;
-  /// A fingerprint of the axes' values (FNV-1a over their bits, hex): parts of one grid carry the same.
+  /// A fingerprint of the axes' keys and values and the fixed settings (FNV-1a, hex): parts of one grid agree.
   std::string fingerprint() const;
 
  private:
-  std::array<std::vector<double>, AXES> axes_;
+  /// Refuses a mix of the two forms; the physical form drops the chart axes left at their defaults.
+  void requireOneForm();
+
+  std::vector<SweepAxis> axes_;
+  std::vector<bool> given_;  // axis set explicitly (a chart axis left at its default is dropped by the physical form)
+  KeyValues fixed_;
 };
 
 /// Values of an axis flag: a list "0.1,0.2", a range "start:stop:count" or "log:start:stop:count". Throws
 /// ConfigError naming the flag.
 std::vector<double> parseAxis(const std::string& flag, const std::string& text);
+
+/// Whether `text` is an axis (a list or a range) rather than one value.
+bool isAxisText(const std::string& text);
 
 }  // namespace backlash_servo
