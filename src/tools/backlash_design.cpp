@@ -6,9 +6,12 @@
 #include <functional>
 #include <iostream>
 #include <sstream>
+#include <stdexcept>
 #include <vector>
 
 #include "backlash_servo/config/flag_parser.h"
+#include "backlash_servo/config/run_config_loader.h"
+#include "backlash_servo/param_table.h"
 #include "backlash_servo/step_response.h"
 #include "json_writer.h"
 #include "output_file.h"
@@ -20,17 +23,32 @@ namespace
 const char* HEADER =
     R"(usage: backlash_design --motor-inertia J_m --motor-friction f_m --load-inertia J_L --load-friction f_L
                        --restitution e [--backlash D] [--gain K|LO:HI] [--gear-ratio rho|LO:HI]
-                       [--find max-gain|gear-ratio] [--json]
+                       [any servo or drive flag] [--tune KEY] [--find max-gain|gear-ratio] [--json]
 Computes zeta, w_n and the chart coordinates of a motor/gear/load choice and simulates whether it falls into a
-limit cycle (and how big). --find max-gain bisects the largest servo gain K [N·m/rad] without a limit cycle in the
-gain range (default K/1000 .. K*1000); --find gear-ratio scans the gear-ratio range (default rho/10 .. rho*10) for
-ratios without a limit cycle. SI units; defaults: K = 1, rho = 1, backlash 0.3 rad.
+limit cycle (and how big). --find max-gain bisects the largest value of the tuned gain (--tune, default the servo
+gain K [N·m/rad]; any gain of the pid or cascade law, given as --KEY VALUE or --KEY LO:HI) without a limit cycle in
+its range (default value/1000 .. value*1000); --find gear-ratio scans the gear-ratio range (default rho/10 ..
+rho*10) for ratios without a limit cycle. Every other setting (digital drive, dry friction, load torque, ...) is
+simulated as given. SI units; defaults: K = 1, rho = 1, backlash 0.3 rad.
 )";
+
+/// The gains --find max-gain can search (--tune KEY): the P gain and every gain of the sampled laws.
+const std::vector<std::string>& tunableGains()
+{
+  static const std::vector<std::string> keys = {"gain",
+                                                "integral_gain",
+                                                "derivative_gain",
+                                                "position_loop_gain",
+                                                "velocity_loop_gain",
+                                                "velocity_loop_integral_gain"};
+  return keys;
+}
 
 struct Design
 {
-  ServoParams base;  // J_m, f_m, J_L, f_L, e, Δ; gain and gear_ratio set per evaluation
-  double gain = 1.0, gain_lo = 0.0, gain_hi = 0.0;
+  KeyValues base;             // every setting given (motor, load, drive, dry friction …) except the searched ones
+  std::string tune = "gain";  // the gain --find max-gain searches
+  double gain = 1.0, gain_lo = 0.0, gain_hi = 0.0;  // value and range of the tuned gain
   double rho = 1.0, rho_lo = 0.0, rho_hi = 0.0;
   std::string find;
   bool json = false;
@@ -38,8 +56,10 @@ struct Design
 
 struct Evaluation
 {
-  ServoParams params;
+  RunConfig config;
+  double tuned = 0.0;  // value of the tuned gain
   RunSummary run;
+  bool diverged = false;  // the loop is unstable: the motion overflowed (counts as not free of limit cycles)
   bool limit_cycle() const
   {
     // Undecided counts as a limit cycle: a design tool must not promise what it could not show.
@@ -47,39 +67,51 @@ struct Evaluation
   }
 };
 
-Evaluation evaluate(const ServoParams& base, double gain, double rho)
+RunConfig configOf(const Design& d, double tuned, double rho)
+{
+  KeyValues kv = d.base;
+  kv.setNumber(d.tune, tuned);
+  kv.setNumber("gear_ratio", rho);
+  return runConfigFrom(kv);
+}
+
+Evaluation evaluate(const Design& d, double tuned, double rho)
 {
   Evaluation e;
-  e.params = base;
-  e.params.gain = gain;
-  e.params.gear_ratio = rho;
-  RunConfig c;
-  c.params = e.params;
+  e.config = configOf(d, tuned, rho);
+  e.tuned = tuned;
+  RunConfig c = e.config;
   c.track_energy = false;  // verdicts only
-  e.run = runResponse(c);
+  try
+  {
+    e.run = runResponse(c);
+  }
+  catch (const std::domain_error&)
+  {
+    e.diverged = true;  // an unstable digital loop runs off to infinity
+  }
   return e;
 }
 
 struct Transient
 {
-  double overshoot = 0.0;      // first maximum above the command minus the command [rad] (unit step)
+  double overshoot = 0.0;      // first maximum above the command minus the command [rad]
   double settling_time = 0.0;  // last time outside ±2 % of the step [s]; inf if never settled in the run
 };
 
-Transient transient(const ServoParams& p)
+Transient transient(const RunConfig& config)
 {
-  RunConfig c;
-  c.params = p;
   Transient t;
   double last_outside = 0.0;
-  const double dt = 2.0 * 3.14159265358979 / p.naturalFrequency() / 2000.0;
-  const RunSummary r = runResponse(c, nullptr, dt, [&](const Simulator& sim) {
-    if (std::fabs(sim.state().load_position - 1.0) > 0.02)
+  const double step = std::fabs(config.command - config.initial.load_position);
+  const double dt = 2.0 * 3.14159265358979 / config.params.naturalFrequency() / 2000.0;
+  const RunSummary r = runResponse(config, nullptr, dt, [&](const Simulator& sim) {
+    if (std::fabs(sim.state().load_position - config.command) > 0.02 * step)
     {
       last_outside = sim.state().time;
     }
   });
-  t.overshoot = r.maxima.empty() ? 0.0 : r.maxima.front().position - 1.0;
+  t.overshoot = r.maxima.empty() ? 0.0 : r.maxima.front().position - config.command;
   t.settling_time = r.status.verdict == Verdict::Converged ? last_outside : INFINITY;
   return t;
 }
@@ -107,11 +139,15 @@ void parseRange(const KeyValues& kv, const std::string& key, double* value, doub
 
 Design parse(int argc, char** argv)
 {
-  FlagParser parser(
-      "backlash_design", HEADER,
-      {"motor_inertia", "motor_friction", "load_inertia", "load_friction", "restitution", "backlash", "gain",
-       "gear_ratio"},
-      {{"find", "max-gain|gear-ratio", "what to search (see above)"}, {"json", "", "one JSON object on stdout"}});
+  std::vector<std::string> keys = keysOfSections({ParamSection::Servo, ParamSection::Drive});
+  keys.push_back("command");
+  FlagParser parser("backlash_design", HEADER, keys,
+                    {{"find", "max-gain|gear-ratio", "what to search (see above)"},
+                     {"tune", "KEY",
+                      "the gain --find max-gain searches: gain (default), integral_gain, "
+                      "derivative_gain, position_loop_gain, velocity_loop_gain, "
+                      "velocity_loop_integral_gain"},
+                     {"json", "", "one JSON object on stdout"}});
   parser.parse(argc, argv);
   const KeyValues& kv = parser.keys();
   Design d;
@@ -121,6 +157,15 @@ Design parse(int argc, char** argv)
   {
     throw ConfigError("--find must be max-gain or gear-ratio");
   }
+  d.tune = parser.option("tune", "gain");
+  std::replace(d.tune.begin(), d.tune.end(), '-', '_');
+  if (std::find(tunableGains().begin(), tunableGains().end(), d.tune) == tunableGains().end())
+  {
+    throw ConfigError(
+        "--tune must be one of gain, integral_gain, derivative_gain, position_loop_gain, "
+        "velocity_loop_gain, velocity_loop_integral_gain (got '" +
+        parser.option("tune") + "')");
+  }
   for (const char* required : {"motor_inertia", "motor_friction", "load_inertia", "load_friction", "restitution"})
   {
     if (!kv.has(required))
@@ -128,32 +173,40 @@ Design parse(int argc, char** argv)
       throw ConfigError(flagName(required) + " is required");
     }
   }
-  d.base.motor_inertia = kv.number("motor_inertia");
-  d.base.motor_friction = kv.number("motor_friction");
-  d.base.load_inertia = kv.number("load_inertia");
-  d.base.load_friction = kv.number("load_friction");
-  d.base.restitution = kv.number("restitution");
-  d.base.backlash = kv.number("backlash", param("backlash").fallbackNumber());
-  parseRange(kv, "gain", &d.gain, &d.gain_lo, &d.gain_hi);
+  for (const auto& item : kv.keys())
+  {
+    if (item.first != d.tune && item.first != "gear_ratio")
+    {
+      d.base.set(item.first, kv.text(item.first, ""));
+    }
+  }
+  d.base.nameKeysAsFlags(true);
+  d.gain = kv.has(d.tune) || d.tune == "gain" ? 1.0 : 0.0;
+  parseRange(kv, d.tune, &d.gain, &d.gain_lo, &d.gain_hi);
   parseRange(kv, "gear_ratio", &d.rho, &d.rho_lo, &d.rho_hi);
   if (d.gain_lo == 0.0)
   {
-    // The default search range stays inside the validated envelope (ω_n ≤ NATURAL_FREQUENCY_MAX, K within the table).
-    const double j = d.base.motor_inertia + d.rho * d.rho * d.base.load_inertia;
-    const double envelope_max = std::min(1e12, NATURAL_FREQUENCY_MAX * NATURAL_FREQUENCY_MAX * j / d.rho);
-    const double envelope_min = NATURAL_FREQUENCY_MIN * NATURAL_FREQUENCY_MIN * j / d.rho;
-    d.gain_lo = std::max(d.gain / 1000.0, envelope_min);
-    d.gain_hi = std::min(d.gain * 1000.0, envelope_max);
+    if (!(d.gain > 0.0))
+    {
+      throw ConfigError(flagName(d.tune) + ": give a positive value or a range LO:HI to search");
+    }
+    d.gain_lo = d.gain / 1000.0;
+    d.gain_hi = d.gain * 1000.0;
+    if (d.tune == "gain")
+    {
+      // The default search range stays inside the validated envelope (ω_n ≤ NATURAL_FREQUENCY_MAX, K in the table).
+      const ServoParams p = configOf(d, d.gain, d.rho).params;
+      const double j = p.totalInertia();
+      d.gain_lo = std::max(d.gain_lo, NATURAL_FREQUENCY_MIN * NATURAL_FREQUENCY_MIN * j / d.rho);
+      d.gain_hi = std::min({d.gain_hi, 1e12, NATURAL_FREQUENCY_MAX * NATURAL_FREQUENCY_MAX * j / d.rho});
+    }
   }
   if (d.rho_lo == 0.0)
   {
     d.rho_lo = d.rho / 10.0;
     d.rho_hi = d.rho * 10.0;
   }
-  ServoParams check = d.base;
-  check.gain = d.gain;
-  check.gear_ratio = d.rho;
-  check.validate();
+  configOf(d, d.gain, d.rho);  // the candidate must be valid (one clear line otherwise)
   return d;
 }
 
@@ -177,15 +230,21 @@ std::pair<double, int> bisect(double lo, double hi, const std::function<bool(dou
   return {lo, 0};
 }
 
-void describe(std::ostream& out, const char* title, const Evaluation& e)
+void describe(std::ostream& out, const char* title, const Evaluation& e, const std::string& tune)
 {
-  const ServoParams& p = e.params;
+  const ServoParams& p = e.config.params;
   char buf[600];
+  std::string tuned;
+  if (tune != "gain")
+  {
+    std::snprintf(buf, sizeof buf, ", %s = %.6g %s", tune.c_str(), e.tuned, param(tune).unit);
+    tuned = buf;
+  }
   std::snprintf(buf, sizeof buf,
-                "%s: K = %.6g N·m/rad, rho = %.6g\n  zeta = %.4g, w_n = %.4g rad/s, rho²J_L/J_m = %.4g, "
+                "%s: K = %.6g N·m/rad%s, rho = %.6g\n  zeta = %.4g, w_n = %.4g rad/s, rho²J_L/J_m = %.4g, "
                 "rho²f_L/F_T = %.4g\n  simulated: %s",
-                title, p.gain, p.gear_ratio, p.dampingRatio(), p.naturalFrequency(), p.inertiaRatio(),
-                p.frictionRatio(), toString(e.run.status.verdict));
+                title, p.gain, tuned.c_str(), p.gear_ratio, p.dampingRatio(), p.naturalFrequency(), p.inertiaRatio(),
+                p.frictionRatio(), e.diverged ? "diverged (unstable loop)" : toString(e.run.status.verdict));
   out << buf;
   if (e.run.status.verdict == Verdict::LimitCycle || e.run.status.verdict == Verdict::Irregular)
   {
@@ -196,18 +255,21 @@ void describe(std::ostream& out, const char* title, const Evaluation& e)
   out << "\n";
 }
 
-void evaluationJson(JsonWriter& j, const char* key, const Evaluation& e)
+void evaluationJson(JsonWriter& j, const char* key, const Evaluation& e, const std::string& tune)
 {
-  const ServoParams& p = e.params;
+  const ServoParams& p = e.config.params;
   const bool lc = e.run.status.verdict == Verdict::LimitCycle || e.run.status.verdict == Verdict::Irregular;
-  j.beginObject(key)
-      .field("gain", p.gain)
-      .field("gear_ratio", p.gear_ratio)
+  j.beginObject(key).field("gain", p.gain);
+  if (tune != "gain")
+  {
+    j.field(tune.c_str(), e.tuned);
+  }
+  j.field("gear_ratio", p.gear_ratio)
       .field("zeta", p.dampingRatio())
       .field("natural_frequency", p.naturalFrequency())
       .field("inertia_ratio", p.inertiaRatio())
       .field("friction_ratio", p.frictionRatio())
-      .field("verdict", std::string(toString(e.run.status.verdict)))
+      .field("verdict", std::string(e.diverged ? "diverged" : toString(e.run.status.verdict)))
       .field("limit_cycle", lc)
       .field("limit_cycle_error", lc ? e.run.status.error : 0.0)
       .field("period", lc ? e.run.status.period : 0.0)
@@ -231,43 +293,49 @@ int main(int argc, char** argv)
   std::ostringstream json_text;
   JsonWriter j(json_text);
   j.beginObject();
-  const Evaluation candidate = evaluate(d.base, d.gain, d.rho);
-  describe(text, "candidate", candidate);
-  evaluationJson(j, "candidate", candidate);
+  const Evaluation candidate = evaluate(d, d.gain, d.rho);
+  describe(text, "candidate", candidate, d.tune);
+  evaluationJson(j, "candidate", candidate, d.tune);
   if (d.find == "max-gain")
   {
-    const auto found = bisect(d.gain_lo, d.gain_hi, [&](double k) { return evaluate(d.base, k, d.rho).limit_cycle(); });
+    // A candidate without a limit cycle is a known lower bracket (slow integral gains at the range's low end may not
+    // settle within the run and would count as limit cycles).
+    const double lo = !candidate.limit_cycle() && d.gain > d.gain_lo && d.gain < d.gain_hi ? d.gain : d.gain_lo;
+    const auto found = bisect(lo, d.gain_hi, [&](double k) { return evaluate(d, k, d.rho).limit_cycle(); });
     char buf[300];
     j.beginObject("max_gain").field("range_low", d.gain_lo).field("range_high", d.gain_hi);
     if (found.second == -1)
     {
-      std::snprintf(buf, sizeof buf, "max gain: every K in [%g, %g] limit-cycles\n", d.gain_lo, d.gain_hi);
+      std::snprintf(buf, sizeof buf, "max %s: every value in [%g, %g] limit-cycles\n", d.tune.c_str(), d.gain_lo,
+                    d.gain_hi);
       text << buf;
       j.null("gain");
     }
     else if (found.second == 1)
     {
-      std::snprintf(buf, sizeof buf, "max gain: no limit cycle anywhere up to K = %g (range end)\n", d.gain_hi);
+      std::snprintf(buf, sizeof buf, "max %s: no limit cycle anywhere up to %g (range end)\n", d.tune.c_str(),
+                    d.gain_hi);
       text << buf;
       j.field("gain", d.gain_hi).field("bounded_by_range", true);
     }
     else
     {
       const double k = found.first;
-      const Evaluation below = evaluate(d.base, k * 0.999, d.rho);
-      const Evaluation above = evaluate(d.base, k * 1.001, d.rho);
-      const Transient t = transient(below.params);
-      std::snprintf(buf, sizeof buf, "max gain without a limit cycle: K = %.6g N·m/rad (bisection to 1e-7)\n", k);
+      const Evaluation below = evaluate(d, k * 0.999, d.rho);
+      const Evaluation above = evaluate(d, k * 1.001, d.rho);
+      const Transient t = transient(below.config);
+      std::snprintf(buf, sizeof buf, "max %s without a limit cycle: %.6g %s (bisection to 1e-7)\n", d.tune.c_str(), k,
+                    param(d.tune).unit);
       text << buf;
-      describe(text, "  check just below (0.999 K)", below);
-      describe(text, "  check just above (1.001 K)", above);
+      describe(text, "  check just below (0.999 of it)", below, d.tune);
+      describe(text, "  check just above (1.001 of it)", above, d.tune);
       std::snprintf(buf, sizeof buf,
-                    "chosen design (0.999 K): overshoot %.4g rad (%.3g %%), 2%% settling time %.4g s\n", t.overshoot,
-                    100.0 * t.overshoot, t.settling_time);
+                    "chosen design (0.999 of it): overshoot %.4g rad (%.3g %%), 2%% settling time %.4g s\n",
+                    t.overshoot, 100.0 * t.overshoot, t.settling_time);
       text << buf;
-      j.field("gain", k);
-      evaluationJson(j, "check_below", below);
-      evaluationJson(j, "check_above", above);
+      j.field("gain", k).field("tuned", d.tune);
+      evaluationJson(j, "check_below", below, d.tune);
+      evaluationJson(j, "check_above", above, d.tune);
       j.field("overshoot", t.overshoot).field("settling_time", t.settling_time);
     }
     j.endObject();
@@ -281,7 +349,7 @@ int main(int argc, char** argv)
     for (int i = 0; i < n; ++i)
     {
       rhos[i] = d.rho_lo * std::pow(d.rho_hi / d.rho_lo, static_cast<double>(i) / (n - 1));
-      lc[i] = evaluate(d.base, d.gain, rhos[i]).limit_cycle();
+      lc[i] = evaluate(d, d.gain, rhos[i]).limit_cycle();
     }
     std::vector<std::pair<double, double>> free;
     double start = lc[0] ? -1.0 : rhos[0];
@@ -295,7 +363,7 @@ int main(int argc, char** argv)
       for (int it = 0; it < 40 && b / a > 1.0 + 1e-7; ++it)
       {
         const double mid = std::sqrt(a * b);
-        (evaluate(d.base, d.gain, mid).limit_cycle() == lc[i - 1] ? a : b) = mid;
+        (evaluate(d, d.gain, mid).limit_cycle() == lc[i - 1] ? a : b) = mid;
       }
       if (lc[i])
       {
@@ -329,13 +397,13 @@ int main(int argc, char** argv)
     text << (free.empty() ? " none\n" : "\n");
     if (best > 0.0)
     {
-      const Evaluation chosen = evaluate(d.base, d.gain, best);
-      describe(text, "closest such ratio", chosen);
-      const Transient t = transient(chosen.params);
+      const Evaluation chosen = evaluate(d, d.gain, best);
+      describe(text, "closest such ratio", chosen, d.tune);
+      const Transient t = transient(chosen.config);
       char buf[200];
       std::snprintf(buf, sizeof buf, "  overshoot %.4g rad, 2%% settling time %.4g s\n", t.overshoot, t.settling_time);
       text << buf;
-      evaluationJson(j, "chosen", chosen);
+      evaluationJson(j, "chosen", chosen, d.tune);
       j.field("overshoot", t.overshoot).field("settling_time", t.settling_time);
     }
   }

@@ -243,6 +243,32 @@ TEST(Design, MaxGainIsConfirmedBySimulatingBelowAndAbove)
   EXPECT_NEAR(jsonNumber(json, "friction_ratio"), 0.5, 1e-12);
 }
 
+// The design tool searches a gain of any law: the semi-closed-loop PID's integral gain, checked by backlash_sim runs
+// of the same digital drive just below and clearly above the answer.
+TEST(Design, SearchesTheIntegralGainOfASampledPid)
+{
+  const std::string joint =
+      " --motor-inertia 0.1 --motor-friction 0.48 --load-inertia 0.9 --load-friction 0.32 --restitution 0.5"
+      " --backlash 0.05 --gain 1 --control-law pid --controller-rate 100 --feedback motor --derivative-gain 0.3";
+  int code = 0;
+  const std::string json =
+      runCapture(DESIGN + joint + " --tune integral-gain --integral-gain 0.01:100 --find max-gain --json", &code);
+  ASSERT_EQ(code, 0) << json;
+  std::smatch m;
+  ASSERT_TRUE(std::regex_search(json, m, std::regex("\"max_gain\":\\{[^{]*\"gain\":([0-9.eE+-]+)")));
+  const double ki = std::stod(m[1]);
+  EXPECT_GT(ki, 0.1);
+  EXPECT_LT(ki, 10.0);
+  const std::string below = runCapture(SIM + " --json" + joint + " --integral-gain " + std::to_string(ki * 0.99));
+  const std::string above = runCapture(SIM + " --json" + joint + " --integral-gain " + std::to_string(ki * 1.2));
+  EXPECT_EQ(jsonText(below, "verdict"), "converged");
+  EXPECT_NE(jsonText(above, "verdict"), "converged");
+  // An unknown gain to tune is one clear line.
+  const std::string err = runCapture(DESIGN + joint + " --tune backlash --find max-gain 2>&1", &code);
+  EXPECT_EQ(code, 2);
+  EXPECT_NE(err.find("--tune"), std::string::npos) << err;
+}
+
 TEST(Charts, ScriptsRunHeadlessAndWriteImages)
 {
   const std::string out = "/tmp/backlash_charts_test";
