@@ -72,6 +72,9 @@ class Drive
   virtual bool winding() const { return false; }
   /// A digital drive (samples at known instants) rather than a continuous law.
   virtual bool sampled() const { return false; }
+  /// What the controller read at its latest sample: quantised motor angle on the motor shaft and load angle [rad].
+  /// False for a continuous law (it reads nothing at instants).
+  virtual bool readings(double* /*motor*/, double* /*load*/) const { return false; }
 };
 
 /**
@@ -156,6 +159,12 @@ class SampledDrive : public Drive
   /// The integrator moved beyond rounding at the latest sample (pid, cascade).
   bool winding() const override { return winding_; }
   bool sampled() const override { return true; }
+  bool readings(double* motor, double* load) const override
+  {
+    *motor = qm_prev_;  // q(θ_m) of the latest sample (kept for the next velocity estimate)
+    *load = load_reading_;
+    return next_ > 0;
+  }
 
   /// A new set-point θ_R [rad] from the next sample on.
   void setCommand(double command);

@@ -7,7 +7,9 @@
 #pragma once
 
 #include <cstdint>
+#include <functional>
 #include <memory>
+#include <utility>
 
 #include "backlash_servo/drive.h"
 #include "backlash_servo/plant.h"
@@ -47,6 +49,10 @@ class Simulator
 
   /// Advances exactly to time t_end [s], stopping at drive events on the way; events go in order to sink.
   void advanceTo(double t_end, EventSink* sink = nullptr);
+  /// Called at every sample of a digital drive, just after the controller read its sensors (state at t_k, the
+  /// drive with its readings and new output) — e.g. the node's `encoder_states`. Empty: none.
+  using SampleObserver = std::function<void(const State&, const Drive&)>;
+  void setSampleObserver(SampleObserver observer) { sample_observer_ = std::move(observer); }
 
   /// Gap g = θ_c − ρ θ_m [rad], in [0, Δ].
   double gap() const { return plant_.gap(); }
@@ -82,6 +88,7 @@ class Simulator
   double command_;  // θ_R [rad] kept for switching back to position mode
   std::uint64_t event_budget_ = 0;
   std::uint64_t samples_ = 0;
+  SampleObserver sample_observer_;
 };
 
 }  // namespace backlash_servo

@@ -20,7 +20,8 @@ Simulator::Simulator(const Simulator& other)
       drive_(other.drive_->clone()),
       command_(other.command_),
       event_budget_(other.event_budget_),
-      samples_(other.samples_)
+      samples_(other.samples_),
+      sample_observer_(other.sample_observer_)
 {}
 
 Simulator& Simulator::operator=(const Simulator& other)
@@ -32,6 +33,7 @@ Simulator& Simulator::operator=(const Simulator& other)
     command_ = other.command_;
     event_budget_ = other.event_budget_;
     samples_ = other.samples_;
+    sample_observer_ = other.sample_observer_;
   }
   return *this;
 }
@@ -46,6 +48,10 @@ void Simulator::takeSample()
   }
   drive_->sample(plant_.state());
   applyDriveLaw();
+  if (sample_observer_)
+  {
+    sample_observer_(plant_.state(), *drive_);
+  }
 }
 
 void Simulator::applyDriveLaw()

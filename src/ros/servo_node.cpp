@@ -55,6 +55,8 @@ ServoNode::ServoNode(ros::NodeHandle& nh, ros::NodeHandle& pnh, const NodeConfig
   impact_pub_ = nh.advertise<ImpactEvent>("impact", 10000);
   state_pub_ = nh.advertise<BacklashState>("backlash_state", 1000);
   limit_cycle_pub_ = nh.advertise<LimitCycleStatus>("limit_cycle", 1000, true);
+  encoder_pub_ = nh.advertise<sensor_msgs::JointState>("encoder_states", 1000);
+  sim_.setSampleObserver([this](const State& s, const Drive& drive) { publishEncoders(s, drive); });
   if (clock_mode_ == ClockMode::Publisher)
   {
     clock_pub_ = nh.advertise<rosgraph_msgs::Clock>("/clock", 1000);
@@ -265,6 +267,20 @@ void ServoNode::publishDiagnostics()
   diagnostics_pub_.publish(array);
 }
 
+void ServoNode::publishEncoders(const State& s, const Drive& drive)
+{
+  sensor_msgs::JointState js;
+  double motor = 0.0, load = 0.0;
+  if (!drive.readings(&motor, &load))
+  {
+    return;
+  }
+  js.header.stamp = stamp(s.time);
+  js.name = {config_.motor_joint_name, config_.load_joint_name};
+  js.position = {motor, load};  // quantised readings q(θ_m) [rad, motor shaft] and q(θ_c) [rad]
+  encoder_pub_.publish(js);
+}
+
 void ServoNode::publishSample()
 {
   const State& s = sim_.state();
@@ -291,6 +307,9 @@ void ServoNode::publishSample()
   b.energy_motor_friction = e.motor_friction;
   b.energy_load_friction = e.load_friction;
   b.energy_impact_loss = e.impact_loss;
+  b.energy_motor_dry_friction = e.motor_dry_friction;
+  b.energy_load_dry_friction = e.load_dry_friction;
+  b.energy_load_work = e.load_work;
   b.energy_kinetic = sim_.kineticEnergy();
   b.impacts = sim_.impactCount();
   state_pub_.publish(b);

@@ -56,6 +56,8 @@ class ServoNode : public EventSink
   /// Waits (serving callbacks) until the sample at sim time t may be computed; false on shutdown.
   bool waitFor(double t);
   void publishSample();
+  /// encoder_states: what a digital drive's controller read at its sample (quantised motor and load angles).
+  void publishEncoders(const State& s, const Drive& drive);
   /// /diagnostics: OK while running, ERROR with the fault while a core error holds the simulation.
   void publishDiagnostics();
   /// A core error at sim time t: logged with the parameters, the simulation paused until ~reset or good parameters.
@@ -76,7 +78,7 @@ class ServoNode : public EventSink
   std::unique_ptr<ResponseMonitor> monitor_;  // the same judge as backlash_sim (rest and quiet rules included)
   Verdict announced_ = Verdict::Undecided;
 
-  ros::Publisher joint_pub_, impact_pub_, state_pub_, limit_cycle_pub_, clock_pub_;
+  ros::Publisher joint_pub_, impact_pub_, state_pub_, limit_cycle_pub_, clock_pub_, encoder_pub_;
   ros::Subscriber command_sub_, effort_sub_, load_torque_sub_;
   ros::ServiceServer reset_srv_, pause_srv_, resume_srv_;
   boost::recursive_mutex reconfigure_mutex_;
