@@ -94,6 +94,81 @@ Row ours(const Case& c)
   return r;
 }
 
+/// The real joint (MODEL.md Part 2): digital drives, encoders, dry friction. Figures only (their accuracy is checked
+/// by the tests against ../shared/joint_cases_public.json and closed forms).
+struct JointCase
+{
+  std::string name;
+  ServoParams params;
+  DriveParams drive;
+  double command;
+  double duration;
+};
+
+/// The robot joint of issue 10: J_m 1e-4 kg·m², ρ 0.01, J_L 0.5 kg·m², Δ 0.005 rad, dry friction on both shafts.
+JointCase robotJoint(double duration)
+{
+  JointCase c;
+  c.name = "robot_pid_1kHz";
+  c.params.motor_inertia = 1e-4;
+  c.params.load_inertia = 0.5;
+  c.params.motor_friction = 1e-4;
+  c.params.load_friction = 0.5;
+  c.params.gain = 6.0;
+  c.params.gear_ratio = 0.01;
+  c.params.backlash = 0.005;
+  c.params.restitution = 0.5;
+  c.params.motor_coulomb_friction = 0.005;
+  c.params.motor_static_friction = 0.008;
+  c.params.load_coulomb_friction = 1.0;
+  c.params.load_static_friction = 1.5;
+  c.drive.control_law = "pid";
+  c.drive.controller_rate = 1000.0;
+  c.drive.integral_gain = 30.0;
+  c.drive.derivative_gain = 0.4;
+  c.command = 0.5;
+  c.duration = duration;
+  return c;
+}
+
+void jointBenchmarks(double scale)
+{
+  std::printf("\n== the real joint: digital drives (energy ledger off)\n");
+  std::printf("%-22s %9s %11s %10s %9s %9s %8s\n", "case", "sim [s]", "wall [ms]", "samples", "ns/sample", "impacts",
+              "rests");
+  JointCase d1;
+  d1.name = "d1_p_1kHz";
+  d1.drive.controller_rate = 1000.0;
+  d1.command = 1.0;
+  d1.duration = 1000.0 * scale;
+  for (const JointCase& c : {robotJoint(1000.0 * scale), d1})
+  {
+    long impacts = 0, rests = 0;
+    struct Count : EventSink
+    {
+      long* impacts;
+      long* rests;
+      void onEvent(const Event& e) override
+      {
+        *impacts += e.type == EventType::Impact;
+        *rests += e.type == EventType::Rest;
+      }
+    } count;
+    count.impacts = &impacts;
+    count.rests = &rests;
+    const double wall = timeIt([&]() {
+      impacts = rests = 0;
+      Simulator sim(c.params, State(), c.command);
+      sim.setDrive(makePositionDrive(c.drive, c.params.gain, c.params.gear_ratio, c.command, 0.0));
+      sim.setEnergyTracking(false);
+      sim.advanceTo(c.duration, &count);
+    });
+    const double samples = c.duration * c.drive.controller_rate;
+    std::printf("%-22s %9.0f %11.3f %10.0f %9.0f %9ld %8ld\n", c.name.c_str(), c.duration, wall * 1e3, samples,
+                wall * 1e9 / samples, impacts, rests);
+  }
+}
+
 double maxError(const std::vector<bench::Max>& a, const std::vector<bench::Max>& ref, std::size_t* compared)
 {
   const std::size_t n = std::min(a.size(), ref.size());
@@ -214,6 +289,7 @@ int main(int argc, char** argv)
       ref_file << "\n";
     }
   }
+  jointBenchmarks(scale);
   rusage usage;
   getrusage(RUSAGE_SELF, &usage);
   std::printf("peak memory (whole benchmark process): %.1f MB\n", usage.ru_maxrss / 1024.0);

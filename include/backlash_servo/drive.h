@@ -177,6 +177,13 @@ class SampledDrive : public Drive
   double read(double angle, double resolution) const;
 
   DriveParams p_;
+  enum class Law
+  {
+    Proportional,
+    Pid,
+    Cascade
+  } law_ = Law::Proportional;    // p_.control_law, parsed once (no string compare per sample)
+  bool motor_feedback_ = false;  // p_.feedback == "motor"
   double gain_, rho_, command_, t0_;
   long next_ = 0;          // index of the next sample
   double held_ = 0.0;      // torque held now [N·m]

@@ -108,19 +108,25 @@ class Plant
   const State& state() const { return state_; }
   /// The motor-torque law in force.
   const MotorInput& law() const { return law_; }
-  /// A new motor-torque law from now on (the state is not touched; the closed form restarts here).
-  void setLaw(const MotorInput& law)
-  {
-    law_ = law;
-    segment_.reset();
-  }
+  /// A new motor-torque law from now on (the state is not touched; the closed form restarts here — unless dry
+  /// friction holds everything and still does under the new law: then nothing moves and the segment stays).
+  void setLaw(const MotorInput& law);
   /// The plant stops (advanceTo() returns true) where θ_c leaves [lo, hi] [rad]: a drive's switch. ±inf: none.
   void setWatch(double lo, double hi)
   {
+    if (lo == watch_lo_ && hi == watch_hi_)
+    {
+      return;  // unchanged (every sample of a digital drive sets "none")
+    }
     watch_lo_ = lo;
     watch_hi_ = hi;
     segment_.reset();
   }
+
+  /// Events need not be searched beyond time t [s] (a drive's next sample, where the law changes anyway): shortens
+  /// the event searches of the segments that begin before it. Depends only on drive times, so chunk-independence
+  /// holds. +inf: no limit.
+  void setSearchHorizon(double t) { search_horizon_ = t; }
 
   /// See Simulator::setParams. Throws InvalidParameterError, keeping the old ones.
   void setParams(const ServoParams& params, EventSink* sink);
@@ -152,6 +158,8 @@ class Plant
   /// One mode segment: its closed form anchored at its start, where it ends and why.
   struct Segment
   {
+    // User-provided: value-initialising (optional::emplace()) would otherwise zero the ~4 kB of motion storage first.
+    Segment() {}
     enum class End
     {
       Restart,     ///< window end (or maxima buffer full): a new segment continues the same mode
@@ -197,6 +205,12 @@ class Plant
   /// Places state_ (and, with_energy, the ledger) at local time tau of the current segment.
   void placeInSegment(double tau, bool with_energy = true);
   void emitMaximaUpTo(double tau, EventSink* sink);
+  /// The event search window [s] of a segment beginning now: `window`, cut at the search horizon.
+  double searchWindow(double window) const
+  {
+    const double left = search_horizon_ - state_.time;
+    return left > 0.0 && left < window ? left : window;
+  }
   /// Ends the segment early where θ_c leaves the watch interval.
   void applyWatch(Segment& seg) const;
   void handleImpact(Contact wall, EventSink* sink);
@@ -209,6 +223,7 @@ class Plant
   MotorInput law_;
   std::optional<Segment> segment_;
   bool apart_needs_series_ = false;
+  double period_ = 1.0;  // natural period 2π/ω_n of the current parameters [s] (sets the search windows)
   double watch_lo_ = -std::numeric_limits<double>::infinity();
   double watch_hi_ =
       std::numeric_limits<double>::infinity();  // apartNeedsSeries() for the current parameters (fixed window)
@@ -216,7 +231,8 @@ class Plant
   std::uint64_t impacts_ = 0;
   std::uint64_t event_budget_ = 0;
   bool track_energy_ = true;
-  bool dry_ = false;                  // params_.hasDryFriction()
+  bool dry_ = false;  // params_.hasDryFriction()
+  double search_horizon_ = std::numeric_limits<double>::infinity();
   Slide forced_motor_breakaway_ = 0;  // set at a Breakaway: the motor slides this way from rest (no re-decision)
 };
 

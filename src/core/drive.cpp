@@ -160,6 +160,8 @@ SampledDrive::SampledDrive(const DriveParams& drive, double gain, double gear_ra
 {
   drive.validate();
   requireFinite("command", command);
+  law_ = drive.control_law == "pid" ? Law::Pid : drive.control_law == "cascade" ? Law::Cascade : Law::Proportional;
+  motor_feedback_ = drive.feedback == "motor";
 }
 
 void SampledDrive::configure(const ServoParams& params)
@@ -195,13 +197,13 @@ void SampledDrive::sample(const State& s)
   const double qm = read(s.motor_position, p_.motor_encoder_resolution);
   motor_reading_ = rho_ * qm;
   load_reading_ = read(s.load_position, p_.load_encoder_resolution);
-  const double y = p_.feedback == "motor" ? motor_reading_ : load_reading_;
+  const double y = motor_feedback_ ? motor_reading_ : load_reading_;
   const double e = command_ - y;
   const bool first = next_ == 0;
   const double limit = p_.torque_limit;
   auto beyond = [&](double u, double sign) { return limit > 0.0 && std::fabs(u) > limit && u * sign > 0.0; };
   double u = 0.0;
-  if (p_.control_law == "pid")
+  if (law_ == Law::Pid)
   {
     const double y_prev = first ? y : y_prev_;
     const double derivative = p_.derivative_gain * (y - y_prev) / period;
@@ -215,7 +217,7 @@ void SampledDrive::sample(const State& s)
     winding_ = std::fabs(integral - integral_) > 4.0 * EPS * std::fabs(integral);
     integral_ = integral;
   }
-  else if (p_.control_law == "cascade")
+  else if (law_ == Law::Cascade)
   {
     const double w_ref = p_.position_loop_gain * e;
     const double w_hat = first ? 0.0 : rho_ * (qm - qm_prev_) / period;

@@ -80,7 +80,8 @@ Plant::Plant(const ServoParams& params, const State& initial, const MotorInput& 
 {
   params_.validate();
   dry_ = params_.hasDryFriction();
-  apart_needs_series_ = apartNeedsSeries(params_, FREE_SEARCH_PERIODS * 2.0 * PI / params_.naturalFrequency());
+  period_ = 2.0 * PI / params_.naturalFrequency();
+  apart_needs_series_ = apartNeedsSeries(params_, FREE_SEARCH_PERIODS * period_);
   setState(initial);
 }
 
@@ -129,6 +130,23 @@ void Plant::setState(const State& s)
   impacts_ = 0;
 }
 
+void Plant::setLaw(const MotorInput& law)
+{
+  law_ = law;
+  if (dry_ && segment_ && segment_->stuck && segment_->motor_slide == 0 && segment_->load_slide == 0 &&
+      forced_motor_breakaway_ == 0)
+  {
+    // A digital drive's new sample on a joint held by stiction (stick–slip phases: most samples): if the rest rule
+    // still holds everything, the held segment is exactly what a new one would be.
+    const RestDecision d = decideAtRest(params_, law_.torque(state_.load_position), state_);
+    if (d.motor == 0 && d.load == 0 && d.contact == state_.contact)
+    {
+      return;
+    }
+  }
+  segment_.reset();
+}
+
 void Plant::setParams(const ServoParams& params, EventSink* sink)
 {
   params.validate();
@@ -139,7 +157,8 @@ void Plant::setParams(const ServoParams& params, EventSink* sink)
   dry_ = params_.hasDryFriction();
   forced_motor_breakaway_ = 0;
   mesh_ = GearMesh(params_);
-  apart_needs_series_ = apartNeedsSeries(params_, FREE_SEARCH_PERIODS * 2.0 * PI / params_.naturalFrequency());
+  period_ = 2.0 * PI / params_.naturalFrequency();
+  apart_needs_series_ = apartNeedsSeries(params_, FREE_SEARCH_PERIODS * period_);
   const double delta = params_.backlash;
   // θ_c and ω_c are kept; the motor is re-expressed on the new mesh with the gap clamped into [0, Δ].
   double g = std::min(std::max(old_gap, 0.0), delta);
@@ -334,7 +353,7 @@ void Plant::visitMotion(const Segment& seg, F&& f)
 
 void Plant::beginSegment()
 {
-  const double period = 2.0 * PI / params_.naturalFrequency();
+  const double period = period_;
   segment_.emplace();
   Segment& seg = *segment_;
   seg.start = state_;
@@ -343,7 +362,7 @@ void Plant::beginSegment()
   {
     const Contact wall = state_.contact;
     const ContactMotion& m = seg.contact.emplace(params_, law_, state_.load_position, state_.load_velocity);
-    const double window = CONTACT_SEARCH_PERIODS * period;
+    const double window = searchWindow(CONTACT_SEARCH_PERIODS * period);
     const double separation = m.separationTime(GearMesh::pressingSign(wall), window);
     double end = std::min(separation, window);
     seg.end = separation <= window ? Segment::End::Separation : Segment::End::Restart;
@@ -369,9 +388,10 @@ void Plant::beginSegment()
     seg.free.emplace(params_, law_, state_, window);
   }
   Contact wall = Contact::Forward;
-  const double impact = seg.wide ? seg.wide->impactTime(window, &wall) : seg.free->impactTime(window, &wall);
-  seg.end = impact <= window ? Segment::End::Impact : Segment::End::Restart;
-  seg.end_tau = std::min(impact, window);
+  const double search = searchWindow(window);
+  const double impact = seg.wide ? seg.wide->impactTime(search, &wall) : seg.free->impactTime(search, &wall);
+  seg.end = impact <= search ? Segment::End::Impact : Segment::End::Restart;
+  seg.end_tau = std::min(impact, search);
   seg.wall = wall;
   applyWatch(seg);
 }
@@ -425,7 +445,7 @@ void Plant::chooseDryMode(EventSink* sink, Slide* motor, Slide* load)
 
 void Plant::beginDrySegment(Slide motor, Slide load)
 {
-  const double period = 2.0 * PI / params_.naturalFrequency();
+  const double period = period_;
   segment_.emplace();
   Segment& seg = *segment_;
   seg.start = state_;
@@ -461,13 +481,14 @@ void Plant::beginDrySegment(Slide motor, Slide load)
     MotorInput law;
     foldKineticFriction(params_, law_, motor, load, &folded, &law);
     const ContactMotion& m = seg.contact.emplace(folded, law, state_.load_position, state_.load_velocity);
-    const double window = CONTACT_SEARCH_PERIODS * period;
+    const double window = searchWindow(CONTACT_SEARCH_PERIODS * period);
     seg.rest_motor = false;
     finish(window, {{m.separationTime(GearMesh::pressingSign(state_.contact), window), Segment::End::Separation},
                     {m.restTime(motor, window), Segment::End::Rest}});
     return;
   }
-  const double window = FREE_SEARCH_PERIODS * period;
+  const double free_window = FREE_SEARCH_PERIODS * period;  // accuracy window of the apart closed form
+  const double window = searchWindow(free_window);          // events are searched up to the drive's next sample
   Contact wall = Contact::Forward;
   if (motor != 0 && load != 0)
   {
@@ -480,14 +501,14 @@ void Plant::beginDrySegment(Slide motor, Slide load)
       motor_rest = motor_dry ? m.restTime(true, motor, window) : INFINITY;
       load_rest = load_dry ? m.restTime(false, load, window) : INFINITY;
     };
-    if (apartNeedsSeries(folded, window))
+    if (apartNeedsSeries(folded, free_window))
     {
-      seg.wide = std::make_shared<const WideFreeMotion>(folded, law, state_, window);
+      seg.wide = std::make_shared<const WideFreeMotion>(folded, law, state_, free_window);
       search(*seg.wide);
     }
     else
     {
-      search(seg.free.emplace(folded, law, state_, window));
+      search(seg.free.emplace(folded, law, state_, free_window));
     }
     seg.wall = wall;
     seg.rest_motor = motor_rest < load_rest;

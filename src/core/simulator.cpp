@@ -123,6 +123,7 @@ void Simulator::advanceTo(double t_end, EventSink* sink)
       continue;
     }
     const bool sample_due = next < t_end;
+    plant_.setSearchHorizon(next);
     if (plant_.advanceTo(sample_due ? next : t_end, sink))
     {
       drive_->reevaluate(plant_.state());  // the load left the law's interval: switch (saturation)
