@@ -6,6 +6,9 @@ usage: backlash_charts.py existence SWEEP.csv OUTDIR    existence regions per e,
        backlash_charts.py delta SWEEP.csv OUTDIR        limit-cycle error vs backlash (Figs. 28-29)
        backlash_charts.py phase SIM.csv OUTDIR [NAME]   phase portrait from backlash_sim --csv (Figs. 30-31)
        backlash_charts.py surface SWEEP.csv OUTDIR      3-D existence surface over (friction, inertia, zeta) (Fig. 27)
+       backlash_charts.py digital RATE.csv ENCODER.csv OUTDIR   limit-cycle error vs controller rate and vs
+                                                         encoder resolution (sweeps over controller_rate and
+                                                         load_encoder_resolution)
 SWEEP.csv is backlash_sweep output; SIM.csv is backlash_sim --csv output.
 """
 import csv
@@ -197,7 +200,47 @@ def surface(rows, outdir):
     save(fig, outdir, "existence_surface")
 
 
+def read_rows(path, key):
+    """(value of axis key, limit-cycle error, verdict) per row of a sweep over any axis."""
+    with open(path) as f:
+        rows = [(float(r[key]), float(r["limit_cycle_error"]), r["verdict"]) for r in csv.DictReader(f)]
+    if not rows:
+        sys.exit(f"backlash_charts: {path} has no rows")
+    return rows
+
+
+def digital(rate_csv, encoder_csv, outdir, continuous=0.0514732):
+    rate = read_rows(rate_csv, "controller_rate")
+    enc = read_rows(encoder_csv, "load_encoder_resolution")
+    fig, (a, b) = plt.subplots(1, 2, figsize=(11, 4.2))
+    f = np.array([r[0] for r in rate])
+    err = np.array([r[1] for r in rate])
+    a.loglog(f, err - continuous, "o-", label="sampled P law (zero-order hold)")
+    a.loglog(f, (err[-1] - continuous) * f[-1] / f, "k--", lw=0.8, label="first order: ∝ 1/f_s")
+    a.set_xlabel("controller_rate f_s [Hz]")
+    a.set_ylabel("limit-cycle error − continuous 0.0514732 [rad]")
+    a.set_title("Thesis D1, P law sampled at f_s:\nthe cycle tends to the continuous one", fontsize=10)
+    a.grid(True, which="both", alpha=0.3)
+    a.legend()
+    ideal = [r[1] for r in enc if r[0] == 0]
+    quantised = [r for r in enc if r[0] > 0]
+    n = np.array([r[0] for r in quantised])
+    b.semilogx(n, [r[1] for r in quantised], "o-", label="load encoder, 1 kHz P law")
+    if ideal:
+        b.axhline(ideal[0], color="k", ls="--", lw=0.8, label="ideal encoder")
+    b.semilogx(n, 2 * math.pi / n, ":", color="gray", label="one count 2π/N")
+    b.set_xlabel("load_encoder_resolution N [counts/rev]")
+    b.set_ylabel("limit-cycle error [rad]")
+    b.set_title("Δ = 0.05 rad, e = 0.5, 1 kHz P law:\nencoder quantisation widens the cycle", fontsize=10)
+    b.grid(True, which="both", alpha=0.3)
+    b.legend()
+    save(fig, outdir, "digital_drive")
+
+
 def main(argv):
+    if len(argv) >= 4 and argv[0] == "digital":
+        digital(argv[1], argv[2], argv[3])
+        return 0
     if len(argv) < 3 or argv[0] not in ("existence", "error", "delta", "phase", "surface"):
         print(__doc__)
         return 2

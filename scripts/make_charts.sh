@@ -24,6 +24,10 @@ echo "== thesis grid"
 echo "== error vs backlash"
 "$bin/backlash_sweep" --zeta 0.4 --inertia-ratio 9 --friction-ratio 0.4 --restitution 0.6,1 \
   --backlash log:0.01:1:$((quick ? 3 : 9)) --output "$data/delta.csv"
+echo "== digital drive: error vs controller rate and vs encoder resolution"
+"$bin/backlash_sweep" --controller-rate log:5:10000:$((quick ? 3 : 12)) --output "$data/rate.csv"
+"$bin/backlash_sweep" --backlash 0.05 --restitution 0.5 --controller-rate 1000 \
+  --load-encoder-resolution 0,256,4096$([ $quick = 1 ] || echo ,1024,16384,65536,262144,1048576) --output "$data/encoder.csv"
 echo "== phase portrait (thesis Fig. 31 case)"
 "$bin/backlash_sim" --config config/thesis_fig31.yaml --duration 120 --csv "$data/fig31.csv" --sample-rate 50 >/dev/null
 py=scripts/backlash_charts.py
@@ -32,4 +36,7 @@ py=scripts/backlash_charts.py
 /usr/bin/python3 $py error "$data/thesis.csv" "$out"
 /usr/bin/python3 $py delta "$data/delta.csv" "$out"
 /usr/bin/python3 $py phase "$data/fig31.csv" "$out" phase_portrait_fig31
+/usr/bin/python3 $py digital "$data/rate.csv" "$data/encoder.csv" "$out"
+cp "$data/rate.csv" "$out/digital_rate_sweep.csv"
+cp "$data/encoder.csv" "$out/digital_encoder_sweep.csv"
 cp "$data/thesis.csv" "$out/thesis_sweep.csv"
