@@ -143,6 +143,15 @@ std::vector<ParamSpec> makeTable()
      false, {}, {}},
     {"start_delay", "", "s", T::Real, S::Node, NON_NEGATIVE, "0",
      "wall time to wait before sim time starts (e.g. for rosbag)", false, {}, {}},
+    {"sync", "", "-", T::Boolean, S::Node, FINITE, "false",
+     "lockstep with an external controller: after publishing the state at t_k the node waits for one motor_effort "
+     "(effort mode) or command (position mode) before advancing to t_k+1 (needs publish_clock)", false, {}, {}},
+    {"sync_timeout", "", "s", T::Real, S::Node, NON_NEGATIVE, "5",
+     "lockstep: wall time to wait for an answer before advancing on the last input with a warning (0 = for ever)",
+     true, {}, {}},
+    {"effort_timeout", "", "s", T::Real, S::Node, NON_NEGATIVE, "0",
+     "effort mode: sim time without a motor_effort message after which the torque drops to 0 with a warning "
+     "(0 = never)", true, {}, {}},
   };
   // clang-format on
 }

@@ -64,6 +64,10 @@ void validateNodeSettings(const NodeConfig& c)
   {
     throw ConfigError("real_time_factor: 0 (as fast as possible) needs publish_clock: true");
   }
+  if (c.sync && !c.publish_clock)
+  {
+    throw ConfigError("sync: lockstep needs publish_clock: true (the controller must follow the node's sim time)");
+  }
   if (c.motor_joint_name.empty() || c.load_joint_name.empty() || c.motor_joint_name == c.load_joint_name)
   {
     throw ConfigError("motor_joint_name, load_joint_name: must be two different non-empty names");
@@ -91,6 +95,9 @@ NodeConfig nodeSettingsFrom(const KeyValues& kv, const NodeConfig& base)
   c.paused = kv.has("paused") ? kv.boolean("paused") : c.paused;
   c.stop_after = realValue(kv, "stop_after", c.stop_after);
   c.start_delay = realValue(kv, "start_delay", c.start_delay);
+  c.sync = kv.has("sync") ? kv.boolean("sync") : c.sync;
+  c.sync_timeout = realValue(kv, "sync_timeout", c.sync_timeout);
+  c.effort_timeout = realValue(kv, "effort_timeout", c.effort_timeout);
   validateNodeSettings(c);
   return c;
 }

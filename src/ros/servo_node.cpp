@@ -2,6 +2,7 @@
 
 #include <diagnostic_msgs/DiagnosticArray.h>
 #include <dynamic_reconfigure/config_tools.h>
+#include <ros/callback_queue.h>
 #include <rosgraph_msgs/Clock.h>
 #include <sensor_msgs/JointState.h>
 
@@ -128,7 +129,9 @@ void ServoNode::reanchorWallClock()
 
 void ServoNode::restartMonitor()
 {
-  monitor_ = std::make_unique<ResponseMonitor>(sim_.params(), command_, sim_.state(), sim_.drive().sampled());
+  // Effort mode is fed by an external, usually digital, controller: its cycles may be quasi-periodic bands too.
+  monitor_ = std::make_unique<ResponseMonitor>(sim_.params(), command_, sim_.state(),
+                                               sim_.drive().sampled() || sim_.controlMode() == ControlMode::Effort);
   announced_ = Verdict::Undecided;
 }
 
@@ -141,6 +144,28 @@ void ServoNode::run()
     ros::spinOnce();
     ros::WallDuration(0.01).sleep();
   }
+  if (config_.sync)
+  {
+    // Lockstep needs its controller connected before the first state goes out (a state nobody answers would stall
+    // the run until sync_timeout): a subscriber of joint_states and a publisher of the answer topic, plus a second
+    // for the controller's own subscription to finish connecting.
+    const ros::Subscriber& answer = config_.control_mode == ControlMode::Effort ? effort_sub_ : command_sub_;
+    ros::WallTime said = ros::WallTime::now();
+    ROS_INFO("backlash_servo_node: lockstep: waiting for a controller (subscribing joint_states, publishing %s)",
+             answer.getTopic().c_str());
+    while (ros::ok() && (joint_pub_.getNumSubscribers() == 0 || answer.getNumPublishers() == 0))
+    {
+      ros::spinOnce();
+      ros::WallDuration(0.01).sleep();
+      if ((ros::WallTime::now() - said).toSec() > 10.0)
+      {
+        ROS_INFO("backlash_servo_node: lockstep: still waiting for a controller");
+        said = ros::WallTime::now();
+      }
+    }
+    ros::WallDuration(1.0).sleep();
+    ros::spinOnce();
+  }
   reanchorWallClock();
   const ros::WallTime run_start = ros::WallTime::now();
   if (clock_mode_ == ClockMode::Publisher)
@@ -151,6 +176,7 @@ void ServoNode::run()
   }
   publishSample();
   sample_index_ = 1;
+  awaitAnswer();
   while (ros::ok())
   {
     ros::spinOnce();  // commands, services and reconfigure act here, at a step boundary
@@ -199,14 +225,14 @@ void ServoNode::run()
       continue;
     }
     ++sample_index_;
-    if (sim_.controlMode() == ControlMode::Position)
+    // Rest and quiet rules, as backlash_sim applies them; in effort mode against `command` too (the external
+    // controller's integrator is not visible: its stick–slip phases count as rest only once quiet for long).
+    monitor_->check(sim_.state(), sim_.drive().winding());
+    if (monitor_->status().verdict != announced_)
     {
-      monitor_->check(sim_.state(), sim_.drive().winding());  // rest and quiet rules, as backlash_sim applies them
-      if (monitor_->status().verdict != announced_)
-      {
-        publishLimitCycle(t, false);
-      }
+      publishLimitCycle(t, false);
     }
+    checkEffortTimeout();
     if (clock_mode_ == ClockMode::Publisher)
     {
       rosgraph_msgs::Clock clock;
@@ -214,8 +240,17 @@ void ServoNode::run()
       clock_pub_.publish(clock);
     }
     publishSample();
+    if (!(config_.stop_after > 0.0 && t >= config_.stop_after))
+    {
+      awaitAnswer();
+    }
     if (config_.stop_after > 0.0 && t >= config_.stop_after)
     {
+      if (config_.sync)
+      {
+        ROS_INFO("backlash_servo_node: lockstep: %ld steps, %ld answered late (after sync_timeout)", sample_index_,
+                 sync_misses_);
+      }
       const double wall = (ros::WallTime::now() - run_start).toSec();
       const double cpu = static_cast<double>(std::clock()) / CLOCKS_PER_SEC;
       ROS_INFO("backlash_servo_node: stop_after %g s reached: verdict %s, error %.6g rad, period %.6g s, %llu impacts",
@@ -337,7 +372,7 @@ void ServoNode::onEvent(const Event& e)
     m.stuck = e.impact.stuck;
     impact_pub_.publish(m);
   }
-  else if (e.type == EventType::Maximum && sim_.controlMode() == ControlMode::Position)
+  else if (e.type == EventType::Maximum)  // both modes: effort mode is judged against `command` as well
   {
     const std::size_t before = monitor_->maxima().size();
     monitor_->onEvent(e);
@@ -404,8 +439,9 @@ void ServoNode::onCommand(const std_msgs::Float64& msg)
   if (sim_.controlMode() == ControlMode::Position)
   {
     sim_.setCommand(command_);
-    restartMonitor();
+    answered_ = answered_ || awaiting_;  // lockstep: the answer for the state just published
   }
+  restartMonitor();  // both modes judge against the command
 }
 
 void ServoNode::onEffort(const std_msgs::Float64& msg)
@@ -419,15 +455,68 @@ void ServoNode::onEffort(const std_msgs::Float64& msg)
     ROS_WARN_THROTTLE(1.0, "backlash_servo_node: dropped motor_effort (%s); keeping %g N·m", e.what(), effort_);
     return;
   }
-  effort_ = msg.data;
-  if (sim_.controlMode() == ControlMode::Effort)
+  if (sim_.controlMode() != ControlMode::Effort)
   {
-    sim_.setMotorTorque(effort_);
-  }
-  else
-  {
+    // Not kept either: a torque sent in position mode must not surface later when the mode switches.
     ROS_WARN_THROTTLE(5.0, "backlash_servo_node: motor_effort ignored in position mode (set control_mode: effort)");
+    return;
   }
+  effort_ = msg.data;
+  last_effort_time_ = sim_.state().time;
+  effort_timed_out_ = false;
+  sim_.setMotorTorque(effort_);
+  answered_ = answered_ || awaiting_;  // lockstep: the answer for the state just published
+}
+
+void ServoNode::awaitAnswer()
+{
+  if (!config_.sync)
+  {
+    return;
+  }
+  answered_ = false;
+  awaiting_ = true;
+  const ros::WallTime start = ros::WallTime::now();
+  bool warned = false;
+  while (ros::ok() && !answered_)
+  {
+    ros::getGlobalCallbackQueue()->callAvailable(ros::WallDuration(0.001));
+    if (paused_ || !fault_.empty())
+    {
+      continue;  // a paused or faulted node waits with its controller
+    }
+    if (config_.sync_timeout > 0.0 && (ros::WallTime::now() - start).toSec() >= config_.sync_timeout)
+    {
+      ++sync_misses_;
+      if (!warned)
+      {
+        ROS_WARN(
+            "backlash_servo_node: lockstep: no %s for t = %.6f s within sync_timeout %g s; advancing on the "
+            "last input (this run is no longer reproducible)",
+            sim_.controlMode() == ControlMode::Effort ? "motor_effort" : "command", sim_.state().time,
+            config_.sync_timeout);
+        warned = true;
+      }
+      break;
+    }
+  }
+  awaiting_ = false;
+}
+
+void ServoNode::checkEffortTimeout()
+{
+  if (sim_.controlMode() != ControlMode::Effort || config_.effort_timeout <= 0.0 || effort_timed_out_ ||
+      sim_.state().time - last_effort_time_ < config_.effort_timeout)
+  {
+    return;
+  }
+  effort_timed_out_ = true;
+  ROS_WARN(
+      "backlash_servo_node: no motor_effort for %g s of sim time (effort_timeout): motor torque set to 0 N·m "
+      "(was %g N·m) until the next message",
+      sim_.state().time - last_effort_time_, effort_);
+  effort_ = 0.0;
+  sim_.setMotorTorque(0.0);
 }
 
 void ServoNode::applyPositionDrive()
@@ -570,6 +659,9 @@ void ServoNode::onReconfigure(BacklashServoConfig& c, uint32_t)
   {
     if (next.control_mode == ControlMode::Effort)
     {
+      effort_ = 0.0;  // no stale torque: 0 N·m until the first motor_effort in this mode
+      last_effort_time_ = sim_.state().time;
+      effort_timed_out_ = false;
       sim_.setMotorTorque(effort_);
     }
     else

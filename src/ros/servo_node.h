@@ -56,6 +56,11 @@ class ServoNode : public EventSink
   /// Waits (serving callbacks) until the sample at sim time t may be computed; false on shutdown.
   bool waitFor(double t);
   void publishSample();
+  /// Lockstep: after a state is published, serves callbacks until its answer (motor_effort in effort mode, command
+  /// in position mode) arrives or sync_timeout passes. No-op unless sync.
+  void awaitAnswer();
+  /// Effort mode: drops the torque to 0 (once, with a warning) after effort_timeout s of sim time without a message.
+  void checkEffortTimeout();
   /// encoder_states: what a digital drive's controller read at its sample (quantised motor and load angles).
   void publishEncoders(const State& s, const Drive& drive);
   /// /diagnostics: OK while running, ERROR with the fault while a core error holds the simulation.
@@ -85,9 +90,16 @@ class ServoNode : public EventSink
   std::unique_ptr<dynamic_reconfigure::Server<BacklashServoConfig>> reconfigure_;
   BacklashServoConfig last_good_;
 
-  ros::Time origin_;           // ROS time of sim time 0
-  double sample_base_ = 0.0;   // sim time of sample 0 of the current schedule [s]
-  long sample_index_ = 0;      // index of the next sample
+  ros::Time origin_;          // ROS time of sim time 0
+  double sample_base_ = 0.0;  // sim time of sample 0 of the current schedule [s]
+  long sample_index_ = 0;     // index of the next sample
+  // Lockstep (sync): waiting for the answer to the state just published; its arrival; answers that came too late.
+  bool awaiting_ = false;
+  bool answered_ = false;
+  long sync_misses_ = 0;
+  // Effort timeout: sim time of the last motor_effort [s]; the torque was dropped for want of one.
+  double last_effort_time_ = 0.0;
+  bool effort_timed_out_ = false;
   ros::WallTime wall_anchor_;  // wall time at which the sim was at sim_anchor_
   double sim_anchor_ = 0.0;
   bool paused_ = false;
