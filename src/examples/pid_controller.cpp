@@ -7,7 +7,8 @@
 // with y_k the load position of the k-th joint_states message, Δt_k the difference of their stamps [s] (sim time),
 // θ_R from the `command` topic (initial: ~command), u saturated at ±torque_limit with conditional integration.
 // Params (SI): ~kp [N·m/rad], ~ki [N·m/(rad·s)], ~kd [N·m·s/rad], ~torque_limit [N·m] (live via
-// dynamic_reconfigure), ~command [rad], ~joint [name of the load joint, default load_joint].
+// dynamic_reconfigure), ~command [rad], ~joint [name of the load joint, default load_joint], ~delay [0 or 1: answer
+// each state with the output computed for the previous one — one sample of transport delay; 0 N·m first].
 #include <dynamic_reconfigure/server.h>
 #include <ros/ros.h>
 #include <sensor_msgs/JointState.h>
@@ -28,6 +29,12 @@ class PidController
   {
     pnh.param("command", command_, 1.0);
     pnh.param<std::string>("joint", joint_, "load_joint");
+    pnh.param("delay", delay_, 0);
+    if (delay_ != 0 && delay_ != 1)
+    {
+      ROS_FATAL("example_pid_controller: ~delay must be 0 or 1 (got %d)", delay_);
+      ros::shutdown();
+    }
     effort_pub_ = nh.advertise<std_msgs::Float64>("motor_effort", 100);
     state_sub_ = nh.subscribe("joint_states", 100, &PidController::onState, this, ros::TransportHints().tcpNoDelay());
     command_sub_ = nh.subscribe("command", 10, &PidController::onCommand, this);
@@ -88,7 +95,8 @@ class PidController
     t_prev_ = t;
     first_ = false;
     std_msgs::Float64 out;
-    out.data = u;
+    out.data = delay_ == 1 ? pending_ : u;
+    pending_ = u;
     effort_pub_.publish(out);
   }
 
@@ -99,6 +107,8 @@ class PidController
   std::string joint_;
   double command_ = 1.0;
   double integral_ = 0.0, y_prev_ = 0.0, t_prev_ = 0.0;
+  double pending_ = 0.0;  // output of the previous state (delay 1)
+  int delay_ = 0;
   bool first_ = true;
 };
 }  // namespace
