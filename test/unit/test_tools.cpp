@@ -269,6 +269,17 @@ TEST(Design, SearchesTheIntegralGainOfASampledPid)
   EXPECT_NE(err.find("--tune"), std::string::npos) << err;
 }
 
+// A real single-node Slurm (slurmctld, slurmd, munge started and stopped by the script): scripts/slurm_sweep.sh's
+// array job and dependent merge job write exactly the CSV of an unsharded run.
+TEST(Slurm, ArrayJobPlusMergeEqualsTheUnshardedSweep)
+{
+  int code = 0;
+  const std::string log =
+      runCapture("timeout 300 bash " + std::string(SOURCE_DIR) + "/test/slurm/local_slurm_sweep.sh 4 2>&1", &code);
+  EXPECT_EQ(code, 0) << log;
+  EXPECT_NE(log.find("= the unsharded CSV"), std::string::npos) << log;
+}
+
 TEST(Charts, ScriptsRunHeadlessAndWriteImages)
 {
   const std::string out = "/tmp/backlash_charts_test";
