@@ -17,6 +17,8 @@
 #include <memory>
 #include <string>
 
+#include "backlash_servo/command_profile.h"
+#include "backlash_servo/compensator.h"
 #include "backlash_servo/params.h"
 #include "backlash_servo/state.h"
 
@@ -37,6 +39,15 @@ struct DriveParams
   double velocity_loop_gain = 0.0;           ///< K_v [N·m·s/rad] (cascade, inner loop)
   double velocity_loop_integral_gain = 0.0;  ///< K_vi [N·m/rad] (cascade, inner loop)
   double torque_limit = 0.0;                 ///< T_max [N·m], 0 = none
+  // Backlash compensation (compensator.h; digital drives only).
+  std::string compensation = "none";         ///< none | inverse | dual_loop | friction_feedforward | dither
+  double compensation_backlash = 0.0;        ///< inverse: the compensator's estimate Δ̂ of the backlash [rad]
+  double compensation_width = 0.0;           ///< inverse: travel the jump is spread over; feed-forward: deadband [rad]
+  double outer_loop_gain = 0.0;              ///< dual_loop: K_o [1/s]
+  double compensation_friction = 0.0;        ///< friction_feedforward: F [N·m]
+  double dither_amplitude = 0.0;             ///< dither: A [N·m]
+  double dither_frequency = 0.0;             ///< dither: f [Hz]
+  std::string dither_shape = "square";       ///< dither: square | sine
 
   bool sampled() const { return controller_rate > 0.0; }
   /// Throws InvalidParameterError for combinations the model does not define (pid without a rate, …).
@@ -166,8 +177,12 @@ class SampledDrive : public Drive
     return next_ > 0;
   }
 
-  /// A new set-point θ_R [rad] from the next sample on.
+  /// A new set-point θ_R [rad] from the next sample on (replaces a profile).
   void setCommand(double command);
+  /// The set-point follows this profile from now on (sampled at the drive's instants); null: back to the command.
+  void setProfile(std::shared_ptr<const CommandProfile> profile) { profile_ = std::move(profile); }
+  /// The reference θ_R,k [rad] used at the latest sample.
+  double reference() const { return reference_; }
   double command() const { return command_; }
   /// The controller's latest readings [rad] (what it sees): motor (referred to the load shaft) and load.
   double motorReading() const { return motor_reading_; }
@@ -184,6 +199,9 @@ class SampledDrive : public Drive
     Cascade
   } law_ = Law::Proportional;    // p_.control_law, parsed once (no string compare per sample)
   bool motor_feedback_ = false;  // p_.feedback == "motor"
+  Compensator compensator_;
+  std::shared_ptr<const CommandProfile> profile_;
+  double reference_ = 0.0;  // θ_R,k of the latest sample [rad]
   double gain_, rho_, command_, t0_;
   long next_ = 0;          // index of the next sample
   double held_ = 0.0;      // torque held now [N·m]

@@ -10,6 +10,7 @@
 #include <cstdint>
 #include <functional>
 #include <string>
+#include <memory>
 #include <vector>
 
 #include "backlash_servo/response_monitor.h"
@@ -27,6 +28,9 @@ struct RunConfig
   double max_duration = 0.0;  ///< cap when running until settled [s]; 0 = 2000/ω_n
   bool track_energy = true;   ///< energy ledger (off: ~25 % faster, energy fields of the summary are zero)
   double max_events = 1e7;    ///< impact budget of the run; exceeded → stopped, verdict unsettled (not a hang)
+  /// Optional set-point profile (a digital drive samples it; the verdict is judged against its final value). With
+  /// a profile, `command` is ignored. Throws InvalidParameterError from runResponse() with the continuous law.
+  std::shared_ptr<const CommandProfile> profile;
 };
 
 struct RunSummary

@@ -120,6 +120,8 @@ RunConfig runConfigFrom(const KeyValues& kv)
   }
   c.drive.control_law = choiceValue(kv, param("control_law"));
   c.drive.feedback = choiceValue(kv, param("feedback"));
+  c.drive.compensation = choiceValue(kv, param("compensation"));
+  c.drive.dither_shape = choiceValue(kv, param("dither_shape"));
   c.drive.validate();
   c.command = realValue(kv, param("command"));
   c.duration = realValue(kv, param("duration"));

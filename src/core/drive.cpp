@@ -144,6 +144,36 @@ void DriveParams::validate() const
     throw InvalidParameterError("controller_delay",
                                 "must be 0 or 1 sample (got " + formatNumber(controller_delay) + ")");
   }
+  const bool known = compensation == "none" || compensation == "inverse" || compensation == "dual_loop" ||
+                     compensation == "friction_feedforward" || compensation == "dither";
+  if (!known)
+  {
+    throw InvalidParameterError("compensation", "must be none, inverse, dual_loop, friction_feedforward or dither "
+                                                "(got '" + compensation + "')");
+  }
+  if (dither_shape != "square" && dither_shape != "sine")
+  {
+    throw InvalidParameterError("dither_shape", "must be square or sine (got '" + dither_shape + "')");
+  }
+  if (compensation != "none" && !sampled())
+  {
+    throw InvalidParameterError("compensation", compensation +
+                                                    " acts at the samples of a digital drive: set controller_rate > 0 "
+                                                    "Hz");
+  }
+  if ((compensation == "inverse" || compensation == "dual_loop") && feedback != "motor")
+  {
+    throw InvalidParameterError("compensation", compensation +
+                                                    " corrects a loop on the motor encoder: set feedback: motor (a "
+                                                    "load loop sees the backlash itself)");
+  }
+  if (compensation == "dither" && sampled() && dither_frequency > 0.5 * controller_rate)
+  {
+    throw InvalidParameterError("dither_frequency", "must be <= controller_rate / 2 = " +
+                                                        formatNumber(0.5 * controller_rate) +
+                                                        " Hz (the drive samples the dither; got " +
+                                                        formatNumber(dither_frequency) + ")");
+  }
   for (double n : {motor_encoder_resolution, load_encoder_resolution})
   {
     if (n != std::floor(n))
@@ -162,6 +192,7 @@ SampledDrive::SampledDrive(const DriveParams& drive, double gain, double gear_ra
   requireFinite("command", command);
   law_ = drive.control_law == "pid" ? Law::Pid : drive.control_law == "cascade" ? Law::Cascade : Law::Proportional;
   motor_feedback_ = drive.feedback == "motor";
+  compensator_ = Compensator(drive);
 }
 
 void SampledDrive::configure(const ServoParams& params)
@@ -198,7 +229,9 @@ void SampledDrive::sample(const State& s)
   motor_reading_ = rho_ * qm;
   load_reading_ = read(s.load_position, p_.load_encoder_resolution);
   const double y = motor_feedback_ ? motor_reading_ : load_reading_;
-  const double e = command_ - y;
+  const double t_k = t0_ + static_cast<double>(next_) * period;
+  reference_ = profile_ ? profile_->at(t_k) : command_;
+  const double e = compensator_.reference(reference_, load_reading_, period) - y;
   const bool first = next_ == 0;
   const double limit = p_.torque_limit;
   auto beyond = [&](double u, double sign) { return limit > 0.0 && std::fabs(u) > limit && u * sign > 0.0; };
@@ -236,6 +269,7 @@ void SampledDrive::sample(const State& s)
   {
     u = gain_ * e;
   }
+  u = compensator_.torque(u, e, t_k);
   if (limit > 0.0)
   {
     u = std::min(std::max(u, -limit), limit);

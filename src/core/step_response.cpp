@@ -33,17 +33,28 @@ class Tee : public EventSink
 RunSummary runResponse(const RunConfig& config, EventSink* sink, double sample_period, const SampleCallback& on_sample,
                        const ProgressCallback& on_progress)
 {
-  Simulator sim(config.params, config.initial, config.command);
+  if (config.profile && !config.drive.sampled())
+  {
+    throw InvalidParameterError("profile", "a command profile is sampled by a digital drive: set controller_rate > 0 "
+                                           "Hz (the continuous law takes steps only)");
+  }
+  const double command = config.profile ? config.profile->finalValue() : config.command;
+  Simulator sim(config.params, config.initial, command);
   if (config.drive.sampled() || config.drive.torque_limit > 0.0)
   {
-    sim.setDrive(makePositionDrive(config.drive, config.params.gain, config.params.gear_ratio, config.command,
-                                   config.initial.time));
+    auto drive = makePositionDrive(config.drive, config.params.gain, config.params.gear_ratio, command,
+                                   config.initial.time);
+    if (config.profile)
+    {
+      static_cast<SampledDrive&>(*drive).setProfile(config.profile);
+    }
+    sim.setDrive(std::move(drive));
   }
   sim.setEnergyTracking(config.track_energy);
   sim.setEventBudget(static_cast<std::uint64_t>(config.max_events));
   RunSummary out;
   const double omega_n = config.params.naturalFrequency();
-  ResponseMonitor monitor(config.params, config.command, config.initial, sim.drive().sampled());
+  ResponseMonitor monitor(config.params, command, config.initial, sim.drive().sampled());
   Tee tee(&monitor, sink);
   const double t0 = config.initial.time;
   const bool until_settled = config.duration <= 0.0;

@@ -89,6 +89,7 @@ void writeJson(std::ostream& out, const RunConfig& c, const RunSummary& r, doubl
     }
   }
   j.field("control_law", c.drive.control_law).field("feedback", c.drive.feedback);
+  j.field("compensation", c.drive.compensation).field("dither_shape", c.drive.dither_shape);
   j.endObject();
   j.field("command", c.command)
       .field("zeta", p.dampingRatio())

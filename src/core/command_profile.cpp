@@ -1,0 +1,194 @@
+#include "backlash_servo/command_profile.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+#include "backlash_servo/params.h"
+
+namespace backlash_servo
+{
+namespace
+{
+constexpr double TWO_PI = 6.283185307179586476925;
+
+/// Trapezoid (or triangle) distance covered after tau [s] of a move of length |d| [rad].
+double trapezoid(double d, double vmax, double amax, double tau)
+{
+  const double t_acc = vmax / amax;
+  double t_cruise = (d - vmax * t_acc) / vmax;
+  double v_peak = vmax;
+  double ta = t_acc;
+  if (t_cruise < 0.0)
+  {
+    ta = std::sqrt(d / amax);  // triangular: never reaches vmax
+    v_peak = amax * ta;
+    t_cruise = 0.0;
+  }
+  const double total = 2.0 * ta + t_cruise;
+  if (tau <= 0.0)
+  {
+    return 0.0;
+  }
+  if (tau >= total)
+  {
+    return d;
+  }
+  if (tau < ta)
+  {
+    return 0.5 * amax * tau * tau;
+  }
+  const double s1 = 0.5 * amax * ta * ta;
+  if (tau < ta + t_cruise)
+  {
+    return s1 + v_peak * (tau - ta);
+  }
+  const double tr = total - tau;
+  return d - 0.5 * amax * tr * tr;
+}
+
+double moveDuration(const ProfileSegment& s)
+{
+  const double d = std::fabs(s.distance);
+  const double t_acc = s.max_velocity / s.max_acceleration;
+  if (d < s.max_velocity * t_acc)
+  {
+    return 2.0 * std::sqrt(d / s.max_acceleration);
+  }
+  return 2.0 * t_acc + (d - s.max_velocity * t_acc) / s.max_velocity;
+}
+}  // namespace
+
+CommandProfile::CommandProfile(double start, std::vector<ProfileSegment> segments)
+    : start_(start), segments_(std::move(segments))
+{
+  requireFinite("profile start", start);
+  double last = -std::numeric_limits<double>::infinity();
+  for (std::size_t i = 0; i < segments_.size(); ++i)
+  {
+    const ProfileSegment& s = segments_[i];
+    const std::string where = "profile segment " + std::to_string(i + 1);
+    auto need = [&](bool ok, const std::string& what) {
+      if (!ok)
+      {
+        throw InvalidParameterError(where, what);
+      }
+    };
+    for (double v : {s.time, s.target, s.duration, s.rate, s.amplitude, s.frequency, s.distance, s.max_velocity,
+                     s.max_acceleration})
+    {
+      need(std::isfinite(v), "every value must be a finite number");
+    }
+    need(s.time >= 0.0 && s.time >= last, "times must be >= 0 and in order (got " + formatNumber(s.time) + " s)");
+    last = s.time;
+    switch (s.kind)
+    {
+      case ProfileSegment::Kind::Ramp:
+        need(s.duration > 0.0 || s.rate > 0.0, "a ramp needs duration > 0 s or rate > 0 rad/s");
+        break;
+      case ProfileSegment::Kind::Sine:
+        need(s.frequency > 0.0 && s.duration > 0.0, "a sine needs frequency > 0 Hz and duration > 0 s");
+        break;
+      case ProfileSegment::Kind::Move:
+        need(s.max_velocity > 0.0 && s.max_acceleration > 0.0,
+             "a move needs max_velocity > 0 rad/s and max_acceleration > 0 rad/s²");
+        break;
+      case ProfileSegment::Kind::Points:
+        need(!s.points.empty(), "points: at least one (time, value)");
+        for (std::size_t k = 0; k < s.points.size(); ++k)
+        {
+          need(std::isfinite(s.points[k].first) && std::isfinite(s.points[k].second),
+               "points must be finite numbers");
+          need(k == 0 || s.points[k].first >= s.points[k - 1].first, "point times must be in order");
+        }
+        break;
+      default:
+        break;
+    }
+  }
+}
+
+double CommandProfile::evaluate(const ProfileSegment& s, double v0, double tau) const
+{
+  switch (s.kind)
+  {
+    case ProfileSegment::Kind::Step:
+      return s.target;
+    case ProfileSegment::Kind::Ramp:
+    {
+      const double d = s.duration > 0.0 ? s.duration : std::fabs(s.target - v0) / s.rate;
+      return d <= 0.0 ? s.target : v0 + (s.target - v0) * std::min(1.0, tau / d);
+    }
+    case ProfileSegment::Kind::Sine:
+      return tau < s.duration ? v0 + s.amplitude * std::sin(TWO_PI * s.frequency * tau) : v0;
+    case ProfileSegment::Kind::Move:
+    {
+      const double sign = s.distance >= 0.0 ? 1.0 : -1.0;
+      return v0 + sign * trapezoid(std::fabs(s.distance), s.max_velocity, s.max_acceleration, tau);
+    }
+    default:
+    {
+      double v = v0;
+      for (const auto& p : s.points)
+      {
+        if (p.first > s.time + tau)
+        {
+          break;
+        }
+        v = p.second;
+      }
+      return v;
+    }
+  }
+}
+
+double CommandProfile::at(double t) const
+{
+  double value = start_;
+  for (std::size_t i = 0; i < segments_.size(); ++i)
+  {
+    const ProfileSegment& s = segments_[i];
+    if (t < s.time)
+    {
+      break;
+    }
+    const double next = i + 1 < segments_.size() ? segments_[i + 1].time : std::numeric_limits<double>::infinity();
+    // The segment runs until the next one starts (which then starts from the value it left).
+    value = evaluate(s, value, std::min(t, next) - s.time);
+  }
+  return value;
+}
+
+double CommandProfile::finalValue() const
+{
+  return at(std::numeric_limits<double>::infinity());  // every segment run to its end
+}
+
+double CommandProfile::endTime() const
+{
+  double end = 0.0;
+  for (const ProfileSegment& s : segments_)
+  {
+    double length = 0.0;
+    if (s.kind == ProfileSegment::Kind::Sine)
+    {
+      length = s.duration;
+    }
+    else if (s.kind == ProfileSegment::Kind::Move)
+    {
+      length = moveDuration(s);
+    }
+    else if (s.kind == ProfileSegment::Kind::Ramp)
+    {
+      length = s.duration > 0.0 ? s.duration : 0.0;  // a rate ramp's length depends on v₀: bounded below
+    }
+    else if (s.kind == ProfileSegment::Kind::Points)
+    {
+      length = s.points.back().first - s.time;
+    }
+    end = std::max(end, s.time + std::max(0.0, length));
+  }
+  return end;
+}
+
+}  // namespace backlash_servo
