@@ -30,15 +30,15 @@ struct ProfileSegment
     Move,
     Points
   } kind = Kind::Step;
-  double time = 0.0;              ///< start [s]
-  double target = 0.0;            ///< step, ramp: end value [rad]
-  double duration = 0.0;          ///< ramp (or rate), sine [s]
-  double rate = 0.0;              ///< ramp: |dθ_R/dt| [rad/s] when no duration
-  double amplitude = 0.0;         ///< sine [rad]
-  double frequency = 0.0;         ///< sine [Hz]
-  double distance = 0.0;          ///< move [rad]
-  double max_velocity = 0.0;      ///< move [rad/s]
-  double max_acceleration = 0.0;  ///< move [rad/s²]
+  double time = 0.0;                              ///< start [s]
+  double target = 0.0;                            ///< step, ramp: end value [rad]
+  double duration = 0.0;                          ///< ramp (or rate), sine [s]
+  double rate = 0.0;                              ///< ramp: |dθ_R/dt| [rad/s] when no duration
+  double amplitude = 0.0;                         ///< sine [rad]
+  double frequency = 0.0;                         ///< sine [Hz]
+  double distance = 0.0;                          ///< move [rad]
+  double max_velocity = 0.0;                      ///< move [rad/s]
+  double max_acceleration = 0.0;                  ///< move [rad/s²]
   std::vector<std::pair<double, double>> points;  ///< points: (time [s], value [rad]), times ascending
 };
 

@@ -49,9 +49,9 @@ class Compensator
   double backlash_ = 0.0, width_ = 0.0, outer_gain_ = 0.0, friction_ = 0.0, amplitude_ = 0.0, frequency_ = 0.0;
   bool square_ = true;
   bool started_ = false;
-  int direction_ = 1;          // last direction of the commanded motion
+  int direction_ = 1;  // last direction of the commanded motion
   double last_reference_ = 0.0;
-  double offset_ = 0.0;        // inverse: o_k [rad]; dual loop: x_k [rad]
+  double offset_ = 0.0;  // inverse: o_k [rad]; dual loop: x_k [rad]
 };
 
 }  // namespace backlash_servo

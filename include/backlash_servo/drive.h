@@ -40,14 +40,14 @@ struct DriveParams
   double velocity_loop_integral_gain = 0.0;  ///< K_vi [N·m/rad] (cascade, inner loop)
   double torque_limit = 0.0;                 ///< T_max [N·m], 0 = none
   // Backlash compensation (compensator.h; digital drives only).
-  std::string compensation = "none";         ///< none | inverse | dual_loop | friction_feedforward | dither
-  double compensation_backlash = 0.0;        ///< inverse: the compensator's estimate Δ̂ of the backlash [rad]
-  double compensation_width = 0.0;           ///< inverse: travel the jump is spread over; feed-forward: deadband [rad]
-  double outer_loop_gain = 0.0;              ///< dual_loop: K_o [1/s]
-  double compensation_friction = 0.0;        ///< friction_feedforward: F [N·m]
-  double dither_amplitude = 0.0;             ///< dither: A [N·m]
-  double dither_frequency = 0.0;             ///< dither: f [Hz]
-  std::string dither_shape = "square";       ///< dither: square | sine
+  std::string compensation = "none";    ///< none | inverse | dual_loop | friction_feedforward | dither
+  double compensation_backlash = 0.0;   ///< inverse: the compensator's estimate Δ̂ of the backlash [rad]
+  double compensation_width = 0.0;      ///< inverse: travel the jump is spread over; feed-forward: deadband [rad]
+  double outer_loop_gain = 0.0;         ///< dual_loop: K_o [1/s]
+  double compensation_friction = 0.0;   ///< friction_feedforward: F [N·m]
+  double dither_amplitude = 0.0;        ///< dither: A [N·m]
+  double dither_frequency = 0.0;        ///< dither: f [Hz]
+  std::string dither_shape = "square";  ///< dither: square | sine
 
   bool sampled() const { return controller_rate > 0.0; }
   /// Throws InvalidParameterError for combinations the model does not define (pid without a rate, …).

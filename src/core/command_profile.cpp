@@ -97,8 +97,7 @@ CommandProfile::CommandProfile(double start, std::vector<ProfileSegment> segment
         need(!s.points.empty(), "points: at least one (time, value)");
         for (std::size_t k = 0; k < s.points.size(); ++k)
         {
-          need(std::isfinite(s.points[k].first) && std::isfinite(s.points[k].second),
-               "points must be finite numbers");
+          need(std::isfinite(s.points[k].first) && std::isfinite(s.points[k].second), "points must be finite numbers");
           need(k == 0 || s.points[k].first >= s.points[k - 1].first, "point times must be in order");
         }
         break;
@@ -114,20 +113,17 @@ double CommandProfile::evaluate(const ProfileSegment& s, double v0, double tau) 
   {
     case ProfileSegment::Kind::Step:
       return s.target;
-    case ProfileSegment::Kind::Ramp:
-    {
+    case ProfileSegment::Kind::Ramp: {
       const double d = s.duration > 0.0 ? s.duration : std::fabs(s.target - v0) / s.rate;
       return d <= 0.0 ? s.target : v0 + (s.target - v0) * std::min(1.0, tau / d);
     }
     case ProfileSegment::Kind::Sine:
       return tau < s.duration ? v0 + s.amplitude * std::sin(TWO_PI * s.frequency * tau) : v0;
-    case ProfileSegment::Kind::Move:
-    {
+    case ProfileSegment::Kind::Move: {
       const double sign = s.distance >= 0.0 ? 1.0 : -1.0;
       return v0 + sign * trapezoid(std::fabs(s.distance), s.max_velocity, s.max_acceleration, tau);
     }
-    default:
-    {
+    default: {
       double v = v0;
       for (const auto& p : s.points)
       {

@@ -148,8 +148,10 @@ void DriveParams::validate() const
                      compensation == "friction_feedforward" || compensation == "dither";
   if (!known)
   {
-    throw InvalidParameterError("compensation", "must be none, inverse, dual_loop, friction_feedforward or dither "
-                                                "(got '" + compensation + "')");
+    throw InvalidParameterError("compensation",
+                                "must be none, inverse, dual_loop, friction_feedforward or dither "
+                                "(got '" +
+                                    compensation + "')");
   }
   if (dither_shape != "square" && dither_shape != "sine")
   {
@@ -169,10 +171,9 @@ void DriveParams::validate() const
   }
   if (compensation == "dither" && sampled() && dither_frequency > 0.5 * controller_rate)
   {
-    throw InvalidParameterError("dither_frequency", "must be <= controller_rate / 2 = " +
-                                                        formatNumber(0.5 * controller_rate) +
-                                                        " Hz (the drive samples the dither; got " +
-                                                        formatNumber(dither_frequency) + ")");
+    throw InvalidParameterError("dither_frequency",
+                                "must be <= controller_rate / 2 = " + formatNumber(0.5 * controller_rate) +
+                                    " Hz (the drive samples the dither; got " + formatNumber(dither_frequency) + ")");
   }
   for (double n : {motor_encoder_resolution, load_encoder_resolution})
   {

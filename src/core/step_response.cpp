@@ -35,15 +35,16 @@ RunSummary runResponse(const RunConfig& config, EventSink* sink, double sample_p
 {
   if (config.profile && !config.drive.sampled())
   {
-    throw InvalidParameterError("profile", "a command profile is sampled by a digital drive: set controller_rate > 0 "
-                                           "Hz (the continuous law takes steps only)");
+    throw InvalidParameterError("profile",
+                                "a command profile is sampled by a digital drive: set controller_rate > 0 "
+                                "Hz (the continuous law takes steps only)");
   }
   const double command = config.profile ? config.profile->finalValue() : config.command;
   Simulator sim(config.params, config.initial, command);
   if (config.drive.sampled() || config.drive.torque_limit > 0.0)
   {
-    auto drive = makePositionDrive(config.drive, config.params.gain, config.params.gear_ratio, command,
-                                   config.initial.time);
+    auto drive =
+        makePositionDrive(config.drive, config.params.gain, config.params.gear_ratio, command, config.initial.time);
     if (config.profile)
     {
       static_cast<SampledDrive&>(*drive).setProfile(config.profile);

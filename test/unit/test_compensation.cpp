@@ -1,0 +1,193 @@
+// Compensators of the digital drive and command profiles (issue 12), against the flank geometry of the backlash and
+// formulas written here.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <memory>
+
+#include "backlash_servo/drive.h"
+#include "backlash_servo/step_response.h"
+
+using namespace backlash_servo;
+
+namespace
+{
+constexpr double PI = 3.14159265358979323846;
+
+ProfileSegment step(double time, double target)
+{
+  ProfileSegment s;
+  s.kind = ProfileSegment::Kind::Step;
+  s.time = time;
+  s.target = target;
+  return s;
+}
+
+/// Semi-closed loop (PID on the motor encoder) with load stiction: up to 1 rad, then back down to 0 at 60 s.
+RunConfig upAndDown(const std::string& compensation, double estimate)
+{
+  RunConfig c;
+  c.params.backlash = 0.05;
+  c.params.restitution = 0.5;
+  c.params.load_coulomb_friction = 0.02;
+  c.params.load_static_friction = 0.03;
+  c.drive.controller_rate = 1000.0;
+  c.drive.control_law = "pid";
+  c.drive.feedback = "motor";
+  c.drive.integral_gain = 0.3;
+  c.drive.derivative_gain = 0.3;
+  c.drive.compensation = compensation;
+  c.drive.compensation_backlash = estimate;
+  c.drive.outer_loop_gain = 1.0;
+  c.profile = std::make_shared<CommandProfile>(0.0, std::vector<ProfileSegment>{step(0.0, 1.0), step(60.0, 0.0)});
+  c.duration = 200.0;
+  return c;
+}
+}  // namespace
+
+// A motor loop cannot see the backlash: coming down, the motor tooth pushes the load on the backward flank
+// (θ_c = ρθ_m + Δ), so the load stops Δ above the command. The backlash inverse moves the motor reference by −Δ̂
+// on the reversal: the load error becomes Δ − Δ̂ (the estimate's mismatch is what is left).
+TEST(Compensation, BacklashInverseLeavesOnlyTheEstimateMismatch)
+{
+  const double delta = 0.05;
+  const double none = runResponse(upAndDown("none", 0.0)).final_state.load_position;
+  EXPECT_NEAR(none, delta, 0.01 * delta);
+  for (double estimate : {delta, 0.8 * delta})
+  {
+    const double load = runResponse(upAndDown("inverse", estimate)).final_state.load_position;
+    EXPECT_NEAR(load, delta - estimate, 0.05 * delta) << "estimate " << estimate;
+  }
+}
+
+// The outer load loop integrates the load error into the motor loop's reference: the backlash offset disappears
+// and the motor ends exactly one backlash below (backward flank). (With load stiction the same loop hunts: the
+// outer integrator against stiction and backlash — physics the workbench is for, not a defect.)
+TEST(Compensation, DualLoopRemovesTheSemiClosedLoopOffset)
+{
+  RunConfig c = upAndDown("dual_loop", 0.0);
+  c.params.load_coulomb_friction = 0.0;
+  c.params.load_static_friction = 0.0;
+  c.drive.outer_loop_gain = 0.05;
+  c.duration = 400.0;
+  const RunSummary r = runResponse(c);
+  EXPECT_LT(std::fabs(r.final_state.load_position), 1e-6);
+  EXPECT_NEAR(r.final_state.motor_position, -0.05, 1e-6);
+  c.drive.compensation = "none";  // without: the load coasts off the motor tooth and stops somewhere in the play
+  EXPECT_GT(std::fabs(runResponse(c).final_state.load_position), 1e-3);
+}
+
+// Friction feed-forward and dither add their torque at the samples exactly as written.
+TEST(Compensation, FeedForwardAndDitherTorquesAtTheSamples)
+{
+  DriveParams d;
+  d.controller_rate = 100.0;
+  d.compensation = "friction_feedforward";
+  d.compensation_friction = 0.2;
+  d.compensation_width = 0.01;
+  SampledDrive ff(d, 2.0, 1.0, 1.0, 0.0);
+  State s;
+  for (double x : {0.0, 0.995, 1.0, 1.3})
+  {
+    s.load_position = x;
+    s.motor_position = x;
+    ff.sample(s);
+    const double e = 1.0 - x;
+    const double expected = 2.0 * e + (std::fabs(e) <= 0.01 ? 0.0 : (e > 0.0 ? 0.2 : -0.2));
+    EXPECT_DOUBLE_EQ(ff.law().offset, expected) << x;
+  }
+  d.compensation = "dither";
+  d.dither_amplitude = 0.1;
+  d.dither_frequency = 7.0;
+  for (const char* shape : {"square", "sine"})
+  {
+    d.dither_shape = shape;
+    SampledDrive dither(d, 2.0, 1.0, 1.0, 0.0);
+    s.load_position = s.motor_position = 0.5;
+    for (int k = 0; k < 40; ++k)
+    {
+      dither.sample(s);
+      const double wave = std::sin(2.0 * PI * 7.0 * k / 100.0);
+      const double expected = 2.0 * 0.5 + 0.1 * (std::string(shape) == "sine" ? wave : (wave >= 0.0 ? 1.0 : -1.0));
+      EXPECT_NEAR(dither.law().offset, expected, 1e-12) << shape << " sample " << k;
+    }
+  }
+}
+
+TEST(Compensation, BadCombinationsAreRefusedNamingTheKey)
+{
+  DriveParams d;
+  d.controller_rate = 100.0;
+  d.compensation = "inverse";  // with load feedback
+  EXPECT_THROW(d.validate(), InvalidParameterError);
+  d.feedback = "motor";
+  EXPECT_NO_THROW(d.validate());
+  DriveParams continuous;
+  continuous.compensation = "dither";
+  try
+  {
+    continuous.validate();
+    ADD_FAILURE() << "compensation with the continuous law accepted";
+  }
+  catch (const InvalidParameterError& e)
+  {
+    EXPECT_EQ(e.field(), "compensation");
+  }
+  d.compensation = "dither";
+  d.dither_frequency = 60.0;  // above 100 Hz / 2
+  EXPECT_THROW(d.validate(), InvalidParameterError);
+  d.compensation = "magic";
+  EXPECT_THROW(d.validate(), InvalidParameterError);
+}
+
+// Profiles against their formulas; a digital drive samples exactly the profile's value at t_k.
+TEST(Profile, SegmentsFollowTheirFormulas)
+{
+  ProfileSegment ramp;
+  ramp.kind = ProfileSegment::Kind::Ramp;
+  ramp.time = 1.0;
+  ramp.target = 3.0;
+  ramp.duration = 4.0;
+  ProfileSegment sine;
+  sine.kind = ProfileSegment::Kind::Sine;
+  sine.time = 10.0;
+  sine.amplitude = 0.2;
+  sine.frequency = 0.5;
+  sine.duration = 4.0;
+  ProfileSegment move;
+  move.kind = ProfileSegment::Kind::Move;
+  move.time = 20.0;
+  move.distance = -2.0;
+  move.max_velocity = 1.0;
+  move.max_acceleration = 0.5;
+  const CommandProfile p(1.0, {ramp, sine, move});
+  EXPECT_EQ(p.at(0.5), 1.0);
+  EXPECT_DOUBLE_EQ(p.at(3.0), 1.0 + 2.0 * 0.5);
+  EXPECT_DOUBLE_EQ(p.at(7.0), 3.0);
+  EXPECT_NEAR(p.at(10.5), 3.0 + 0.2 * std::sin(PI * 0.5), 1e-15);
+  EXPECT_EQ(p.at(15.0), 3.0);
+  // Trapezoid: 2 s accelerating (1 m covered), 0 s cruising (d = 2 = v²/a exactly), triangle-limit: 4 s in all.
+  EXPECT_DOUBLE_EQ(p.at(21.0), 3.0 - 0.5 * 0.5 * 1.0);
+  EXPECT_DOUBLE_EQ(p.at(22.0), 2.0);
+  EXPECT_DOUBLE_EQ(p.at(24.0), 1.0);
+  EXPECT_EQ(p.finalValue(), 1.0);
+  // The numerical velocity never exceeds max_velocity.
+  for (double t = 20.0; t < 24.0; t += 0.01)
+  {
+    EXPECT_LE(std::fabs(p.at(t + 0.01) - p.at(t)) / 0.01, 1.0 + 1e-9);
+  }
+  DriveParams d;
+  d.controller_rate = 50.0;
+  SampledDrive drive(d, 1.0, 1.0, 0.0, 0.0);
+  drive.setProfile(std::make_shared<CommandProfile>(p));
+  State s;
+  for (int k = 0; k < 1500; ++k)
+  {
+    drive.sample(s);
+    ASSERT_EQ(drive.reference(), p.at(k * (1.0 / 50.0))) << k;  // t_k = k T
+  }
+  ProfileSegment bad = ramp;
+  bad.duration = 0.0;
+  EXPECT_THROW(CommandProfile(0.0, {bad}), InvalidParameterError);
+  EXPECT_THROW(CommandProfile(0.0, {sine, ramp}), InvalidParameterError);  // out of order
+}
