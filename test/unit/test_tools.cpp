@@ -68,6 +68,7 @@ std::string jsonText(const std::string& json, const std::string& key)
 const std::string SWEEP = BACKLASH_SWEEP_EXE;
 const std::string SIM = BACKLASH_SIM_EXE;
 const std::string DESIGN = BACKLASH_DESIGN_EXE;
+const std::string COMPARE = BACKLASH_COMPARE_EXE;
 const std::string GRID = " --zeta 0.3,0.6 --inertia-ratio 1,9 --friction-ratio 0.4 --restitution 0,0.6,1";
 }  // namespace
 
@@ -280,6 +281,81 @@ TEST(Slurm, ArrayJobPlusMergeEqualsTheUnshardedSweep)
   EXPECT_NE(log.find("= the unsharded CSV"), std::string::npos) << log;
 }
 
+// The workbench's numbers against backlash_sim runs of the same flags: verdict and cycle error, and the RMS
+// tracking error and RMS torque recomputed here from backlash_sim's CSV samples at the same instants.
+TEST(Compare, MetricsAgreeWithSingleRunsAndCsvSamples)
+{
+  const std::string joint =
+      "backlash: 0.05\nrestitution: 0.5\nload_coulomb_friction: 0.02\nload_static_friction: 0.05\n"
+      "controller_rate: 1000\ncommand: 1.0\nduration: 30\nsample_rate: 1000\n";
+  const std::string yaml = "/tmp/backlash_compare_test.yaml";
+  std::ofstream(yaml) << joint
+                      << "strategies:\n"
+                         "  - {name: P, control_law: proportional}\n"
+                         "  - {name: PID, control_law: pid, integral_gain: 0.5, derivative_gain: 0.3}\n"
+                         "  - {name: PID+dither, control_law: pid, integral_gain: 0.5, derivative_gain: 0.3,"
+                         " compensation: dither, dither_amplitude: 0.01, dither_frequency: 50}\n";
+  int code = 0;
+  const std::string json = runCapture(COMPARE + " --config " + yaml + " --json --jobs 2", &code);
+  ASSERT_EQ(code, 0) << json;
+  const std::vector<std::string> flags = {
+      "--control-law proportional", "--control-law pid --integral-gain 0.5 --derivative-gain 0.3",
+      "--control-law pid --integral-gain 0.5 --derivative-gain 0.3 --compensation dither --dither-amplitude 0.01 "
+      "--dither-frequency 50"};
+  std::size_t pos = 0;
+  for (std::size_t i = 0; i < flags.size(); ++i)
+  {
+    pos = json.find("{\"name\"", pos + 1);
+    ASSERT_NE(pos, std::string::npos);
+    const std::string entry = json.substr(pos, json.find('}', pos) - pos + 1);
+    const std::string sim = SIM +
+                            " --backlash 0.05 --restitution 0.5 --load-coulomb-friction 0.02 --load-static-friction "
+                            "0.05 --controller-rate 1000 --duration 30 " +
+                            flags[i];
+    const std::string cli = runCapture(sim + " --json");
+    EXPECT_EQ(jsonText(entry, "verdict"), jsonText(cli, "verdict")) << flags[i];
+    if (jsonText(cli, "verdict") == "limit_cycle")
+    {
+      EXPECT_EQ(jsonNumber(entry, "limit_cycle_error"), jsonNumber(cli, "limit_cycle_error")) << flags[i];
+    }
+    else
+    {
+      EXPECT_NE(entry.find("\"limit_cycle_error\":null"), std::string::npos) << entry;
+    }
+    const std::string csv = "/tmp/backlash_compare_test.csv";
+    runCapture(sim + " --csv " + csv + " --sample-rate 1000");
+    double e2 = 0.0, t2 = 0.0;
+    long n = 0;
+    for (const auto& r : csvRows(readFile(csv)))
+    {
+      if (r.size() >= 9 && (r.size() == 9 || r[9].empty()))  // sample rows (t = 0 included), not event rows
+      {
+        const double e = 1.0 - std::stod(r[1]);
+        e2 += e * e;
+        t2 += std::stod(r[8]) * std::stod(r[8]);
+        ++n;
+      }
+    }
+    EXPECT_EQ(n, 30001);
+    EXPECT_NEAR(jsonNumber(entry, "rms_error"), std::sqrt(e2 / n), 1e-9) << flags[i];
+    EXPECT_NEAR(jsonNumber(entry, "rms_torque"), std::sqrt(t2 / n), 1e-9) << flags[i];
+  }
+  // The chart and the CSV table are written.
+  const std::string png = "/tmp/backlash_compare_test.png", table = "/tmp/backlash_compare_table.csv";
+  std::remove(png.c_str());
+  runCapture(COMPARE + " --config " + yaml + " --png " + png + " --csv " + table + " >/dev/null 2>&1", &code);
+  ASSERT_EQ(code, 0);
+  struct stat st;
+  EXPECT_EQ(stat(png.c_str(), &st), 0);
+  EXPECT_GT(st.st_size, 10000);
+  EXPECT_EQ(csvRows(readFile(table)).size(), 3u);
+  // Bad files are one clear line.
+  std::ofstream(yaml) << joint << "strategies:\n  - {name: X, control_law: pid, integral_gian: 1}\n";
+  const std::string err = runCapture(COMPARE + " --config " + yaml + " 2>&1", &code);
+  EXPECT_EQ(code, 2);
+  EXPECT_NE(err.find("integral_gian"), std::string::npos) << err;
+}
+
 TEST(Charts, ScriptsRunHeadlessAndWriteImages)
 {
   const std::string out = "/tmp/backlash_charts_test";
@@ -287,9 +363,8 @@ TEST(Charts, ScriptsRunHeadlessAndWriteImages)
   const std::string log =
       runCapture("bash " + std::string(SOURCE_DIR) + "/scripts/make_charts.sh --quick " + out + " 2>&1", &code);
   ASSERT_EQ(code, 0) << log;
-  for (const char* name :
-       {"existence_maps", "existence_surface", "limit_cycle_error", "error_vs_backlash", "phase_portrait_fig31",
-        "digital_drive"})
+  for (const char* name : {"existence_maps", "existence_surface", "limit_cycle_error", "error_vs_backlash",
+                           "phase_portrait_fig31", "digital_drive"})
   {
     for (const char* ext : {".png", ".svg"})
     {

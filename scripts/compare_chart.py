@@ -1,0 +1,78 @@
+#!/usr/bin/python3
+"""Chart of a backlash_compare run: load trajectories against the reference, tracking errors, and one bar chart per
+metric. Called by backlash_compare --png FILE with the directory of its trajectories.csv and metrics.csv.
+usage: compare_chart.py DIR OUT.png     (also writes OUT.svg)"""
+import csv
+import math
+import os
+import sys
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+
+BARS = [("rms_error", "RMS tracking error [rad]"), ("max_error", "max error after the profile [rad]"),
+        ("limit_cycle_error", "limit-cycle error [rad]"), ("settling_time", "settling time (2 %) [s]"),
+        ("overshoot", "overshoot [rad]"), ("impacts_per_second", "impacts per second [1/s]"),
+        ("impact_energy_per_second", "impact energy per second [W]"), ("rms_torque", "RMS motor torque [N·m]")]
+
+
+def main(argv):
+    if len(argv) != 2:
+        print(__doc__)
+        return 2
+    src, out = argv
+    with open(os.path.join(src, "metrics.csv")) as f:
+        metrics = list(csv.DictReader(f))
+    traj = {}
+    with open(os.path.join(src, "trajectories.csv")) as f:
+        for r in csv.DictReader(f):
+            traj.setdefault(int(r["strategy"]), []).append(
+                (float(r["time"]), float(r["reference"]), float(r["load_position"])))
+    names = [m["name"] for m in metrics]
+    colors = plt.rcParams["axes.prop_cycle"].by_key()["color"]
+    fig = plt.figure(figsize=(15, 11))
+    gs = fig.add_gridspec(4, 4, height_ratios=[1.3, 1.3, 1, 1])
+    ax_pos = fig.add_subplot(gs[0, :])
+    ax_err = fig.add_subplot(gs[1, :], sharex=ax_pos)
+    for i, name in enumerate(names):
+        pts = traj.get(i, [])
+        if not pts:
+            continue
+        t = [p[0] for p in pts]
+        c = colors[i % len(colors)]
+        if i == 0:
+            ax_pos.plot(t, [p[1] for p in pts], "k--", lw=1.0, label="reference θ_R")
+        ax_pos.plot(t, [p[2] for p in pts], color=c, lw=0.9, label=name)
+        ax_err.plot(t, [p[1] - p[2] for p in pts], color=c, lw=0.8)
+    ax_pos.set_ylabel("load position θ_c [rad]")
+    ax_pos.legend(fontsize=7, ncol=3, loc="best")
+    ax_pos.grid(alpha=0.3)
+    ax_err.set_ylabel("tracking error θ_R − θ_c [rad]")
+    ax_err.set_xlabel("time [s]")
+    ax_err.grid(alpha=0.3)
+    for k, (key, label) in enumerate(BARS):
+        ax = fig.add_subplot(gs[2 + k // 4, k % 4])
+        values = [float(m[key]) if m[key] != "" else math.nan for m in metrics]
+        ax.bar(range(len(names)), [0 if math.isnan(v) else v for v in values],
+               color=[colors[i % len(colors)] for i in range(len(names))])
+        for i, v in enumerate(values):
+            if math.isnan(v):
+                ax.text(i, 0, "n/a", ha="center", va="bottom", fontsize=6)
+        ax.set_title(label, fontsize=8)
+        ax.set_xticks(range(len(names)))
+        ax.set_xticklabels([str(i + 1) for i in range(len(names))], fontsize=7)
+        ax.tick_params(axis="y", labelsize=7)
+        ax.grid(axis="y", alpha=0.3)
+    fig.suptitle("Compensation workbench: strategies (bars numbered as in the legend order)", fontsize=11)
+    fig.tight_layout()
+    base = out[:-4] if out.endswith(".png") else out
+    fig.savefig(base + ".png", dpi=100)
+    fig.savefig(base + ".svg")
+    print(base + ".png")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv[1:]))

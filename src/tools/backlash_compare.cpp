@@ -1,0 +1,306 @@
+// backlash_compare: the compensation workbench — one joint, one command profile, N strategies side by side.
+// See README, "Compensation workbench". The experiment file: include/backlash_servo/config/compare_config.h.
+#include <unistd.h>
+
+#include <atomic>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <fstream>
+#include <iostream>
+#include <mutex>
+#include <sstream>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "backlash_servo/config/compare_config.h"
+#include "backlash_servo/config/key_values.h"
+#include "compare/compare_metrics.h"
+#include "json_writer.h"
+#include "output_file.h"
+#include "progress.h"
+
+using namespace backlash_servo;
+
+namespace
+{
+const char* USAGE = R"(usage: backlash_compare --config FILE.yaml [--json] [--csv FILE] [--png FILE] [--jobs N]
+Runs every strategy of the experiment file (one joint, one command profile, a list of control laws and
+compensators) and prints a table of metrics (SI units): verdict, limit-cycle error [rad] and period [s], steady
+error [rad], settling time [s] (2 % band), RMS and max tracking error [rad], overshoot [rad], impacts per second,
+impact energy per second [W], peak and RMS motor torque [N·m].
+  --json       print {"strategies": [{...}, ...]} instead of the table (null where a metric does not apply)
+  --csv FILE   also write the table as CSV
+  --png FILE   also draw trajectories, tracking errors and one bar chart per metric (matplotlib)
+  --jobs N     strategies run in parallel (default: all cores)
+)";
+
+std::string cell(double v)
+{
+  if (std::isnan(v))
+  {
+    return "-";
+  }
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%.4g", v);
+  return buf;
+}
+
+std::string csvNumber(double v)
+{
+  if (std::isnan(v))
+  {
+    return "";
+  }
+  char buf[40];
+  std::snprintf(buf, sizeof buf, "%.10g", v);
+  return buf;
+}
+
+std::string csvText(const std::string& s)
+{
+  if (s.find_first_of(",\"\n") == std::string::npos)
+  {
+    return s;
+  }
+  std::string out = "\"";
+  for (char c : s)
+  {
+    out += c == '"' ? std::string("\"\"") : std::string(1, c);
+  }
+  return out + "\"";
+}
+}  // namespace
+
+int main(int argc, char** argv)
+{
+  std::string config_path, csv_path, png_path;
+  bool json = false;
+  int jobs = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
+  for (int i = 1; i < argc; ++i)
+  {
+    const std::string a = argv[i];
+    auto value = [&]() -> std::string {
+      if (i + 1 >= argc)
+      {
+        std::cerr << "backlash_compare: error: " << a << " needs a value\n";
+        std::exit(2);
+      }
+      return argv[++i];
+    };
+    if (a == "--config")
+      config_path = value();
+    else if (a == "--csv")
+      csv_path = value();
+    else if (a == "--png")
+      png_path = value();
+    else if (a == "--json")
+      json = true;
+    else if (a == "--jobs")
+    {
+      const std::string v = value();
+      char* end = nullptr;
+      const long n = std::strtol(v.c_str(), &end, 10);
+      if (*end != '\0' || n < 1 || n > 4096)
+      {
+        std::cerr << "backlash_compare: error: --jobs must be a whole number in [1, 4096] (got '" << v << "')\n";
+        return 2;
+      }
+      jobs = static_cast<int>(n);
+    }
+    else if (a == "--help" || a == "-h")
+    {
+      std::cout << USAGE;
+      return 0;
+    }
+    else
+    {
+      std::cerr << "backlash_compare: error: unknown option '" << a << "' (see --help)\n";
+      return 2;
+    }
+  }
+  if (config_path.empty())
+  {
+    std::cerr << "backlash_compare: error: --config FILE.yaml is required (see --help)\n";
+    return 2;
+  }
+  CompareConfig config;
+  try
+  {
+    config = loadCompareConfig(config_path);
+    for (const std::string& path : {csv_path, png_path})
+    {
+      if (!path.empty())
+      {
+        requireRegularTarget(path == csv_path ? "--csv" : "--png", path);
+      }
+    }
+  }
+  catch (const std::exception& e)
+  {
+    std::cerr << "backlash_compare: error: " << e.what() << "\n";
+    return 2;
+  }
+  const std::size_t n = config.strategies.size();
+  std::vector<CompareMetrics> metrics(n);
+  std::vector<std::vector<CompareSample>> trajectories(n);
+  std::vector<std::string> errors(n);
+  std::atomic<std::size_t> next{0}, done{0};
+  std::mutex progress_mutex;
+  Progress progress(isatty(2) != 0, 0.5);
+  auto worker = [&]() {
+    for (std::size_t i = next++; i < n; i = next++)
+    {
+      const CompareStrategy& s = config.strategies[i];
+      try
+      {
+        metrics[i] = runStrategy(s.name, s.config, config.sample_rate, png_path.empty() ? nullptr : &trajectories[i]);
+      }
+      catch (const std::exception& e)
+      {
+        errors[i] = e.what();
+      }
+      std::lock_guard<std::mutex> lock(progress_mutex);
+      progress.update(++done, n);
+    }
+  };
+  std::vector<std::thread> pool;
+  for (int j = 0; j < std::min<int>(jobs, static_cast<int>(n)); ++j)
+  {
+    pool.emplace_back(worker);
+  }
+  for (std::thread& t : pool)
+  {
+    t.join();
+  }
+  progress.finish();
+  for (std::size_t i = 0; i < n; ++i)
+  {
+    if (!errors[i].empty())
+    {
+      std::cerr << "backlash_compare: error in strategy '" << config.strategies[i].name << "': " << errors[i] << "\n";
+      return 1;
+    }
+  }
+  const std::vector<std::string>& names = metricNames();
+  try
+  {
+    if (!csv_path.empty())
+    {
+      OutputFile file("--csv", csv_path);
+      file.stream() << "name,verdict";
+      for (const std::string& k : names)
+      {
+        file.stream() << "," << k;
+      }
+      file.stream() << "\n";
+      for (const CompareMetrics& m : metrics)
+      {
+        file.stream() << csvText(m.name) << "," << m.verdict;
+        for (double v : metricValues(m))
+        {
+          file.stream() << "," << csvNumber(v);
+        }
+        file.stream() << "\n";
+      }
+      file.commit();
+    }
+    if (!png_path.empty())
+    {
+      // Trajectories and the table to a temporary directory, drawn by the chart script.
+      char tmpl[] = "/tmp/backlash_compare.XXXXXX";
+      const std::string dir = mkdtemp(tmpl) ? tmpl : "/tmp";
+      {
+        std::ofstream t(dir + "/trajectories.csv");
+        t << "strategy,time,reference,load_position,motor_position,motor_torque\n";
+        t.precision(10);
+        for (std::size_t i = 0; i < n; ++i)
+        {
+          for (const CompareSample& s : trajectories[i])
+          {
+            t << i << "," << s.time << "," << s.reference << "," << s.load_position << "," << s.motor_position << ","
+              << s.motor_torque << "\n";
+          }
+        }
+        std::ofstream m(dir + "/metrics.csv");
+        m << "name,verdict";
+        for (const std::string& k : names)
+        {
+          m << "," << k;
+        }
+        m << "\n";
+        for (const CompareMetrics& x : metrics)
+        {
+          m << csvText(x.name) << "," << x.verdict;
+          for (double v : metricValues(x))
+          {
+            m << "," << csvNumber(v);
+          }
+          m << "\n";
+        }
+      }
+      const std::string script = std::string(BACKLASH_SOURCE_DIR) + "/scripts/compare_chart.py";
+      const std::string cmd = "/usr/bin/python3 '" + script + "' '" + dir + "' '" + png_path + "' 1>&2";
+      const int status = std::system(cmd.c_str());
+      std::system(("rm -rf '" + dir + "'").c_str());
+      if (status != 0)
+      {
+        throw std::runtime_error("--png: the chart script failed (" + cmd + ")");
+      }
+    }
+  }
+  catch (const std::exception& e)
+  {
+    std::cerr << "backlash_compare: error: " << e.what() << "\n";
+    return 1;
+  }
+  std::ostringstream out;
+  if (json)
+  {
+    JsonWriter j(out);
+    j.beginObject().beginArray("strategies");
+    for (const CompareMetrics& m : metrics)
+    {
+      j.beginObject().field("name", m.name).field("verdict", m.verdict);
+      const std::vector<double> values = metricValues(m);
+      for (std::size_t k = 0; k < names.size(); ++k)
+      {
+        j.field(names[k].c_str(), values[k]);  // NaN is written as null
+      }
+      j.endObject();
+    }
+    j.endArray().endObject();
+    out << "\n";
+  }
+  else
+  {
+    char buf[400];
+    std::snprintf(buf, sizeof buf, "%-28s %-22s %9s %8s %9s %8s %9s %9s %9s %9s %9s %8s %8s\n", "strategy", "verdict",
+                  "lc err", "period", "steady", "settle", "rms err", "max err", "overshoot", "impacts/s", "E_imp/s",
+                  "peak T", "rms T");
+    out << buf;
+    out << "  (rad, s, rad, s, rad, rad, rad, 1/s, W, N·m, N·m; '-': does not apply)\n";
+    for (const CompareMetrics& m : metrics)
+    {
+      std::snprintf(buf, sizeof buf, "%-28s %-22s %9s %8s %9s %8s %9s %9s %9s %9s %9s %8s %8s\n",
+                    m.name.substr(0, 28).c_str(), m.verdict.c_str(), cell(m.limit_cycle_error).c_str(),
+                    cell(m.period).c_str(), cell(m.steady_error).c_str(), cell(m.settling_time).c_str(),
+                    cell(m.rms_error).c_str(), cell(m.max_error).c_str(), cell(m.overshoot).c_str(),
+                    cell(m.impacts_per_second).c_str(), cell(m.impact_energy_per_second).c_str(),
+                    cell(m.peak_torque).c_str(), cell(m.rms_torque).c_str());
+      out << buf;
+    }
+  }
+  std::cout << out.str();
+  try
+  {
+    flushStdout();
+  }
+  catch (const std::exception& e)
+  {
+    std::cerr << "backlash_compare: error: " << e.what() << "\n";
+    return 1;
+  }
+  return 0;
+}

@@ -1,0 +1,142 @@
+#include "compare_metrics.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include "backlash_servo/plant.h"
+#include "backlash_servo/simulator.h"
+
+namespace backlash_servo
+{
+namespace
+{
+/// Counts impacts and the energy they take.
+struct ImpactTally : EventSink
+{
+  long impacts = 0;
+  double energy = 0.0;
+  void onEvent(const Event& e) override
+  {
+    if (e.type == EventType::Impact)
+    {
+      ++impacts;
+      energy += e.impact.energy_loss;
+    }
+  }
+};
+}  // namespace
+
+const std::vector<std::string>& metricNames()
+{
+  static const std::vector<std::string> names = {"limit_cycle_error",
+                                                 "period",
+                                                 "steady_error",
+                                                 "settling_time",
+                                                 "rms_error",
+                                                 "max_error",
+                                                 "overshoot",
+                                                 "impacts_per_second",
+                                                 "impact_energy_per_second",
+                                                 "peak_torque",
+                                                 "rms_torque"};
+  return names;
+}
+
+std::vector<double> metricValues(const CompareMetrics& m)
+{
+  return {m.limit_cycle_error,
+          m.period,
+          m.steady_error,
+          m.settling_time,
+          m.rms_error,
+          m.max_error,
+          m.overshoot,
+          m.impacts_per_second,
+          m.impact_energy_per_second,
+          m.peak_torque,
+          m.rms_torque};
+}
+
+CompareMetrics runStrategy(const std::string& name, const RunConfig& config, double sample_rate,
+                           std::vector<CompareSample>* trajectory)
+{
+  const CommandProfile& profile = *config.profile;
+  const double final_ref = profile.finalValue();
+  const double profile_end = profile.endTime();
+  // Excursion of the reference (for the 2 % band) and the direction of its last move (for the overshoot).
+  double lo = profile.at(0.0), hi = lo;
+  const double dt = 1.0 / sample_rate;
+  const long n = static_cast<long>(std::floor(config.duration * sample_rate + 1e-9));
+  for (long k = 0; k <= n; ++k)
+  {
+    const double r = profile.at(config.initial.time + k * dt);
+    lo = std::min(lo, r);
+    hi = std::max(hi, r);
+  }
+  const double band = 0.02 * std::max(hi - lo, 1e-12);
+  const double before_end = profile.at(std::max(0.0, profile_end - 1e-9));
+  double direction = final_ref >= before_end ? 1.0 : -1.0;
+  if (final_ref == before_end)
+  {
+    direction = final_ref >= profile.at(0.0) ? 1.0 : -1.0;
+  }
+  double sum_e2 = 0.0, sum_t2 = 0.0, peak = 0.0, max_after = 0.0, overshoot = 0.0, last_outside = NAN;
+  long count = 0;
+  ImpactTally tally;
+  const RunSummary r = runResponse(config, &tally, dt, [&](const Simulator& sim) {
+    const State& s = sim.state();
+    const double ref = profile.at(s.time);
+    const double e = ref - s.load_position;
+    const double tm = sim.motorTorque();
+    sum_e2 += e * e;
+    sum_t2 += tm * tm;
+    peak = std::max(peak, std::fabs(tm));
+    ++count;
+    if (s.time >= profile_end)
+    {
+      max_after = std::max(max_after, std::fabs(e));
+      overshoot = std::max(overshoot, direction * (s.load_position - final_ref));
+      if (std::fabs(e) > band)
+      {
+        last_outside = s.time;
+      }
+    }
+    if (trajectory != nullptr)
+    {
+      trajectory->push_back({s.time, ref, s.load_position, s.motor_position, tm});
+    }
+  });
+  CompareMetrics m;
+  m.name = name;
+  m.verdict = toString(r.status.verdict);
+  const bool sustained = r.status.verdict == Verdict::LimitCycle || r.status.verdict == Verdict::Irregular;
+  if (sustained)
+  {
+    m.limit_cycle_error = r.status.error;
+    m.period = r.status.period;
+  }
+  if (r.status.verdict == Verdict::Converged)
+  {
+    m.steady_error = r.final_state.load_position - final_ref;
+  }
+  const double simulated = std::max(r.simulated, 1e-300);
+  if (count > 0)
+  {
+    m.rms_error = std::sqrt(sum_e2 / count);
+    m.rms_torque = std::sqrt(sum_t2 / count);
+    m.peak_torque = peak;
+    m.max_error = max_after;
+    m.overshoot = overshoot;
+  }
+  // Settled: inside the band from some time on (never left it at the end of the run).
+  m.settling_time = std::isnan(last_outside) ? profile_end : last_outside;
+  if (!std::isnan(last_outside) && last_outside >= config.initial.time + r.simulated - 1.5 * dt)
+  {
+    m.settling_time = NAN;  // still outside at the end
+  }
+  m.impacts_per_second = tally.impacts / simulated;
+  m.impact_energy_per_second = tally.energy / simulated;
+  return m;
+}
+
+}  // namespace backlash_servo

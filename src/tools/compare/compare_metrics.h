@@ -1,0 +1,45 @@
+// The workbench's metrics of one run (backlash_compare): tracking, limit cycle, impacts, torque. SI units.
+#pragma once
+
+#include <cmath>
+#include <string>
+#include <vector>
+
+#include "backlash_servo/step_response.h"
+
+namespace backlash_servo
+{
+/// Metrics of one strategy's run; NaN = does not apply (written as null / empty).
+struct CompareMetrics
+{
+  std::string name;
+  std::string verdict;
+  double limit_cycle_error = NAN;         ///< [rad] (sustained oscillations only)
+  double period = NAN;                    ///< [s] (sustained oscillations only)
+  double steady_error = NAN;              ///< θ_c − θ_R at the end [rad] (converged only)
+  double settling_time = NAN;             ///< last time |e| > 2 % of the reference's excursion, after the profile [s]
+  double rms_error = NAN;                 ///< √(mean e²) over the run [rad], e = θ_R − θ_c
+  double max_error = NAN;                 ///< max |e| after the profile has ended [rad]
+  double overshoot = NAN;                 ///< beyond the final reference, in the direction of the last move [rad]
+  double impacts_per_second = NAN;        ///< tooth impacts [1/s]
+  double impact_energy_per_second = NAN;  ///< kinetic energy lost in impacts [W]
+  double peak_torque = NAN;               ///< max |T_m| [N·m]
+  double rms_torque = NAN;                ///< √(mean T_m²) [N·m]
+};
+
+/// One sampled trajectory point of a run (for charts).
+struct CompareSample
+{
+  double time, reference, load_position, motor_position, motor_torque;
+};
+
+/// Runs one strategy (its config carries the profile and duration), sampling at sample_rate [Hz].
+CompareMetrics runStrategy(const std::string& name, const RunConfig& config, double sample_rate,
+                           std::vector<CompareSample>* trajectory);
+
+/// Column names of the metrics, in the order of CompareMetrics (the CSV header and the JSON keys).
+const std::vector<std::string>& metricNames();
+/// The numeric metrics in that order (from limit_cycle_error on).
+std::vector<double> metricValues(const CompareMetrics& m);
+
+}  // namespace backlash_servo
