@@ -77,7 +77,8 @@ int main(int argc, char** argv)
     ops.transport_hints = ros::TransportHints().tcpNoDelay();
     subs.push_back(nh.subscribe(ops));
   }
-  ROS_INFO("backlash_record: recording %zu topics to %s", subs.size(), path.c_str());
+  ROS_INFO("backlash_record: recording %zu topics to %s (read it back with backlash_bag_report)", subs.size(),
+           path.c_str());
   std::thread writer([&]() {
     std::unique_lock<std::mutex> lock(g_mutex);
     for (;;)
@@ -114,6 +115,6 @@ int main(int argc, char** argv)
     std::fprintf(stderr, "backlash_record: cannot rename '%s' to '%s'\n", active.c_str(), path.c_str());
     return 1;
   }
-  std::fprintf(stderr, "backlash_record: wrote %s\n", path.c_str());
+  std::fprintf(stderr, "backlash_record: wrote %s (backlash_bag_report %s)\n", path.c_str(), path.c_str());
   return 0;
 }

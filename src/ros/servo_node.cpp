@@ -20,6 +20,11 @@ namespace backlash_servo
 {
 namespace
 {
+/// Outgoing queue of every per-sample topic: as fast as possible (real_time_factor 0) the node publishes thousands of
+/// samples per wall second, and roscpp drops the oldest queued messages of a subscriber that falls behind (a bag
+/// recorder); 1e5 messages (~20 MB at most) lets recorders catch up without losing a sample.
+constexpr uint32_t SAMPLE_QUEUE = 100000;
+
 uint8_t contactCode(Contact c)
 {
   switch (c)
@@ -52,15 +57,15 @@ ServoNode::ServoNode(ros::NodeHandle& nh, ros::NodeHandle& pnh, const NodeConfig
     applyPositionDrive();
   }
   restartMonitor();
-  joint_pub_ = nh.advertise<sensor_msgs::JointState>("joint_states", 1000);
-  impact_pub_ = nh.advertise<ImpactEvent>("impact", 10000);
-  state_pub_ = nh.advertise<BacklashState>("backlash_state", 1000);
+  joint_pub_ = nh.advertise<sensor_msgs::JointState>("joint_states", SAMPLE_QUEUE);
+  impact_pub_ = nh.advertise<ImpactEvent>("impact", SAMPLE_QUEUE);
+  state_pub_ = nh.advertise<BacklashState>("backlash_state", SAMPLE_QUEUE);
   limit_cycle_pub_ = nh.advertise<LimitCycleStatus>("limit_cycle", 1000, true);
-  encoder_pub_ = nh.advertise<sensor_msgs::JointState>("encoder_states", 1000);
+  encoder_pub_ = nh.advertise<sensor_msgs::JointState>("encoder_states", SAMPLE_QUEUE);
   sim_.setSampleObserver([this](const State& s, const Drive& drive) { publishEncoders(s, drive); });
   if (clock_mode_ == ClockMode::Publisher)
   {
-    clock_pub_ = nh.advertise<rosgraph_msgs::Clock>("/clock", 1000);
+    clock_pub_ = nh.advertise<rosgraph_msgs::Clock>("/clock", SAMPLE_QUEUE);
     if (!ros::Time::isSimTime())
     {
       ROS_WARN("backlash_servo_node: publish_clock is true but use_sim_time is false: other nodes will not follow");
@@ -116,6 +121,8 @@ BacklashServoConfig ServoNode::currentConfig() const
   dynamic_reconfigure::ConfigTools::appendParameter(msg, "publish_rate", config_.publish_rate);
   dynamic_reconfigure::ConfigTools::appendParameter(msg, "real_time_factor", config_.real_time_factor);
   dynamic_reconfigure::ConfigTools::appendParameter(msg, "min_impact_speed", config_.min_impact_speed);
+  dynamic_reconfigure::ConfigTools::appendParameter(msg, "sync_timeout", config_.sync_timeout);
+  dynamic_reconfigure::ConfigTools::appendParameter(msg, "effort_timeout", config_.effort_timeout);
   BacklashServoConfig c = BacklashServoConfig::__getDefault__();
   c.__fromMessage__(msg);
   return c;
@@ -260,6 +267,7 @@ void ServoNode::run()
           "backlash_servo_node: %ld samples at %g Hz in %.3f s wall: achieved real-time factor %.1f, "
           "CPU %.3f s (%.1f %% of one core)",
           sample_index_, config_.publish_rate, wall, t / wall, cpu, 100.0 * cpu / wall);
+      drainBeforeExit(wall);
       break;
     }
   }
@@ -327,6 +335,7 @@ void ServoNode::publishSample()
   js.velocity = {s.motor_velocity, s.load_velocity};
   js.effort = {sim_.motorTorque(), sim_.meshTorque()};
   joint_pub_.publish(js);
+  published_ += 2 + (clock_mode_ == ClockMode::Publisher ? 1 : 0);  // joint_states, backlash_state, /clock
 
   BacklashState b;
   b.header.stamp = now;
@@ -466,6 +475,26 @@ void ServoNode::onEffort(const std_msgs::Float64& msg)
   effort_timed_out_ = false;
   sim_.setMotorTorque(effort_);
   answered_ = answered_ || awaiting_;  // lockstep: the answer for the state just published
+}
+
+void ServoNode::drainBeforeExit(double wall)
+{
+  // roscpp keeps unsent messages in each subscriber's outgoing queue and loses them when the process exits; a
+  // recorder that fell behind a fast run (real_time_factor 0) would miss the end of it. Wait as long as a recorder
+  // needs at 20 000 messages per second for what was published faster than that (at most 30 s).
+  const double rate = static_cast<double>(published_) / std::max(wall, 1e-3);
+  const double drain = rate > 20000.0 ? std::min(30.0, static_cast<double>(published_) / 20000.0 - wall) : 0.0;
+  const ros::WallTime end = ros::WallTime::now() + ros::WallDuration(std::max(drain, 0.2));
+  if (drain > 0.5)
+  {
+    ROS_INFO("backlash_servo_node: %.1f s for subscribers (recorders) to receive the %ld messages still queued", drain,
+             published_);
+  }
+  while (ros::ok() && ros::WallTime::now() < end)
+  {
+    ros::spinOnce();
+    ros::WallDuration(0.01).sleep();
+  }
 }
 
 void ServoNode::awaitAnswer()

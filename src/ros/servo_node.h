@@ -61,6 +61,8 @@ class ServoNode : public EventSink
   void awaitAnswer();
   /// Effort mode: drops the torque to 0 (once, with a warning) after effort_timeout s of sim time without a message.
   void checkEffortTimeout();
+  /// At stop_after: lets subscribers (bag recorders) receive what is still queued before the process exits.
+  void drainBeforeExit(double wall);
   /// encoder_states: what a digital drive's controller read at its sample (quantised motor and load angles).
   void publishEncoders(const State& s, const Drive& drive);
   /// /diagnostics: OK while running, ERROR with the fault while a core error holds the simulation.
@@ -97,6 +99,7 @@ class ServoNode : public EventSink
   bool awaiting_ = false;
   bool answered_ = false;
   long sync_misses_ = 0;
+  long published_ = 0;  // per-sample messages published (for the drain at exit)
   // Effort timeout: sim time of the last motor_effort [s]; the torque was dropped for want of one.
   double last_effort_time_ = 0.0;
   bool effort_timed_out_ = false;
