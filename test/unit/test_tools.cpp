@@ -356,6 +356,26 @@ TEST(Compare, MetricsAgreeWithSingleRunsAndCsvSamples)
   EXPECT_NE(err.find("integral_gian"), std::string::npos) << err;
 }
 
+// backlash_servo.launch: the YAML's keys win unless the launch arg is given; use_sim_time and ns are independent args.
+TEST(Launch, YamlKeysWinUnlessArgsAreGiven)
+{
+  const std::string yaml = "/tmp/backlash_launch_precedence.yaml";
+  std::ofstream(yaml) << "real_time_factor: 7.0\npublish_rate: 50.0\nstop_after: 3.0\npublish_clock: true\n";
+  const std::string dump =
+      "PATH=/usr/bin:$PATH roslaunch --dump-params backlash_servo backlash_servo.launch config:=" + yaml + " 2>&1";
+  int code = 0;
+  const std::string plain = runCapture(dump, &code);
+  ASSERT_EQ(code, 0) << plain;
+  EXPECT_NE(plain.find("/backlash_servo/real_time_factor: 7.0"), std::string::npos) << plain;
+  EXPECT_NE(plain.find("/backlash_servo/publish_rate: 50.0"), std::string::npos) << plain;
+  EXPECT_NE(plain.find("/backlash_servo/stop_after: 3.0"), std::string::npos) << plain;
+  const std::string given = runCapture(dump + " real_time_factor:=2 ns:=robot1 use_sim_time:=true", &code);
+  ASSERT_EQ(code, 0) << given;
+  EXPECT_NE(given.find("/robot1/backlash_servo/real_time_factor: 2"), std::string::npos) << given;
+  EXPECT_NE(given.find("/robot1/backlash_servo/publish_rate: 50.0"), std::string::npos) << given;
+  EXPECT_NE(given.find("/use_sim_time: true"), std::string::npos) << given;
+}
+
 TEST(Charts, ScriptsRunHeadlessAndWriteImages)
 {
   const std::string out = "/tmp/backlash_charts_test";
