@@ -306,6 +306,27 @@ void ServoNode::publishDiagnostics()
   value("sim_time [s]", formatNumber(sim_.state().time));
   value("impacts", std::to_string(sim_.impactCount()));
   value("verdict", toString(monitor_->status().verdict));
+  if (monitor_->status().verdict == Verdict::LimitCycle || monitor_->status().verdict == Verdict::Irregular)
+  {
+    value("limit_cycle_error [rad]", formatNumber(monitor_->status().error));
+    value("period [s]", formatNumber(monitor_->status().period));
+  }
+  // Rates over the last diagnostics interval: impacts per simulated second, simulated seconds per wall second.
+  const ros::WallTime now = ros::WallTime::now();
+  const double wall = (now - diag_wall_).toSec();
+  const double sim = sim_.state().time - diag_sim_;
+  if (wall > 0.0 && diag_sim_ >= 0.0)
+  {
+    value("impact rate [1/s]", formatNumber(sim > 0.0 ? (sim_.impactCount() - diag_impacts_) / sim : 0.0));
+    value("real-time factor achieved", formatNumber(sim / wall));
+  }
+  diag_wall_ = now;
+  diag_sim_ = sim_.state().time;
+  diag_impacts_ = sim_.impactCount();
+  if (config_.sync)
+  {
+    value("lockstep answers late", std::to_string(sync_misses_));
+  }
   array.status.push_back(status);
   diagnostics_pub_.publish(array);
 }

@@ -15,6 +15,7 @@
 #include <std_srvs/Trigger.h>
 
 #include <boost/thread/recursive_mutex.hpp>
+#include <cstdint>
 #include <memory>
 
 #include "backlash_servo/BacklashServoConfig.h"
@@ -100,6 +101,10 @@ class ServoNode : public EventSink
   bool answered_ = false;
   long sync_misses_ = 0;
   long published_ = 0;  // per-sample messages published (for the drain at exit)
+  // State at the previous /diagnostics (rates over the interval).
+  ros::WallTime diag_wall_;
+  double diag_sim_ = -1.0;
+  std::uint64_t diag_impacts_ = 0;
   // Effort timeout: sim time of the last motor_effort [s]; the torque was dropped for want of one.
   double last_effort_time_ = 0.0;
   bool effort_timed_out_ = false;
