@@ -32,6 +32,8 @@ class Compensator
   Compensator() = default;
   explicit Compensator(const DriveParams& drive);
 
+  /// Whether a compensator is configured (the drive skips both calls otherwise).
+  bool active() const { return kind_ != Kind::None; }
   /// The position reference the loop tracks at this sample [rad] (inverse, dual loop; else `reference`).
   double reference(double reference, double load_reading, double period);
   /// The torque after the feed-forward terms [N·m] (friction feed-forward, dither; else `torque`).

@@ -232,7 +232,8 @@ void SampledDrive::sample(const State& s)
   const double y = motor_feedback_ ? motor_reading_ : load_reading_;
   const double t_k = t0_ + static_cast<double>(next_) * period;
   reference_ = profile_ ? profile_->at(t_k) : command_;
-  const double e = compensator_.reference(reference_, load_reading_, period) - y;
+  const bool compensated = compensator_.active();
+  const double e = (compensated ? compensator_.reference(reference_, load_reading_, period) : reference_) - y;
   const bool first = next_ == 0;
   const double limit = p_.torque_limit;
   auto beyond = [&](double u, double sign) { return limit > 0.0 && std::fabs(u) > limit && u * sign > 0.0; };
@@ -270,7 +271,10 @@ void SampledDrive::sample(const State& s)
   {
     u = gain_ * e;
   }
-  u = compensator_.torque(u, e, t_k);
+  if (compensated)
+  {
+    u = compensator_.torque(u, e, t_k);
+  }
   if (limit > 0.0)
   {
     u = std::min(std::max(u, -limit), limit);

@@ -278,6 +278,11 @@ bool Plant::advanceTo(double t_end, EventSink* sink)
     }
     Segment& seg = *segment_;
     const double end_time = seg.start.time + seg.end_tau;
+    if (end_time > t_end && seg.stuck && seg.motor_slide == 0 && seg.load_slide == 0)
+    {
+      state_.time = t_end;  // everything held: positions, velocities and the ledger stay as they are
+      return false;
+    }
     if (end_time > t_end)
     {
       // t_end falls inside the segment: evaluate there, keep the segment anchored where it began.
