@@ -26,7 +26,7 @@ if [ ${#missing[@]} -gt 0 ]; then
   DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -q --no-install-recommends "${missing[@]}"
 fi
 
-BUILD_TYPE=${1:-RelWithDebInfo}
+BUILD_TYPE=${1:-Release}
 # catkin snapshots the environment at configure time and only puts the devel space's python path (generated
 # messages, used by the rostest clients) into it if the directory already exists.
 mkdir -p build/devel/lib/python3/dist-packages
