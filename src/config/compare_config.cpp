@@ -164,19 +164,7 @@ void readKeys(const YAML::Node& map, const std::vector<std::string>& skip, const
 
 CompareConfig loadCompareConfig(const std::string& path)
 {
-  YAML::Node root;
-  try
-  {
-    root = YAML::LoadFile(path);
-  }
-  catch (const YAML::BadFile&)
-  {
-    throw ConfigError("cannot read config file '" + path + "'");
-  }
-  catch (const YAML::Exception& e)
-  {
-    throw ConfigError("config file '" + path + "' is not valid YAML: " + e.what());
-  }
+  const YAML::Node root = loadYamlFile(path);
   if (!root.IsMap())
   {
     throw ConfigError("config file '" + path + "' must be a mapping (joint keys, duration, profile, strategies)");

@@ -18,12 +18,11 @@ std::string flagName(const std::string& key)
   return f;
 }
 
-void KeyValues::loadYaml(const std::string& path)
+YAML::Node loadYamlFile(const std::string& path)
 {
-  YAML::Node root;
   try
   {
-    root = YAML::LoadFile(path);
+    return YAML::LoadFile(path);
   }
   catch (const YAML::BadFile&)
   {
@@ -33,6 +32,11 @@ void KeyValues::loadYaml(const std::string& path)
   {
     throw ConfigError("config file '" + path + "' is not valid YAML: " + e.what());
   }
+}
+
+void KeyValues::loadYaml(const std::string& path)
+{
+  const YAML::Node root = loadYamlFile(path);
   if (root.IsNull())
   {
     return;  // empty file: nothing to set

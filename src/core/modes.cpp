@@ -1,5 +1,7 @@
 #include "backlash_servo/modes.h"
 
+#include "event_search.h"
+
 #include <algorithm>
 #include <cmath>
 #include <complex>
@@ -103,38 +105,6 @@ double combinedBound(const Poly& f, double a, const Poly& g, double b, double ta
   return std::fabs(a) * roundingBound(f, tau) + std::fabs(b) * roundingBound(g, tau);
 }
 }  // namespace
-
-/**
- * First τ where θ(τ) leaves [lo, hi] by more than its rounding, given the critical points of θ in (0, horizon)
- * (θ is monotone between them): the piece where it happens is bisected to full precision. +inf if none.
- */
-template <class Theta>
-double firstExit(const Theta& theta, const double* crit, int m, double horizon, double lo, double hi)
-{
-  const double edge = std::max(std::isfinite(lo) ? std::fabs(lo) : 0.0, std::isfinite(hi) ? std::fabs(hi) : 0.0);
-  double p = 0.0;
-  for (int i = 0; i <= m; ++i)
-  {
-    const double q = i < m ? crit[i] : horizon;
-    const double xq = theta(q);
-    const double bound = 64.0 * EPS * (std::fabs(xq) + edge);
-    const bool above = xq > hi + bound;
-    if (above || xq < lo - bound)
-    {
-      const double level = above ? hi : lo;
-      double a = p, b = q;
-      for (int it = 0; it < 200 && b - a > 2.0 * EPS * b; ++it)
-      {
-        const double mid = 0.5 * (a + b);
-        const double xm = theta(mid);
-        ((above ? xm > level : xm < level) ? b : a) = mid;
-      }
-      return b;
-    }
-    p = q;
-  }
-  return INF;
-}
 
 double contactAcceleration(const ServoParams& p, const MotorInput& in, double x, double v)
 {
@@ -536,7 +506,7 @@ double ContactMotion::exitTime(double lo, double hi, double horizon) const
   {
     m = velocity_.signChangeRoots(0.0, horizon, crit, CRITICAL_POINT_TOLERANCE);
   }
-  return firstExit(theta, crit, m, horizon, lo, hi);
+  return firstExit(theta, crit, m, horizon, lo, hi, levelMagnitude(lo, hi));
 }
 
 double ContactMotion::displacement(double tau) const
@@ -841,7 +811,7 @@ double BasicFreeMotion<Poly>::exitTime(double lo, double hi, double horizon) con
 {
   double crit[EXP_POLY_MAX_ROOTS];
   const int m = load_velocity_.signChangeRoots(0.0, horizon, crit, CRITICAL_POINT_TOLERANCE);
-  return firstExit([&](double tau) { return load_position_(tau); }, crit, m, horizon, lo, hi);
+  return firstExit([&](double tau) { return load_position_(tau); }, crit, m, horizon, lo, hi, levelMagnitude(lo, hi));
 }
 
 template <class Poly>

@@ -5,6 +5,7 @@
 #include <limits>
 
 #include "backlash_servo/gear_mesh.h"
+#include "event_search.h"
 
 namespace backlash_servo
 {
@@ -134,32 +135,9 @@ double StuckMotion::firstExit(double x0, double scale, double lo, double hi, dou
 {
   // x is monotone on [0, τ*] and [τ*, horizon] (τ* = rest time, the only extremum).
   const double rest = restTime(horizon);
-  const double pieces[2] = {std::min(rest, horizon), horizon};
-  double p = 0.0;
-  for (double q : pieces)
-  {
-    if (!(q > p))
-    {
-      continue;
-    }
-    const double xq = x0 + scale * displacement(q);
-    const double bound = 64.0 * EPS * (magnitude + std::fabs(xq));
-    const bool above = xq > hi + bound;
-    if (above || xq < lo - bound)
-    {
-      const double level = above ? hi : lo;
-      double a = p, b = q;
-      for (int it = 0; it < 200 && b - a > 2.0 * EPS * b; ++it)
-      {
-        const double mid = 0.5 * (a + b);
-        const double xm = x0 + scale * displacement(mid);
-        ((above ? xm > level : xm < level) ? b : a) = mid;
-      }
-      return b;
-    }
-    p = q;
-  }
-  return INF;
+  const int m = rest < horizon ? 1 : 0;
+  return backlash_servo::firstExit([&](double tau) { return x0 + scale * displacement(tau); }, &rest, m, horizon, lo,
+                                   hi, magnitude);
 }
 
 double StuckMotion::exitTime(double lo, double hi, double horizon) const
@@ -168,8 +146,7 @@ double StuckMotion::exitTime(double lo, double hi, double horizon) const
   {
     return INF;  // θ_c does not move
   }
-  const double edge = std::max(std::isfinite(lo) ? std::fabs(lo) : 0.0, std::isfinite(hi) ? std::fabs(hi) : 0.0);
-  return firstExit(start_.load_position, 1.0, lo, hi, edge, horizon);
+  return firstExit(start_.load_position, 1.0, lo, hi, levelMagnitude(lo, hi), horizon);
 }
 
 double StuckMotion::impactTime(double horizon, Contact* wall) const

@@ -58,6 +58,28 @@ std::string csvNumber(double v)
   return buf;
 }
 
+std::string csvText(const std::string& s);
+
+/// The metrics table as CSV (--csv, and the chart script's input): name, verdict, then metricNames().
+void writeMetricsCsv(std::ostream& out, const std::vector<CompareMetrics>& metrics)
+{
+  out << "name,verdict";
+  for (const std::string& k : metricNames())
+  {
+    out << "," << k;
+  }
+  out << "\n";
+  for (const CompareMetrics& m : metrics)
+  {
+    out << csvText(m.name) << "," << m.verdict;
+    for (double v : metricValues(m))
+    {
+      out << "," << csvNumber(v);
+    }
+    out << "\n";
+  }
+}
+
 std::string csvText(const std::string& s)
 {
   if (s.find_first_of(",\"\n") == std::string::npos)
@@ -189,21 +211,7 @@ int main(int argc, char** argv)
     if (!csv_path.empty())
     {
       OutputFile file("--csv", csv_path);
-      file.stream() << "name,verdict";
-      for (const std::string& k : names)
-      {
-        file.stream() << "," << k;
-      }
-      file.stream() << "\n";
-      for (const CompareMetrics& m : metrics)
-      {
-        file.stream() << csvText(m.name) << "," << m.verdict;
-        for (double v : metricValues(m))
-        {
-          file.stream() << "," << csvNumber(v);
-        }
-        file.stream() << "\n";
-      }
+      writeMetricsCsv(file.stream(), metrics);
       file.commit();
     }
     if (!png_path.empty())
@@ -224,21 +232,7 @@ int main(int argc, char** argv)
           }
         }
         std::ofstream m(dir + "/metrics.csv");
-        m << "name,verdict";
-        for (const std::string& k : names)
-        {
-          m << "," << k;
-        }
-        m << "\n";
-        for (const CompareMetrics& x : metrics)
-        {
-          m << csvText(x.name) << "," << x.verdict;
-          for (double v : metricValues(x))
-          {
-            m << "," << csvNumber(v);
-          }
-          m << "\n";
-        }
+        writeMetricsCsv(m, metrics);
       }
       const std::string script = std::string(BACKLASH_SOURCE_DIR) + "/scripts/compare_chart.py";
       const std::string cmd = "/usr/bin/python3 '" + script + "' '" + dir + "' '" + png_path + "' 1>&2";

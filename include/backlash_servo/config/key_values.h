@@ -10,6 +10,11 @@
 #include <stdexcept>
 #include <string>
 
+namespace YAML
+{
+class Node;
+}
+
 namespace backlash_servo
 {
 /// Bad command line, config file or parameter set; tools print it on one line and exit with code 2, the node logs it.
@@ -21,6 +26,9 @@ class ConfigError : public std::runtime_error
 
 /// "--motor-inertia" for "motor_inertia".
 std::string flagName(const std::string& key);
+
+/// The YAML document in `path`; throws ConfigError "cannot read config file …" or "… is not valid YAML: …".
+YAML::Node loadYamlFile(const std::string& path);
 
 class KeyValues
 {

@@ -140,23 +140,20 @@ void SweepGrid::requireOneForm()
   {
     return;
   }
+  bool chart = false;  // a chart-only key given explicitly (an axis or a shared setting)
   for (std::size_t i = 0; i < axes_.size(); ++i)
   {
-    if (chartOnly(axes_[i].key) && given_[i])
-    {
-      throw ConfigError(
-          "give either physical parameters (--motor-inertia ... --gain) or the chart form (--zeta "
-          "--inertia-ratio --friction-ratio ...), not both");
-    }
+    chart = chart || (chartOnly(axes_[i].key) && given_[i]);
   }
   for (const auto& item : fixed_.keys())
   {
-    if (chartOnly(item.first))
-    {
-      throw ConfigError(
-          "give either physical parameters (--motor-inertia ... --gain) or the chart form (--zeta "
-          "--inertia-ratio --friction-ratio ...), not both");
-    }
+    chart = chart || chartOnly(item.first);
+  }
+  if (chart)
+  {
+    throw ConfigError(
+        "give either physical parameters (--motor-inertia ... --gain) or the chart form (--zeta "
+        "--inertia-ratio --friction-ratio ...), not both");
   }
   // The physical form: the chart axes left at their defaults are not parameters of this grid.
   for (std::size_t i = axes_.size(); i-- > 0;)

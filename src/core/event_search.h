@@ -1,0 +1,48 @@
+// Event location shared by the closed-form motions (modes.cpp, stuck_motion.cpp); private to the core.
+#pragma once
+
+#include <cmath>
+#include <limits>
+
+namespace backlash_servo
+{
+/**
+ * First τ in (0, horizon] where θ(τ) leaves [lo, hi] by more than its rounding, 64 ε (|θ| + magnitude), given the
+ * critical points crit[0..m) of θ in (0, horizon) (θ is monotone between them): the piece where it happens is
+ * bisected to full precision. +inf if none. magnitude: the size of the numbers θ is computed from (e.g. the levels).
+ */
+template <class Theta>
+double firstExit(const Theta& theta, const double* crit, int m, double horizon, double lo, double hi, double magnitude)
+{
+  constexpr double EPS = std::numeric_limits<double>::epsilon();
+  double p = 0.0;
+  for (int i = 0; i <= m; ++i)
+  {
+    const double q = i < m ? crit[i] : horizon;
+    const double xq = theta(q);
+    const double bound = 64.0 * EPS * (std::fabs(xq) + magnitude);
+    const bool above = xq > hi + bound;
+    if (above || xq < lo - bound)
+    {
+      const double level = above ? hi : lo;
+      double a = p, b = q;
+      for (int it = 0; it < 200 && b - a > 2.0 * EPS * b; ++it)
+      {
+        const double mid = 0.5 * (a + b);
+        const double xm = theta(mid);
+        ((above ? xm > level : xm < level) ? b : a) = mid;
+      }
+      return b;
+    }
+    p = q;
+  }
+  return std::numeric_limits<double>::infinity();
+}
+
+/// The larger finite magnitude of two levels (0 for infinite ones): the rounding scale of an exit test.
+inline double levelMagnitude(double lo, double hi)
+{
+  return std::fmax(std::isfinite(lo) ? std::fabs(lo) : 0.0, std::isfinite(hi) ? std::fabs(hi) : 0.0);
+}
+
+}  // namespace backlash_servo
