@@ -1,6 +1,6 @@
 #include "servo_node.h"
 
-#include <diagnostic_msgs/DiagnosticArray.h>
+#include <diagnostic_msgs/DiagnosticStatus.h>
 #include <dynamic_reconfigure/config_tools.h>
 #include <ros/callback_queue.h>
 #include <rosgraph_msgs/Clock.h>
@@ -46,7 +46,8 @@ ServoNode::ServoNode(ros::NodeHandle& nh, ros::NodeHandle& pnh, const NodeConfig
       sim_(config.run.params, config.run.initial, config.run.command),
       command_(config.run.command),
       effort_(config.motor_effort),
-      paused_(config.paused)
+      paused_(config.paused),
+      diagnostics_(nh, pnh)
 {
   if (config_.control_mode == ControlMode::Effort)
   {
@@ -71,7 +72,8 @@ ServoNode::ServoNode(ros::NodeHandle& nh, ros::NodeHandle& pnh, const NodeConfig
       ROS_WARN("backlash_servo_node: publish_clock is true but use_sim_time is false: other nodes will not follow");
     }
   }
-  diagnostics_pub_ = nh.advertise<diagnostic_msgs::DiagnosticArray>("/diagnostics", 10);
+  diagnostics_.setHardwareID("backlash_servo");
+  diagnostics_.add("simulation", this, &ServoNode::diagnose);
   sim_.setEventBudget(static_cast<std::uint64_t>(config_.run.max_events));
   command_sub_ = nh.subscribe("command", 100, &ServoNode::onCommand, this);
   effort_sub_ = nh.subscribe("motor_effort", 100, &ServoNode::onEffort, this);
@@ -290,26 +292,20 @@ void ServoNode::enterFault(const std::string& what)
 void ServoNode::publishDiagnostics()
 {
   last_diagnostics_ = ros::WallTime::now();
-  diagnostic_msgs::DiagnosticArray array;
-  array.header.stamp = ros::Time::now();
-  diagnostic_msgs::DiagnosticStatus status;
-  status.name = ros::this_node::getName() + ": simulation";
-  status.hardware_id = "backlash_servo";
-  status.level = fault_.empty() ? diagnostic_msgs::DiagnosticStatus::OK : diagnostic_msgs::DiagnosticStatus::ERROR;
-  status.message = fault_.empty() ? (paused_ ? "paused" : "running") : fault_;
-  auto value = [&](const std::string& key, const std::string& v) {
-    diagnostic_msgs::KeyValue kv;
-    kv.key = key;
-    kv.value = v;
-    status.values.push_back(kv);
-  };
-  value("sim_time [s]", formatNumber(sim_.state().time));
-  value("impacts", std::to_string(sim_.impactCount()));
-  value("verdict", toString(monitor_->status().verdict));
+  diagnostics_.force_update();  // on the node's own 1 s wall schedule: sim time may run 0× … 1000× real time
+}
+
+void ServoNode::diagnose(diagnostic_updater::DiagnosticStatusWrapper& status)
+{
+  status.summary(fault_.empty() ? diagnostic_msgs::DiagnosticStatus::OK : diagnostic_msgs::DiagnosticStatus::ERROR,
+                 fault_.empty() ? (paused_ ? "paused" : "running") : fault_);
+  status.add("sim_time [s]", formatNumber(sim_.state().time));
+  status.add("impacts", std::to_string(sim_.impactCount()));
+  status.add("verdict", toString(monitor_->status().verdict));
   if (monitor_->status().verdict == Verdict::LimitCycle || monitor_->status().verdict == Verdict::Irregular)
   {
-    value("limit_cycle_error [rad]", formatNumber(monitor_->status().error));
-    value("period [s]", formatNumber(monitor_->status().period));
+    status.add("limit_cycle_error [rad]", formatNumber(monitor_->status().error));
+    status.add("period [s]", formatNumber(monitor_->status().period));
   }
   // Rates over the last diagnostics interval: impacts per simulated second, simulated seconds per wall second.
   const ros::WallTime now = ros::WallTime::now();
@@ -317,18 +313,16 @@ void ServoNode::publishDiagnostics()
   const double sim = sim_.state().time - diag_sim_;
   if (wall > 0.0 && diag_sim_ >= 0.0)
   {
-    value("impact rate [1/s]", formatNumber(sim > 0.0 ? (sim_.impactCount() - diag_impacts_) / sim : 0.0));
-    value("real-time factor achieved", formatNumber(sim / wall));
+    status.add("impact rate [1/s]", formatNumber(sim > 0.0 ? (sim_.impactCount() - diag_impacts_) / sim : 0.0));
+    status.add("real-time factor achieved", formatNumber(sim / wall));
   }
   diag_wall_ = now;
   diag_sim_ = sim_.state().time;
   diag_impacts_ = sim_.impactCount();
   if (config_.sync)
   {
-    value("lockstep answers late", std::to_string(sync_misses_));
+    status.add("lockstep answers late", std::to_string(sync_misses_));
   }
-  array.status.push_back(status);
-  diagnostics_pub_.publish(array);
 }
 
 void ServoNode::publishEncoders(const State& s, const Drive& drive)

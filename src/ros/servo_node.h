@@ -9,6 +9,7 @@
  */
 #pragma once
 
+#include <diagnostic_updater/diagnostic_updater.h>
 #include <dynamic_reconfigure/server.h>
 #include <ros/ros.h>
 #include <std_msgs/Float64.h>
@@ -66,8 +67,11 @@ class ServoNode : public EventSink
   void drainBeforeExit(double wall);
   /// encoder_states: what a digital drive's controller read at its sample (quantised motor and load angles).
   void publishEncoders(const State& s, const Drive& drive);
-  /// /diagnostics: OK while running, ERROR with the fault while a core error holds the simulation.
+  /// /diagnostics through diagnostic_updater, every second of wall time (publishDiagnostics forces an update).
   void publishDiagnostics();
+  /// The "simulation" task: OK while running, ERROR with the fault while a core error holds the simulation; values
+  /// sim time, impacts, verdict, cycle error/period, impact rate, real-time factor achieved, late lockstep answers.
+  void diagnose(diagnostic_updater::DiagnosticStatusWrapper& status);
   /// A core error at sim time t: logged with the parameters, the simulation paused until ~reset or good parameters.
   void enterFault(const std::string& what);
   /// Publishes the monitor's status on limit_cycle (latched) and logs it; `maximum`: a new maximum caused it.
@@ -112,7 +116,7 @@ class ServoNode : public EventSink
   double sim_anchor_ = 0.0;
   bool paused_ = false;
   std::string fault_;  // the core error holding the simulation; empty while healthy
-  ros::Publisher diagnostics_pub_;
+  diagnostic_updater::Updater diagnostics_;
   ros::WallTime last_diagnostics_;
 };
 

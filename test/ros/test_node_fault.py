@@ -29,7 +29,12 @@ class NodeFault(unittest.TestCase):
             return diags.msgs[-1].status[0].level if diags.msgs else None
 
         self.assertTrue(wait_for(lambda: level() == DiagnosticStatus.ERROR, 60.0), "no error on /diagnostics")
-        self.assertIn("event budget", diags.msgs[-1].status[0].message)
+        status = diags.msgs[-1].status[0]
+        self.assertIn("event budget", status.message)
+        # Published through diagnostic_updater: "<node>: <task>" names, the hardware id, the task's key values.
+        self.assertEqual(status.name, NODE[1:] + ": simulation")
+        self.assertEqual(status.hardware_id, "backlash_servo")
+        self.assertIn("verdict", [kv.key for kv in status.values])
         frozen = len(states.msgs)
         self.assertLessEqual(states.msgs[-1].impacts, 20)
         time.sleep(1.0)  # wall time: the node is paused, so is its clock
