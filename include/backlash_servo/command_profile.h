@@ -53,6 +53,16 @@ class CommandProfile
   double finalValue() const;
   /// The time the last segment ends [s] (a sine or move: its end; a step: its time).
   double endTime() const;
+  /// Only steps and points: θ_R is piecewise constant, so the continuous law takes it exactly (a command change at
+  /// each known instant).
+  bool piecewiseConstant() const;
+  /// For a piecewise-constant profile: the first instant after t [s] at which θ_R may change (+inf: none).
+  double nextChange(double t) const;
+  /// Throws InvalidParameterError("profile", …) unless a drive of this kind can take the profile: a digital drive
+  /// (sampled) takes any, the continuous law only a piecewise-constant one.
+  void requireTakenBy(bool sampled) const;
+  /// The same profile started dt [s] later (every segment and point time + dt).
+  CommandProfile delayed(double dt) const;
   const std::vector<ProfileSegment>& segments() const { return segments_; }
 
  private:

@@ -32,8 +32,18 @@ class Simulator
   /// θ_R [rad] of the proportional law (the last one set, also while in effort mode).
   double command() const { return command_; }
 
-  /// Position mode, T_m = K(θ_R − θ_c), with θ_R = command [rad] from now on (a step). Must be finite.
+  /// Position mode, T_m = K(θ_R − θ_c), with θ_R = command [rad] from now on (a step; ends a profile). Must be
+  /// finite.
   void setCommand(double command, EventSink* sink = nullptr);
+  /**
+   * Position mode: θ_R follows the profile (times [s] of sim time) from now on. A digital drive samples it at its
+   * instants; the continuous law takes a piecewise-constant profile as exact command steps at its known instants
+   * (advanceTo stops there) and refuses others (InvalidParameterError). A later setCommand, setDrive or
+   * setMotorTorque ends it. Null: none.
+   */
+  void setProfile(std::shared_ptr<const CommandProfile> profile, EventSink* sink = nullptr);
+  /// The profile θ_R follows, or null.
+  const std::shared_ptr<const CommandProfile>& profile() const { return profile_; }
   /// Effort mode, T_m = torque [N·m] from now on (the internal P loop is off). Must be finite.
   void setMotorTorque(double torque, EventSink* sink = nullptr);
   /// Replaces the drive (its law applies from now on).
@@ -82,10 +92,17 @@ class Simulator
   void applyDriveLaw();
   /// One drive sample, counted against the event budget.
   void takeSample();
+  /// θ_R = command [rad] for the position law now (setCommand without ending the profile).
+  void applyCommand(double command, EventSink* sink);
+  /// advanceTo without the continuous law's profile steps.
+  void advanceDriveTo(double t_end, EventSink* sink);
 
   Plant plant_;
   std::unique_ptr<Drive> drive_;
-  double command_;  // θ_R [rad] kept for switching back to position mode
+  double command_;                                 // θ_R [rad] kept for switching back to position mode
+  std::shared_ptr<const CommandProfile> profile_;  // θ_R(t), or null
+  bool stepped_ = false;                           // the continuous law steps through profile_ itself
+  double next_change_ = 0.0;                       // stepped_: next instant θ_R may change [s]
   std::uint64_t event_budget_ = 0;
   std::uint64_t samples_ = 0;
   SampleObserver sample_observer_;

@@ -28,8 +28,10 @@ struct RunConfig
   double max_duration = 0.0;  ///< cap when running until settled [s]; 0 = 2000/ω_n
   bool track_energy = true;   ///< energy ledger (off: ~25 % faster, energy fields of the summary are zero)
   double max_events = 1e7;    ///< impact budget of the run; exceeded → stopped, verdict unsettled (not a hang)
-  /// Optional set-point profile (a digital drive samples it; the verdict is judged against its final value). With
-  /// a profile, `command` is ignored. Throws InvalidParameterError from runResponse() with the continuous law.
+  /// Optional set-point profile θ_R(t), judged against its final value (a run until settled lasts at least to its
+  /// end). A digital drive samples any profile; the continuous law takes step and points profiles exactly (a
+  /// command step at each known instant) and refuses ramps, sines and moves (InvalidParameterError from
+  /// runResponse()). With a profile, `command` is its final value.
   std::shared_ptr<const CommandProfile> profile;
 };
 
@@ -53,6 +55,10 @@ struct RunSummary
 using SampleCallback = std::function<void(const Simulator&)>;
 /// Called after every chunk with the fraction of the longest possible run done, in [0, 1].
 using ProgressCallback = std::function<void(double)>;
+
+/// Throws InvalidParameterError("profile", …) for a profile the control law cannot take (a ramp, sine or move with
+/// the continuous law).
+void checkProfile(const RunConfig& config);
 
 /**
  * Runs config; events go to sink (may be null) as well as to the response monitor (checked every natural period,

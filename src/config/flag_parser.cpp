@@ -169,8 +169,8 @@ std::string FlagParser::usage() const
         section = p.section;
         first = false;
       }
-      out << padded("  " + p.flag() + " " + (*p.symbol != '\0' ? p.symbol : "VALUE")) << "[" << p.unit << "] " << p.doc
-          << defaultAndRange(p) << "\n";
+      const std::string metavar = p.type == ParamType::Text ? "FILE" : (*p.symbol != '\0' ? p.symbol : "VALUE");
+      out << padded("  " + p.flag() + " " + metavar) << "[" << p.unit << "] " << p.doc << defaultAndRange(p) << "\n";
     }
   }
   if (!options_.empty())

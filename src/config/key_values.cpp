@@ -34,6 +34,29 @@ YAML::Node loadYamlFile(const std::string& path)
   }
 }
 
+double yamlNumber(const YAML::Node& node, const std::string& key, const std::string& where, bool required,
+                  double fallback)
+{
+  if (!node[key])
+  {
+    if (required)
+    {
+      throw ConfigError(where + ": '" + key + "' is required");
+    }
+    return fallback;
+  }
+  KeyValues kv;
+  kv.set(key, node[key].as<std::string>());
+  try
+  {
+    return kv.number(key);
+  }
+  catch (const std::exception&)
+  {
+    throw ConfigError(where + ": '" + key + "' must be a number (got '" + node[key].as<std::string>() + "')");
+  }
+}
+
 void KeyValues::loadYaml(const std::string& path)
 {
   const YAML::Node root = loadYamlFile(path);
@@ -48,11 +71,21 @@ void KeyValues::loadYaml(const std::string& path)
   for (const auto& item : root)
   {
     const std::string key = item.first.as<std::string>();
+    if (key == "profile" && item.second.IsSequence())
+    {
+      set(key, path);  // an inline profile: the profile loader reads this file's `profile:` list
+      continue;
+    }
     if (!item.second.IsScalar())
     {
       throw ConfigError("config file '" + path + "': key '" + key + "' must have a single value");
     }
-    set(key, item.second.as<std::string>());
+    std::string value = item.second.as<std::string>();
+    if (key == "profile" && !value.empty() && value[0] != '/' && path.find('/') != std::string::npos)
+    {
+      value = path.substr(0, path.rfind('/') + 1) + value;  // a profile file next to the YAML
+    }
+    set(key, value);
   }
 }
 

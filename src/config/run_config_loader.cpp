@@ -1,5 +1,6 @@
 #include "backlash_servo/config/run_config_loader.h"
 
+#include "backlash_servo/config/profile_loader.h"
 #include "backlash_servo/gear_mesh.h"
 #include "backlash_servo/param_table.h"
 #include "backlash_servo/simulator.h"
@@ -124,6 +125,15 @@ RunConfig runConfigFrom(const KeyValues& kv)
   c.drive.dither_shape = choiceValue(kv, param("dither_shape"));
   c.drive.validate();
   c.command = realValue(kv, param("command"));
+  if (kv.has("profile"))
+  {
+    if (kv.has("command"))
+    {
+      throw ConfigError("give either " + kv.name("command") + " or " + kv.name("profile") + ", not both");
+    }
+    c.profile = loadProfileFile(kv.text("profile", ""), realValue(kv, param("load_position")));
+    c.command = c.profile->finalValue();
+  }
   c.duration = realValue(kv, param("duration"));
   c.max_duration = realValue(kv, param("max_duration"));
   c.max_events = realValue(kv, param("max_events"));
@@ -136,6 +146,7 @@ RunConfig runConfigFrom(const KeyValues& kv)
                                               : mesh.motorPositionOnWall(s.load_position, s.contact);
   s.motor_velocity =
       kv.has("motor_velocity") ? realValue(kv, param("motor_velocity")) : mesh.motorVelocityInContact(s.load_velocity);
+  checkProfile(c);
   // Let the simulator's own validation (gap range, contact consistency) speak now, before any output is written.
   Simulator check(c.params, s, c.command);
   return c;

@@ -160,6 +160,58 @@ double CommandProfile::finalValue() const
   return at(std::numeric_limits<double>::infinity());  // every segment run to its end
 }
 
+bool CommandProfile::piecewiseConstant() const
+{
+  return std::all_of(segments_.begin(), segments_.end(), [](const ProfileSegment& s) {
+    return s.kind == ProfileSegment::Kind::Step || s.kind == ProfileSegment::Kind::Points;
+  });
+}
+
+double CommandProfile::nextChange(double t) const
+{
+  double next = std::numeric_limits<double>::infinity();
+  for (const ProfileSegment& s : segments_)
+  {
+    if (s.time > t)
+    {
+      next = std::min(next, s.time);
+    }
+    for (const auto& p : s.points)
+    {
+      if (p.first > t)
+      {
+        next = std::min(next, p.first);
+        break;
+      }
+    }
+  }
+  return next;
+}
+
+void CommandProfile::requireTakenBy(bool sampled) const
+{
+  if (!sampled && !piecewiseConstant())
+  {
+    throw InvalidParameterError("profile",
+                                "the continuous law takes step and points profiles; a ramp, sine or move is sampled "
+                                "by a digital drive: set controller_rate > 0 Hz");
+  }
+}
+
+CommandProfile CommandProfile::delayed(double dt) const
+{
+  std::vector<ProfileSegment> segments = segments_;
+  for (ProfileSegment& s : segments)
+  {
+    s.time += dt;
+    for (auto& p : s.points)
+    {
+      p.first += dt;
+    }
+  }
+  return CommandProfile(start_, std::move(segments));
+}
+
 double CommandProfile::endTime() const
 {
   double end = 0.0;

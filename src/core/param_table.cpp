@@ -76,6 +76,10 @@ std::vector<ParamSpec> makeTable()
     // ---- command and initial state ----
     {"command", "θ_R", "rad", T::Real, S::Initial, POSITION, "1", "load set-point, applied at t = 0", false, {},
      &RunConfig::command},
+    {"profile", "θ_R(t)", "file", T::Text, S::Initial, FINITE, "",
+     "command profile instead of `command`: a YAML file of segments (step, ramp, sine, move, points) or a CSV of "
+     "time [s], value [rad] rows; in a YAML config also inline as a `profile:` list (see README, Command profiles)",
+     false, {}, {}},
     {"load_position", "θ_c", "rad", T::Real, S::Initial, POSITION, "0", "initial load position", false, {},
      &State::load_position},
     {"load_velocity", "ω_c", "rad/s", T::Real, S::Initial, VELOCITY, "0", "initial load velocity", false, {},

@@ -19,6 +19,9 @@ Simulator::Simulator(const Simulator& other)
     : plant_(other.plant_),
       drive_(other.drive_->clone()),
       command_(other.command_),
+      profile_(other.profile_),
+      stepped_(other.stepped_),
+      next_change_(other.next_change_),
       event_budget_(other.event_budget_),
       samples_(other.samples_),
       sample_observer_(other.sample_observer_)
@@ -31,6 +34,9 @@ Simulator& Simulator::operator=(const Simulator& other)
     plant_ = other.plant_;
     drive_ = other.drive_->clone();
     command_ = other.command_;
+    profile_ = other.profile_;
+    stepped_ = other.stepped_;
+    next_change_ = other.next_change_;
     event_budget_ = other.event_budget_;
     samples_ = other.samples_;
     sample_observer_ = other.sample_observer_;
@@ -64,6 +70,8 @@ void Simulator::applyDriveLaw()
 
 void Simulator::setDrive(std::unique_ptr<Drive> drive, EventSink* sink)
 {
+  profile_.reset();
+  stepped_ = false;
   drive->configure(plant_.params());
   drive->sample(plant_.state());
   drive->reevaluate(plant_.state());
@@ -75,6 +83,46 @@ void Simulator::setDrive(std::unique_ptr<Drive> drive, EventSink* sink)
 void Simulator::setCommand(double command, EventSink* sink)
 {
   requireFinite("command", command);
+  if (profile_)
+  {
+    if (auto* sampled = dynamic_cast<SampledDrive*>(drive_.get()))
+    {
+      sampled->setProfile(nullptr);
+    }
+    profile_.reset();
+    stepped_ = false;
+  }
+  applyCommand(command, sink);
+}
+
+void Simulator::setProfile(std::shared_ptr<const CommandProfile> profile, EventSink* sink)
+{
+  if (drive_->mode() != ControlMode::Position)
+  {
+    throw InvalidParameterError("profile", "a command profile needs position mode (the drive is in effort mode)");
+  }
+  auto* sampled = dynamic_cast<SampledDrive*>(drive_.get());
+  if (profile)
+  {
+    profile->requireTakenBy(sampled != nullptr);
+  }
+  profile_ = std::move(profile);
+  stepped_ = profile_ && sampled == nullptr;
+  if (sampled != nullptr)
+  {
+    sampled->setProfile(profile_);  // read from the next sample on
+    plant_.emit(sink, EventType::InputChange);
+    return;
+  }
+  if (stepped_)
+  {
+    next_change_ = profile_->nextChange(state().time);
+    applyCommand(profile_->at(state().time), sink);
+  }
+}
+
+void Simulator::applyCommand(double command, EventSink* sink)
+{
   command_ = command;
   if (auto* sampled = dynamic_cast<SampledDrive*>(drive_.get()))
   {
@@ -95,6 +143,7 @@ void Simulator::setCommand(double command, EventSink* sink)
 
 void Simulator::setMotorTorque(double torque, EventSink* sink)
 {
+  // (setDrive ends a profile)
   setDrive(std::make_unique<EffortDrive>(torque), sink);
 }
 
@@ -114,6 +163,18 @@ void Simulator::advanceTo(double t_end, EventSink* sink)
     throw std::invalid_argument("advanceTo: target time " + std::to_string(t_end) + " s is before the current time " +
                                 std::to_string(state().time) + " s or not finite");
   }
+  while (stepped_ && next_change_ <= t_end)
+  {
+    const double change = next_change_;
+    advanceDriveTo(change, sink);
+    next_change_ = profile_->nextChange(change);
+    applyCommand(profile_->at(change), sink);  // a step of θ_R at its known instant
+  }
+  advanceDriveTo(t_end, sink);
+}
+
+void Simulator::advanceDriveTo(double t_end, EventSink* sink)
+{
   while (state().time < t_end)
   {
     const double next = drive_->nextEventTime(state().time);

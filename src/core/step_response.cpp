@@ -30,26 +30,29 @@ class Tee : public EventSink
 };
 }  // namespace
 
+void checkProfile(const RunConfig& config)
+{
+  if (config.profile)
+  {
+    config.profile->requireTakenBy(config.drive.sampled());
+  }
+}
+
 RunSummary runResponse(const RunConfig& config, EventSink* sink, double sample_period, const SampleCallback& on_sample,
                        const ProgressCallback& on_progress)
 {
-  if (config.profile && !config.drive.sampled())
-  {
-    throw InvalidParameterError("profile",
-                                "a command profile is sampled by a digital drive: set controller_rate > 0 "
-                                "Hz (the continuous law takes steps only)");
-  }
+  checkProfile(config);
   const double command = config.profile ? config.profile->finalValue() : config.command;
-  Simulator sim(config.params, config.initial, command);
+  const double t0 = config.initial.time;
+  // With a profile the law starts from θ_R(t₀) (a digital drive's first sample reads it there).
+  Simulator sim(config.params, config.initial, config.profile ? config.profile->at(t0) : command);
   if (config.drive.sampled() || config.drive.torque_limit > 0.0)
   {
-    auto drive =
-        makePositionDrive(config.drive, config.params.gain, config.params.gear_ratio, command, config.initial.time);
-    if (config.profile)
-    {
-      static_cast<SampledDrive&>(*drive).setProfile(config.profile);
-    }
-    sim.setDrive(std::move(drive));
+    sim.setDrive(makePositionDrive(config.drive, config.params.gain, config.params.gear_ratio, sim.command(), t0));
+  }
+  if (config.profile)
+  {
+    sim.setProfile(config.profile);
   }
   sim.setEnergyTracking(config.track_energy);
   sim.setEventBudget(static_cast<std::uint64_t>(config.max_events));
@@ -57,7 +60,6 @@ RunSummary runResponse(const RunConfig& config, EventSink* sink, double sample_p
   const double omega_n = config.params.naturalFrequency();
   ResponseMonitor monitor(config.params, command, config.initial, sim.drive().sampled());
   Tee tee(&monitor, sink);
-  const double t0 = config.initial.time;
   const bool until_settled = config.duration <= 0.0;
   const double t_stop =
       t0 + (until_settled ? (config.max_duration > 0.0 ? config.max_duration : 2000.0 / omega_n) : config.duration);
@@ -88,7 +90,7 @@ RunSummary runResponse(const RunConfig& config, EventSink* sink, double sample_p
     {
       on_progress((t - t0) / (t_stop - t0));
     }
-    if (until_settled && monitor.settled())
+    if (until_settled && monitor.settled() && (!config.profile || t >= config.profile->endTime()))
     {
       out.stopped_by = "settled";
       break;

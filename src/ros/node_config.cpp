@@ -53,7 +53,8 @@ void putValue(KeyValues* kv, const ParamSpec& spec, XmlRpc::XmlRpcValue& v)
       kv->set(spec.key, static_cast<std::string>(v));
       break;
     default:
-      throw ConfigError(std::string(spec.key) + ": expected a single " + toString(spec.type) + " value");
+      throw ConfigError(std::string(spec.key) + ": expected a single " + toString(spec.type) + " value" +
+                        (spec.type == ParamType::Text ? " (the node takes a profile as a file path, not inline)" : ""));
   }
 }
 }  // namespace

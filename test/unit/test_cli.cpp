@@ -52,6 +52,12 @@ std::string writeFile(const std::string& name, const std::string& text)
   std::ofstream(path) << text;
   return path;
 }
+
+/// A profile file /tmp/backlash_sim_profile_<name>.yaml holding `yaml`.
+std::string profile(const std::string& name, const std::string& yaml)
+{
+  return writeFile("backlash_sim_profile_" + name + ".yaml", yaml + "\n");
+}
 }  // namespace
 
 TEST(Cli, ThesisCaseJsonHasTheContractFields)
@@ -133,25 +139,37 @@ TEST(Cli, BadInputIsOneClearLineAndExitCode2)
   const std::string bad_yaml = writeFile("backlash_sim_bad.yaml", "zeta: [0.5\n  inertia_ratio: : 1\n");
   const std::string unknown_key =
       writeFile("backlash_sim_unknown.yaml", "zeta: 0.5\ninertia_ratio: 1\nfriction_ratio: 0\nbacklsh: 0.3\n");
-  const Case cases[] = {{"--restitution 1.5", "restitution"},
-                        {"--motor-inertia -1", "motor_inertia"},
-                        {"--gain nan", "--gain"},
-                        {"--backlash abc", "--backlash"},
-                        {"--frobnicate 3", "--frobnicate"},
-                        {"--zeta 0.4 --gain 2", "not both"},
-                        {"--zeta 0.4", "--inertia-ratio"},
-                        {"--contact sideways", "--contact"},
-                        {"--contact forward --motor-position 0.2", "motor_position"},
-                        {"--config /nonexistent.yaml", "cannot read"},
-                        {"--config " + bad_yaml, "not valid YAML"},
-                        {"--config " + unknown_key, "backlsh"},
-                        {"--load-coulomb-friction 0.2 --load-static-friction 0.1", "load_static_friction"},
-                        {"--motor-coulomb-friction -0.1", "motor_coulomb_friction"},
-                        {"--motor-static-friction inf", "--motor-static-friction"},
-                        {"--controller-rate nan", "--controller-rate"},
-                        {"--controller-rate 100 --controller-delay 2", "controller_delay"},
-                        {"--control-law bangbang", "--control-law"},
-                        {"--control-law pid", "controller_rate"}};
+  const Case cases[] = {
+      {"--restitution 1.5", "restitution"},
+      {"--motor-inertia -1", "motor_inertia"},
+      {"--gain nan", "--gain"},
+      {"--backlash abc", "--backlash"},
+      {"--frobnicate 3", "--frobnicate"},
+      {"--zeta 0.4 --gain 2", "not both"},
+      {"--zeta 0.4", "--inertia-ratio"},
+      {"--contact sideways", "--contact"},
+      {"--contact forward --motor-position 0.2", "motor_position"},
+      {"--config /nonexistent.yaml", "cannot read"},
+      {"--config " + bad_yaml, "not valid YAML"},
+      {"--config " + unknown_key, "backlsh"},
+      {"--load-coulomb-friction 0.2 --load-static-friction 0.1", "load_static_friction"},
+      {"--motor-coulomb-friction -0.1", "motor_coulomb_friction"},
+      {"--motor-static-friction inf", "--motor-static-friction"},
+      {"--controller-rate nan", "--controller-rate"},
+      {"--controller-rate 100 --controller-delay 2", "controller_delay"},
+      {"--control-law bangbang", "--control-law"},
+      {"--control-law pid", "controller_rate"},
+      // Command profiles (issue 12): every field checked, the file named.
+      {"--profile " + profile("steps", "- step: {time: 0, target: 1}") + " --command 1", "not both"},
+      {"--profile " + profile("typo", "- ramp: {time: 0, target: 1, rat: 2}") + " --controller-rate 100", "'rat'"},
+      {"--profile " + profile("negative", "- ramp: {time: 0, target: 1, duration: -2}") + " --controller-rate 100",
+       "duration"},
+      {"--profile " + profile("nan", "- step: {time: 0, target: .nan}"), "'target'"},
+      {"--profile " + profile("order", "- step: {time: 5, target: 1}\n- step: {time: 2, target: 0}"), "in order"},
+      {"--profile " + profile("kind", "- jump: {time: 0, target: 1}"), "'jump'"},
+      {"--profile " + profile("nocsv", "- points: {time: 0, csv: /nonexistent.csv}"), "cannot read"},
+      {"--profile /nonexistent.csv", "cannot read"},
+      {"--profile " + profile("ramp", "- ramp: {time: 0, target: 1, duration: 2}"), "controller_rate"}};
   for (const Case& c : cases)
   {
     const std::string csv = "/tmp/backlash_sim_never.csv";
@@ -203,3 +221,32 @@ TEST(Cli, AnImpactStormStopsAtTheEventBudgetWithAClearMessage)
   EXPECT_NE(bad.err.find("max_events"), std::string::npos) << bad.err;
 }
 }  // namespace
+
+// Profiles from a file, inline in the run's YAML and as a CSV of set-points are the same run; the continuous law
+// takes the steps exactly where they are (its maxima differ from a single step's after the second step only).
+TEST(Cli, ProfilesFromAFileInlineOrCsvAreTheSameRun)
+{
+  const std::string file = profile("same", "- step: {time: 0, target: 1}\n- step: {time: 30.5, target: 0.5}");
+  const std::string csv = writeFile("backlash_sim_profile_same.csv", "time,value\n0,1\n30.5,0.5\n");
+  const std::string inline_yaml =
+      writeFile("backlash_sim_profile_inline.yaml",
+                "backlash: 0.3\nprofile:\n  - step: {time: 0, target: 1}\n"
+                "  - points: {time: 0, csv: backlash_sim_profile_same.csv}\n");  // point times count from `time`
+  const Result a = run("--json --duration 80 --profile " + file);
+  const Result b = run("--json --duration 80 --profile " + csv);
+  const Result c = run("--json --duration 80 --config " + inline_yaml);
+  ASSERT_EQ(a.code, 0) << a.err;
+  ASSERT_EQ(b.code, 0) << b.err;
+  ASSERT_EQ(c.code, 0) << c.err;
+  auto maxima = [](const std::string& json) {
+    const std::size_t from = json.find("\"maxima\"");
+    return json.substr(from, json.find("\"wall_time\"") - from);
+  };
+  EXPECT_EQ(maxima(a.out), maxima(b.out));
+  EXPECT_EQ(maxima(a.out), maxima(c.out));
+  EXPECT_EQ(number(a.out, "command"), 0.5);  // judged against the final value
+  const Result step = run("--json --duration 80");
+  const std::string first = maxima(step.out).substr(0, 60);
+  EXPECT_EQ(maxima(a.out).substr(0, 60), first);  // the same first maximum (3.47 s), before the second step
+  EXPECT_NE(maxima(a.out), maxima(step.out));
+}

@@ -2,8 +2,11 @@
 // formulas written here.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <memory>
+#include <utility>
+#include <vector>
 
 #include "backlash_servo/drive.h"
 #include "backlash_servo/step_response.h"
@@ -190,4 +193,145 @@ TEST(Profile, SegmentsFollowTheirFormulas)
   bad.duration = 0.0;
   EXPECT_THROW(CommandProfile(0.0, {bad}), InvalidParameterError);
   EXPECT_THROW(CommandProfile(0.0, {sine, ramp}), InvalidParameterError);  // out of order
+}
+
+namespace
+{
+/// Every event of a run, for bit-equal comparisons.
+struct Recorder : EventSink
+{
+  std::vector<Event> events;
+  void onEvent(const Event& e) override { events.push_back(e); }
+};
+
+ProfileSegment points(double time, std::vector<std::pair<double, double>> pts)
+{
+  ProfileSegment s;
+  s.kind = ProfileSegment::Kind::Points;
+  s.time = time;
+  s.points = std::move(pts);
+  return s;
+}
+}  // namespace
+
+// Δ = 0, ρ = 1: the rigid servo J θ̈ + F θ̇ + K θ = K θ_R(t) is linear, so a piecewise-constant θ_R is the
+// superposition of step responses s(t) = 1 − e^{−ζω t}(cos ω_d t + ζ/√(1−ζ²) sin ω_d t) started at each step.
+// The continuous law must take the steps at exactly their instants (closed form to 1e-12 rad).
+TEST(Profile, ContinuousLawTakesStepsAtTheirInstantsExactly)
+{
+  RunConfig c;
+  c.params.backlash = 0.0;
+  c.params.restitution = 0.0;
+  c.duration = 40.0;
+  c.profile = std::make_shared<CommandProfile>(
+      0.0, std::vector<ProfileSegment>{step(0.0, 1.0), step(7.2537, -0.5),
+                                       points(13.0, {{13.0041, 0.25}, {21.5031, 0.75}})});
+  const ServoParams& p = c.params;
+  const double zeta = p.dampingRatio(), w = p.naturalFrequency(), wd = w * std::sqrt(1.0 - zeta * zeta);
+  auto s = [&](double t) {
+    return t <= 0.0 ? 0.0
+                    : 1.0 - std::exp(-zeta * w * t) *
+                                (std::cos(wd * t) + zeta / std::sqrt(1.0 - zeta * zeta) * std::sin(wd * t));
+  };
+  auto exact = [&](double t) {
+    return 1.0 * s(t) - 1.5 * s(t - 7.2537) + 0.75 * s(t - 13.0041) + 0.5 * s(t - 21.5031);
+  };
+  double worst = 0.0;
+  int samples = 0;
+  runResponse(c, nullptr, 0.01, [&](const Simulator& sim) {
+    worst = std::max(worst, std::fabs(sim.state().load_position - exact(sim.state().time)));
+    ++samples;
+  });
+  EXPECT_EQ(samples, 4001);
+  EXPECT_LT(worst, 1e-12);
+}
+
+// A profile of one step is today's step (bit-equal events and final state), for the continuous law, a saturated
+// continuous law and a digital PID; with backlash and impacts, steps through a profile equal setCommand by hand.
+TEST(Profile, OneStepIsTodaysStepAndStepsEqualCommandsByHand)
+{
+  for (int variant = 0; variant < 3; ++variant)
+  {
+    RunConfig plain;
+    plain.duration = 60.0;
+    plain.command = 0.8;
+    if (variant == 1)
+    {
+      plain.drive.torque_limit = 0.5;
+    }
+    if (variant == 2)
+    {
+      plain.drive.controller_rate = 200.0;
+      plain.drive.control_law = "pid";
+      plain.drive.integral_gain = 0.1;
+    }
+    RunConfig profiled = plain;
+    profiled.profile = std::make_shared<CommandProfile>(0.0, std::vector<ProfileSegment>{step(0.0, 0.8)});
+    Recorder a, b;
+    const RunSummary ra = runResponse(plain, &a, 0.0);
+    const RunSummary rb = runResponse(profiled, &b, 0.0);
+    ASSERT_EQ(a.events.size(), b.events.size()) << variant;
+    for (std::size_t i = 0; i < a.events.size(); ++i)
+    {
+      ASSERT_EQ(a.events[i].state.time, b.events[i].state.time) << variant << " event " << i;
+      ASSERT_EQ(a.events[i].state.load_position, b.events[i].state.load_position) << variant << " event " << i;
+    }
+    EXPECT_EQ(ra.final_state.load_position, rb.final_state.load_position) << variant;
+    EXPECT_EQ(ra.status.error, rb.status.error) << variant;
+  }
+  // D1 with backlash: steps at 20 s and 33.3 s through the profile = advanceTo + setCommand by hand.
+  const ServoParams d1;
+  Simulator by_hand(d1, State(), 1.0);
+  Recorder hand;
+  by_hand.advanceTo(20.0, &hand);
+  by_hand.setCommand(0.3, &hand);
+  by_hand.advanceTo(33.3, &hand);
+  by_hand.setCommand(0.6, &hand);
+  by_hand.advanceTo(80.0, &hand);
+  Simulator profiled(d1, State(), 0.0);
+  Recorder prof;
+  profiled.setProfile(std::make_shared<CommandProfile>(
+      0.0, std::vector<ProfileSegment>{step(0.0, 1.0), step(20.0, 0.3), step(33.3, 0.6)}));
+  for (double t = 0.37; t < 80.0; t += 0.37)
+  {
+    profiled.advanceTo(t, &prof);  // output chunks cut nothing
+  }
+  profiled.advanceTo(80.0, &prof);
+  EXPECT_EQ(profiled.state().load_position, by_hand.state().load_position);
+  EXPECT_EQ(profiled.state().motor_velocity, by_hand.state().motor_velocity);
+  EXPECT_EQ(profiled.impactCount(), by_hand.impactCount());
+  EXPECT_GT(profiled.impactCount(), 10u);
+  // A command ends the profile: no step at 33.3 s any more.
+  Simulator ended(d1, State(), 0.0);
+  ended.setProfile(profiled.profile());
+  ended.advanceTo(25.0);
+  ended.setCommand(0.3);
+  EXPECT_EQ(ended.profile(), nullptr);
+  ended.advanceTo(40.0);
+  EXPECT_EQ(ended.command(), 0.3);
+}
+
+// What each law takes: the continuous law refuses ramps, sines and moves (a digital drive samples them); effort
+// mode refuses profiles.
+TEST(Profile, TheContinuousLawRefusesWhatItCannotTakeExactly)
+{
+  ProfileSegment ramp;
+  ramp.kind = ProfileSegment::Kind::Ramp;
+  ramp.target = 1.0;
+  ramp.duration = 2.0;
+  RunConfig c;
+  c.duration = 5.0;
+  c.profile = std::make_shared<CommandProfile>(0.0, std::vector<ProfileSegment>{ramp});
+  EXPECT_THROW(runResponse(c, nullptr, 0.0), InvalidParameterError);
+  c.drive.controller_rate = 100.0;
+  EXPECT_NO_THROW(runResponse(c, nullptr, 0.0));
+  Simulator effort(ServoParams(), State(), 0.0);
+  effort.setMotorTorque(0.1);
+  EXPECT_THROW(effort.setProfile(c.profile), InvalidParameterError);
+  // delayed(): the same profile later.
+  const CommandProfile later = CommandProfile(0.0, {step(1.0, 2.0), points(2.0, {{2.0, 3.0}})}).delayed(10.0);
+  EXPECT_EQ(later.at(10.9), 0.0);
+  EXPECT_EQ(later.at(11.0), 2.0);
+  EXPECT_EQ(later.at(12.0), 3.0);
+  EXPECT_EQ(later.nextChange(11.0), 12.0);
 }

@@ -94,6 +94,32 @@ TEST(Sweep, EveryRowEqualsASingleBacklashSimRun)
   EXPECT_LT(cycles, 12);
 }
 
+// A command profile is a setting every point shares: each row equals backlash_sim with the same profile (a digital
+// drive sampling a ramp and a reversal), and differs from the plain step.
+TEST(Sweep, AProfileIsSharedByEveryPoint)
+{
+  const std::string profile = "/tmp/backlash_sweep_profile.yaml";
+  std::ofstream(profile) << "- ramp: {time: 0, target: 1, duration: 3}\n- move: {time: 40, distance: -0.4, "
+                            "max_velocity: 0.2, max_acceleration: 0.1}\n";
+  const std::string shared = " --controller-rate 200 --profile " + profile;
+  int code = 0;
+  const std::string csv = runCapture(SWEEP + " --zeta 0.3,0.5" + shared + " 2>/dev/null", &code);
+  ASSERT_EQ(code, 0);
+  const auto rows = csvRows(csv);
+  ASSERT_EQ(rows.size(), 2u);
+  for (const auto& r : rows)
+  {
+    const std::string json =
+        runCapture(SIM + " --json --zeta " + r[0] + " --inertia-ratio 9 --friction-ratio 0.4" + shared);
+    EXPECT_EQ(r[5], jsonText(json, "verdict"));
+    EXPECT_EQ(std::stod(r[10]), jsonNumber(json, "simulated_time"));
+    EXPECT_GE(std::stod(r[10]), 40.0 + 2.0 * 2.0 + 0.0);  // a run until settled lasts past the profile's end
+    const std::string step =
+        runCapture(SIM + " --json --zeta " + r[0] + " --inertia-ratio 9 --friction-ratio 0.4 --controller-rate 200");
+    EXPECT_NE(jsonNumber(step, "simulated_time"), jsonNumber(json, "simulated_time"));
+  }
+}
+
 // Any numeric parameter is an axis, in either form, with fixed settings (a digital drive) shared by every point:
 // each row is exactly the backlash_sim run of the same flags.
 TEST(Sweep, AnyParameterIsAnAxisInEitherForm)

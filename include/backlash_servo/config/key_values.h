@@ -30,6 +30,11 @@ std::string flagName(const std::string& key);
 /// The YAML document in `path`; throws ConfigError "cannot read config file …" or "… is not valid YAML: …".
 YAML::Node loadYamlFile(const std::string& path);
 
+/// A number under `key` of a YAML map (fallback when absent and not required); throws ConfigError naming `where`
+/// and the key for a missing required key or a value that is not a finite number.
+double yamlNumber(const YAML::Node& map, const std::string& key, const std::string& where, bool required,
+                  double fallback = 0.0);
+
 class KeyValues
 {
  public:
