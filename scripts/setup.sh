@@ -7,7 +7,7 @@ export PATH=/usr/bin:$PATH
 
 PACKAGES=(
   build-essential cmake pkg-config
-  ros-core-dev catkin libsensor-msgs-dev libstd-msgs-dev libstd-srvs-dev libdiagnostic-msgs-dev python3-diagnostic-msgs libdiagnostic-updater-dev librostest-dev python3-rostest
+  ros-core-dev catkin libsensor-msgs-dev libstd-msgs-dev libstd-srvs-dev libdiagnostic-msgs-dev python3-diagnostic-msgs libdiagnostic-updater-dev libtrajectory-msgs-dev python3-trajectory-msgs librostest-dev python3-rostest
   python3-roslaunch python3-rostopic python3-rospy libros-rosgraph-msgs-dev
   libdynamic-reconfigure-config-init-mutex-dev python3-dynamic-reconfigure
   libeigen3-dev librosbag-dev python3-rosbag python3-sensor-msgs python3-std-msgs python3-std-srvs rosbash

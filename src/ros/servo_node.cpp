@@ -45,6 +45,7 @@ ServoNode::ServoNode(ros::NodeHandle& nh, ros::NodeHandle& pnh, const NodeConfig
                                        : (ros::Time::isSimTime() ? ClockMode::External : ClockMode::RealTime)),
       sim_(config.run.params, config.run.initial, config.run.command),
       command_(config.run.command),
+      profile_(config.run.profile),
       effort_(config.motor_effort),
       paused_(config.paused),
       diagnostics_(nh, pnh)
@@ -76,6 +77,7 @@ ServoNode::ServoNode(ros::NodeHandle& nh, ros::NodeHandle& pnh, const NodeConfig
   diagnostics_.add("simulation", this, &ServoNode::diagnose);
   sim_.setEventBudget(static_cast<std::uint64_t>(config_.run.max_events));
   command_sub_ = nh.subscribe("command", 100, &ServoNode::onCommand, this);
+  trajectory_sub_ = nh.subscribe("command_trajectory", 10, &ServoNode::onTrajectory, this);
   effort_sub_ = nh.subscribe("motor_effort", 100, &ServoNode::onEffort, this);
   load_torque_sub_ = nh.subscribe("load_torque", 100, &ServoNode::onLoadTorque, this);
   reset_srv_ = pnh.advertiseService("reset", &ServoNode::onReset, this);
@@ -359,7 +361,7 @@ void ServoNode::publishSample()
   b.gap = sim_.gap();
   b.mesh_torque = sim_.meshTorque();
   b.motor_torque = sim_.motorTorque();
-  b.command = command_;
+  b.command = profile_ && sim_.controlMode() == ControlMode::Position ? profile_->at(s.time) : command_;
   b.control_mode = sim_.controlMode() == ControlMode::Effort ? BacklashState::EFFORT : BacklashState::POSITION;
   const EnergyLedger& e = sim_.energy();
   b.energy_input = e.input;
@@ -460,6 +462,7 @@ void ServoNode::onCommand(const std_msgs::Float64& msg)
     return;
   }
   command_ = msg.data;
+  profile_.reset();  // a command ends a profile or trajectory
   if (sim_.controlMode() == ControlMode::Position)
   {
     sim_.setCommand(command_);
@@ -566,15 +569,94 @@ void ServoNode::checkEffortTimeout()
 void ServoNode::applyPositionDrive()
 {
   const DriveParams& drive = config_.run.drive;
+  const double now = sim_.state().time;
+  const double start = profile_ ? profile_->at(now) : command_;  // a profile in progress goes on
   if (drive.sampled() || drive.torque_limit > 0.0)
   {
     // The YAML's digital drive or saturated law, fresh from now on (integrators and sample clock restart).
-    sim_.setDrive(makePositionDrive(drive, sim_.params().gain, sim_.params().gear_ratio, command_, sim_.state().time));
+    sim_.setDrive(makePositionDrive(drive, sim_.params().gain, sim_.params().gear_ratio, start, now));
   }
   else
   {
-    sim_.setCommand(command_);
+    sim_.setCommand(start);
   }
+  if (profile_)
+  {
+    sim_.setProfile(profile_);
+  }
+}
+
+void ServoNode::onTrajectory(const trajectory_msgs::JointTrajectory& msg)
+{
+  const double now = sim_.state().time;
+  try
+  {
+    if (sim_.controlMode() != ControlMode::Position)
+    {
+      throw ConfigError("the node is in effort mode (control_mode: effort); a trajectory is a position command");
+    }
+    const auto joint = std::find(msg.joint_names.begin(), msg.joint_names.end(), config_.load_joint_name);
+    if (joint == msg.joint_names.end())
+    {
+      throw ConfigError("no joint named '" + config_.load_joint_name + "' in joint_names");
+    }
+    const std::size_t j = static_cast<std::size_t>(joint - msg.joint_names.begin());
+    if (msg.points.empty())
+    {
+      throw ConfigError("no points");
+    }
+    // Start: the header's stamp in sim time, or now for a zero stamp (the ROS convention).
+    const double start = msg.header.stamp.isZero() ? now : (msg.header.stamp - origin_).toSec();
+    if (!(start >= 0.0))
+    {
+      throw ConfigError("header.stamp lies before the simulation's time 0");
+    }
+    const double from = profile_ ? profile_->at(std::max(start, now)) : command_;
+    std::vector<ProfileSegment> segments;
+    double previous = 0.0;
+    for (std::size_t i = 0; i < msg.points.size(); ++i)
+    {
+      const trajectory_msgs::JointTrajectoryPoint& point = msg.points[i];
+      const std::string where = "point " + std::to_string(i + 1);
+      if (point.positions.size() != msg.joint_names.size())
+      {
+        throw ConfigError(where + ": " + std::to_string(point.positions.size()) + " positions for " +
+                          std::to_string(msg.joint_names.size()) + " joint names");
+      }
+      param("command").check(point.positions[j]);  // finite and inside the validated envelope
+      const double t = point.time_from_start.toSec();
+      if (!(t >= previous))
+      {
+        throw ConfigError(where + ": time_from_start " + std::to_string(t) + " s is before the previous point's");
+      }
+      ProfileSegment s;
+      s.time = start + previous;
+      s.target = point.positions[j];
+      s.kind = t > previous ? ProfileSegment::Kind::Ramp : ProfileSegment::Kind::Step;
+      s.duration = t - previous;  // linear interpolation from the previous point (the first: from the set-point)
+      if (t > previous && !config_.run.drive.sampled())
+      {
+        throw ConfigError(
+            "the continuous law takes steps only (points with equal time_from_start); interpolated trajectories "
+            "are sampled by a digital drive: set controller_rate > 0 Hz");
+      }
+      segments.push_back(s);
+      previous = t;
+    }
+    auto profile = std::make_shared<CommandProfile>(from, segments);
+    sim_.setProfile(profile);  // throws before changing anything if the drive cannot take it
+    profile_ = profile;
+    command_ = profile_->finalValue();
+    ROS_INFO("backlash_servo_node: command_trajectory: %zu points from t = %.6g s to %.6g s, final %g rad",
+             msg.points.size(), start, start + previous, command_);
+  }
+  catch (const std::exception& e)
+  {
+    ROS_ERROR("backlash_servo_node: command_trajectory refused (%s); keeping the current set-point", e.what());
+    return;
+  }
+  answered_ = answered_ || awaiting_;  // lockstep: a trajectory answers the state just published, as a command does
+  restartMonitor();                    // judged against the trajectory's final point
 }
 
 void ServoNode::onLoadTorque(const std_msgs::Float64& msg)
@@ -612,6 +694,9 @@ bool ServoNode::onReset(std_srvs::Trigger::Request&, std_srvs::Trigger::Response
     return true;
   }
   command_ = config_.run.command;
+  // The YAML's profile starts again from now (time never runs backwards).
+  profile_ =
+      config_.run.profile ? std::make_shared<CommandProfile>(config_.run.profile->delayed(initial.time)) : nullptr;
   if (sim_.controlMode() == ControlMode::Position)
   {
     applyPositionDrive();  // a fresh controller: integrators and sample clock restart with the state
@@ -706,6 +791,7 @@ void ServoNode::onReconfigure(BacklashServoConfig& c, uint32_t)
       effort_ = 0.0;  // no stale torque: 0 N·m until the first motor_effort in this mode
       last_effort_time_ = sim_.state().time;
       effort_timed_out_ = false;
+      profile_.reset();  // back in position mode the law holds the profile's final value
       sim_.setMotorTorque(effort_);
     }
     else

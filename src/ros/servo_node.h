@@ -14,6 +14,7 @@
 #include <ros/ros.h>
 #include <std_msgs/Float64.h>
 #include <std_srvs/Trigger.h>
+#include <trajectory_msgs/JointTrajectory.h>
 
 #include <boost/thread/recursive_mutex.hpp>
 #include <cstdint>
@@ -45,6 +46,9 @@ class ServoNode : public EventSink
   };
 
   void onCommand(const std_msgs::Float64& msg);
+  /// command_trajectory: the load joint's points → a profile of ramps (steps where time_from_start repeats),
+  /// starting from the set-point in force; the continuous law takes steps only. Bad messages: ROS_ERROR, dropped.
+  void onTrajectory(const trajectory_msgs::JointTrajectory& msg);
   void onEffort(const std_msgs::Float64& msg);
   /// External load torque T_ext [N·m] from now on (a disturbance input); validated, reflected in reconfigure.
   void onLoadTorque(const std_msgs::Float64& msg);
@@ -85,13 +89,14 @@ class ServoNode : public EventSink
   NodeConfig config_;
   ClockMode clock_mode_;
   Simulator sim_;
-  double command_;                            // θ_R [rad], kept also in effort mode for switching back
-  double effort_;                             // effort-mode torque [N·m]
-  std::unique_ptr<ResponseMonitor> monitor_;  // the same judge as backlash_sim (rest and quiet rules included)
+  double command_;                                 // θ_R [rad] (a profile's final value), kept also in effort mode
+  std::shared_ptr<const CommandProfile> profile_;  // θ_R(t) in sim time (YAML `profile`, command_trajectory) or null
+  double effort_;                                  // effort-mode torque [N·m]
+  std::unique_ptr<ResponseMonitor> monitor_;       // the same judge as backlash_sim (rest and quiet rules included)
   Verdict announced_ = Verdict::Undecided;
 
   ros::Publisher joint_pub_, impact_pub_, state_pub_, limit_cycle_pub_, clock_pub_, encoder_pub_;
-  ros::Subscriber command_sub_, effort_sub_, load_torque_sub_;
+  ros::Subscriber command_sub_, effort_sub_, load_torque_sub_, trajectory_sub_;
   ros::ServiceServer reset_srv_, pause_srv_, resume_srv_;
   boost::recursive_mutex reconfigure_mutex_;
   std::unique_ptr<dynamic_reconfigure::Server<BacklashServoConfig>> reconfigure_;
