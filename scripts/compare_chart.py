@@ -1,6 +1,8 @@
 #!/usr/bin/python3
 """Chart of a backlash_compare run: load trajectories against the reference, tracking errors, and one bar chart per
-metric. Called by backlash_compare --png FILE with the directory of its trajectories.csv and metrics.csv.
+metric. Called by backlash_compare --png FILE with the directory of its trajectories.csv and metrics.csv. With
+--vary (no trajectories.csv; metrics.csv's second column is the varied key): each metric against the varied value,
+one line per strategy, verdicts marked (o converged, x limit cycle / irregular, . undecided).
 usage: compare_chart.py DIR OUT.png     (also writes OUT.svg)"""
 import csv
 import math
@@ -18,13 +20,54 @@ BARS = [("rms_error", "RMS tracking error [rad]"), ("max_error", "max error afte
         ("impact_energy_per_second", "impact energy per second [W]"), ("rms_torque", "RMS motor torque [N·m]")]
 
 
+def save(fig, out):
+    base = out[:-4] if out.endswith(".png") else out
+    fig.savefig(base + ".png", dpi=100)
+    fig.savefig(base + ".svg")
+    print(base + ".png")
+
+
+def vary_chart(metrics, key, out):
+    """Robustness: each metric against the varied parameter, one line per strategy."""
+    names = list(dict.fromkeys(m["name"] for m in metrics))
+    colors = plt.rcParams["axes.prop_cycle"].by_key()["color"]
+    panels = [("limit_cycle_error", "limit-cycle error [rad]"), ("steady_error", "|steady error| [rad]")] + \
+        [b for b in BARS if b[0] not in ("limit_cycle_error", "overshoot")]
+    fig, axes = plt.subplots(2, 4, figsize=(16, 8))
+    marker = {"converged": "o", "limit_cycle": "x", "irregular_oscillation": "x"}
+    for ax, (metric, label) in zip(axes.flat, panels):
+        for i, name in enumerate(names):
+            rows = [m for m in metrics if m["name"] == name]
+            x = [float(m[key]) for m in rows]
+            y = [abs(float(m[metric])) if m[metric] != "" else math.nan for m in rows]
+            c = colors[i % len(colors)]
+            ax.plot(x, y, "-", color=c, lw=1.0, label=name if ax is axes.flat[0] else None)
+            for xi, yi, m in zip(x, y, rows):
+                if not math.isnan(yi):
+                    ax.plot([xi], [yi], marker.get(m["verdict"], "."), color=c, ms=5)
+        ax.set_title(label, fontsize=9)
+        ax.set_xlabel(key, fontsize=8)
+        ax.tick_params(labelsize=7)
+        ax.grid(alpha=0.3)
+    fig.legend(fontsize=7, ncol=5, loc="lower center")
+    fig.suptitle("Robustness of each strategy against %s (o converged, x limit cycle, . undecided)" % key,
+                 fontsize=11)
+    fig.tight_layout(rect=(0, 0.07, 1, 0.97))
+    save(fig, out)
+
+
 def main(argv):
     if len(argv) != 2:
         print(__doc__)
         return 2
     src, out = argv
     with open(os.path.join(src, "metrics.csv")) as f:
-        metrics = list(csv.DictReader(f))
+        reader = csv.DictReader(f)
+        metrics = list(reader)
+        columns = reader.fieldnames
+    if not os.path.exists(os.path.join(src, "trajectories.csv")):
+        vary_chart(metrics, columns[1], out)
+        return 0
     traj = {}
     with open(os.path.join(src, "trajectories.csv")) as f:
         for r in csv.DictReader(f):
@@ -67,10 +110,7 @@ def main(argv):
         ax.grid(axis="y", alpha=0.3)
     fig.suptitle("Compensation workbench: strategies (bars numbered as in the legend order)", fontsize=11)
     fig.tight_layout()
-    base = out[:-4] if out.endswith(".png") else out
-    fig.savefig(base + ".png", dpi=100)
-    fig.savefig(base + ".svg")
-    print(base + ".png")
+    save(fig, out)
     return 0
 
 

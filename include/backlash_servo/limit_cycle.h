@@ -64,6 +64,9 @@ class LimitCycleDetector
   /// Whether a settled narrow band of maxima counts as a (quasi-periodic) limit cycle: on for sampled drives and dry
   /// friction (MODEL.md Part 2), off for the continuous thesis servo, whose wandering maxima stay Irregular.
   void allowBands(bool on) { bands_ = on; }
+  /// Maxima closer than this [s] to the previous one are one hump (a load settling against a flank or by stiction
+  /// under micro-bounces makes maxima 1e-7 s apart); the higher is kept. 0 (default): every maximum counts.
+  void setMinimumSpacing(double seconds) { min_spacing_ = seconds; }
 
   const std::vector<Maximum>& maxima() const { return maxima_; }
   const LimitCycleReport& status() const { return status_; }
@@ -90,6 +93,7 @@ class LimitCycleDetector
  private:
   void update();
   bool bands_ = false;
+  double min_spacing_ = 0.0;  // [s]
 
   double command_;
   double scale_;

@@ -40,6 +40,9 @@ class ResponseMonitor : public EventSink
    */
   ResponseMonitor(const ServoParams& params, double command, const State& start, bool sampled_drive = false);
 
+  /// Judges afresh from `state` on (a profile has ended): maxima and verdict forgotten, the same command, scale and
+  /// rules; the quiet clock starts at state.time.
+  void restartAt(const State& state);
   /// Maxima (EventType::Maximum) go to the detector; every other event is ignored.
   void onEvent(const Event& event) override;
   /// Where the P law comes to rest: θ_R + ρ T_ext / K [rad].
@@ -63,6 +66,7 @@ class ResponseMonitor : public EventSink
   double rho_;
   double scale_;
   double start_time_;
+  bool bands_;  // sampled drive or dry friction (LimitCycleDetector::allowBands)
   LimitCycleDetector detector_;
   double longest_ = 0.0;  // longest interval between successive maxima so far [s]
   std::size_t intervals_seen_ = 0;

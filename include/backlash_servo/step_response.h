@@ -28,17 +28,17 @@ struct RunConfig
   double max_duration = 0.0;  ///< cap when running until settled [s]; 0 = 2000/ω_n
   bool track_energy = true;   ///< energy ledger (off: ~25 % faster, energy fields of the summary are zero)
   double max_events = 1e7;    ///< impact budget of the run; exceeded → stopped, verdict unsettled (not a hang)
-  /// Optional set-point profile θ_R(t), judged against its final value (a run until settled lasts at least to its
-  /// end). A digital drive samples any profile; the continuous law takes step and points profiles exactly (a
-  /// command step at each known instant) and refuses ramps, sines and moves (InvalidParameterError from
-  /// runResponse()). With a profile, `command` is its final value.
+  /// Optional set-point profile θ_R(t); the verdict is judged from its end on, against its final value (a run until
+  /// settled lasts at least to its end). A digital drive samples any profile; the continuous law takes step and points
+  /// profiles exactly (a command step at each known instant) and refuses ramps, sines and moves (InvalidParameterError
+  /// from runResponse()). With a profile, `command` is its final value.
   std::shared_ptr<const CommandProfile> profile;
 };
 
 struct RunSummary
 {
   LimitCycleReport status;
-  std::vector<Maximum> maxima;  ///< positive maxima above the command, in time order
+  std::vector<Maximum> maxima;  ///< positive maxima above the command, in time order (a profile: from its end on)
   std::uint64_t impacts = 0;
   EnergyLedger energy;
   double kinetic = 0.0;        ///< kinetic energy at the end [J]

@@ -32,6 +32,32 @@ void readKeys(const YAML::Node& map, const std::vector<std::string>& skip, const
     kv->set(key, item.second.as<std::string>());
   }
 }
+/// st->config from st->keys, with the file's duration and profile (null: a step to the run's `command`, created
+/// here); `where` names the strategy in errors.
+void buildRun(CompareStrategy* st, double duration, std::shared_ptr<const CommandProfile>* profile,
+              const std::string& where)
+{
+  try
+  {
+    st->config = runConfigFrom(st->keys);
+  }
+  catch (const std::exception& e)
+  {
+    throw ConfigError(where + ": " + e.what());
+  }
+  st->config.duration = duration;
+  if (!*profile)
+  {
+    ProfileSegment step;
+    step.target = st->config.command;
+    *profile = std::make_shared<CommandProfile>(st->config.initial.load_position, std::vector<ProfileSegment>{step});
+  }
+  st->config.profile = *profile;
+  if (!st->config.drive.sampled())
+  {
+    throw ConfigError(where + ": the workbench compares digital drives: set controller_rate > 0 Hz");
+  }
+}
 }  // namespace
 
 CompareConfig loadCompareConfig(const std::string& path)
@@ -72,33 +98,54 @@ CompareConfig loadCompareConfig(const std::string& path)
     }
     CompareStrategy st;
     st.name = s["name"].as<std::string>();
-    KeyValues kv = shared;
-    readKeys(s, {"name"}, where + " (" + st.name + ")", &kv);
-    try
-    {
-      st.config = runConfigFrom(kv);
-    }
-    catch (const std::exception& e)
-    {
-      throw ConfigError(where + " (" + st.name + "): " + e.what());
-    }
-    st.config.duration = c.duration;
-    if (!c.profile)
-    {
-      ProfileSegment step;
-      step.target = st.config.command;
-      c.profile = std::make_shared<CommandProfile>(st.config.initial.load_position, std::vector<ProfileSegment>{step});
-    }
-    st.config.profile = c.profile;
-    if (!st.config.drive.sampled())
-    {
-      throw ConfigError(where + " (" + st.name +
-                        "): the workbench compares digital drives: set controller_rate > 0 "
-                        "Hz");
-    }
+    st.keys = shared;
+    readKeys(s, {"name"}, where + " (" + st.name + ")", &st.keys);
+    buildRun(&st, c.duration, &c.profile, where + " (" + st.name + ")");
     c.strategies.push_back(st);
   }
   return c;
+}
+
+double valueOf(const CompareStrategy& strategy, const std::string& key)
+{
+  const ParamSpec& spec = param(key);
+  if (spec.type != ParamType::Real)
+  {
+    throw ConfigError("'" + key + "' is not a numeric parameter");
+  }
+  if (strategy.keys.has(key))
+  {
+    return strategy.keys.number(key);
+  }
+  const RunConfig& c = strategy.config;
+  if (const auto* f = std::get_if<double ServoParams::*>(&spec.field))
+  {
+    return c.params.*(*f);
+  }
+  if (const auto* f = std::get_if<double DriveParams::*>(&spec.field))
+  {
+    return c.drive.*(*f);
+  }
+  if (const auto* f = std::get_if<double State::*>(&spec.field))
+  {
+    return c.initial.*(*f);
+  }
+  if (const auto* f = std::get_if<double RunConfig::*>(&spec.field))
+  {
+    return c.*(*f);
+  }
+  throw ConfigError("'" + key + "' has no value of its own in a strategy (a chart-form key: vary the physical one)");
+}
+
+CompareStrategy withValue(const CompareStrategy& strategy, const std::string& key, double value,
+                          const CompareConfig& config)
+{
+  CompareStrategy out = strategy;
+  out.keys.setNumber(key, value);
+  std::shared_ptr<const CommandProfile> profile = config.profile;
+  buildRun(&out, config.duration, &profile,
+           "strategy '" + strategy.name + "' with " + key + " = " + formatNumber(value));
+  return out;
 }
 
 }  // namespace backlash_servo

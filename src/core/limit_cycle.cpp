@@ -33,6 +33,14 @@ void LimitCycleDetector::addMaximum(const Maximum& m)
   {
     return;
   }
+  if (!maxima_.empty() && m.time - maxima_.back().time < min_spacing_)
+  {
+    if (m.position > maxima_.back().position)
+    {
+      maxima_.back() = m;  // the same hump: keep its top (the verdict is not re-judged on it)
+    }
+    return;
+  }
   maxima_.push_back(m);
   update();
 }
@@ -86,13 +94,16 @@ void LimitCycleDetector::update()
                std::fabs(fixed - aitken(s2, s3, s4)) <= tol && std::fabs(s0 - s1) <= 1e-3 * fixed;
       error = std::max(error, fixed);
     }
-    if (pinned)
+    // The period converges like the maxima do: extrapolate the last three same-phase intervals the same way. A
+    // cycle has a period near its latest interval; intervals shrinking towards 0 are maxima accumulating at an
+    // instant (a load settling by a Zeno series of bounces), not a cycle.
+    auto interval = [&](int j) { return maxima_[n - 1 - j * k].time - maxima_[n - 1 - (j + 1) * k].time; };
+    const double period = pinned ? aitken(interval(0), interval(1), interval(2)) : 0.0;
+    if (pinned && period > 0.5 * interval(0))
     {
       status_.verdict = Verdict::LimitCycle;
       status_.error = error;
-      // The period converges like the maxima do: extrapolate the last three same-phase intervals the same way.
-      auto interval = [&](int j) { return maxima_[n - 1 - j * k].time - maxima_[n - 1 - (j + 1) * k].time; };
-      status_.period = aitken(interval(0), interval(1), interval(2));
+      status_.period = period;
       status_.multiplicity = k;
       return;
     }

@@ -29,9 +29,21 @@ ResponseMonitor::ResponseMonitor(const ServoParams& params, double command, cons
       rho_(params.gear_ratio),
       scale_(scaleOf(params, command, start)),
       start_time_(start.time),
+      bands_(sampled_drive || params.hasDryFriction()),
       detector_(command, scale_)
 {
-  detector_.allowBands(sampled_drive || params.hasDryFriction());
+  restartAt(start);
+}
+
+void ResponseMonitor::restartAt(const State& state)
+{
+  start_time_ = state.time;
+  detector_ = LimitCycleDetector(command_, scale_);
+  detector_.allowBands(bands_);
+  // A thousandth of the natural period: far below any cycle of the loop, far above micro-bounces.
+  detector_.setMinimumSpacing(1e-3 * 2.0 * PI / omega_n_);
+  longest_ = 0.0;
+  intervals_seen_ = 0;
 }
 
 void ResponseMonitor::onEvent(const Event& e)

@@ -60,6 +60,9 @@ RunSummary runResponse(const RunConfig& config, EventSink* sink, double sample_p
   const double omega_n = config.params.naturalFrequency();
   ResponseMonitor monitor(config.params, command, config.initial, sim.drive().sampled());
   Tee tee(&monitor, sink);
+  // With a profile the verdict is judged from its end on, against its final value: a fresh monitor there (a hunt
+  // around an intermediate set-point is not the final limit cycle).
+  double judge_from = config.profile && config.profile->endTime() > t0 ? config.profile->endTime() : -INFINITY;
   const bool until_settled = config.duration <= 0.0;
   const double t_stop =
       t0 + (until_settled ? (config.max_duration > 0.0 ? config.max_duration : 2000.0 / omega_n) : config.duration);
@@ -73,6 +76,12 @@ RunSummary runResponse(const RunConfig& config, EventSink* sink, double sample_p
     const double t = std::min(t0 + static_cast<double>(i) * chunk, t_stop);
     try
     {
+      if (judge_from >= sim.state().time && judge_from <= t)
+      {
+        sim.advanceTo(judge_from, &tee);
+        monitor.restartAt(sim.state());
+        judge_from = -INFINITY;
+      }
       sim.advanceTo(t, &tee);
     }
     catch (const EventBudgetExceeded& e)
@@ -90,7 +99,7 @@ RunSummary runResponse(const RunConfig& config, EventSink* sink, double sample_p
     {
       on_progress((t - t0) / (t_stop - t0));
     }
-    if (until_settled && monitor.settled() && (!config.profile || t >= config.profile->endTime()))
+    if (until_settled && monitor.settled() && judge_from == -INFINITY)
     {
       out.stopped_by = "settled";
       break;

@@ -140,6 +140,7 @@ void ServoNode::reanchorWallClock()
 
 void ServoNode::restartMonitor()
 {
+  judge_from_ = profile_ && sim_.controlMode() == ControlMode::Position ? profile_->endTime() : -1.0;
   // Effort mode is fed by an external, usually digital, controller: its cycles may be quasi-periodic bands too.
   monitor_ = std::make_unique<ResponseMonitor>(sim_.params(), command_, sim_.state(),
                                                sim_.drive().sampled() || sim_.controlMode() == ControlMode::Effort);
@@ -238,6 +239,12 @@ void ServoNode::run()
     ++sample_index_;
     // Rest and quiet rules, as backlash_sim applies them; in effort mode against `command` too (the external
     // controller's integrator is not visible: its stick–slip phases count as rest only once quiet for long).
+    if (judge_from_ >= 0.0 && sim_.state().time >= judge_from_)
+    {
+      monitor_->restartAt(sim_.state());  // the profile has ended: judged afresh against its final value
+      announced_ = Verdict::Undecided;
+      judge_from_ = -1.0;
+    }
     monitor_->check(sim_.state(), sim_.drive().winding());
     if (monitor_->status().verdict != announced_)
     {

@@ -91,8 +91,9 @@ class ServoNode : public EventSink
   Simulator sim_;
   double command_;                                 // θ_R [rad] (a profile's final value), kept also in effort mode
   std::shared_ptr<const CommandProfile> profile_;  // θ_R(t) in sim time (YAML `profile`, command_trajectory) or null
-  double effort_;                                  // effort-mode torque [N·m]
-  std::unique_ptr<ResponseMonitor> monitor_;       // the same judge as backlash_sim (rest and quiet rules included)
+  double judge_from_ = -1.0;  // the profile's end [s sim]: the verdict starts afresh there (-1: none pending)
+  double effort_;             // effort-mode torque [N·m]
+  std::unique_ptr<ResponseMonitor> monitor_;  // the same judge as backlash_sim (rest and quiet rules included)
   Verdict announced_ = Verdict::Undecided;
 
   ros::Publisher joint_pub_, impact_pub_, state_pub_, limit_cycle_pub_, clock_pub_, encoder_pub_;

@@ -16,6 +16,7 @@
 
 #include "backlash_servo/config/compare_config.h"
 #include "backlash_servo/config/key_values.h"
+#include "backlash_servo/param_table.h"
 #include "compare/compare_metrics.h"
 #include "json_writer.h"
 #include "output_file.h"
@@ -25,7 +26,8 @@ using namespace backlash_servo;
 
 namespace
 {
-const char* USAGE = R"(usage: backlash_compare --config FILE.yaml [--json] [--csv FILE] [--png FILE] [--jobs N]
+const char* USAGE = R"(usage: backlash_compare --config FILE.yaml [--vary KEY=START:STOP:COUNT [--absolute]] [--json]
+                        [--csv FILE] [--png FILE] [--jobs N]
 Runs every strategy of the experiment file (one joint, one command profile, a list of control laws and
 compensators) and prints a table of metrics (SI units): verdict, limit-cycle error [rad] and period [s], steady
 error [rad], settling time [s] (2 % band), RMS and max tracking error [rad], overshoot [rad], impacts per second,
@@ -34,7 +36,58 @@ impact energy per second [W], peak and RMS motor torque [N·m].
   --csv FILE   also write the table as CSV
   --png FILE   also draw trajectories, tracking errors and one bar chart per metric (matplotlib)
   --jobs N     strategies run in parallel (default: all cores)
+  --vary KEY=START:STOP:COUNT
+               robustness of each strategy: re-run it with KEY (any numeric parameter, e.g. the plant's backlash)
+               at COUNT evenly spaced factors START…STOP of its value in the file (the strategies' own settings,
+               e.g. compensation_backlash, stay): one row per strategy and value; the PNG charts each metric
+               against the value
+  --absolute   with --vary: START…STOP are the values themselves [SI], not factors
 )";
+
+/// --vary KEY=START:STOP:COUNT.
+struct Vary
+{
+  std::string key;
+  std::vector<double> steps;  ///< factors (or values with --absolute)
+  bool absolute = false;
+};
+
+Vary parseVary(const std::string& text)
+{
+  Vary v;
+  const auto eq = text.find('=');
+  if (eq == std::string::npos || eq == 0)
+  {
+    throw ConfigError("--vary: expected KEY=START:STOP:COUNT (got '" + text + "')");
+  }
+  v.key = text.substr(0, eq);
+  const ParamSpec* spec = findParam(v.key);
+  if (spec == nullptr || spec->type != ParamType::Real)
+  {
+    throw ConfigError("--vary: '" + v.key + "' is not a numeric parameter (see backlash_params)");
+  }
+  KeyValues kv;
+  std::stringstream parts(text.substr(eq + 1));
+  std::string a, b, n, extra;
+  if (!std::getline(parts, a, ':') || !std::getline(parts, b, ':') || !std::getline(parts, n, ':') ||
+      std::getline(parts, extra, ':'))
+  {
+    throw ConfigError("--vary: expected KEY=START:STOP:COUNT (got '" + text + "')");
+  }
+  kv.set("start", a);
+  kv.set("stop", b);
+  kv.set("count", n);
+  const double start = kv.number("start"), stop = kv.number("stop"), count = kv.number("count");
+  if (!(count >= 2.0 && count <= 1000.0 && count == std::floor(count)))
+  {
+    throw ConfigError("--vary: COUNT must be a whole number in [2, 1000] (got '" + n + "')");
+  }
+  for (int i = 0; i < static_cast<int>(count); ++i)
+  {
+    v.steps.push_back(start + (stop - start) * i / (count - 1.0));
+  }
+  return v;
+}
 
 std::string cell(double v)
 {
@@ -60,18 +113,21 @@ std::string csvNumber(double v)
 
 std::string csvText(const std::string& s);
 
-/// The metrics table as CSV (--csv, and the chart script's input): name, verdict, then metricNames().
-void writeMetricsCsv(std::ostream& out, const std::vector<CompareMetrics>& metrics)
+/// The metrics table as CSV (--csv, and the chart script's input): name, [the varied key's value,] verdict, then
+/// metricNames().
+void writeMetricsCsv(std::ostream& out, const std::vector<CompareMetrics>& metrics, const std::string& vary_key,
+                     const std::vector<double>& values)
 {
-  out << "name,verdict";
+  out << "name," << (vary_key.empty() ? "" : vary_key + ",") << "verdict";
   for (const std::string& k : metricNames())
   {
     out << "," << k;
   }
   out << "\n";
-  for (const CompareMetrics& m : metrics)
+  for (std::size_t i = 0; i < metrics.size(); ++i)
   {
-    out << csvText(m.name) << "," << m.verdict;
+    const CompareMetrics& m = metrics[i];
+    out << csvText(m.name) << "," << (vary_key.empty() ? "" : csvNumber(values[i]) + ",") << m.verdict;
     for (double v : metricValues(m))
     {
       out << "," << csvNumber(v);
@@ -97,8 +153,8 @@ std::string csvText(const std::string& s)
 
 int main(int argc, char** argv)
 {
-  std::string config_path, csv_path, png_path;
-  bool json = false;
+  std::string config_path, csv_path, png_path, vary_text;
+  bool json = false, absolute = false;
   int jobs = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
   for (int i = 1; i < argc; ++i)
   {
@@ -119,6 +175,10 @@ int main(int argc, char** argv)
       png_path = value();
     else if (a == "--json")
       json = true;
+    else if (a == "--vary")
+      vary_text = value();
+    else if (a == "--absolute")
+      absolute = true;
     else if (a == "--jobs")
     {
       const std::string v = value();
@@ -148,9 +208,37 @@ int main(int argc, char** argv)
     return 2;
   }
   CompareConfig config;
+  Vary vary;
+  std::vector<CompareStrategy> runs;  // what is run: the strategies, or each strategy at each varied value
+  std::vector<double> run_values;     // --vary: the value [SI] of each run
   try
   {
+    if (absolute && vary_text.empty())
+    {
+      throw ConfigError("--absolute needs --vary");
+    }
     config = loadCompareConfig(config_path);
+    runs = config.strategies;
+    if (!vary_text.empty())
+    {
+      vary = parseVary(vary_text);
+      vary.absolute = absolute;
+      runs.clear();
+      for (const CompareStrategy& s : config.strategies)
+      {
+        const double base = vary.absolute ? 1.0 : valueOf(s, vary.key);
+        if (!vary.absolute && base == 0.0)
+        {
+          throw ConfigError("--vary: '" + vary.key + "' is 0 in strategy '" + s.name +
+                            "': factors of 0 are all 0; give values with --absolute");
+        }
+        for (double step : vary.steps)
+        {
+          runs.push_back(withValue(s, vary.key, step * base, config));
+          run_values.push_back(step * base);
+        }
+      }
+    }
     for (const std::string& path : {csv_path, png_path})
     {
       if (!path.empty())
@@ -164,7 +252,7 @@ int main(int argc, char** argv)
     std::cerr << "backlash_compare: error: " << e.what() << "\n";
     return 2;
   }
-  const std::size_t n = config.strategies.size();
+  const std::size_t n = runs.size();
   std::vector<CompareMetrics> metrics(n);
   std::vector<std::vector<CompareSample>> trajectories(n);
   std::vector<std::string> errors(n);
@@ -174,10 +262,11 @@ int main(int argc, char** argv)
   auto worker = [&]() {
     for (std::size_t i = next++; i < n; i = next++)
     {
-      const CompareStrategy& s = config.strategies[i];
+      const CompareStrategy& s = runs[i];
       try
       {
-        metrics[i] = runStrategy(s.name, s.config, config.sample_rate, png_path.empty() ? nullptr : &trajectories[i]);
+        const bool chart = !png_path.empty() && vary_text.empty();
+        metrics[i] = runStrategy(s.name, s.config, config.sample_rate, chart ? &trajectories[i] : nullptr);
       }
       catch (const std::exception& e)
       {
@@ -201,7 +290,9 @@ int main(int argc, char** argv)
   {
     if (!errors[i].empty())
     {
-      std::cerr << "backlash_compare: error in strategy '" << config.strategies[i].name << "': " << errors[i] << "\n";
+      std::cerr << "backlash_compare: error in strategy '" << runs[i].name << "'"
+                << (vary_text.empty() ? "" : " with " + vary.key + " = " + formatNumber(run_values[i])) << ": "
+                << errors[i] << "\n";
       return 1;
     }
   }
@@ -211,7 +302,7 @@ int main(int argc, char** argv)
     if (!csv_path.empty())
     {
       OutputFile file("--csv", csv_path);
-      writeMetricsCsv(file.stream(), metrics);
+      writeMetricsCsv(file.stream(), metrics, vary_text.empty() ? "" : vary.key, run_values);
       file.commit();
     }
     if (!png_path.empty())
@@ -220,7 +311,8 @@ int main(int argc, char** argv)
       char tmpl[] = "/tmp/backlash_compare.XXXXXX";
       const std::string dir = mkdtemp(tmpl) ? tmpl : "/tmp";
       {
-        std::ofstream t(dir + "/trajectories.csv");
+        // (--vary: no trajectories; the script then charts the metrics against the varied value)
+        std::ofstream t(dir + (vary_text.empty() ? "/trajectories.csv" : "/no_trajectories.csv"));
         t << "strategy,time,reference,load_position,motor_position,motor_torque\n";
         t.precision(10);
         for (std::size_t i = 0; i < n; ++i)
@@ -232,7 +324,7 @@ int main(int argc, char** argv)
           }
         }
         std::ofstream m(dir + "/metrics.csv");
-        writeMetricsCsv(m, metrics);
+        writeMetricsCsv(m, metrics, vary_text.empty() ? "" : vary.key, run_values);
       }
       const std::string script = std::string(BACKLASH_SOURCE_DIR) + "/scripts/compare_chart.py";
       const std::string cmd = "/usr/bin/python3 '" + script + "' '" + dir + "' '" + png_path + "' 1>&2";
@@ -250,7 +342,33 @@ int main(int argc, char** argv)
     return 1;
   }
   std::ostringstream out;
-  if (json)
+  if (json && !vary_text.empty())
+  {
+    JsonWriter j(out);
+    j.beginObject().beginObject("vary").field("key", vary.key).field("absolute", vary.absolute).endObject();
+    j.beginArray("strategies");
+    for (std::size_t i = 0; i < n; ++i)
+    {
+      if (i % vary.steps.size() == 0)
+      {
+        j.beginObject().field("name", runs[i].name).beginArray("points");
+      }
+      j.beginObject().field("value", run_values[i]).field("verdict", metrics[i].verdict);
+      const std::vector<double> values = metricValues(metrics[i]);
+      for (std::size_t k = 0; k < names.size(); ++k)
+      {
+        j.field(names[k].c_str(), values[k]);
+      }
+      j.endObject();
+      if ((i + 1) % vary.steps.size() == 0)
+      {
+        j.endArray().endObject();
+      }
+    }
+    j.endArray().endObject();
+    out << "\n";
+  }
+  else if (json)
   {
     JsonWriter j(out);
     j.beginObject().beginArray("strategies");
@@ -269,20 +387,23 @@ int main(int argc, char** argv)
   }
   else
   {
+    const bool varied = !vary_text.empty();
     char buf[400];
-    std::snprintf(buf, sizeof buf, "%-28s %-22s %9s %8s %9s %8s %9s %9s %9s %9s %9s %8s %8s\n", "strategy", "verdict",
-                  "lc err", "period", "steady", "settle", "rms err", "max err", "overshoot", "impacts/s", "E_imp/s",
-                  "peak T", "rms T");
+    std::snprintf(buf, sizeof buf, "%-28s %-11s%-22s %9s %8s %9s %8s %9s %9s %9s %9s %9s %8s %8s\n", "strategy",
+                  varied ? vary.key.substr(0, 10).c_str() : "", "verdict", "lc err", "period", "steady", "settle",
+                  "rms err", "max err", "overshoot", "impacts/s", "E_imp/s", "peak T", "rms T");
     out << buf;
-    out << "  (rad, s, rad, s, rad, rad, rad, 1/s, W, N·m, N·m; '-': does not apply)\n";
-    for (const CompareMetrics& m : metrics)
+    out << "  (" << (varied ? "value in SI units; " : "")
+        << "rad, s, rad, s, rad, rad, rad, 1/s, W, N·m, N·m; '-': does not apply)\n";
+    for (std::size_t i = 0; i < n; ++i)
     {
-      std::snprintf(buf, sizeof buf, "%-28s %-22s %9s %8s %9s %8s %9s %9s %9s %9s %9s %8s %8s\n",
-                    m.name.substr(0, 28).c_str(), m.verdict.c_str(), cell(m.limit_cycle_error).c_str(),
-                    cell(m.period).c_str(), cell(m.steady_error).c_str(), cell(m.settling_time).c_str(),
-                    cell(m.rms_error).c_str(), cell(m.max_error).c_str(), cell(m.overshoot).c_str(),
-                    cell(m.impacts_per_second).c_str(), cell(m.impact_energy_per_second).c_str(),
-                    cell(m.peak_torque).c_str(), cell(m.rms_torque).c_str());
+      const CompareMetrics& m = metrics[i];
+      std::snprintf(buf, sizeof buf, "%-28s %-11s%-22s %9s %8s %9s %8s %9s %9s %9s %9s %9s %8s %8s\n",
+                    m.name.substr(0, 28).c_str(), varied ? cell(run_values[i]).c_str() : "", m.verdict.c_str(),
+                    cell(m.limit_cycle_error).c_str(), cell(m.period).c_str(), cell(m.steady_error).c_str(),
+                    cell(m.settling_time).c_str(), cell(m.rms_error).c_str(), cell(m.max_error).c_str(),
+                    cell(m.overshoot).c_str(), cell(m.impacts_per_second).c_str(),
+                    cell(m.impact_energy_per_second).c_str(), cell(m.peak_torque).c_str(), cell(m.rms_torque).c_str());
       out << buf;
     }
   }

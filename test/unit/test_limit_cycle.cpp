@@ -81,3 +81,35 @@ TEST(LimitCycle, RestSettlesConvergence)
   d.addMaximum({2.0, 0.9, 0.0});  // below the command: ignored
   EXPECT_EQ(d.maxima().size(), 1u);
 }
+
+// A load settling against a flank (or by stiction) under micro-bounces makes maxima of one height piling up at an
+// instant, intervals shrinking geometrically: not a limit cycle of period ~0. With a minimum spacing they are one
+// hump (its top kept); without it, the period test (a cycle's extrapolated period is near its latest interval)
+// still refuses them. (Seen: PID + friction feed-forward on a 1 kHz robot joint, maxima 1e-7 s apart.)
+TEST(LimitCycle, MaximaPilingUpAtAnInstantAreNotACycle)
+{
+  for (const double spacing : {0.0, 1e-3})
+  {
+    LimitCycleDetector d(1.0, 0.3);
+    d.setMinimumSpacing(spacing);
+    d.addMaximum({2.0, 1.01, 0.0});
+    for (int k = 0; k < 20; ++k)  // (intervals down to 2e-12 s: well above the time resolution at 18.5 s)
+    {
+      d.addMaximum({18.5 - 7.6e-6 * std::pow(0.45, k), 1.000343 - 5e-11 * std::pow(0.2, k), 0.0});
+    }
+    EXPECT_NE(d.status().verdict, Verdict::LimitCycle) << spacing << " period " << d.status().period;
+    if (spacing > 0.0)
+    {
+      ASSERT_EQ(d.maxima().size(), 2u);
+      EXPECT_EQ(d.maxima().back().position, 1.000343 - 5e-11 * std::pow(0.2, 19));  // the top of the hump
+    }
+  }
+  // A true cycle is unaffected by the spacing.
+  LimitCycleDetector cycle(1.0, 0.3);
+  cycle.setMinimumSpacing(1e-3);
+  for (int i = 0; i < 200 && !cycle.settled(); ++i)
+  {
+    cycle.addMaximum({10.0 * i, 1.05 + 0.3 * std::pow(0.6, i), -0.01});
+  }
+  EXPECT_EQ(cycle.status().verdict, Verdict::LimitCycle);
+}

@@ -382,6 +382,68 @@ TEST(Compare, MetricsAgreeWithSingleRunsAndCsvSamples)
   EXPECT_NE(err.find("integral_gian"), std::string::npos) << err;
 }
 
+// --vary: every strategy re-run at each value of a plant key (factors of the file's value, or absolute values); each
+// row equals backlash_sim with that value and the strategy's own settings (the compensator's estimate stays), and a
+// key the strategy overrides is varied around its own value.
+TEST(Compare, VaryRerunsEveryStrategyOverTheRange)
+{
+  const std::string yaml = "/tmp/backlash_compare_vary.yaml";
+  std::ofstream(yaml) << "backlash: 0.05\nrestitution: 0.5\nload_coulomb_friction: 0.02\nload_static_friction: "
+                         "0.05\ncontroller_rate: 1000\ncommand: 1.0\nduration: 30\n"
+                         "strategies:\n"
+                         "  - {name: PID, control_law: pid, integral_gain: 0.5, derivative_gain: 0.3}\n"
+                         "  - {name: P wide, control_law: proportional, backlash: 0.1}\n";
+  int code = 0;
+  const std::string json = runCapture(COMPARE + " --config " + yaml + " --vary backlash=0.5:1.5:3 --json", &code);
+  ASSERT_EQ(code, 0) << json;
+  EXPECT_NE(json.find("\"vary\":{\"key\":\"backlash\",\"absolute\":false}"), std::string::npos) << json;
+  const std::vector<std::pair<std::string, double>> strategies = {
+      {"--control-law pid --integral-gain 0.5 --derivative-gain 0.3", 0.05}, {"--control-law proportional", 0.1}};
+  std::size_t pos = 0;
+  int rows = 0;
+  for (const auto& st : strategies)
+  {
+    for (double factor : {0.5, 1.0, 1.5})
+    {
+      pos = json.find("{\"value\"", pos + 1);
+      ASSERT_NE(pos, std::string::npos);
+      const std::string entry = json.substr(pos, json.find('}', pos) - pos + 1);
+      EXPECT_DOUBLE_EQ(jsonNumber(entry, "value"), factor * st.second) << entry;
+      char value[32];
+      std::snprintf(value, sizeof value, "%.17g", jsonNumber(entry, "value"));
+      const std::string cli =
+          runCapture(SIM +
+                     " --json --restitution 0.5 --load-coulomb-friction 0.02 --load-static-friction 0.05 "
+                     "--controller-rate 1000 --duration 30 --backlash " +
+                     value + " " + st.first);
+      EXPECT_EQ(jsonText(entry, "verdict"), jsonText(cli, "verdict")) << entry;
+      if (jsonText(cli, "verdict") == "limit_cycle")
+      {
+        EXPECT_EQ(jsonNumber(entry, "limit_cycle_error"), jsonNumber(cli, "limit_cycle_error")) << entry;
+      }
+      ++rows;
+    }
+  }
+  EXPECT_EQ(rows, 6);
+  // Absolute values; the CSV has the key as its second column; bad requests are one line, exit 2.
+  const std::string table = "/tmp/backlash_compare_vary.csv";
+  runCapture(
+      COMPARE + " --config " + yaml + " --vary backlash=0.02:0.04:2 --absolute --csv " + table + " >/dev/null 2>&1",
+      &code);
+  ASSERT_EQ(code, 0);
+  const auto csv = csvRows(readFile(table));
+  ASSERT_EQ(csv.size(), 4u);  // 2 strategies × 2 values
+  EXPECT_EQ(readFile(table).rfind("name,backlash,verdict,", 0), 0u);
+  EXPECT_EQ(std::stod(csv[1][1]), 0.04);
+  for (const char* bad : {" --vary backlash=0.5:1.5", " --vary backlsh=1:2:3", " --vary backlash=1:2:1", " --absolute",
+                          " --vary load_torque=0.5:2:3"})
+  {
+    const std::string err = runCapture(COMPARE + " --config " + yaml + std::string(bad) + " 2>&1 >/dev/null", &code);
+    EXPECT_EQ(code, 2) << bad;
+    EXPECT_EQ(std::count(err.begin(), err.end(), '\n'), 1) << bad << ": " << err;
+  }
+}
+
 // backlash_servo.launch: the YAML's keys win unless the launch arg is given; use_sim_time and ns are independent args.
 TEST(Launch, YamlKeysWinUnlessArgsAreGiven)
 {

@@ -26,6 +26,7 @@
 #include <vector>
 
 #include "backlash_servo/command_profile.h"
+#include "backlash_servo/config/key_values.h"
 #include "backlash_servo/step_response.h"
 
 namespace backlash_servo
@@ -34,6 +35,7 @@ struct CompareStrategy
 {
   std::string name;
   RunConfig config;  ///< the whole run: joint, drive, profile, duration
+  KeyValues keys;    ///< the keys it was built from (the shared ones and its own)
 };
 
 struct CompareConfig
@@ -46,5 +48,13 @@ struct CompareConfig
 
 /// Reads and validates the file; throws ConfigError / InvalidParameterError naming the strategy and key.
 CompareConfig loadCompareConfig(const std::string& path);
+
+/// The value [SI] of a numeric parameter-table key in a strategy's run: the file's, else its default.
+double valueOf(const CompareStrategy& strategy, const std::string& key);
+
+/// The strategy re-built with key = value [SI], everything else as in the file (backlash_compare --vary); throws
+/// ConfigError / InvalidParameterError naming the strategy, the key and the value.
+CompareStrategy withValue(const CompareStrategy& strategy, const std::string& key, double value,
+                          const CompareConfig& config);
 
 }  // namespace backlash_servo
