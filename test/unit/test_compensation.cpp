@@ -373,3 +373,33 @@ TEST(Profile, TheVerdictIsJudgedFromTheProfilesEnd)
     EXPECT_GT(r.status.period, 1e-3);  // at least a controller sample
   }
 }
+
+// A compensator at zero strength is its base law, bit for bit: the inverse with Δ̂ = 0, the dual loop with K_o = 0,
+// feed-forward with F = 0, dither with A = 0 (on a joint with backlash, stiction and a reversal).
+TEST(Compensation, ZeroStrengthIsTheBaseLaw)
+{
+  RunConfig base = upAndDown("none", 0.0);
+  base.duration = 90.0;
+  Recorder none;
+  const RunSummary r0 = runResponse(base, &none, 0.0);
+  ASSERT_GT(none.events.size(), 100u);
+  for (const char* compensation : {"inverse", "dual_loop", "friction_feedforward", "dither"})
+  {
+    RunConfig c = base;
+    c.drive.compensation = compensation;
+    c.drive.compensation_backlash = 0.0;
+    c.drive.outer_loop_gain = 0.0;
+    c.drive.compensation_friction = 0.0;
+    c.drive.dither_amplitude = 0.0;
+    c.drive.dither_frequency = 100.0;
+    Recorder with;
+    const RunSummary r = runResponse(c, &with, 0.0);
+    ASSERT_EQ(with.events.size(), none.events.size()) << compensation;
+    for (std::size_t i = 0; i < with.events.size(); ++i)
+    {
+      ASSERT_EQ(with.events[i].state.time, none.events[i].state.time) << compensation << " event " << i;
+      ASSERT_EQ(with.events[i].state.motor_position, none.events[i].state.motor_position) << compensation;
+    }
+    EXPECT_EQ(r.final_state.load_position, r0.final_state.load_position) << compensation;
+  }
+}
