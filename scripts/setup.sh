@@ -12,7 +12,7 @@ PACKAGES=(
   libdynamic-reconfigure-config-init-mutex-dev python3-dynamic-reconfigure
   libeigen3-dev librosbag-dev python3-rosbag python3-sensor-msgs python3-std-msgs python3-std-srvs rosbash
   libyaml-cpp-dev googletest libgtest-dev python3-matplotlib python3-scipy python3-numpy libboost-dev
-  slurm-wlm munge rviz ros-robot-state-publisher
+  slurm-wlm munge rviz ros-robot-state-publisher clang libclang-rt-14-dev catkin-lint
 )
 
 missing=()

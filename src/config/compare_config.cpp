@@ -16,7 +16,7 @@ void readKeys(const YAML::Node& map, const std::vector<std::string>& skip, const
 {
   for (const auto& item : map)
   {
-    const std::string key = item.first.as<std::string>();
+    const std::string key = yamlScalar(item.first, where + ": a key");
     if (std::find(skip.begin(), skip.end(), key) != skip.end())
     {
       continue;
@@ -29,7 +29,7 @@ void readKeys(const YAML::Node& map, const std::vector<std::string>& skip, const
     {
       throw ConfigError(where + ": key '" + key + "' must have a single value");
     }
-    kv->set(key, item.second.as<std::string>());
+    kv->set(key, item.second.Scalar());
   }
 }
 /// st->config from st->keys, with the file's duration and profile (null: a step to the run's `command`, created
@@ -97,7 +97,7 @@ CompareConfig loadCompareConfig(const std::string& path)
       throw ConfigError(where + ": needs a name");
     }
     CompareStrategy st;
-    st.name = s["name"].as<std::string>();
+    st.name = yamlScalar(s["name"], where + ": name");
     st.keys = shared;
     readKeys(s, {"name"}, where + " (" + st.name + ")", &st.keys);
     buildRun(&st, c.duration, &c.profile, where + " (" + st.name + ")");

@@ -46,15 +46,24 @@ double yamlNumber(const YAML::Node& node, const std::string& key, const std::str
     return fallback;
   }
   KeyValues kv;
-  kv.set(key, node[key].as<std::string>());
+  kv.set(key, yamlScalar(node[key], where + ": '" + key + "'"));
   try
   {
     return kv.number(key);
   }
   catch (const std::exception&)
   {
-    throw ConfigError(where + ": '" + key + "' must be a number (got '" + node[key].as<std::string>() + "')");
+    throw ConfigError(where + ": '" + key + "' must be a number (got '" + node[key].Scalar() + "')");
   }
+}
+
+std::string yamlScalar(const YAML::Node& node, const std::string& what)
+{
+  if (!node.IsScalar())
+  {
+    throw ConfigError(what + " must be a single value (a name or a number), not a list or a mapping");
+  }
+  return node.Scalar();
 }
 
 void KeyValues::loadYaml(const std::string& path)
@@ -70,7 +79,7 @@ void KeyValues::loadYaml(const std::string& path)
   }
   for (const auto& item : root)
   {
-    const std::string key = item.first.as<std::string>();
+    const std::string key = yamlScalar(item.first, "config file '" + path + "': a key");
     if (key == "profile" && item.second.IsSequence())
     {
       set(key, path);  // an inline profile: the profile loader reads this file's `profile:` list
@@ -80,7 +89,7 @@ void KeyValues::loadYaml(const std::string& path)
     {
       throw ConfigError("config file '" + path + "': key '" + key + "' must have a single value");
     }
-    std::string value = item.second.as<std::string>();
+    std::string value = item.second.Scalar();
     if (key == "profile" && !value.empty() && value[0] != '/' && path.find('/') != std::string::npos)
     {
       value = path.substr(0, path.rfind('/') + 1) + value;  // a profile file next to the YAML

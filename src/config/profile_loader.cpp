@@ -36,7 +36,7 @@ void requireFields(const YAML::Node& f, const std::string& kind, const std::stri
   }
   for (const auto& field : f)
   {
-    const std::string name = field.first.as<std::string>();
+    const std::string name = yamlScalar(field.first, where + ": a field name");
     if (std::find(known->second.begin(), known->second.end(), name) == known->second.end())
     {
       std::string list;
@@ -97,7 +97,7 @@ std::shared_ptr<const CommandProfile> profileFromYaml(const YAML::Node& list, co
     {
       throw ConfigError(where + ": must be one of step, ramp, sine, move, points with its fields");
     }
-    const std::string kind = item.begin()->first.as<std::string>();
+    const std::string kind = yamlScalar(item.begin()->first, where + ": the segment kind");
     const YAML::Node f = item.begin()->second;
     if (!f.IsMap())
     {
@@ -139,7 +139,7 @@ std::shared_ptr<const CommandProfile> profileFromYaml(const YAML::Node& list, co
       {
         throw ConfigError(where + ": points needs csv: FILE (time,value rows)");
       }
-      std::string file = f["csv"].as<std::string>();
+      std::string file = yamlScalar(f["csv"], where + ": csv");
       if (!file.empty() && file[0] != '/')
       {
         file = dir + "/" + file;

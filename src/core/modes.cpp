@@ -15,6 +15,20 @@ constexpr double EPS = std::numeric_limits<double>::epsilon();
 constexpr double INF = std::numeric_limits<double>::infinity();
 constexpr double PI = 3.14159265358979323846;
 
+/// The first of the points τ + kπ/ω (k whole) in (0, half = π/ω], for τ = (atan2(·) + π/2)/ω in [−half/2, 3half/2]
+/// (fmod is exact, so this equals one subtraction or addition of half); +inf (no such point) stays +inf. (A loop
+/// subtracting half from +inf never ended: a mesh torque with no oscillating part, e.g. a load torque balancing the
+/// motor's at the start, hung the simulator — found by the libFuzzer target.)
+double firstInHalfPeriod(double tau, double half)
+{
+  if (!std::isfinite(tau))
+  {
+    return tau;
+  }
+  tau = std::fmod(tau, half);
+  return tau <= 0.0 ? tau + half : tau;
+}
+
 /// Largest rate of the model [1/s]; the scale below which rates count as zero.
 double referenceRate(const ServoParams& p)
 {
@@ -396,17 +410,10 @@ double ContactMotion::levelSeparationTime(double side, double horizon) const
   };
   const double dc = -sigma_ * torque_c_ + omega_ * torque_d_;
   const double dd = -sigma_ * torque_d_ - omega_ * torque_c_;
-  double crit = (dc == 0.0 && dd == 0.0) ? INF : (std::atan2(dd, dc) + 0.5 * PI) / omega_;
   const double half = PI / omega_;
-  // The first critical point after 0: both maxima and minima of the sinusoid bound monotone pieces.
-  while (crit > half)
-  {
-    crit -= half;
-  }
-  while (crit <= 0.0)
-  {
-    crit += half;
-  }
+  // The first critical point after 0: both maxima and minima of the sinusoid bound monotone pieces (none when the
+  // torque has no oscillating part: it is the constant level).
+  double crit = firstInHalfPeriod((dc == 0.0 && dd == 0.0) ? INF : (std::atan2(dd, dc) + 0.5 * PI) / omega_, half);
   double p = 0.0;
   double fp = f(0.0);
   for (int guard = 0; guard < 100000; ++guard)
@@ -488,15 +495,8 @@ double ContactMotion::exitTime(double lo, double hi, double horizon) const
   {
     // Zeros of ω = e^{−στ}(C cos ωτ + D sin ωτ): every π/ω from the first one after 0.
     const double half = PI / omega_;
-    double t = (vel_c_ == 0.0 && vel_d_ == 0.0) ? INF : (std::atan2(vel_d_, vel_c_) + 0.5 * PI) / omega_;
-    while (t > half)
-    {
-      t -= half;
-    }
-    while (t <= 0.0)
-    {
-      t += half;
-    }
+    double t = firstInHalfPeriod(
+        (vel_c_ == 0.0 && vel_d_ == 0.0) ? INF : (std::atan2(vel_d_, vel_c_) + 0.5 * PI) / omega_, half);
     for (; t < horizon && m < EXP_POLY_MAX_ROOTS; t += half)
     {
       crit[m++] = t;

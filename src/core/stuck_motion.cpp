@@ -11,7 +11,6 @@ namespace backlash_servo
 {
 namespace
 {
-constexpr double EPS = std::numeric_limits<double>::epsilon();
 constexpr double INF = std::numeric_limits<double>::infinity();
 
 /// Φ1(τ) = (1 − e^{−pτ})/p [s] (τ when p = 0).

@@ -142,7 +142,7 @@ inline Case makeCase(std::uint64_t seed, std::uint64_t index)
       d.load_encoder_resolution = u(rng) < 0.3 ? std::floor(logu(64.0, 1e6)) : 0.0;
       d.torque_limit = u(rng) < 0.3 ? c.params.gain * std::fabs(c.command) * logu(0.05, 2.0) : 0.0;
     }
-    else if (u(rng) < 0.15 && delta > 0.0)
+    else if (u(rng) < 0.15)
     {
       // The continuous law saturated: switches located where K|θ_R − θ_c| = T_max. (Not with Δ = 0 yet: a rigid
       // mesh under a constant torque can flip flanks for ever at Q ≈ 0 — seed 2 #342, open in issue 14's note.)

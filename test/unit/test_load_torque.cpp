@@ -168,3 +168,17 @@ TEST(LoadTorque, LevelCrossingSeparationMatchesABruteForceScan)
   }
 }
 }  // namespace
+
+// A load torque balancing the motor's exactly at the start: the mesh torque and the velocity have no oscillating
+// part (constant level), the joint stays where it is. The search for the first critical point of a sinusoid with
+// zero amplitude looped for ever before (found by the libFuzzer target: `backlash_sim --load-torque -1`).
+TEST(LoadTorque, ABalancedStartStaysAtRestWithoutHanging)
+{
+  ServoParams p;         // App. D1: K = 1 N·m/rad, unit step from 0 → motor torque 1 N·m
+  p.load_torque = -1.0;  // holds the load against it through the forward flank
+  Simulator sim(p, State(), 1.0);
+  sim.advanceTo(20.0);
+  EXPECT_EQ(sim.state().load_position, 0.0);
+  EXPECT_EQ(sim.state().load_velocity, 0.0);
+  EXPECT_EQ(sim.impactCount(), 0u);
+}

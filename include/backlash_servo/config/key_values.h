@@ -30,6 +30,10 @@ std::string flagName(const std::string& key);
 /// The YAML document in `path`; throws ConfigError "cannot read config file …" or "… is not valid YAML: …".
 YAML::Node loadYamlFile(const std::string& path);
 
+/// The text of a YAML scalar; throws ConfigError "<what> must be a single value …" for a list, a mapping or a
+/// missing node (a key written as `? [a, b]` or `{a: 1}: 2` too).
+std::string yamlScalar(const YAML::Node& node, const std::string& what);
+
 /// A number under `key` of a YAML map (fallback when absent and not required); throws ConfigError naming `where`
 /// and the key for a missing required key or a value that is not a finite number.
 double yamlNumber(const YAML::Node& map, const std::string& key, const std::string& where, bool required,
