@@ -80,7 +80,9 @@ void LimitCycleDetector::update()
   // A limit cycle of multiplicity k: in every phase of the k-periodic sequence the Aitken estimates of the fixed
   // point from three successive windows agree to FIXED_POINT_TOLERANCE, and the maxima are close to it (so the
   // map is in its linear regime, where Aitken's extrapolation is exact to second order).
-  for (int k = 1; k <= MAX_MULTIPLICITY && n >= 4 * k + 1; ++k)
+  // Phase k − 1 looks back 4k maxima from maxima_[n − k]: n ≥ 5k. (The bound was 4k + 1, and a sequence that
+  // pinned phase 0 read before the first maximum — found by AddressSanitizer on a new unit test.)
+  for (int k = 1; k <= MAX_MULTIPLICITY && n >= 5 * k; ++k)
   {
     bool pinned = true;
     double error = 0.0;
