@@ -189,7 +189,12 @@ class SampledDrive : public Drive
   double loadReading() const { return load_reading_; }
 
  private:
-  double read(double angle, double resolution) const;
+  /// q(θ) = 2π/N floor(Nθ/2π) [rad] for N counts/rev; N ≤ 0: ideal (inline: most encoders in a run are ideal).
+  static double read(double angle, double resolution)
+  {
+    return resolution <= 0.0 ? angle : quantise(angle, resolution);
+  }
+  static double quantise(double angle, double resolution);
 
   DriveParams p_;
   enum class Law
@@ -203,6 +208,7 @@ class SampledDrive : public Drive
   std::shared_ptr<const CommandProfile> profile_;
   double reference_ = 0.0;  // θ_R,k of the latest sample [rad]
   double gain_, rho_, command_, t0_;
+  double period_;          // 1/f_s [s]
   long next_ = 0;          // index of the next sample
   double held_ = 0.0;      // torque held now [N·m]
   double pending_ = 0.0;   // computed, applied at the next sample (delay 1) [N·m]

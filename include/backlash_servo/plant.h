@@ -127,6 +127,15 @@ class Plant
   /// the event searches of the segments that begin before it. Depends only on drive times, so chunk-independence
   /// holds. +inf: no limit.
   void setSearchHorizon(double t) { search_horizon_ = t; }
+  /// Fully held by stiction past time t [s] (dry friction; the segment's rest rule holds both bodies and lasts
+  /// beyond t): advancing to t would only move the clock, which holdTo(t) does — the digital drive's fast path
+  /// through the samples of a stick phase (exactly what advanceTo(t) does there, without its dispatch).
+  bool holdsThrough(double t) const
+  {
+    return segment_ && segment_->stuck && segment_->motor_slide == 0 && segment_->load_slide == 0 &&
+           segment_->start.time + segment_->end_tau > t && t >= state_.time;
+  }
+  void holdTo(double t) { state_.time = t; }
 
   /// See Simulator::setParams. Throws InvalidParameterError, keeping the old ones.
   void setParams(const ServoParams& params, EventSink* sink);

@@ -187,7 +187,7 @@ void DriveParams::validate() const
 }
 
 SampledDrive::SampledDrive(const DriveParams& drive, double gain, double gear_ratio, double command, double t0)
-    : p_(drive), gain_(gain), rho_(gear_ratio), command_(command), t0_(t0)
+    : p_(drive), gain_(gain), rho_(gear_ratio), command_(command), t0_(t0), period_(1.0 / drive.controller_rate)
 {
   drive.validate();
   requireFinite("command", command);
@@ -213,26 +213,22 @@ double SampledDrive::nextEventTime(double /*t*/) const
   return t0_ + static_cast<double>(next_) / p_.controller_rate;  // t_k from the integer k: no drift
 }
 
-double SampledDrive::read(double angle, double resolution) const
+double SampledDrive::quantise(double angle, double resolution)
 {
-  if (resolution <= 0.0)
-  {
-    return angle;
-  }
   constexpr double TWO_PI = 6.283185307179586476925;
   return TWO_PI / resolution * std::floor(resolution * angle / TWO_PI);
 }
 
 void SampledDrive::sample(const State& s)
 {
-  const double period = 1.0 / p_.controller_rate;
+  const double period = period_;
   const double qm = read(s.motor_position, p_.motor_encoder_resolution);
   motor_reading_ = rho_ * qm;
   load_reading_ = read(s.load_position, p_.load_encoder_resolution);
   const double y = motor_feedback_ ? motor_reading_ : load_reading_;
-  const double t_k = t0_ + static_cast<double>(next_) * period;
-  reference_ = profile_ ? profile_->at(t_k) : command_;
   const bool compensated = compensator_.active();
+  const double t_k = profile_ || compensated ? t0_ + static_cast<double>(next_) * period : 0.0;  // (only they read it)
+  reference_ = profile_ ? profile_->at(t_k) : command_;
   const double e = (compensated ? compensator_.reference(reference_, load_reading_, period) : reference_) - y;
   const bool first = next_ == 0;
   const double limit = p_.torque_limit;

@@ -184,6 +184,12 @@ void Simulator::advanceDriveTo(double t_end, EventSink* sink)
       continue;
     }
     const bool sample_due = next < t_end;
+    if (sample_due && plant_.holdsThrough(next))
+    {
+      plant_.holdTo(next);  // a stick phase: nothing moves until the sample
+      takeSample();
+      continue;
+    }
     plant_.setSearchHorizon(next);
     if (plant_.advanceTo(sample_due ? next : t_end, sink))
     {
