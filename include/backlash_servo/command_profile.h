@@ -53,14 +53,18 @@ class CommandProfile
   double finalValue() const;
   /// The time the last segment ends [s] (a sine or move: its end; a step: its time).
   double endTime() const;
-  /// Only steps and points: θ_R is piecewise constant, so the continuous law takes it exactly (a command change at
-  /// each known instant).
+  /// Only steps and points: θ_R is piecewise constant.
   bool piecewiseConstant() const;
+  /// Steps, points and ramps: θ_R is piecewise linear, which the continuous law takes exactly (module doc).
+  bool piecewiseLinear() const;
+  /// For a piecewise-linear profile: the piece in force at t [s]: θ_R(t) = at(t) [rad], its slope [rad/s] and the
+  /// first instant after t [s] where value or slope may change (+inf: none).
+  void pieceAt(double t, double* slope, double* until) const;
   /// For a piecewise-constant profile: the first instant after t [s] at which θ_R may change (+inf: none).
   double nextChange(double t) const;
   /// Throws InvalidParameterError("profile", …) unless a drive of this kind can take the profile: a digital drive
-  /// (sampled) takes any, the continuous law only a piecewise-constant one.
-  void requireTakenBy(bool sampled) const;
+  /// (sampled) takes any; the continuous law steps, points and — without dry friction (`dry`) — ramps.
+  void requireTakenBy(bool sampled, bool dry) const;
   /// The same profile started dt [s] later (every segment and point time + dt).
   CommandProfile delayed(double dt) const;
   const std::vector<ProfileSegment>& segments() const { return segments_; }

@@ -136,6 +136,17 @@ class Plant
            segment_->start.time + segment_->end_tau > t && t >= state_.time;
   }
   void holdTo(double t) { state_.time = t; }
+  /// Re-expresses the state in a frame moving relative to the present one (the continuous law's ramps, see
+  /// Simulator): load angle and velocity + dx_load [rad], dv_load [rad/s], motor ones + dx_motor, dv_motor; the
+  /// closed form restarts there. The caller keeps gap, contact and parameters consistent with the new frame.
+  void shiftFrame(double dx_load, double dv_load, double dx_motor, double dv_motor)
+  {
+    state_.load_position += dx_load;
+    state_.load_velocity += dv_load;
+    state_.motor_position += dx_motor;
+    state_.motor_velocity += dv_motor;
+    segment_.reset();
+  }
 
   /// See Simulator::setParams. Throws InvalidParameterError, keeping the old ones.
   void setParams(const ServoParams& params, EventSink* sink);

@@ -29,9 +29,10 @@ struct RunConfig
   bool track_energy = true;   ///< energy ledger (off: ~25 % faster, energy fields of the summary are zero)
   double max_events = 1e7;    ///< impact budget of the run; exceeded → stopped, verdict unsettled (not a hang)
   /// Optional set-point profile θ_R(t); the verdict is judged from its end on, against its final value (a run until
-  /// settled lasts at least to its end). A digital drive samples any profile; the continuous law takes step and points
-  /// profiles exactly (a command step at each known instant) and refuses ramps, sines and moves (InvalidParameterError
-  /// from runResponse()). With a profile, `command` is its final value.
+  /// settled lasts at least to its end). A digital drive samples any profile; the continuous law takes steps, points
+  /// and (without dry friction) ramps exactly (Simulator::setProfile) and refuses sines and moves
+  /// (InvalidParameterError from runResponse()); after a ramp under it the energy fields are NaN (the frame's ledger).
+  /// With a profile, `command` is its final value.
   std::shared_ptr<const CommandProfile> profile;
 };
 
@@ -56,8 +57,8 @@ using SampleCallback = std::function<void(const Simulator&)>;
 /// Called after every chunk with the fraction of the longest possible run done, in [0, 1].
 using ProgressCallback = std::function<void(double)>;
 
-/// Throws InvalidParameterError("profile", …) for a profile the control law cannot take (a ramp, sine or move with
-/// the continuous law).
+/// Throws InvalidParameterError("profile", …) for a profile the control law cannot take (a sine or move, or a ramp
+/// with dry friction, under the continuous law).
 void checkProfile(const RunConfig& config);
 
 /**

@@ -188,13 +188,60 @@ double CommandProfile::nextChange(double t) const
   return next;
 }
 
-void CommandProfile::requireTakenBy(bool sampled) const
+bool CommandProfile::piecewiseLinear() const
 {
-  if (!sampled && !piecewiseConstant())
+  return std::all_of(segments_.begin(), segments_.end(), [](const ProfileSegment& s) {
+    return s.kind != ProfileSegment::Kind::Sine && s.kind != ProfileSegment::Kind::Move;
+  });
+}
+
+void CommandProfile::pieceAt(double t, double* slope, double* until) const
+{
+  *slope = 0.0;
+  *until = nextChange(t);
+  double value = start_;
+  for (std::size_t i = 0; i < segments_.size() && t >= segments_[i].time; ++i)
+  {
+    const ProfileSegment& s = segments_[i];
+    const double next = i + 1 < segments_.size() ? segments_[i + 1].time : std::numeric_limits<double>::infinity();
+    const double v0 = value;
+    value = evaluate(s, value, std::min(t, next) - s.time);
+    if (s.kind != ProfileSegment::Kind::Ramp || t >= next)
+    {
+      *slope = 0.0;
+      continue;
+    }
+    const double d = s.duration > 0.0 ? s.duration : std::fabs(s.target - v0) / s.rate;
+    if (t < s.time + d)
+    {
+      *slope = (s.target - v0) / d;
+      *until = std::min(*until, s.time + d);
+    }
+    else
+    {
+      *slope = 0.0;
+    }
+  }
+}
+
+void CommandProfile::requireTakenBy(bool sampled, bool dry) const
+{
+  if (sampled || piecewiseConstant())
+  {
+    return;
+  }
+  if (!piecewiseLinear())
   {
     throw InvalidParameterError("profile",
-                                "the continuous law takes step and points profiles; a ramp, sine or move is sampled "
+                                "the continuous law takes step, points and ramp profiles; a sine or move is sampled "
                                 "by a digital drive: set controller_rate > 0 Hz");
+  }
+  if (dry)
+  {
+    throw InvalidParameterError("profile",
+                                "the continuous law takes ramps only without dry friction (it runs them in the frame "
+                                "moving with the ramp, where Coulomb friction is not constant): set "
+                                "controller_rate > 0 Hz or no *_coulomb/static_friction");
   }
 }
 

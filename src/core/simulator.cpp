@@ -22,6 +22,11 @@ Simulator::Simulator(const Simulator& other)
       profile_(other.profile_),
       stepped_(other.stepped_),
       next_change_(other.next_change_),
+      frame_rate_(other.frame_rate_),
+      frame_start_(other.frame_start_),
+      motor_bias_(other.motor_bias_),
+      true_params_(other.true_params_),
+      energy_valid_(other.energy_valid_),
       event_budget_(other.event_budget_),
       samples_(other.samples_),
       sample_observer_(other.sample_observer_)
@@ -37,6 +42,11 @@ Simulator& Simulator::operator=(const Simulator& other)
     profile_ = other.profile_;
     stepped_ = other.stepped_;
     next_change_ = other.next_change_;
+    frame_rate_ = other.frame_rate_;
+    frame_start_ = other.frame_start_;
+    motor_bias_ = other.motor_bias_;
+    true_params_ = other.true_params_;
+    energy_valid_ = other.energy_valid_;
     event_budget_ = other.event_budget_;
     samples_ = other.samples_;
     sample_observer_ = other.sample_observer_;
@@ -44,12 +54,126 @@ Simulator& Simulator::operator=(const Simulator& other)
   return *this;
 }
 
+namespace
+{
+/// Events of a plant running in a ramp's frame, converted to the joint's (maxima of the frame are dropped).
+class FrameSink : public EventSink
+{
+ public:
+  FrameSink(EventSink* next, double v, double rho, double t_a, double bias)
+      : next_(next), v_(v), vm_(v / rho), t_a_(t_a), bias_(bias)
+  {}
+  void onEvent(const Event& e) override
+  {
+    if (e.type == EventType::Maximum)
+    {
+      return;  // ẏ_c = 0 is not a maximum of θ_c
+    }
+    Event c = e;
+    const double tau = c.state.time - t_a_;
+    c.state.load_position += v_ * tau;
+    c.state.load_velocity += v_;
+    c.state.motor_position += vm_ * tau;
+    c.state.motor_velocity += vm_;
+    // a − b − k y_c = (a − b + k v τ) − k θ_c: the law in the joint's angles, without the frame's friction bias.
+    c.law.offset += -bias_ + c.law.stiffness * v_ * tau;
+    next_->onEvent(c);
+  }
+
+ private:
+  EventSink* next_;
+  double v_, vm_, t_a_, bias_;
+};
+}  // namespace
+
+State Simulator::state() const
+{
+  State s = plant_.state();
+  if (frame_rate_ != 0.0)
+  {
+    const double tau = s.time - frame_start_;
+    const double vm = frame_rate_ / true_params_.gear_ratio;
+    s.load_position += frame_rate_ * tau;
+    s.load_velocity += frame_rate_;
+    s.motor_position += vm * tau;
+    s.motor_velocity += vm;
+  }
+  return s;
+}
+
+double Simulator::kineticEnergy() const
+{
+  if (frame_rate_ == 0.0)
+  {
+    return plant_.kineticEnergy();
+  }
+  const State s = state();
+  return 0.5 * true_params_.motor_inertia * s.motor_velocity * s.motor_velocity +
+         0.5 * true_params_.load_inertia * s.load_velocity * s.load_velocity;
+}
+
+void Simulator::enterFrame(double v)
+{
+  true_params_ = plant_.params();
+  const double rho = true_params_.gear_ratio;
+  frame_rate_ = v;
+  frame_start_ = plant_.state().time;
+  plant_.shiftFrame(0.0, -v, 0.0, -v / rho);
+  ServoParams p = true_params_;
+  p.load_torque -= p.load_friction * v;  // J_L ÿ + f_L ẏ = Q + T_ext − f_L v
+  plant_.setParams(p, nullptr);
+  motor_bias_ = -true_params_.motor_friction * v / rho;  // J_m ÿ_m + f_m ẏ_m = T_m − f_m v/ρ − ρQ
+  energy_valid_ = false;
+  drive_->reevaluate(plant_.state());
+  applyDriveLaw();
+}
+
+void Simulator::leaveFrame()
+{
+  if (frame_rate_ == 0.0)
+  {
+    return;
+  }
+  const double v = frame_rate_;
+  const double vm = v / true_params_.gear_ratio;
+  const double tau = plant_.state().time - frame_start_;
+  plant_.shiftFrame(v * tau, v, vm * tau, vm);
+  frame_rate_ = 0.0;
+  motor_bias_ = 0.0;
+  plant_.setParams(true_params_, nullptr);  // (puts the motor back on the mesh: the gap is frame-independent)
+  drive_->reevaluate(plant_.state());
+  applyDriveLaw();
+}
+
+void Simulator::applyPiece(double t, EventSink* sink)
+{
+  double slope, until;
+  profile_->pieceAt(t, &slope, &until);
+  next_change_ = until;
+  applyCommand(profile_->at(t), sink);
+  if (slope != 0.0)
+  {
+    enterFrame(slope);
+  }
+}
+
+void Simulator::setState(const State& state)
+{
+  leaveFrame();
+  plant_.setState(state);
+  energy_valid_ = true;  // a fresh ledger (a ramp in force enters its frame again below)
+  if (stepped_)
+  {
+    applyPiece(state.time, nullptr);
+  }
+}
+
 void Simulator::takeSample()
 {
   if (event_budget_ != 0 && ++samples_ > event_budget_)
   {
     throw EventBudgetExceeded("event budget of " + std::to_string(event_budget_) +
-                              " controller samples exceeded at t = " + std::to_string(state().time) +
+                              " controller samples exceeded at t = " + std::to_string(plant_.state().time) +
                               " s (raise max_events to go on)");
   }
   drive_->sample(plant_.state());
@@ -62,7 +186,12 @@ void Simulator::takeSample()
 
 void Simulator::applyDriveLaw()
 {
-  plant_.setLaw(drive_->law());
+  MotorInput law = drive_->law();
+  if (motor_bias_ != 0.0)
+  {
+    law.offset += motor_bias_;
+  }
+  plant_.setLaw(law);
   double lo, hi;
   drive_->watchInterval(&lo, &hi);
   plant_.setWatch(lo, hi);
@@ -70,6 +199,7 @@ void Simulator::applyDriveLaw()
 
 void Simulator::setDrive(std::unique_ptr<Drive> drive, EventSink* sink)
 {
+  leaveFrame();
   profile_.reset();
   stepped_ = false;
   drive->configure(plant_.params());
@@ -83,6 +213,7 @@ void Simulator::setDrive(std::unique_ptr<Drive> drive, EventSink* sink)
 void Simulator::setCommand(double command, EventSink* sink)
 {
   requireFinite("command", command);
+  leaveFrame();
   if (profile_)
   {
     if (auto* sampled = dynamic_cast<SampledDrive*>(drive_.get()))
@@ -104,8 +235,9 @@ void Simulator::setProfile(std::shared_ptr<const CommandProfile> profile, EventS
   auto* sampled = dynamic_cast<SampledDrive*>(drive_.get());
   if (profile)
   {
-    profile->requireTakenBy(sampled != nullptr);
+    profile->requireTakenBy(sampled != nullptr, params().hasDryFriction());
   }
+  leaveFrame();
   profile_ = std::move(profile);
   stepped_ = profile_ && sampled == nullptr;
   if (sampled != nullptr)
@@ -116,8 +248,7 @@ void Simulator::setProfile(std::shared_ptr<const CommandProfile> profile, EventS
   }
   if (stepped_)
   {
-    next_change_ = profile_->nextChange(state().time);
-    applyCommand(profile_->at(state().time), sink);
+    applyPiece(plant_.state().time, sink);
   }
 }
 
@@ -150,35 +281,53 @@ void Simulator::setMotorTorque(double torque, EventSink* sink)
 void Simulator::setParams(const ServoParams& params, EventSink* sink)
 {
   params.validate();
+  const double v = frame_rate_;
+  if (v != 0.0 && params.hasDryFriction())
+  {
+    throw InvalidParameterError("profile",
+                                "dry friction while the continuous law runs a ramp (set it before or after "
+                                "the ramp, or use a digital drive)");
+  }
+  leaveFrame();
   drive_->configure(params);
   drive_->reevaluate(plant_.state());
   applyDriveLaw();
   plant_.setParams(params, sink);
+  if (v != 0.0)
+  {
+    enterFrame(v);  // the ramp goes on in the frame of the new parameters
+  }
 }
 
 void Simulator::advanceTo(double t_end, EventSink* sink)
 {
-  if (!(t_end >= state().time) || !std::isfinite(t_end))
+  const double now = plant_.state().time;
+  if (!(t_end >= now) || !std::isfinite(t_end))
   {
     throw std::invalid_argument("advanceTo: target time " + std::to_string(t_end) + " s is before the current time " +
-                                std::to_string(state().time) + " s or not finite");
+                                std::to_string(now) + " s or not finite");
   }
   while (stepped_ && next_change_ <= t_end)
   {
     const double change = next_change_;
     advanceDriveTo(change, sink);
-    next_change_ = profile_->nextChange(change);
-    applyCommand(profile_->at(change), sink);  // a step of θ_R at its known instant
+    leaveFrame();
+    applyPiece(change, sink);  // a step of θ_R, or a ramp's start or end, at its known instant
   }
   advanceDriveTo(t_end, sink);
 }
 
 void Simulator::advanceDriveTo(double t_end, EventSink* sink)
 {
-  while (state().time < t_end)
+  FrameSink framed(sink, frame_rate_, params().gear_ratio, frame_start_, motor_bias_);
+  if (frame_rate_ != 0.0 && sink != nullptr)
   {
-    const double next = drive_->nextEventTime(state().time);
-    if (next <= state().time)
+    sink = &framed;
+  }
+  while (plant_.state().time < t_end)
+  {
+    const double next = drive_->nextEventTime(plant_.state().time);
+    if (next <= plant_.state().time)
     {
       takeSample();  // a sample due now (at a step boundary)
       continue;

@@ -34,7 +34,7 @@ void checkProfile(const RunConfig& config)
 {
   if (config.profile)
   {
-    config.profile->requireTakenBy(config.drive.sampled());
+    config.profile->requireTakenBy(config.drive.sampled(), config.params.hasDryFriction());
   }
 }
 
@@ -114,6 +114,16 @@ RunSummary runResponse(const RunConfig& config, EventSink* sink, double sample_p
   out.maxima = monitor.maxima();
   out.impacts = sim.impactCount();
   out.energy = sim.energy();
+  if (!sim.energyValid())
+  {
+    // A ramp of the continuous law ran in its moving frame: the plant's ledger is the frame's, not the joint's.
+    for (double* f : {&out.energy.input, &out.energy.motor_friction, &out.energy.load_friction, &out.energy.impact_loss,
+                      &out.energy.load_work, &out.energy.motor_dry_friction, &out.energy.load_dry_friction,
+                      &out.energy.input_magnitude, &out.energy.initial_kinetic})
+    {
+      *f = NAN;
+    }
+  }
   out.kinetic = sim.kineticEnergy();
   out.balance_error = sim.energyBalanceError();
   out.final_state = sim.state();

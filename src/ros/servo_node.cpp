@@ -378,6 +378,12 @@ void ServoNode::publishSample()
   b.energy_motor_dry_friction = e.motor_dry_friction;
   b.energy_load_dry_friction = e.load_dry_friction;
   b.energy_load_work = e.load_work;
+  if (!sim_.energyValid())
+  {
+    // A ramp of the continuous law ran in its moving frame: the ledger is the frame's (NaN: unknown; ~reset restores).
+    b.energy_input = b.energy_motor_friction = b.energy_load_friction = b.energy_impact_loss =
+        b.energy_motor_dry_friction = b.energy_load_dry_friction = b.energy_load_work = NAN;
+  }
   b.energy_kinetic = sim_.kineticEnergy();
   b.impacts = sim_.impactCount();
   state_pub_.publish(b);
@@ -641,17 +647,11 @@ void ServoNode::onTrajectory(const trajectory_msgs::JointTrajectory& msg)
       s.target = point.positions[j];
       s.kind = t > previous ? ProfileSegment::Kind::Ramp : ProfileSegment::Kind::Step;
       s.duration = t - previous;  // linear interpolation from the previous point (the first: from the set-point)
-      if (t > previous && !config_.run.drive.sampled())
-      {
-        throw ConfigError(
-            "the continuous law takes steps only (points with equal time_from_start); interpolated trajectories "
-            "are sampled by a digital drive: set controller_rate > 0 Hz");
-      }
       segments.push_back(s);
       previous = t;
     }
     auto profile = std::make_shared<CommandProfile>(from, segments);
-    sim_.setProfile(profile);  // throws before changing anything if the drive cannot take it
+    sim_.setProfile(profile);  // throws before changing anything if the law cannot take it (ramps with dry friction)
     profile_ = profile;
     command_ = profile_->finalValue();
     ROS_INFO("backlash_servo_node: command_trajectory: %zu points from t = %.6g s to %.6g s, final %g rad",

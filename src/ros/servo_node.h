@@ -47,7 +47,8 @@ class ServoNode : public EventSink
 
   void onCommand(const std_msgs::Float64& msg);
   /// command_trajectory: the load joint's points → a profile of ramps (steps where time_from_start repeats),
-  /// starting from the set-point in force; the continuous law takes steps only. Bad messages: ROS_ERROR, dropped.
+  /// starting from the set-point in force (the continuous law: not with dry friction). Bad messages: ROS_ERROR,
+  /// dropped.
   void onTrajectory(const trajectory_msgs::JointTrajectory& msg);
   void onEffort(const std_msgs::Float64& msg);
   /// External load torque T_ext [N·m] from now on (a disturbance input); validated, reflected in reconfigure.

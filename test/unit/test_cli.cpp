@@ -169,7 +169,10 @@ TEST(Cli, BadInputIsOneClearLineAndExitCode2)
       {"--profile " + profile("kind", "- jump: {time: 0, target: 1}"), "'jump'"},
       {"--profile " + profile("nocsv", "- points: {time: 0, csv: /nonexistent.csv}"), "cannot read"},
       {"--profile /nonexistent.csv", "cannot read"},
-      {"--profile " + profile("ramp", "- ramp: {time: 0, target: 1, duration: 2}"), "controller_rate"}};
+      {"--profile " + profile("sine", "- sine: {time: 0, amplitude: 0.1, frequency: 1, duration: 2}"),
+       "controller_rate"},
+      {"--profile " + profile("ramp", "- ramp: {time: 0, target: 1, duration: 2}") + " --load-coulomb-friction 0.01",
+       "dry friction"}};
   for (const Case& c : cases)
   {
     const std::string csv = "/tmp/backlash_sim_never.csv";
