@@ -56,6 +56,16 @@ Simulator& Simulator::operator=(const Simulator& other)
 
 namespace
 {
+/// A state of the frame moving at v [rad/s] (motor: vm = v/ρ) since t_a [s], in the joint's angles.
+void toJointFrame(State* s, double v, double vm, double t_a)
+{
+  const double tau = s->time - t_a;
+  s->load_position += v * tau;
+  s->load_velocity += v;
+  s->motor_position += vm * tau;
+  s->motor_velocity += vm;
+}
+
 /// Events of a plant running in a ramp's frame, converted to the joint's (maxima of the frame are dropped).
 class FrameSink : public EventSink
 {
@@ -71,10 +81,7 @@ class FrameSink : public EventSink
     }
     Event c = e;
     const double tau = c.state.time - t_a_;
-    c.state.load_position += v_ * tau;
-    c.state.load_velocity += v_;
-    c.state.motor_position += vm_ * tau;
-    c.state.motor_velocity += vm_;
+    toJointFrame(&c.state, v_, vm_, t_a_);
     // a − b − k y_c = (a − b + k v τ) − k θ_c: the law in the joint's angles, without the frame's friction bias.
     c.law.offset += -bias_ + c.law.stiffness * v_ * tau;
     next_->onEvent(c);
@@ -91,12 +98,7 @@ State Simulator::state() const
   State s = plant_.state();
   if (frame_rate_ != 0.0)
   {
-    const double tau = s.time - frame_start_;
-    const double vm = frame_rate_ / true_params_.gear_ratio;
-    s.load_position += frame_rate_ * tau;
-    s.load_velocity += frame_rate_;
-    s.motor_position += vm * tau;
-    s.motor_velocity += vm;
+    toJointFrame(&s, frame_rate_, frame_rate_ / true_params_.gear_ratio, frame_start_);
   }
   return s;
 }
