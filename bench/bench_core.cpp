@@ -134,8 +134,8 @@ JointCase robotJoint(double duration)
 void jointBenchmarks(double scale)
 {
   std::printf("\n== the real joint: digital drives (energy ledger off)\n");
-  std::printf("%-22s %9s %11s %10s %9s %9s %8s\n", "case", "sim [s]", "wall [ms]", "samples", "ns/sample", "impacts",
-              "rests");
+  std::printf("%-22s %9s %11s %10s %9s %9s %8s %8s\n", "case", "sim [s]", "wall [ms]", "samples", "ns/sample",
+              "impacts", "rests", "held %");
   JointCase d1;
   d1.name = "d1_p_1kHz";
   d1.drive.controller_rate = 1000.0;
@@ -144,6 +144,7 @@ void jointBenchmarks(double scale)
   for (const JointCase& c : {robotJoint(1000.0 * scale), d1})
   {
     long impacts = 0, rests = 0;
+    double held = 0.0;  // samples taken in blocks through stick phases
     struct Count : EventSink
     {
       long* impacts;
@@ -162,10 +163,11 @@ void jointBenchmarks(double scale)
       sim.setDrive(makePositionDrive(c.drive, c.params.gain, c.params.gear_ratio, c.command, 0.0));
       sim.setEnergyTracking(false);
       sim.advanceTo(c.duration, &count);
+      held = static_cast<double>(sim.heldSamples());
     });
     const double samples = c.duration * c.drive.controller_rate;
-    std::printf("%-22s %9.0f %11.3f %10.0f %9.0f %9ld %8ld\n", c.name.c_str(), c.duration, wall * 1e3, samples,
-                wall * 1e9 / samples, impacts, rests);
+    std::printf("%-22s %9.0f %11.3f %10.0f %9.0f %9ld %8ld %8.1f\n", c.name.c_str(), c.duration, wall * 1e3, samples,
+                wall * 1e9 / samples, impacts, rests, 100.0 * held / samples);
   }
 }
 

@@ -86,6 +86,15 @@ class Drive
   /// What the controller read at its latest sample: quantised motor angle on the motor shaft and load angle [rad].
   /// False for a continuous law (it reads nothing at instants).
   virtual bool readings(double* /*motor*/, double* /*load*/) const { return false; }
+  /// The fast path through a stick phase: the plant holds `state` (nothing moves) and would stay held under any
+  /// motor torque in [lo, hi] [N·m]. Takes the drive's samples at instants before `until` [s], at most `max_count`,
+  /// exactly as sample(state) at each would, and stops after the first whose torque leaves [lo, hi]. Returns how
+  /// many it took and the instant of the last in *last [s]. 0: not supported (the caller samples one by one).
+  virtual long holdSamples(const State& /*state*/, double /*until*/, double /*lo*/, double /*hi*/, long /*max_count*/,
+                           double* /*last*/)
+  {
+    return 0;
+  }
 };
 
 /**
@@ -170,6 +179,7 @@ class SampledDrive : public Drive
   /// The integrator moved beyond rounding at the latest sample (pid, cascade).
   bool winding() const override { return winding_; }
   bool sampled() const override { return true; }
+  long holdSamples(const State& state, double until, double lo, double hi, long max_count, double* last) override;
   bool readings(double* motor, double* load) const override
   {
     *motor = qm_prev_;  // q(θ_m) of the latest sample (kept for the next velocity estimate)

@@ -27,7 +27,8 @@ enum class Verdict
   Undecided,   ///< not enough evidence yet
   LimitCycle,  ///< maxima settled to a fixed point above the command
   Irregular,   ///< sustained oscillation whose maxima never settle (quasi-periodic or chaotic), no decay
-  Converged    ///< maxima decay to the command (or stopped, with the servo at rest)
+  Converged,   ///< maxima decay to the command (or stopped, with the servo at rest)
+  Diverged     ///< the motion ran away (an unstable loop): set by runResponse when the plant stops it
 };
 
 const char* toString(Verdict v);

@@ -75,6 +75,16 @@ class EventBudgetExceeded : public std::runtime_error
   using std::runtime_error::runtime_error;
 };
 
+/// The motion ran away (an unstable loop, e.g. a digital drive's gains beyond its stability limit): the state left
+/// the bounds within which the closed forms are meaningful (|θ_c|, |ρθ_m| ≤ 1e9 rad; |ω_c|, |ρω_m| ≤ 1e14 rad/s,
+/// 1000× the validated envelope of the README) or became non-finite. Stopped instead of computing with overflowing
+/// numbers.
+class MotionDiverged : public std::domain_error
+{
+ public:
+  using std::domain_error::domain_error;
+};
+
 /// Cumulative energy terms since the start (or the last reset) [J].
 struct EnergyLedger
 {
@@ -136,6 +146,13 @@ class Plant
            segment_->start.time + segment_->end_tau > t && t >= state_.time;
   }
   void holdTo(double t) { state_.time = t; }
+  /// While holdsThrough(): an interval [*lo, *hi] of motor torques [N·m] under which the rest rule still holds both
+  /// bodies (and the contact) with the state as it is, and *until [s], the end of the stick segment. The set of
+  /// such torques is an interval (every test in decideAtRest() is monotone in the torque), found exactly:
+  /// candidates for its ends are the static bands ±S_m and the pair's ±(ρS_m + ρ²S_L) − ρ²τ_L referred to the
+  /// motor; each is confirmed by decideAtRest() itself, pulled 1e-9 towards the present torque. False when the rule
+  /// does not apply (no segment held, a forced breakaway pending, or the present torque not held).
+  bool heldTorqueRange(double* lo, double* hi, double* until) const;
   /// Re-expresses the state in a frame moving relative to the present one (the continuous law's ramps, see
   /// Simulator): load angle and velocity + dx_load [rad], dv_load [rad/s], motor ones + dx_motor, dv_motor; the
   /// closed form restarts there. The caller keeps gap, contact and parameters consistent with the new frame.
@@ -212,6 +229,8 @@ class Plant
   void addFlows(const EnergyFlows& flows);
   /// Builds the segment starting at the current state (after checking a contact still holds).
   void beginSegment();
+  /// Throws MotionDiverged when the state is beyond the bounds of the closed forms (or not finite).
+  void requireBounded() const;
   /// Dry friction: the rest rule and the contact check at the current state; the slide directions go to *motor and
   /// *load. A contact that no longer holds is left (Separation emitted).
   void chooseDryMode(EventSink* sink, Slide* motor, Slide* load);

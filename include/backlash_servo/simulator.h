@@ -89,6 +89,9 @@ class Simulator
   /// input − friction − impact losses − (kinetic − initial kinetic) [J]; zero up to rounding.
   double energyBalanceError() const { return energy_valid_ ? plant_.energyBalanceError() : NAN; }
   std::uint64_t impactCount() const { return plant_.impactCount(); }
+  /// Controller samples taken through stick phases in blocks (the digital drive's fast path, holdSamples()): a
+  /// figure for benchmarks and tests.
+  std::uint64_t heldSamples() const { return held_samples_; }
   /// At most this many impacts and, separately, this many drive samples (0 = no limit); one more throws
   /// EventBudgetExceeded (an impact storm, or a sampled loop asked for billions of samples).
   void setEventBudget(std::uint64_t max_events)
@@ -100,6 +103,9 @@ class Simulator
  private:
   /// The drive's current law and watch interval to the plant.
   void applyDriveLaw();
+  /// A stick phase under a digital drive: the drive takes its samples before t_end [s] in one block while the held
+  /// torque keeps the joint held (Plant::heldTorqueRange); false when the fast path does not apply.
+  bool holdSamples(double t_end);
   /// One drive sample, counted against the event budget.
   void takeSample();
   /// θ_R = command [rad] for the position law now (setCommand without ending the profile).
@@ -125,6 +131,7 @@ class Simulator
   bool energy_valid_ = true;
   std::uint64_t event_budget_ = 0;
   std::uint64_t samples_ = 0;
+  std::uint64_t held_samples_ = 0;  // samples taken by holdSamples()
   SampleObserver sample_observer_;
 };
 

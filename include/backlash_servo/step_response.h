@@ -47,9 +47,10 @@ struct RunSummary
   State final_state;
   double simulated = 0.0;  ///< simulated time [s]
   bool settled = false;    ///< the verdict was settled (not cut off by the duration or the cap)
-  /// Why the run ended: "settled", "duration" (the requested length), "max_duration" (the cap), "event_budget".
+  /// Why the run ended: "settled", "duration" (the requested length), "max_duration" (the cap), "event_budget",
+  /// "diverged" (the motion ran away: verdict Diverged).
   std::string stopped_by;
-  std::string message;  ///< for "event_budget": what was exceeded, where
+  std::string message;  ///< for "event_budget": what was exceeded, where; for "diverged": where the motion ran away
 };
 
 /// Called at every sample time (sample_period > 0) with the simulator positioned there.

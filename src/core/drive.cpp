@@ -289,4 +289,25 @@ void SampledDrive::sample(const State& s)
   ++next_;
 }
 
+long SampledDrive::holdSamples(const State& state, double until, double lo, double hi, long max_count, double* last)
+{
+  long taken = 0;
+  while (taken < max_count)
+  {
+    const double t = nextEventTime(0.0);
+    if (!(t < until))
+    {
+      break;
+    }
+    sample(state);
+    ++taken;
+    *last = t;
+    if (!(held_ >= lo && held_ <= hi))
+    {
+      break;  // this torque may move the joint: the caller applies it through the rest rule
+    }
+  }
+  return taken;
+}
+
 }  // namespace backlash_servo

@@ -15,6 +15,8 @@ const char* toString(Verdict v)
       return "converged";
     case Verdict::Irregular:
       return "irregular_oscillation";
+    case Verdict::Diverged:
+      return "diverged";
     default:
       return "undecided";
   }

@@ -1,6 +1,7 @@
 #include "backlash_servo/plant.h"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdio>
 #include <initializer_list>
@@ -145,6 +146,56 @@ void Plant::setLaw(const MotorInput& law)
     }
   }
   segment_.reset();
+}
+
+bool Plant::heldTorqueRange(double* lo, double* hi, double* until) const
+{
+  if (!dry_ || forced_motor_breakaway_ != 0 || !segment_ || !segment_->stuck || segment_->motor_slide != 0 ||
+      segment_->load_slide != 0)
+  {
+    return false;
+  }
+  auto held = [&](double torque) {
+    const RestDecision d = decideAtRest(params_, torque, state_);
+    return d.motor == 0 && d.load == 0 && d.contact == state_.contact;
+  };
+  const double now = law_.torque(state_.load_position);
+  if (!held(now))
+  {
+    return false;
+  }
+  const double rho = params_.gear_ratio;
+  const double pair = (rho * params_.motor_static_friction + rho * rho * params_.load_static_friction) / rho;
+  const double preload = rho * params_.load_torque;  // ρ²τ_L referred to the motor shaft
+  std::array<double, 4> ends = {-params_.motor_static_friction, params_.motor_static_friction, -pair - preload,
+                                pair - preload};
+  std::sort(ends.begin(), ends.end());
+  const auto inside = [now](double end) { return end - 1e-9 * (end - now); };  // pulled towards the torque now
+  *lo = *hi = now;
+  for (double end : ends)  // ascending: the ends above the torque now, nearest first
+  {
+    if (end > now)
+    {
+      if (!held(inside(end)))
+      {
+        break;
+      }
+      *hi = inside(end);
+    }
+  }
+  for (auto it = ends.rbegin(); it != ends.rend(); ++it)  // descending: the ends below
+  {
+    if (*it < now)
+    {
+      if (!held(inside(*it)))
+      {
+        break;
+      }
+      *lo = inside(*it);
+    }
+  }
+  *until = segment_->start.time + segment_->end_tau;
+  return true;
 }
 
 void Plant::setParams(const ServoParams& params, EventSink* sink)
@@ -356,8 +407,28 @@ void Plant::visitMotion(const Segment& seg, F&& f)
   }
 }
 
+void Plant::requireBounded() const
+{
+  constexpr double MAX_ANGLE = 1e9;      // [rad]
+  constexpr double MAX_VELOCITY = 1e14;  // [rad/s]
+  const double rho = params_.gear_ratio;
+  const State& s = state_;
+  if (std::fabs(s.load_position) <= MAX_ANGLE && std::fabs(rho * s.motor_position) <= MAX_ANGLE &&
+      std::fabs(s.load_velocity) <= MAX_VELOCITY && std::fabs(rho * s.motor_velocity) <= MAX_VELOCITY)
+  {
+    return;
+  }
+  char buf[256];
+  std::snprintf(buf, sizeof buf,
+                "the motion diverged at t = %.9g s (load %.3g rad, %.3g rad/s): the loop is unstable, or the run "
+                "left the validated envelope (README)",
+                s.time, s.load_position, s.load_velocity);
+  throw MotionDiverged(buf);
+}
+
 void Plant::beginSegment()
 {
+  requireBounded();
   const double period = period_;
   segment_.emplace();
   Segment& seg = *segment_;
@@ -450,6 +521,7 @@ void Plant::chooseDryMode(EventSink* sink, Slide* motor, Slide* load)
 
 void Plant::beginDrySegment(Slide motor, Slide load)
 {
+  requireBounded();
   const double period = period_;
   segment_.emplace();
   Segment& seg = *segment_;

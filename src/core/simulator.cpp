@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <stdexcept>
 #include <string>
 
@@ -186,6 +187,32 @@ void Simulator::takeSample()
   }
 }
 
+bool Simulator::holdSamples(double t_end)
+{
+  double lo, hi, until;
+  if (sample_observer_ || motor_bias_ != 0.0 || !plant_.heldTorqueRange(&lo, &hi, &until))
+  {
+    return false;  // an observer sees every sample; the frames of ramps belong to the continuous law
+  }
+  const long left = event_budget_ == 0          ? std::numeric_limits<long>::max()
+                    : samples_ >= event_budget_ ? 0
+                                                : static_cast<long>(event_budget_ - samples_);
+  double last = 0.0;
+  const long taken = drive_->holdSamples(plant_.state(), std::min(t_end, until), lo, hi, left, &last);
+  if (taken == 0)
+  {
+    return false;
+  }
+  if (event_budget_ != 0)
+  {
+    samples_ += taken;
+  }
+  held_samples_ += taken;
+  plant_.holdTo(last);
+  applyDriveLaw();  // the last torque: the rest rule decides whether the joint breaks away
+  return true;
+}
+
 void Simulator::applyDriveLaw()
 {
   MotorInput law = drive_->law();
@@ -337,8 +364,11 @@ void Simulator::advanceDriveTo(double t_end, EventSink* sink)
     const bool sample_due = next < t_end;
     if (sample_due && plant_.holdsThrough(next))
     {
-      plant_.holdTo(next);  // a stick phase: nothing moves until the sample
-      takeSample();
+      if (!holdSamples(t_end))
+      {
+        plant_.holdTo(next);  // a stick phase: nothing moves until the sample
+        takeSample();
+      }
       continue;
     }
     plant_.setSearchHorizon(next);

@@ -90,6 +90,12 @@ RunSummary runResponse(const RunConfig& config, EventSink* sink, double sample_p
       out.message = e.what();
       break;
     }
+    catch (const MotionDiverged& e)
+    {
+      out.stopped_by = "diverged";
+      out.message = e.what();
+      break;
+    }
     if (on_sample && sample_period > 0.0)
     {
       on_sample(sim);
@@ -111,6 +117,10 @@ RunSummary runResponse(const RunConfig& config, EventSink* sink, double sample_p
     }
   }
   out.status = monitor.status();
+  if (out.stopped_by == "diverged")
+  {
+    out.status.verdict = Verdict::Diverged;
+  }
   out.maxima = monitor.maxima();
   out.impacts = sim.impactCount();
   out.energy = sim.energy();

@@ -85,6 +85,7 @@ Evaluation evaluate(const Design& d, double tuned, double rho)
   try
   {
     e.run = runResponse(c);
+    e.diverged = e.run.status.verdict == Verdict::Diverged;
   }
   catch (const std::domain_error&)
   {

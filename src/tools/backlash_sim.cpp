@@ -181,6 +181,10 @@ void writeSummary(std::ostream& out, const RunConfig& c, const RunSummary& r, do
   {
     std::snprintf(buf, sizeof buf, "verdict: converges to the command (no limit cycle)\n");
   }
+  else if (r.status.verdict == Verdict::Diverged)
+  {
+    std::snprintf(buf, sizeof buf, "verdict: DIVERGED after %g s (the loop is unstable)\n", r.simulated);
+  }
   else
   {
     if (r.maxima.size() >= 3)
@@ -260,7 +264,7 @@ int main(int argc, char** argv)
     {
       csv_file->commit();
     }
-    if (result.stopped_by == "event_budget")
+    if (result.stopped_by == "event_budget" || result.stopped_by == "diverged")
     {
       std::cerr << "backlash_sim: stopped: " << result.message << "\n";
     }

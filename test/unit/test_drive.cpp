@@ -194,3 +194,35 @@ TEST(Drive, ContinuousTorqueLimitSwitchesExactlyAtTheBandEdges)
   EXPECT_LE(std::fabs(r.balance_error), 1e-12 * r.energy.input);
 }
 }  // namespace
+
+// A loop beyond its stability limit is reported "diverged" where the motion leaves the closed forms' bounds (it used
+// to be computed on into overflowing numbers, NaN, or a stack overflow in the root isolation). Truth: a rigid,
+// frictionless joint (Δ = 0, f = 0) under a sampled P law is the ZOH double integrator
+// (z − 1)² + (a/2)(z + 1) = 0, a = K T²/J: roots of modulus r = √(1 + a/2) at angle φ, cos φ = (2 − a/2)/(2r), so the
+// swing grows by r^{2π/φ} per oscillation.
+TEST(Drive, AnUnstableLoopIsReportedDivergedWithItsGrowthRate)
+{
+  ServoParams p;
+  p.motor_inertia = 1.0;
+  p.load_inertia = 1.0;
+  p.motor_friction = 0.0;
+  p.load_friction = 0.0;
+  p.backlash = 0.0;
+  p.gain = 10.0;
+  DriveParams d;
+  d.controller_rate = 10.0;
+  const RunSummary r = run(d, 1000.0, p);
+  EXPECT_EQ(r.status.verdict, Verdict::Diverged);
+  EXPECT_EQ(r.stopped_by, "diverged");
+  EXPECT_NE(r.message.find("the motion diverged"), std::string::npos) << r.message;
+  EXPECT_LT(r.simulated, 1000.0);
+  EXPECT_GT(std::fabs(r.final_state.load_position), 1e8);
+  const double a = p.gain * 0.01 / 2.0, radius = std::sqrt(1.0 + a / 2.0);
+  const double phi = std::acos((2.0 - a / 2.0) / (2.0 * radius));
+  const double growth = std::pow(radius, 2.0 * M_PI / phi);
+  ASSERT_GE(r.maxima.size(), 30u);
+  const std::size_t n = r.maxima.size();
+  const double measured = std::pow((r.maxima[n - 1].position - 1.0) / (r.maxima[n - 21].position - 1.0), 1.0 / 20.0);
+  EXPECT_NEAR(measured / growth, 1.0, 0.01) << measured << " vs " << growth;
+  EXPECT_STREQ(toString(r.status.verdict), "diverged");
+}

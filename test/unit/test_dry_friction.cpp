@@ -5,6 +5,7 @@
 
 #include <cmath>
 #include <random>
+#include <string>
 
 #include "backlash_servo/drive.h"
 #include "backlash_servo/simulator.h"
@@ -206,6 +207,126 @@ TEST(DryFriction, EnergyBalanceClosesOnRandomJoints)
     EXPECT_LE(g, p.backlash + 1e-9) << "case " << i;
   }
   EXPECT_GT(sticks, 100);  // the sample really exercised rests and breakaways
+}
+
+// The digital drive's fast path through stick phases (samples taken in blocks while the rest rule keeps holding the
+// joint) is exactly the sample-by-sample path: a sample observer forces the latter. Random dry joints, every law,
+// delay, encoders, torque limits, preloads and compensators; events, final state, ledger and the event budget equal
+// to the bit.
+TEST(DryFriction, StickPhasesInBlocksAreTheSampleBySamplePathBitForBit)
+{
+  std::mt19937_64 rng(11);
+  std::uniform_real_distribution<double> u01(0.0, 1.0);
+  auto logu = [&](double lo, double hi) { return lo * std::pow(hi / lo, u01(rng)); };
+  std::uint64_t blocked = 0, samples = 0;
+  int budget_cases = 0;
+  for (int i = 0; i < 120; ++i)
+  {
+    ServoParams p;
+    p.motor_inertia = logu(1e-4, 1.0);
+    p.load_inertia = logu(0.01, 1.0);
+    p.motor_friction = u01(rng) < 0.2 ? 0.0 : logu(1e-4, 1.0);
+    p.load_friction = u01(rng) < 0.2 ? 0.0 : logu(0.01, 1.0);
+    p.gear_ratio = u01(rng) < 0.3 ? 0.01 : logu(0.5, 2.0);
+    p.gain = logu(0.3, 3.0) / p.gear_ratio;
+    p.backlash = u01(rng) < 0.15 ? 0.0 : logu(0.001, 0.3);
+    p.restitution = std::vector<double>{0.0, 0.5, 0.8}[i % 3];
+    p.load_torque = u01(rng) < 0.5 ? 0.0 : 0.4 * (u01(rng) - 0.5);
+    p.motor_coulomb_friction = 0.05 * u01(rng) * (u01(rng) < 0.2 ? 0.0 : 1.0);
+    p.motor_static_friction = p.motor_coulomb_friction * (1.0 + u01(rng));
+    p.load_coulomb_friction = 0.3 * u01(rng);
+    p.load_static_friction = p.load_coulomb_friction * (1.0 + u01(rng));
+    DriveParams d;
+    d.controller_rate = std::vector<double>{100.0, 1000.0}[i % 2];
+    d.control_law = std::vector<std::string>{"proportional", "pid", "cascade"}[i % 3];
+    d.integral_gain = 0.5 * p.gain;
+    d.derivative_gain = 0.05 * p.gain;
+    d.position_loop_gain = logu(2.0, 20.0);
+    d.velocity_loop_gain = logu(0.05, 0.5) * p.gain;
+    d.velocity_loop_integral_gain = 0.5 * d.velocity_loop_gain;
+    d.controller_delay = u01(rng) < 0.3 ? 1.0 : 0.0;
+    d.load_encoder_resolution = u01(rng) < 0.3 ? 4096.0 : 0.0;
+    d.motor_encoder_resolution = u01(rng) < 0.3 ? 1024.0 : 0.0;
+    d.torque_limit = u01(rng) < 0.3 ? 0.5 * p.gain * 0.3 : 0.0;
+    const double c = u01(rng);
+    d.compensation = c < 0.15 ? "dither" : c < 0.3 ? "friction_feedforward" : "none";
+    d.dither_amplitude = 0.02;
+    d.dither_frequency = 37.0;
+    d.compensation_friction = p.load_coulomb_friction * p.gear_ratio;
+    try
+    {
+      p.validate();
+      d.validate();
+    }
+    catch (const InvalidParameterError&)
+    {
+      continue;  // outside the validated envelope
+    }
+    const std::uint64_t budget = i % 10 == 0 ? 600 : 0;  // one case in ten runs out of samples midway
+    struct Outcome
+    {
+      test_helpers::Recorder rec;
+      State state;
+      double balance = 0.0;
+      std::string error;
+      std::uint64_t blocked = 0;
+    };
+    auto run = [&](bool observe) {
+      Outcome o;
+      Simulator sim(p, State(), 0.3);
+      sim.setDrive(makePositionDrive(d, p.gain, p.gear_ratio, 0.3, 0.0));
+      sim.setEventBudget(budget);
+      if (observe)
+      {
+        sim.setSampleObserver([](const State&, const Drive&) {});
+      }
+      try
+      {
+        for (double t = 2.5; t <= 10.0; t += 2.5)
+        {
+          sim.advanceTo(t, &o.rec);
+        }
+      }
+      catch (const EventBudgetExceeded& e)
+      {
+        o.error = e.what();
+      }
+      catch (const MotionDiverged& e)
+      {
+        o.error = e.what();  // an unstable draw: both paths must run away identically
+      }
+      o.state = sim.state();
+      o.balance = sim.energyBalanceError();
+      o.blocked = sim.heldSamples();
+      return o;
+    };
+    const Outcome fast = run(false), slow = run(true);
+    EXPECT_EQ(slow.blocked, 0u);
+    blocked += fast.blocked;
+    samples += static_cast<std::uint64_t>(10.0 * d.controller_rate);
+    budget_cases += fast.error.find("event budget") != std::string::npos;
+    EXPECT_EQ(fast.error, slow.error) << "case " << i;
+    ASSERT_EQ(fast.rec.events.size(), slow.rec.events.size()) << "case " << i;
+    for (std::size_t k = 0; k < fast.rec.events.size(); ++k)
+    {
+      const Event &a = fast.rec.events[k], &b = slow.rec.events[k];
+      ASSERT_EQ(a.type, b.type) << "case " << i << " event " << k;
+      ASSERT_EQ(a.state.time, b.state.time) << "case " << i << " event " << k;
+      ASSERT_EQ(a.state.load_position, b.state.load_position) << "case " << i << " event " << k;
+      ASSERT_EQ(a.state.motor_velocity, b.state.motor_velocity) << "case " << i << " event " << k;
+    }
+    EXPECT_EQ(fast.state.time, slow.state.time) << "case " << i;
+    EXPECT_EQ(fast.state.load_position, slow.state.load_position) << "case " << i;
+    EXPECT_EQ(fast.state.motor_position, slow.state.motor_position) << "case " << i;
+    EXPECT_EQ(fast.state.load_velocity, slow.state.load_velocity) << "case " << i;
+    EXPECT_EQ(fast.state.contact, slow.state.contact) << "case " << i;
+    EXPECT_TRUE(fast.balance == slow.balance || (std::isnan(fast.balance) && std::isnan(slow.balance))) << "case " << i;
+  }
+  // The comparison means something: a good share of all samples went through blocks, and budgets ran out.
+  EXPECT_GT(blocked, samples / 5) << blocked << " of " << samples;
+  EXPECT_GE(budget_cases, 8);
+  std::printf("%llu of %llu samples in blocks\n", static_cast<unsigned long long>(blocked),
+              static_cast<unsigned long long>(samples));
 }
 
 // All dry friction 0: the same trajectory to the last bit as without the keys (the dry code path is not taken).
