@@ -336,28 +336,44 @@ void ServoNode::diagnose(diagnostic_updater::DiagnosticStatusWrapper& status)
 
 void ServoNode::publishEncoders(const State& s, const Drive& drive)
 {
-  sensor_msgs::JointState js;
   double motor = 0.0, load = 0.0;
   if (!drive.readings(&motor, &load))
   {
     return;
   }
+  sensor_msgs::JointState& js = encoder_msg_;
+  setJointNames(&js);
   js.header.stamp = stamp(s.time);
-  js.name = {config_.motor_joint_name, config_.load_joint_name};
-  js.position = {motor, load};  // quantised readings q(θ_m) [rad, motor shaft] and q(θ_c) [rad]
+  js.position.resize(2);
+  js.position[0] = motor;  // quantised readings q(θ_m) [rad, motor shaft] and q(θ_c) [rad]
+  js.position[1] = load;
   encoder_pub_.publish(js);
+}
+
+void ServoNode::setJointNames(sensor_msgs::JointState* js) const
+{
+  if (js->name.size() != 2 || js->name[0] != config_.motor_joint_name || js->name[1] != config_.load_joint_name)
+  {
+    js->name = {config_.motor_joint_name, config_.load_joint_name};
+  }
 }
 
 void ServoNode::publishSample()
 {
   const State& s = sim_.state();
   const ros::Time now = stamp(s.time);
-  sensor_msgs::JointState js;
+  sensor_msgs::JointState& js = joint_msg_;
+  setJointNames(&js);
   js.header.stamp = now;
-  js.name = {config_.motor_joint_name, config_.load_joint_name};
-  js.position = {s.motor_position, s.load_position};
-  js.velocity = {s.motor_velocity, s.load_velocity};
-  js.effort = {sim_.motorTorque(), sim_.meshTorque()};
+  js.position.resize(2);
+  js.velocity.resize(2);
+  js.effort.resize(2);
+  js.position[0] = s.motor_position;
+  js.position[1] = s.load_position;
+  js.velocity[0] = s.motor_velocity;
+  js.velocity[1] = s.load_velocity;
+  js.effort[0] = sim_.motorTorque();
+  js.effort[1] = sim_.meshTorque();
   joint_pub_.publish(js);
   published_ += 2 + (clock_mode_ == ClockMode::Publisher ? 1 : 0);  // joint_states, backlash_state, /clock
 

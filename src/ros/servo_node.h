@@ -12,6 +12,7 @@
 #include <diagnostic_updater/diagnostic_updater.h>
 #include <dynamic_reconfigure/server.h>
 #include <ros/ros.h>
+#include <sensor_msgs/JointState.h>
 #include <std_msgs/Float64.h>
 #include <std_srvs/Trigger.h>
 #include <trajectory_msgs/JointTrajectory.h>
@@ -72,6 +73,8 @@ class ServoNode : public EventSink
   void drainBeforeExit(double wall);
   /// encoder_states: what a digital drive's controller read at its sample (quantised motor and load angles).
   void publishEncoders(const State& s, const Drive& drive);
+  /// joint_states / encoder_states carry the configured motor and load joint names (set only when they differ).
+  void setJointNames(sensor_msgs::JointState* js) const;
   /// /diagnostics through diagnostic_updater, every second of wall time (publishDiagnostics forces an update).
   void publishDiagnostics();
   /// The "simulation" task: OK while running, ERROR with the fault while a core error holds the simulation; values
@@ -98,6 +101,8 @@ class ServoNode : public EventSink
   Verdict announced_ = Verdict::Undecided;
 
   ros::Publisher joint_pub_, impact_pub_, state_pub_, limit_cycle_pub_, clock_pub_, encoder_pub_;
+  // The per-sample messages, kept so that a sample allocates nothing of its own (names and arrays are reused).
+  sensor_msgs::JointState joint_msg_, encoder_msg_;
   ros::Subscriber command_sub_, effort_sub_, load_torque_sub_, trajectory_sub_;
   ros::ServiceServer reset_srv_, pause_srv_, resume_srv_;
   boost::recursive_mutex reconfigure_mutex_;
