@@ -229,6 +229,10 @@ class Plant
   void addFlows(const EnergyFlows& flows);
   /// Builds the segment starting at the current state (after checking a contact still holds).
   void beginSegment();
+  /// Apart, on a wall, with the teeth closing beyond rounding (a state set there, e.g. a run's start): the impact is
+  /// now — 0 [s] and its wall in *wall; else +inf. (The closed form's search would find it only once the gap's
+  /// penetration exceeds the rounding bound of the positions, which slow, light motions may never reach.)
+  double impactNow(Contact* wall) const;
   /// Throws MotionDiverged when the state is beyond the bounds of the closed forms (or not finite).
   void requireBounded() const;
   /// Dry friction: the rest rule and the contact check at the current state; the slide directions go to *motor and

@@ -426,6 +426,27 @@ void Plant::requireBounded() const
   throw MotionDiverged(buf);
 }
 
+double Plant::impactNow(Contact* wall) const
+{
+  if (state_.contact != Contact::Apart)
+  {
+    return INFINITY;
+  }
+  const double g = mesh_.gap(state_.load_position, state_.motor_position);
+  const double v = state_.load_velocity, w = state_.motor_velocity;
+  const double rounding = 1e-12 * (std::fabs(v) + std::fabs(params_.gear_ratio * w));
+  for (Contact side : {Contact::Forward, Contact::Backward})
+  {
+    const bool on_wall = side == Contact::Forward ? g <= 0.0 : g >= params_.backlash;
+    if (on_wall && mesh_.closingSpeed(side, v, w) > rounding)
+    {
+      *wall = side;
+      return 0.0;
+    }
+  }
+  return INFINITY;
+}
+
 void Plant::beginSegment()
 {
   requireBounded();
@@ -465,7 +486,11 @@ void Plant::beginSegment()
   }
   Contact wall = Contact::Forward;
   const double search = searchWindow(window);
-  const double impact = seg.wide ? seg.wide->impactTime(search, &wall) : seg.free->impactTime(search, &wall);
+  double impact = impactNow(&wall);
+  if (impact != 0.0)
+  {
+    impact = seg.wide ? seg.wide->impactTime(search, &wall) : seg.free->impactTime(search, &wall);
+  }
   seg.end = impact <= search ? Segment::End::Impact : Segment::End::Restart;
   seg.end_tau = std::min(impact, search);
   seg.wall = wall;
@@ -574,7 +599,7 @@ void Plant::beginDrySegment(Slide motor, Slide load)
     foldKineticFriction(params_, law_, motor, load, &folded, &law);
     double impact, motor_rest = INFINITY, load_rest = INFINITY;
     auto search = [&](const auto& m) {
-      impact = m.impactTime(window, &wall);
+      impact = impactNow(&wall) == 0.0 ? 0.0 : m.impactTime(window, &wall);
       motor_rest = motor_dry ? m.restTime(true, motor, window) : INFINITY;
       load_rest = load_dry ? m.restTime(false, load, window) : INFINITY;
     };
@@ -597,7 +622,7 @@ void Plant::beginDrySegment(Slide motor, Slide load)
   const StuckMotion& m =
       seg.stuck.emplace(params_, law_, state_, motor_moves ? StuckMotion::Moving::Motor : StuckMotion::Moving::Load,
                         motor_moves ? motor : load);
-  const double impact = m.impactTime(window, &wall);
+  const double impact = impactNow(&wall) == 0.0 ? 0.0 : m.impactTime(window, &wall);
   seg.wall = wall;
   seg.rest_motor = motor_moves;
   const bool moving_dry = motor_moves ? motor_dry : load_dry;
@@ -653,6 +678,19 @@ void Plant::applyWatch(Segment& seg) const
 void Plant::placeInSegment(double tau, bool with_energy)
 {
   const Segment& seg = *segment_;
+  if (tau == 0.0)
+  {
+    // An event where the segment begins (e.g. an impact at once): the state is the start's, not the closed form's
+    // rounding-level re-evaluation of it.
+    const double t = state_.time;
+    state_ = seg.start;
+    state_.time = t;
+    if (track_energy_ && with_energy)
+    {
+      energy_ = seg.energy_at_start;
+    }
+    return;
+  }
   const double t = state_.time;
   visitMotion(seg, [&](const auto& m) {
     using M = std::decay_t<decltype(m)>;

@@ -208,10 +208,12 @@ inline Outcome check(const Case& c, std::uint64_t event_budget = 100000)
     // Advanced in 1000 steps, watching the largest kinetic energy (the energy scale of fast, high-gain loops whose
     // energy swings between the probes); the 17-piece run below must still end in the same state, bit for bit.
     double kinetic_max = whole.kineticEnergy();
+    double motor_torque_max = std::fabs(whole.motorTorque());
     for (int i = 1; i <= 1000; ++i)
     {
       whole.advanceTo(i == 1000 ? c.start.time + c.duration : c.start.time + c.duration * i / 1000.0, &watch);
       kinetic_max = std::max(kinetic_max, whole.kineticEnergy());
+      motor_torque_max = std::max(motor_torque_max, std::fabs(whole.motorTorque()));
     }
     const State& s = whole.state();
     if (!std::isfinite(s.load_position) || !std::isfinite(s.motor_position) || !std::isfinite(s.load_velocity) ||
@@ -237,16 +239,26 @@ inline Outcome check(const Case& c, std::uint64_t event_budget = 100000)
     }
     // The scale of the energies exchanged: the ledger's terms (the motor's work counted in magnitude per segment:
     // a sampled loop may pump energy in and out), the largest kinetic energy seen (at 1000 probes),
-    // and the energy stored in the P law's "spring" K(θ_R − θ_c)²/(2ρ) at both ends.
+    // the energy stored in the P law's "spring" K(θ_R − θ_c)²/(2ρ) at both ends, and the work scale of the torques:
+    // every work term is a torque times a displacement of angles known to rounding relative to the position scale,
+    // so the largest torque (motor torque seen at the probes, static frictions, load torque) times that scale
+    // bounds what rounding can make of them (a joint held by a 5 000 N·m stiction moving 1e-7 rad exchanges
+    // ~1e-7 J, but its angles carry 1e-16 rad of rounding each).
     const EnergyLedger& e = whole.energy();
     const MotorInput law = whole.plant().law();
     auto spring = [&](double x) {
       return law.stiffness > 0.0 ? law.torque(x) * law.torque(x) / (2.0 * law.stiffness * c.params.gear_ratio) : 0.0;
     };
-    const double energy_scale = std::max(
-        {std::fabs(e.input), std::fabs(e.load_work),
-         e.motor_friction + e.load_friction + e.impact_loss + e.motor_dry_friction + e.load_dry_friction,
-         e.initial_kinetic, whole.kineticEnergy(), spring(c.start.load_position), spring(s.load_position), 1e-300});
+    const double position_scale = std::max(
+        {std::fabs(c.start.load_position), std::fabs(s.load_position), std::fabs(c.command), c.params.backlash});
+    const double work_scale =
+        std::max(motor_torque_max, c.params.motor_static_friction) * position_scale / c.params.gear_ratio +
+        std::max(std::fabs(c.params.load_torque), c.params.load_static_friction) * position_scale;
+    const double energy_scale =
+        std::max({std::fabs(e.input), e.input_magnitude, kinetic_max, std::fabs(e.load_work),
+                  e.motor_friction + e.load_friction + e.impact_loss + e.motor_dry_friction + e.load_dry_friction,
+                  e.initial_kinetic, whole.kineticEnergy(), spring(c.start.load_position), spring(s.load_position),
+                  work_scale, 1e-300});
     if (std::fabs(whole.energyBalanceError()) > 1e-9 * energy_scale)
     {
       std::ostringstream d;

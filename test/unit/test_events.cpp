@@ -2,6 +2,7 @@
 // steps, Zeno sequences end in contact at the analytic accumulation time, elastic teeth do not chatter forever.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <vector>
 
@@ -317,4 +318,67 @@ TEST(Events, RoundingLevelPenetrationAfterSeparationDoesNotStall)
   RunConfig settle = c;
   settle.duration = 0.0;
   EXPECT_EQ(runResponse(settle).status.verdict, Verdict::LimitCycle);
+}
+
+// A state set apart on a wall with the teeth closing collides at once (fuzz seed 4 #1175): slow, light motions
+// penetrate the wall by less than the rounding bound of their closed forms, so the search alone missed the impact
+// and the gap ran to −6e-12 rad before a rest. Truth: the impact is at t = 0 with the initial closing speed
+// ρω_m − ω_c (e = 0: the teeth then move together), and the gap never leaves [0, Δ] afterwards. With and without
+// dry friction, on both walls.
+TEST(Events, AStartOnAWallWithTheTeethClosingCollidesAtOnce)
+{
+  for (bool dry : {true, false})
+  {
+    for (Contact side : {Contact::Forward, Contact::Backward})
+    {
+      ServoParams p;
+      p.motor_inertia = 0.0057774582019258763;
+      p.load_inertia = 0.017059847633572687;
+      p.motor_friction = 6.9150430185100522e-07;
+      p.load_friction = 0.00033017955136067033;
+      p.gain = 1.0933114040029365e-06;
+      p.gear_ratio = 0.073468162407119203;
+      p.backlash = 0.0031987871432082129;
+      p.restitution = 0.0;
+      if (dry)
+      {
+        p.motor_coulomb_friction = p.motor_static_friction = 2.5364334251130444e-07;
+        p.load_coulomb_friction = 7.7876648399855584e-08;
+        p.load_static_friction = 1.1681497259978338e-07;
+      }
+      State s;
+      s.contact = Contact::Apart;
+      s.load_velocity = 3.4556385326083573e-08;
+      s.motor_velocity = 1.1872099363839593e-06;  // ρω_m = 8.7e-8 rad/s: the motor catches up with the load
+      const GearMesh mesh(p);
+      s.motor_position = mesh.motorPosition(0.0, side == Contact::Forward ? 0.0 : p.backlash);
+      if (side == Contact::Backward)
+      {
+        s.load_velocity = 1.1872099363839593e-06 * p.gear_ratio;  // the load runs into the motor's backward flank
+        s.motor_velocity = 3.4556385326083573e-08 / p.gear_ratio;
+      }
+      const double closing = mesh.closingSpeed(side, s.load_velocity, s.motor_velocity);
+      ASSERT_GT(closing, 0.0);
+      Simulator sim(p, s, -15.711913504728198);
+      test_helpers::Recorder rec;
+      double worst = 0.0;
+      for (int i = 1; i <= 200; ++i)
+      {
+        sim.advanceTo(0.01 * i, &rec);
+        const double g = sim.gap();
+        worst = std::max({worst, -g, g - p.backlash});
+      }
+      const std::vector<Event> impacts = rec.of(EventType::Impact);
+      ASSERT_FALSE(impacts.empty()) << "dry " << dry << " side " << static_cast<int>(side);
+      EXPECT_EQ(impacts.front().state.time, 0.0);
+      EXPECT_NEAR(impacts.front().impact.approach_speed, closing, 1e-12 * closing);
+      EXPECT_EQ(impacts.front().impact.wall, side);
+      for (const Event& e : rec.events)
+      {
+        const double g = mesh.gap(e.state.load_position, e.state.motor_position);
+        worst = std::max({worst, -g, g - p.backlash});
+      }
+      EXPECT_LE(worst, 1e-15) << "dry " << dry << " side " << static_cast<int>(side);
+    }
+  }
 }
