@@ -165,8 +165,10 @@ class Plant
     segment_.reset();
   }
 
-  /// See Simulator::setParams. Throws InvalidParameterError, keeping the old ones.
-  void setParams(const ServoParams& params, EventSink* sink);
+  /// See Simulator::setParams. Throws InvalidParameterError, keeping the old ones. `frame`: the parameters of a
+  /// moving frame (Simulator's ramps), derived from validated ones — the frame's constant torques (f_L·v) are not
+  /// user inputs and are not held to the load_torque key's range.
+  void setParams(const ServoParams& params, EventSink* sink, bool frame = false);
   /// Replaces the state (validated: finite, gap within [0, Δ], contact consistent); resets the energy ledger.
   void setState(const State& state);
   /**

@@ -198,9 +198,12 @@ bool Plant::heldTorqueRange(double* lo, double* hi, double* until) const
   return true;
 }
 
-void Plant::setParams(const ServoParams& params, EventSink* sink)
+void Plant::setParams(const ServoParams& params, EventSink* sink, bool frame)
 {
-  params.validate();
+  if (!frame)
+  {
+    params.validate();
+  }
   segment_.reset();  // the closed form restarts from the state now
   const double balance_before = energyBalanceError();
   const double old_gap = gap();

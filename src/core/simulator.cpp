@@ -124,7 +124,7 @@ void Simulator::enterFrame(double v)
   plant_.shiftFrame(0.0, -v, 0.0, -v / rho);
   ServoParams p = true_params_;
   p.load_torque -= p.load_friction * v;  // J_L ÿ + f_L ẏ = Q + T_ext − f_L v
-  plant_.setParams(p, nullptr);
+  plant_.setParams(p, nullptr, true);
   motor_bias_ = -true_params_.motor_friction * v / rho;  // J_m ÿ_m + f_m ẏ_m = T_m − f_m v/ρ − ρQ
   energy_valid_ = false;
   drive_->reevaluate(plant_.state());
@@ -143,7 +143,7 @@ void Simulator::leaveFrame()
   plant_.shiftFrame(v * tau, v, vm * tau, vm);
   frame_rate_ = 0.0;
   motor_bias_ = 0.0;
-  plant_.setParams(true_params_, nullptr);  // (puts the motor back on the mesh: the gap is frame-independent)
+  plant_.setParams(true_params_, nullptr, true);  // (back on the mesh: the gap is frame-independent)
   drive_->reevaluate(plant_.state());
   applyDriveLaw();
 }

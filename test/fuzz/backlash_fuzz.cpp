@@ -34,12 +34,15 @@ int main(int argc, char** argv)
   }
   std::map<std::string, std::uint64_t> counts;
   std::map<std::string, std::string> example;
+  std::uint64_t compensated = 0, profiled = 0;  // cases drawn with a compensator, with a command profile
   const auto start = std::chrono::steady_clock::now();
   for (std::uint64_t i = first; i < first + cases; ++i)
   {
     const fuzz::Case c = fuzz::makeCase(seed, i);
     const fuzz::Outcome o = fuzz::check(c, budget);
     ++counts[o.klass];
+    compensated += c.drive.compensation != "none";
+    profiled += c.profile != nullptr;
     if (o.klass != "ok" && o.klass != "budget" && o.klass != "diverged" && (verbose || !example.count(o.klass)))
     {
       example[o.klass] = "case " + std::to_string(i) + ": " + o.detail + "\n    backlash_sim " + c.describe();
@@ -50,6 +53,8 @@ int main(int argc, char** argv)
   const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   std::printf("backlash_fuzz: seed %llu, cases %llu..%llu in %.1f s\n", static_cast<unsigned long long>(seed),
               static_cast<unsigned long long>(first), static_cast<unsigned long long>(first + cases - 1), wall);
+  std::printf("  (drawn with a compensator: %llu, with a command profile: %llu)\n",
+              static_cast<unsigned long long>(compensated), static_cast<unsigned long long>(profiled));
   std::uint64_t failures = 0;
   for (const auto& kv : counts)
   {

@@ -37,6 +37,16 @@ TEST(Fuzz, TwoThousandCasesKeepEveryProperty)
     std::printf("fuzz: %-10s %d\n", kv.first.c_str(), kv.second);
   }
   EXPECT_LE(counts["energy"], n / 1000);
+  // The sample covers issue 12's additions too: compensators and command profiles.
+  int compensated = 0, profiled = 0;
+  for (int i = 0; i < n; ++i)
+  {
+    const fuzz::Case c = fuzz::makeCase(2, static_cast<std::uint64_t>(i));
+    compensated += c.drive.compensation != "none";
+    profiled += c.profile != nullptr;
+  }
+  EXPECT_GT(compensated, 100);
+  EXPECT_GT(profiled, 200);
   EXPECT_GT(counts["ok"], n * 9 / 10);
 }
 }  // namespace
