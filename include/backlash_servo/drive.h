@@ -98,19 +98,30 @@ class Drive
 };
 
 /**
- * The thesis' continuous proportional law on the load position, optionally saturated:
- * \f[ T_m = \mathrm{sat}_{T_{max}}\big(K(\theta_R - \theta_c)\big) \f]
- * Linear (a = Kθ_R [N·m], k = K [N·m/rad]) while θ_c ∈ [θ_R − T_max/K, θ_R + T_max/K], else the constant ±T_max;
- * the switches are watch events located exactly by the plant (the load reaching a band edge). At an edge the side
- * the load is moving to decides, so a switch never repeats at the same instant.
+ * The thesis' continuous proportional law on the load position, optionally saturated and compensated (issue 12):
+ * \f[ T_m = \mathrm{sat}_{T_{max}}\big(K e + F_{ff}(e) + A\,s(t)\big), \quad e = \theta_R - \theta_c \f]
+ * with the friction feed-forward F_ff(e) = F sign(e) for |e| > w, 0 inside (`friction_feedforward`: F =
+ * compensation_friction [N·m], w = compensation_width [rad] > 0) and the square dither s(t) = sign(sin 2πft) (+1 at
+ * 0; `dither`: A = dither_amplitude [N·m], f = dither_frequency [Hz]). Every piece is the linear law a − kθ_c with
+ * a = Kθ_R + F_ff + A s [N·m], k = K [N·m/rad] on the band where |Ke + F_ff + A s| ≤ T_max, else the constant ±T_max.
+ * The switches in θ_c (θ_R ± w, the band edges) are watch events located exactly by the plant; at an edge the side
+ * the load is moving to decides, so a switch never repeats at the same instant. The dither's switches t = n/(2f)
+ * are drive events at known instants. So the compensated continuous law stays exact.
  */
 class ProportionalDrive : public Drive
 {
  public:
   /// gain K [N·m/rad] > 0, command θ_R [rad] (finite), torque_limit T_max [N·m] (0 = none).
   ProportionalDrive(double gain, double command, double torque_limit = 0.0);
+  /// The law `drive` describes with controller_rate 0: its torque limit and compensation (friction_feedforward, or
+  /// a square dither; DriveParams::validate refuses the others for the continuous law).
+  ProportionalDrive(const DriveParams& drive, double gain, double command);
   ControlMode mode() const override { return ControlMode::Position; }
   MotorInput law() const override;
+  /// The dither's next switch (n+1)/(2f) [s], n the present half period (+inf without dither).
+  double nextEventTime(double t) const override;
+  /// At a dither switch (and at the start): s(t) for the half period beginning at state.time, and the band again.
+  void sample(const State& state) override;
   void configure(const ServoParams& params) override;
   void reevaluate(const State& state) override;
   void watchInterval(double* lo, double* hi) const override;
@@ -121,8 +132,10 @@ class ProportionalDrive : public Drive
   void setCommand(double command);
 
  private:
-  /// The linear band [θ_R − T_max/K, θ_R + T_max/K] [rad].
+  /// The linear band [θ_R − (T_max − c)/K, θ_R + (T_max + c)/K] [rad], c = F_ff + A s of the present piece.
   void band(double* lo, double* hi) const;
+  /// The torque the compensator adds on the present piece, F_ff + A s [N·m].
+  double added() const { return feedforward_ * friction_ + dither_sign_ * amplitude_; }
 
   enum class Region
   {
@@ -134,6 +147,13 @@ class ProportionalDrive : public Drive
   double command_;
   double limit_;
   Region region_ = Region::Linear;
+  double friction_ = 0.0;   // F [N·m] (0: no feed-forward)
+  double width_ = 0.0;      // w [rad]
+  double amplitude_ = 0.0;  // A [N·m] (0: no dither)
+  double frequency_ = 0.0;  // f [Hz]
+  int feedforward_ = 0;     // sign of F_ff on the present piece: +1 (θ_c < θ_R − w), 0 (inside), −1
+  int dither_sign_ = 0;     // s(t) on the present half period (0 without dither)
+  double half_ = 0.0;       // index n of the present half period [n/(2f), (n+1)/(2f))
 };
 
 /// Torque given directly by an external controller: \f$ T_m = u \f$ [N·m], held until the next input.

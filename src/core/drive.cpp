@@ -18,7 +18,7 @@ std::unique_ptr<Drive> makePositionDrive(const DriveParams& drive, double gain, 
   {
     return std::make_unique<SampledDrive>(drive, gain, gear_ratio, command, t0);
   }
-  return std::make_unique<ProportionalDrive>(gain, command, drive.torque_limit);
+  return std::make_unique<ProportionalDrive>(drive, gain, command);
 }
 
 ProportionalDrive::ProportionalDrive(double gain, double command, double torque_limit)
@@ -27,6 +27,22 @@ ProportionalDrive::ProportionalDrive(double gain, double command, double torque_
   requireFinite("gain", gain);
   requireFinite("torque_limit", torque_limit);
   setCommand(command);
+}
+
+ProportionalDrive::ProportionalDrive(const DriveParams& drive, double gain, double command)
+    : ProportionalDrive(gain, command, drive.torque_limit)
+{
+  drive.validate();
+  if (drive.compensation == "friction_feedforward")
+  {
+    friction_ = drive.compensation_friction;
+    width_ = drive.compensation_width;
+  }
+  else if (drive.compensation == "dither" && drive.dither_amplitude > 0.0 && drive.dither_frequency > 0.0)
+  {
+    amplitude_ = drive.dither_amplitude;
+    frequency_ = drive.dither_frequency;
+  }
 }
 
 MotorInput ProportionalDrive::law() const
@@ -38,12 +54,45 @@ MotorInput ProportionalDrive::law() const
     case Region::Low:
       return {-limit_, 0.0};
     default:
-      return {gain_ * command_, gain_};
+      return {feedforward_ == 0 && dither_sign_ == 0 ? gain_ * command_ : gain_ * command_ + added(), gain_};
   }
+}
+
+double ProportionalDrive::nextEventTime(double /*t*/) const
+{
+  // Switches at t_n = n/(2f), computed from the integer n (no drift): the end of the present half period (a switch
+  // due at the current time is taken there, as a digital drive's sample is).
+  return amplitude_ == 0.0 ? std::numeric_limits<double>::infinity() : (half_ + 1.0) / (2.0 * frequency_);
+}
+
+void ProportionalDrive::sample(const State& s)
+{
+  if (amplitude_ == 0.0)
+  {
+    return;
+  }
+  // The half period [n/(2f), (n+1)/(2f)) that holds state.time, with the switch instants as nextEventTime() computes
+  // them: sin(2πft) has the sign (−1)^n there.
+  double n = std::floor(2.0 * frequency_ * s.time);
+  if ((n + 1.0) / (2.0 * frequency_) <= s.time)
+  {
+    n += 1.0;
+  }
+  half_ = n;
+  dither_sign_ = std::fmod(n, 2.0) == 0.0 ? 1 : -1;
+  reevaluate(s);
 }
 
 void ProportionalDrive::reevaluate(const State& s)
 {
+  const double x = s.load_position;
+  const double v = s.load_velocity;
+  if (friction_ > 0.0)
+  {
+    // The feed-forward's zone: θ_c above θ_R + w pushes down (−F), below θ_R − w up (+F), none in between.
+    const double lo = command_ - width_, hi = command_ + width_;
+    feedforward_ = x > hi || (x >= hi && v > 0.0) ? -1 : (x < lo || (x <= lo && v < 0.0) ? 1 : 0);
+  }
   if (!(limit_ > 0.0))
   {
     region_ = Region::Linear;
@@ -51,8 +100,6 @@ void ProportionalDrive::reevaluate(const State& s)
   }
   double lo, hi;
   band(&lo, &hi);
-  const double x = s.load_position;
-  const double v = s.load_velocity;
   if (x > hi || (x >= hi && v > 0.0))
   {
     region_ = Region::Low;
@@ -70,22 +117,36 @@ void ProportionalDrive::reevaluate(const State& s)
 void ProportionalDrive::watchInterval(double* lo, double* hi) const
 {
   constexpr double INF = std::numeric_limits<double>::infinity();
-  if (!(limit_ > 0.0))
+  *lo = -INF;
+  *hi = INF;
+  if (limit_ > 0.0)
   {
-    *lo = -INF;
-    *hi = INF;
-    return;
+    double band_lo, band_hi;
+    band(&band_lo, &band_hi);
+    *lo = region_ == Region::High ? -INF : (region_ == Region::Low ? band_hi : band_lo);
+    *hi = region_ == Region::High ? band_lo : (region_ == Region::Low ? INF : band_hi);
   }
-  double band_lo, band_hi;
-  band(&band_lo, &band_hi);
-  *lo = region_ == Region::High ? -INF : (region_ == Region::Low ? band_hi : band_lo);
-  *hi = region_ == Region::High ? band_lo : (region_ == Region::Low ? INF : band_hi);
+  if (friction_ > 0.0)
+  {
+    // ∩ the feed-forward's zone
+    const double zone_lo = feedforward_ > 0 ? -INF : (feedforward_ < 0 ? command_ + width_ : command_ - width_);
+    const double zone_hi = feedforward_ > 0 ? command_ - width_ : (feedforward_ < 0 ? INF : command_ + width_);
+    *lo = std::max(*lo, zone_lo);
+    *hi = std::min(*hi, zone_hi);
+  }
 }
 
 void ProportionalDrive::band(double* lo, double* hi) const
 {
-  *lo = command_ - limit_ / gain_;
-  *hi = command_ + limit_ / gain_;
+  if (feedforward_ == 0 && dither_sign_ == 0)
+  {
+    *lo = command_ - limit_ / gain_;
+    *hi = command_ + limit_ / gain_;
+    return;
+  }
+  const double c = added();
+  *lo = command_ - (limit_ - c) / gain_;
+  *hi = command_ + (limit_ + c) / gain_;
 }
 
 void ProportionalDrive::configure(const ServoParams& params)
@@ -157,11 +218,24 @@ void DriveParams::validate() const
   {
     throw InvalidParameterError("dither_shape", "must be square or sine (got '" + dither_shape + "')");
   }
-  if (compensation != "none" && !sampled())
+  if (!sampled() && (compensation == "inverse" || compensation == "dual_loop"))
   {
     throw InvalidParameterError("compensation", compensation +
-                                                    " acts at the samples of a digital drive: set controller_rate > 0 "
-                                                    "Hz");
+                                                    " corrects a loop on the motor encoder: it needs a digital drive "
+                                                    "(controller_rate > 0 Hz, feedback: motor)");
+  }
+  if (!sampled() && compensation == "dither" && dither_shape == "sine")
+  {
+    throw InvalidParameterError("dither_shape",
+                                "the continuous law takes a square dither (piecewise-constant torque, exact); a sine "
+                                "dither needs a digital drive (controller_rate > 0 Hz) that samples it");
+  }
+  if (!sampled() && compensation == "friction_feedforward" && !(compensation_width > 0.0))
+  {
+    throw InvalidParameterError("compensation_width",
+                                "the continuous law's friction feed-forward needs a dead band w > 0 rad: a relay "
+                                "switching at e = 0 chatters infinitely often near the set-point (a digital drive "
+                                "switches at most once per sample)");
   }
   if ((compensation == "inverse" || compensation == "dual_loop") && feedback != "motor")
   {

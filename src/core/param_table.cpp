@@ -118,9 +118,11 @@ std::vector<ParamSpec> makeTable()
      "cascade: inner velocity loop integral gain", false, {}, &DriveParams::velocity_loop_integral_gain},
     {"torque_limit", "T_max", "N·m", T::Real, S::Drive, ParamRange{0.0, 1e12, false, false}, "0",
      "saturation of the motor torque, 0 = none (every law)", false, {}, &DriveParams::torque_limit},
-    // ---- backlash compensation (compensator.h; digital drives) ----
+    // ---- backlash compensation (compensator.h for digital drives; drive.h ProportionalDrive for the continuous law) --
     {"compensation", "", "-", T::Choice, S::Drive, FINITE, "none",
-     "backlash compensator of the digital drive (README, compensation workbench)", false,
+     "backlash compensator (README, compensation workbench; the continuous law takes friction_feedforward with "
+     "compensation_width > 0 and a square dither)",
+     false,
      {"none", "inverse", "dual_loop", "friction_feedforward", "dither"}, {}},
     {"compensation_backlash", "Δ̂", "rad", T::Real, S::Drive, BACKLASH, "0",
      "inverse: the compensator's estimate of the backlash (at the load shaft)", false, {},
@@ -137,7 +139,7 @@ std::vector<ParamSpec> makeTable()
     {"dither_amplitude", "A", "N·m", T::Real, S::Drive, ParamRange{0.0, 1e12, false, false}, "0",
      "dither: torque amplitude", false, {}, &DriveParams::dither_amplitude},
     {"dither_frequency", "f_d", "Hz", T::Real, S::Drive, ParamRange{0.0, 1e6, false, false}, "0",
-     "dither: frequency (at most controller_rate / 2)", false, {}, &DriveParams::dither_frequency},
+     "dither: frequency (at most controller_rate / 2 on a digital drive)", false, {}, &DriveParams::dither_frequency},
     {"dither_shape", "", "-", T::Choice, S::Drive, FINITE, "square", "dither: square or sine wave", false,
      {"square", "sine"}, {}},
     // ---- length of a command-line run ----

@@ -59,14 +59,14 @@ struct Case
         << drive.derivative_gain << " --position-loop-gain " << drive.position_loop_gain << " --velocity-loop-gain "
         << drive.velocity_loop_gain << " --velocity-loop-integral-gain " << drive.velocity_loop_integral_gain
         << " --torque-limit " << drive.torque_limit;
-      if (drive.compensation != "none")
-      {
-        o << " --compensation " << drive.compensation << " --compensation-backlash " << drive.compensation_backlash
-          << " --compensation-width " << drive.compensation_width << " --outer-loop-gain " << drive.outer_loop_gain
-          << " --compensation-friction " << drive.compensation_friction << " --dither-amplitude "
-          << drive.dither_amplitude << " --dither-frequency " << drive.dither_frequency << " --dither-shape "
-          << drive.dither_shape;
-      }
+    }
+    if (drive.compensation != "none")
+    {
+      o << " --compensation " << drive.compensation << " --compensation-backlash " << drive.compensation_backlash
+        << " --compensation-width " << drive.compensation_width << " --outer-loop-gain " << drive.outer_loop_gain
+        << " --compensation-friction " << drive.compensation_friction << " --dither-amplitude "
+        << drive.dither_amplitude << " --dither-frequency " << drive.dither_frequency << " --dither-shape "
+        << drive.dither_shape;
     }
     if (profile)
     {
@@ -112,6 +112,31 @@ inline void drawWorkbench(Case* c, std::uint64_t seed, std::uint64_t index)
       d.dither_amplitude = torque * logu(1e-3, 0.5);
       d.dither_frequency = d.controller_rate * logu(0.01, 0.5);
       d.dither_shape = u(rng) < 0.5 ? "square" : "sine";
+    }
+    try
+    {
+      d.validate();
+    }
+    catch (const InvalidParameterError&)
+    {
+      d = plain;
+    }
+  }
+  else if (!d.sampled() && u(rng) < 0.2)
+  {
+    // The continuous law's compensators: friction feed-forward with a dead band, square dither.
+    const DriveParams plain = d;
+    if (u(rng) < 0.5)
+    {
+      d.compensation = "friction_feedforward";
+      d.compensation_friction = torque * logu(1e-3, 0.5);
+      d.compensation_width = scale * logu(1e-3, 0.1);
+    }
+    else
+    {
+      d.compensation = "dither";
+      d.dither_amplitude = torque * logu(1e-3, 0.5);
+      d.dither_frequency = omega_n / (2.0 * 3.14159265358979) * logu(0.1, 10.0);
     }
     try
     {
@@ -322,7 +347,7 @@ inline Outcome check(const Case& c, std::uint64_t event_budget = 100000)
   try
   {
     Simulator whole(c.params, c.start, c.command);
-    if (c.drive.sampled() || c.drive.torque_limit > 0.0)  // a digital drive, or the saturated continuous law
+    if (c.drive.sampled() || c.drive.torque_limit > 0.0 || c.drive.compensation != "none")  // not the plain P law
     {
       whole.setDrive(makePositionDrive(c.drive, c.params.gain, c.params.gear_ratio, c.command, c.start.time));
     }
@@ -356,7 +381,7 @@ inline Outcome check(const Case& c, std::uint64_t event_budget = 100000)
     }
     // The same run cut into 17 pieces (as output sampling or a node does) ends in the same state.
     Simulator pieces(c.params, c.start, c.command);
-    if (c.drive.sampled() || c.drive.torque_limit > 0.0)  // a digital drive, or the saturated continuous law
+    if (c.drive.sampled() || c.drive.torque_limit > 0.0 || c.drive.compensation != "none")  // not the plain P law
     {
       pieces.setDrive(makePositionDrive(c.drive, c.params.gain, c.params.gear_ratio, c.command, c.start.time));
     }
@@ -420,9 +445,10 @@ inline Outcome check(const Case& c, std::uint64_t event_budget = 100000)
   }
   catch (const MotionDiverged& e)
   {
-    // An unstable digital loop (large integral gains, delay) stopped where it left the closed forms' bounds: allowed.
-    // The continuous law on a joint with friction cannot run away: there it is a failure.
-    return {c.drive.sampled() ? "diverged" : "exception", e.what()};
+    // An unstable digital loop (large integral gains, delay), or a load torque beyond what the law and the friction
+    // can hold (the load falls for ever), stopped where it left the closed forms' bounds: allowed. Otherwise the
+    // continuous law on a joint with friction cannot run away: there it is a failure.
+    return {c.drive.sampled() || c.params.load_torque != 0.0 ? "diverged" : "exception", e.what()};
   }
   catch (const std::exception& e)
   {
