@@ -53,9 +53,14 @@ void buildRun(CompareStrategy* st, double duration, std::shared_ptr<const Comman
     *profile = std::make_shared<CommandProfile>(st->config.initial.load_position, std::vector<ProfileSegment>{step});
   }
   st->config.profile = *profile;
-  if (!st->config.drive.sampled())
+  try
   {
-    throw ConfigError(where + ": the workbench compares digital drives: set controller_rate > 0 Hz");
+    // The continuous law (controller_rate 0) takes steps, points and ramps (without dry friction) only.
+    st->config.profile->requireTakenBy(st->config.drive.sampled(), st->config.params.hasDryFriction());
+  }
+  catch (const std::exception& e)
+  {
+    throw ConfigError(where + ": " + e.what());
   }
 }
 }  // namespace

@@ -320,14 +320,18 @@ TEST(Compare, MetricsAgreeWithSingleRunsAndCsvSamples)
                          "  - {name: P, control_law: proportional}\n"
                          "  - {name: PID, control_law: pid, integral_gain: 0.5, derivative_gain: 0.3}\n"
                          "  - {name: PID+dither, control_law: pid, integral_gain: 0.5, derivative_gain: 0.3,"
-                         " compensation: dither, dither_amplitude: 0.01, dither_frequency: 50}\n";
+                         " compensation: dither, dither_amplitude: 0.01, dither_frequency: 50}\n"
+                         "  - {name: continuous+dither, controller_rate: 0, compensation: dither,"
+                         " dither_amplitude: 0.01, dither_frequency: 5}\n";
   int code = 0;
   const std::string json = runCapture(COMPARE + " --config " + yaml + " --json --jobs 2", &code);
   ASSERT_EQ(code, 0) << json;
   const std::vector<std::string> flags = {
-      "--control-law proportional", "--control-law pid --integral-gain 0.5 --derivative-gain 0.3",
-      "--control-law pid --integral-gain 0.5 --derivative-gain 0.3 --compensation dither --dither-amplitude 0.01 "
-      "--dither-frequency 50"};
+      "--controller-rate 1000 --control-law proportional",
+      "--controller-rate 1000 --control-law pid --integral-gain 0.5 --derivative-gain 0.3",
+      "--controller-rate 1000 --control-law pid --integral-gain 0.5 --derivative-gain 0.3 --compensation dither "
+      "--dither-amplitude 0.01 --dither-frequency 50",
+      "--compensation dither --dither-amplitude 0.01 --dither-frequency 5"};  // the continuous law, exact
   std::size_t pos = 0;
   for (std::size_t i = 0; i < flags.size(); ++i)
   {
@@ -336,7 +340,7 @@ TEST(Compare, MetricsAgreeWithSingleRunsAndCsvSamples)
     const std::string entry = json.substr(pos, json.find('}', pos) - pos + 1);
     const std::string sim = SIM +
                             " --backlash 0.05 --restitution 0.5 --load-coulomb-friction 0.02 --load-static-friction "
-                            "0.05 --controller-rate 1000 --duration 30 " +
+                            "0.05 --duration 30 " +
                             flags[i];
     const std::string cli = runCapture(sim + " --json");
     EXPECT_EQ(jsonText(entry, "verdict"), jsonText(cli, "verdict")) << flags[i];
@@ -374,7 +378,7 @@ TEST(Compare, MetricsAgreeWithSingleRunsAndCsvSamples)
   struct stat st;
   EXPECT_EQ(stat(png.c_str(), &st), 0);
   EXPECT_GT(st.st_size, 10000);
-  EXPECT_EQ(csvRows(readFile(table)).size(), 3u);
+  EXPECT_EQ(csvRows(readFile(table)).size(), 4u);
   // Bad files are one clear line.
   std::ofstream(yaml) << joint << "strategies:\n  - {name: X, control_law: pid, integral_gian: 1}\n";
   const std::string err = runCapture(COMPARE + " --config " + yaml + " 2>&1", &code);
