@@ -1,7 +1,9 @@
 #!/usr/bin/python3
 """Charts of the backlash servo study (the thesis' figures, computed). Headless (Agg); writes PNG and SVG.
 
-usage: backlash_charts.py existence SWEEP.csv OUTDIR    existence regions per e, one boundary per zeta (Figs. 1-2)
+usage: backlash_charts.py existence SWEEP.csv OUTDIR [THESIS.csv]   per e, the damping each design needs to be
+                                                         free of a limit cycle (Figs. 1-2); THESIS.csv marks the
+                                                         thesis' lattice points
        backlash_charts.py error SWEEP.csv OUTDIR        limit-cycle error vs rho^2 J_L/J_m (Figs. 3-26)
        backlash_charts.py delta SWEEP.csv OUTDIR        limit-cycle error vs backlash (Figs. 28-29)
        backlash_charts.py phase SIM.csv OUTDIR [NAME]   phase portrait from backlash_sim --csv (Figs. 30-31)
@@ -57,32 +59,81 @@ def grid(rows, e, zeta):
     return np.array(frs), np.array(irs), z
 
 
-def existence(rows, outdir):
+def edges(centers, log=False):
+    """Cell edges around grid centres (midpoints; in log10 for a log axis)."""
+    c = np.log10(centers) if log else np.asarray(centers, dtype=float)
+    if len(c) == 1:
+        e = np.array([c[0] - 0.5, c[0] + 0.5])
+    else:
+        mid = 0.5 * (c[1:] + c[:-1])
+        e = np.concatenate([[c[0] - (mid[0] - c[0])], mid, [c[-1] + (c[-1] - mid[-1])]])
+    return 10.0 ** e if log else e
+
+
+def existence(rows, outdir, lattice=None):
+    """Per e, a map of the boundary damping: each cell coloured by the smallest ζ of the sweep from which every
+    larger ζ converges (no limit cycle); dark red where even the largest ζ limit-cycles. Conservative: a run that
+    did not converge (limit cycle, irregular, undecided) counts as a cycle. White × marks cells where the verdict is
+    not monotone in ζ (a cycle at some larger ζ after convergence at a smaller one: islands). Black dots: the
+    thesis' lattice points (lattice = rows of the thesis preset sweep)."""
+    from matplotlib.colors import BoundaryNorm, ListedColormap
+
     es = sorted({r["e"] for r in rows})
     zetas = sorted({r["zeta"] for r in rows})
+    frs = sorted({r["fr"] for r in rows})
+    irs = sorted({r["ir"] for r in rows})
+    cycle = {(r["e"], r["zeta"], r["ir"], r["fr"]): r["verdict"] != "converged" for r in rows}
+    n = len(zetas)
+    colors = list(plt.get_cmap("viridis")(np.linspace(0.95, 0.15, n))) + [(0.55, 0.05, 0.05, 1.0)]
+    cmap = ListedColormap(colors)
+    norm = BoundaryNorm(np.arange(-0.5, n + 1.0), cmap.N)
     cols = min(len(es), 2)
-    fig, axes = plt.subplots(math.ceil(len(es) / cols), cols, figsize=(6.2 * cols, 4.8 * math.ceil(len(es) / cols)),
-                             squeeze=False)
-    cmap = plt.get_cmap("viridis")
+    nrows = math.ceil(len(es) / cols)
+    fig, axes = plt.subplots(nrows, cols, figsize=(6.4 * cols, 5.0 * nrows), squeeze=False)
+    fe, ie = edges(frs), edges(irs, log=True)
+    mesh = None
     for ax, e in zip(axes.flat, es):
-        for k, zeta in enumerate(zetas):
-            frs, irs, z = grid(rows, e, zeta)
-            color = cmap(k / max(1, len(zetas) - 1))
-            if np.nanmax(z) == np.nanmin(z) or len(frs) < 2 or len(irs) < 2:
-                continue
-            cs = ax.contour(frs, irs, z, levels=[0.5], colors=[color], linewidths=1.8)
-            ax.clabel(cs, fmt={0.5: f"ζ={zeta:g}"}, fontsize=7)
+        z = np.full((len(irs), len(frs)), np.nan)
+        islands = []
+        for a, ir in enumerate(irs):
+            for b, fr in enumerate(frs):
+                flags = [cycle.get((e, zeta, ir, fr)) for zeta in zetas]
+                if any(f is None for f in flags):
+                    continue
+                k = n
+                while k > 0 and not flags[k - 1]:
+                    k -= 1  # flags[k:] all converge
+                z[a, b] = k
+                if any(not f for f in flags[:k]):
+                    islands.append((fr, ir))
+        mesh = ax.pcolormesh(fe, ie, z, cmap=cmap, norm=norm, shading="flat", rasterized=True)
+        if islands:
+            size = 10 if len(frs) <= 40 else 3  # fine grids: small marks
+            ax.scatter(*zip(*islands), marker="x", s=size, c="white", linewidths=0.6, label="not monotone in ζ",
+                       rasterized=True)
+        if lattice:
+            pts = sorted({(r["fr"], r["ir"]) for r in lattice})
+            ax.scatter(*zip(*pts), s=9, c="black", label="thesis lattice")
         ax.set_yscale("log")
+        ax.set_xlim(fe[0], fe[-1])
+        ax.set_ylim(ie[0], ie[-1])
         ax.set_xlabel("friction split ρ²f_L/F_T")
         ax.set_ylabel("inertia split ρ²J_L/J_m")
-        ax.set_title(f"e = {e:g}")
-        ax.grid(True, which="both", alpha=0.3)
-        # Shade where a limit cycle exists for the smallest zeta (the largest region).
-        frs, irs, z = grid(rows, e, zetas[0])
-        ax.contourf(frs, irs, z, levels=[0.5, 1.5], colors=["#f4cccc"], alpha=0.5)
+        ax.set_title(f"e = {e:g}  ({len(frs)} × {len(irs)} designs × {n} ζ)")
     for ax in axes.flat[len(es):]:
         ax.axis("off")
-    fig.suptitle("Limit-cycle existence boundaries, one line per ζ (shaded: limit cycle at the smallest ζ)")
+    handles, labels = [], []
+    for ax in axes.flat:
+        for h, l in zip(*ax.get_legend_handles_labels()):
+            if l not in labels:
+                handles.append(h)
+                labels.append(l)
+    if handles:
+        fig.legend(handles, labels, loc="lower center", ncol=len(handles), fontsize=9, facecolor="#9a9a9a")
+    bar = fig.colorbar(mesh, ax=axes.ravel().tolist(), ticks=range(n + 1), shrink=0.85)
+    bar.ax.set_yticklabels([f"ζ ≥ {zeta:g}" for zeta in zetas] + [f"cycle at ζ ≤ {zetas[-1]:g}"])
+    bar.set_label("no limit cycle for every damping ratio at or above")
+    fig.suptitle("Where a limit cycle exists: the damping a design needs to be free of it (read your design's cell)")
     save(fig, outdir, "existence_maps")
 
 
@@ -191,7 +242,9 @@ def surface(rows, outdir):
                 else:
                     z[i, j] = 0.5 * (zetas[cyc[-1]] + zetas[cyc[-1] + 1])
         fx, iy = np.meshgrid(frs, np.log10(irs))
-        ax.plot_surface(fx, iy, z, cmap="viridis", edgecolor="k", linewidth=0.2, alpha=0.9)
+        fine = len(frs) > 40  # no cell edges on fine grids (they would blacken the surface)
+        ax.plot_surface(fx, iy, z, cmap="viridis", edgecolor="none" if fine else "k", linewidth=0.0 if fine else 0.2,
+                        alpha=0.9, rasterized=True)
         ax.set_xlabel("ρ²f_L/F_T")
         ax.set_ylabel("log10 ρ²J_L/J_m")
         ax.set_zlabel("ζ boundary")
@@ -249,6 +302,9 @@ def main(argv):
         phase(src, outdir, *(argv[3:4]))
         return 0
     rows = read_sweep(src)
+    if kind == "existence" and len(argv) >= 4:
+        existence(rows, outdir, read_sweep(argv[3]))
+        return 0
     {"existence": existence, "error": error, "delta": delta, "surface": surface}[kind](rows, outdir)
     return 0
 

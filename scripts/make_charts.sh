@@ -14,7 +14,7 @@ trap 'rm -rf "$data"' EXIT
 if [ $quick = 1 ]; then
   n=4; zetas=0.2,0.6; es=0,1; thesis=(--zeta 0.2,0.6 --inertia-ratio 1,9 --friction-ratio 0,0.4 --restitution 1)
 else
-  n=14; zetas=0.1,0.2,0.3,0.4,0.5,0.6,0.8,1.0; es=0,0.6,0.8,1; thesis=(--preset thesis)
+  n=100; zetas=0.1,0.2,0.3,0.4,0.5,0.6,0.8,1.0; es=0,0.6,0.8,1; thesis=(--preset thesis)
 fi
 echo "== existence grid (${n}x${n} x zeta {$zetas} x e {$es})"
 "$bin/backlash_sweep" --zeta $zetas --inertia-ratio log:0.04:9:$n --friction-ratio 0:1:$n --restitution $es \
@@ -31,7 +31,7 @@ echo "== digital drive: error vs controller rate and vs encoder resolution"
 echo "== phase portrait (thesis Fig. 31 case)"
 "$bin/backlash_sim" --config config/thesis_fig31.yaml --duration 120 --csv "$data/fig31.csv" --sample-rate 50 >/dev/null
 py=scripts/backlash_charts.py
-/usr/bin/python3 $py existence "$data/existence.csv" "$out"
+/usr/bin/python3 $py existence "$data/existence.csv" "$out" "$data/thesis.csv"
 /usr/bin/python3 $py surface "$data/existence.csv" "$out"
 /usr/bin/python3 $py error "$data/thesis.csv" "$out"
 /usr/bin/python3 $py delta "$data/delta.csv" "$out"
