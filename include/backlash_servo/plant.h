@@ -187,7 +187,8 @@ class Plant
   void setEnergyTracking(bool on) { track_energy_ = on; }
   double energyBalanceError() const;
   std::uint64_t impactCount() const { return impacts_; }
-  /// At most this many impacts since the last setState() (0 = no limit); one more throws EventBudgetExceeded.
+  /// At most this many impacts — and, counted apart, this many rests and law switches — since the last setState()
+  /// (0 = no limit); one more throws EventBudgetExceeded.
   void setEventBudget(std::uint64_t max_impacts) { event_budget_ = max_impacts; }
 
   /// Sends an event of the given type with the current state to sink (may be null).
@@ -235,6 +236,9 @@ class Plant
   /// now — 0 [s] and its wall in *wall; else +inf. (The closed form's search would find it only once the gap's
   /// penetration exceeds the rounding bound of the positions, which slow, light motions may never reach.)
   double impactNow(Contact* wall) const;
+  /// Counts a rest or a law switch against the event budget (a sliding mode at a discontinuity of the law is
+  /// otherwise an endless sequence of them); throws EventBudgetExceeded beyond it.
+  void countSwitch();
   /// Throws MotionDiverged when the state is beyond the bounds of the closed forms (or not finite).
   void requireBounded() const;
   /// Dry friction: the rest rule and the contact check at the current state; the slide directions go to *motor and
@@ -275,6 +279,7 @@ class Plant
   EnergyLedger energy_;
   std::uint64_t impacts_ = 0;
   std::uint64_t event_budget_ = 0;
+  std::uint64_t switches_ = 0;  // rests and watch switches since setState(), counted against the same budget
   bool track_energy_ = true;
   bool dry_ = false;  // params_.hasDryFriction()
   double search_horizon_ = std::numeric_limits<double>::infinity();

@@ -129,6 +129,7 @@ void Plant::setState(const State& s)
   energy_ = EnergyLedger();
   energy_.initial_kinetic = kineticEnergy();
   impacts_ = 0;
+  switches_ = 0;
 }
 
 void Plant::setLaw(const MotorInput& law)
@@ -377,6 +378,7 @@ bool Plant::advanceTo(double t_end, EventSink* sink)
     }
     else if (end == Segment::End::Watch)
     {
+      countSwitch();
       return true;
     }
     stalled = state_.time == before ? stalled + 1 : 0;
@@ -634,8 +636,23 @@ void Plant::beginDrySegment(Slide motor, Slide load)
                   {m.breakawayTime(window), Segment::End::Breakaway}});
 }
 
+void Plant::countSwitch()
+{
+  if (event_budget_ != 0 && ++switches_ > event_budget_)
+  {
+    char buf[240];
+    std::snprintf(buf, sizeof buf,
+                  "event budget of %llu rests and law switches exceeded at t = %.9g s (a sliding mode: the joint "
+                  "sticks and slips at a switch of the law, e.g. a feed-forward dead band's edge; raise max_events "
+                  "to go on)",
+                  static_cast<unsigned long long>(event_budget_), state_.time);
+    throw EventBudgetExceeded(buf);
+  }
+}
+
 void Plant::handleRest(const Segment& seg, EventSink* sink)
 {
+  countSwitch();
   if (seg.end == Segment::End::Breakaway)
   {
     forced_motor_breakaway_ = law_.torque(state_.load_position) > 0.0 ? 1 : -1;

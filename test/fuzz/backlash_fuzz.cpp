@@ -34,11 +34,18 @@ int main(int argc, char** argv)
   }
   std::map<std::string, std::uint64_t> counts;
   std::map<std::string, std::string> example;
-  std::uint64_t compensated = 0, profiled = 0;  // cases drawn with a compensator, with a command profile
+  std::uint64_t compensated = 0, profiled = 0;
+  const bool trace =
+      std::getenv("BACKLASH_FUZZ_TRACE") !=
+      nullptr;  // print each case's number before running it  // cases drawn with a compensator, with a command profile
   const auto start = std::chrono::steady_clock::now();
   for (std::uint64_t i = first; i < first + cases; ++i)
   {
     const fuzz::Case c = fuzz::makeCase(seed, i);
+    if (trace)
+    {
+      std::fprintf(stderr, "case %llu\n", static_cast<unsigned long long>(i));  // a hang shows its case
+    }
     const fuzz::Outcome o = fuzz::check(c, budget);
     ++counts[o.klass];
     compensated += c.drive.compensation != "none";
