@@ -70,6 +70,10 @@ class BasicExpPoly
   ExpPoly antiderivative() const;
   /// ∫_0^T f(τ) dτ, accurate also when |r T| is small.
   double integral(double upper) const;
+  /// f(τ) − f(0), each term as p(τ)·expm1(rτ) + (p(τ) − p(0)): large coefficients that cancel against their own
+  /// exponential (a body's position c − c e^{−ατ} with c ≫ the displacement) do not cancel in floating point, so the
+  /// increment is exact to the rounding of its own size, not of the coefficients'.
+  double increment(double tau) const;
 
   ExpPoly& operator+=(const ExpPoly& other);
   /// Adds the constant c (to the rate-0 term).

@@ -121,6 +121,25 @@ double BasicExpPoly<D>::operator()(double tau) const
 }
 
 template <int D>
+double BasicExpPoly<D>::increment(double tau) const
+{
+  double sum = 0.0;
+  for (int i = 0; i < n_; ++i)
+  {
+    const ExpTerm& t = terms_[i];
+    // q(τ) = (p(τ) − p(0))/τ by Horner on c_1 … c_d; p(τ) = c_0 + τ q(τ).
+    double q = 0.0;
+    for (int k = t.degree; k >= 1; --k)
+    {
+      q = q * tau + t.coef[k];
+    }
+    const double rise = q * tau;
+    sum += t.rate == 0.0 ? rise : (t.coef[0] + rise) * std::expm1(t.rate * tau) + rise;
+  }
+  return sum;
+}
+
+template <int D>
 double BasicExpPoly<D>::evaluate(double tau, double* rounding_bound) const
 {
   double sum = 0.0;

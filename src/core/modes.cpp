@@ -671,7 +671,7 @@ bool apartNeedsSeries(const ServoParams& params, double window)
 template <>
 BasicFreeMotion<ExpPoly>::BasicFreeMotion(const ServoParams& params, const MotorInput& input, const State& s,
                                           double /*window*/)
-    : params_(params), input_(input)
+    : params_(params), input_(input), start_load_position_(s.load_position), start_motor_position_(s.motor_position)
 {
   // Every rate here is 0 or fast over the window (apartNeedsSeries() is false); equal rates are merged exactly.
   const double alpha = params.load_friction / params.load_inertia;
@@ -727,6 +727,7 @@ BasicFreeMotion<ExpPoly>::BasicFreeMotion(const ServoParams& params, const Motor
     gap_.addTerm(0.0, g, 1);
     gap_.addTerm(-alpha, &ga, 0);
     gap_.addTerm(-beta, &gb, 0);
+    flagLargeTerms();
     return;
   }
   // J_m ω̇_m + f_m ω_m = a − k θ_c(τ): particular solution plus the free decay e^{−βτ} matching ω_m(0).
@@ -739,12 +740,13 @@ BasicFreeMotion<ExpPoly>::BasicFreeMotion(const ServoParams& params, const Motor
   motor_position_.addConstant(s.motor_position - motor_position_(0.0));
   gap_ = motor_position_ * -params.gear_ratio;
   gap_ += load_position_;
+  flagLargeTerms();
 }
 
 template <>
 BasicFreeMotion<WideExpPoly>::BasicFreeMotion(const ServoParams& params, const MotorInput& input, const State& s,
                                               double window)
-    : params_(params), input_(input)
+    : params_(params), input_(input), start_load_position_(s.load_position), start_motor_position_(s.motor_position)
 {
   const double alpha = params.load_friction / params.load_inertia;
   const double beta = params.motor_friction / params.motor_inertia;
@@ -765,14 +767,33 @@ BasicFreeMotion<WideExpPoly>::BasicFreeMotion(const ServoParams& params, const M
   motor_position_.addConstant(s.motor_position - motor_position_(0.0));
   gap_ = motor_position_ * -params.gear_ratio;
   gap_ += load_position_;
+  flagLargeTerms();
+}
+
+template <class Poly>
+void BasicFreeMotion<Poly>::flagLargeTerms()
+{
+  // Σ|c| of the position forms at τ = 0 (evaluate's rounding bound is a fixed multiple of ε Σ|c|) against the
+  // position scale: beyond 1e6× it, the direct form's rounding would exceed ~1e-10 of the scale.
+  double load_bound = 0.0, motor_bound = 0.0;
+  load_position_.evaluate(0.0, &load_bound);
+  motor_position_.evaluate(0.0, &motor_bound);
+  const double load_scale = std::fabs(start_load_position_) + params_.backlash;
+  const double motor_scale = std::fabs(start_motor_position_) + params_.backlash / params_.gear_ratio;
+  large_load_terms_ = load_bound > 1e6 * EPS * load_scale;
+  large_motor_terms_ = motor_bound > 1e6 * EPS * motor_scale;
 }
 
 template <class Poly>
 void BasicFreeMotion<Poly>::at(double tau, State* out) const
 {
-  out->load_position = load_position_(tau);
+  // Where the closed form's terms are far larger than the motion (a light body under a huge torque: θ = c − c e^{−ατ}
+  // with c ~ 1e8 rad for a displacement of 1e-11 rad), positions are start + increment, which keeps the rounding of
+  // the motion, not of the coefficients; elsewhere the direct form (cheaper, and the golden outputs' form).
+  out->load_position = large_load_terms_ ? start_load_position_ + load_position_.increment(tau) : load_position_(tau);
   out->load_velocity = load_velocity_(tau);
-  out->motor_position = motor_position_(tau);
+  out->motor_position =
+      large_motor_terms_ ? start_motor_position_ + motor_position_.increment(tau) : motor_position_(tau);
   out->motor_velocity = motor_velocity_(tau);
 }
 
