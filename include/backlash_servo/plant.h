@@ -142,8 +142,7 @@ class Plant
   /// through the samples of a stick phase (exactly what advanceTo(t) does there, without its dispatch).
   bool holdsThrough(double t) const
   {
-    return segment_ && segment_->stuck && segment_->motor_slide == 0 && segment_->load_slide == 0 &&
-           segment_->start.time + segment_->end_tau > t && t >= state_.time;
+    return segmentHeld() && segment_->start.time + segment_->end_tau > t && t >= state_.time;
   }
   void holdTo(double t) { state_.time = t; }
   /// While holdsThrough(): an interval [*lo, *hi] of motor torques [N·m] under which the rest rule still holds both
@@ -239,6 +238,20 @@ class Plant
   /// Counts a rest or a law switch against the event budget (a sliding mode at a discontinuity of the law is
   /// otherwise an endless sequence of them); throws EventBudgetExceeded beyond it.
   void countSwitch();
+  /// The current segment holds both bodies by stiction (dry friction; nothing moves while it lasts).
+  bool segmentHeld() const
+  {
+    return segment_ && segment_->stuck && segment_->motor_slide == 0 && segment_->load_slide == 0;
+  }
+  /// The rest rule keeps both bodies and the contact as they are under motor torque `torque` [N·m].
+  bool heldUnder(double torque) const;
+  /// The first impact of motion m within `window` [s]: at once when the state is apart on a wall with the teeth
+  /// closing (impactNow), else m's own search; its wall in *wall.
+  template <class M>
+  double firstImpact(const M& m, double window, Contact* wall) const
+  {
+    return impactNow(wall) == 0.0 ? 0.0 : m.impactTime(window, wall);
+  }
   /// Throws MotionDiverged when the state is beyond the bounds of the closed forms (or not finite).
   void requireBounded() const;
   /// Dry friction: the rest rule and the contact check at the current state; the slide directions go to *motor and

@@ -9,6 +9,21 @@ namespace backlash_servo
 namespace
 {
 constexpr double EPS = std::numeric_limits<double>::epsilon();
+constexpr double INF = std::numeric_limits<double>::infinity();
+
+/// Where the load θ_c = x [rad] lies relative to [lo, hi] [rad]: +1 above, −1 below, 0 inside; on an edge the side
+/// the load is moving to (v [rad/s]) decides, so a switch never repeats at the same instant.
+int sideOf(double x, double v, double lo, double hi)
+{
+  return x > hi || (x >= hi && v > 0.0) ? 1 : (x < lo || (x <= lo && v < 0.0) ? -1 : 0);
+}
+
+/// The θ_c interval [*a, *b] [rad] of side `side` of [lo, hi] (sideOf's convention): a piece's watch interval.
+void sideInterval(int side, double lo, double hi, double* a, double* b)
+{
+  *a = side < 0 ? -INF : (side > 0 ? hi : lo);
+  *b = side < 0 ? lo : (side > 0 ? INF : hi);
+}
 }  // namespace
 
 std::unique_ptr<Drive> makePositionDrive(const DriveParams& drive, double gain, double gear_ratio, double command,
@@ -90,8 +105,7 @@ void ProportionalDrive::reevaluate(const State& s)
   if (friction_ > 0.0)
   {
     // The feed-forward's zone: θ_c above θ_R + w pushes down (−F), below θ_R − w up (+F), none in between.
-    const double lo = command_ - width_, hi = command_ + width_;
-    feedforward_ = x > hi || (x >= hi && v > 0.0) ? -1 : (x < lo || (x <= lo && v < 0.0) ? 1 : 0);
+    feedforward_ = -sideOf(x, v, command_ - width_, command_ + width_);
   }
   if (!(limit_ > 0.0))
   {
@@ -100,37 +114,25 @@ void ProportionalDrive::reevaluate(const State& s)
   }
   double lo, hi;
   band(&lo, &hi);
-  if (x > hi || (x >= hi && v > 0.0))
-  {
-    region_ = Region::Low;
-  }
-  else if (x < lo || (x <= lo && v < 0.0))
-  {
-    region_ = Region::High;
-  }
-  else
-  {
-    region_ = Region::Linear;
-  }
+  const int side = sideOf(x, v, lo, hi);
+  region_ = side > 0 ? Region::Low : (side < 0 ? Region::High : Region::Linear);
 }
 
 void ProportionalDrive::watchInterval(double* lo, double* hi) const
 {
-  constexpr double INF = std::numeric_limits<double>::infinity();
   *lo = -INF;
   *hi = INF;
   if (limit_ > 0.0)
   {
     double band_lo, band_hi;
     band(&band_lo, &band_hi);
-    *lo = region_ == Region::High ? -INF : (region_ == Region::Low ? band_hi : band_lo);
-    *hi = region_ == Region::High ? band_lo : (region_ == Region::Low ? INF : band_hi);
+    const int side = region_ == Region::Low ? 1 : (region_ == Region::High ? -1 : 0);
+    sideInterval(side, band_lo, band_hi, lo, hi);
   }
   if (friction_ > 0.0)
   {
-    // ∩ the feed-forward's zone
-    const double zone_lo = feedforward_ > 0 ? -INF : (feedforward_ < 0 ? command_ + width_ : command_ - width_);
-    const double zone_hi = feedforward_ > 0 ? command_ - width_ : (feedforward_ < 0 ? INF : command_ + width_);
+    double zone_lo, zone_hi;  // ∩ the feed-forward's zone
+    sideInterval(-feedforward_, command_ - width_, command_ + width_, &zone_lo, &zone_hi);
     *lo = std::max(*lo, zone_lo);
     *hi = std::min(*hi, zone_hi);
   }

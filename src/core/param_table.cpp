@@ -148,8 +148,9 @@ std::vector<ParamSpec> makeTable()
     {"max_duration", "", "s", T::Real, S::Run, NON_NEGATIVE, "0", "cap when running until settled (0 = 2000/ω_n)",
      false, {}, &RunConfig::max_duration},
     {"max_events", "", "-", T::Real, S::Run, ParamRange{1.0, 1e12, false, false}, "1e7",
-     "event budget of a run: impacts, and apart rests and law switches; beyond it the run stops, unsettled (an impact storm or a sliding mode is not a hang)", false, {},
-     &RunConfig::max_events},
+     "event budget of a run: impacts, and apart rests and law switches; beyond it the run stops, unsettled (an "
+     "impact storm or a sliding mode is not a hang)",
+     false, {}, &RunConfig::max_events},
     // ---- ROS node ----
     {"control_mode", "", "-", T::Choice, S::Node, FINITE, "position",
      "position: internal P law on `command`; effort: torque from `motor_effort`", true, {"position", "effort"}, {}},

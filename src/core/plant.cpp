@@ -135,33 +135,29 @@ void Plant::setState(const State& s)
 void Plant::setLaw(const MotorInput& law)
 {
   law_ = law;
-  if (dry_ && segment_ && segment_->stuck && segment_->motor_slide == 0 && segment_->load_slide == 0 &&
-      forced_motor_breakaway_ == 0)
+  // A digital drive's new sample on a joint held by stiction (stick–slip phases: most samples): if the rest rule
+  // still holds everything, the held segment is exactly what a new one would be.
+  if (dry_ && segmentHeld() && forced_motor_breakaway_ == 0 && heldUnder(law_.torque(state_.load_position)))
   {
-    // A digital drive's new sample on a joint held by stiction (stick–slip phases: most samples): if the rest rule
-    // still holds everything, the held segment is exactly what a new one would be.
-    const RestDecision d = decideAtRest(params_, law_.torque(state_.load_position), state_);
-    if (d.motor == 0 && d.load == 0 && d.contact == state_.contact)
-    {
-      return;
-    }
+    return;
   }
   segment_.reset();
 }
 
+bool Plant::heldUnder(double torque) const
+{
+  const RestDecision d = decideAtRest(params_, torque, state_);
+  return d.motor == 0 && d.load == 0 && d.contact == state_.contact;
+}
+
 bool Plant::heldTorqueRange(double* lo, double* hi, double* until) const
 {
-  if (!dry_ || forced_motor_breakaway_ != 0 || !segment_ || !segment_->stuck || segment_->motor_slide != 0 ||
-      segment_->load_slide != 0)
+  if (!dry_ || forced_motor_breakaway_ != 0 || !segmentHeld())
   {
     return false;
   }
-  auto held = [&](double torque) {
-    const RestDecision d = decideAtRest(params_, torque, state_);
-    return d.motor == 0 && d.load == 0 && d.contact == state_.contact;
-  };
   const double now = law_.torque(state_.load_position);
-  if (!held(now))
+  if (!heldUnder(now))
   {
     return false;
   }
@@ -177,7 +173,7 @@ bool Plant::heldTorqueRange(double* lo, double* hi, double* until) const
   {
     if (end > now)
     {
-      if (!held(inside(end)))
+      if (!heldUnder(inside(end)))
       {
         break;
       }
@@ -188,7 +184,7 @@ bool Plant::heldTorqueRange(double* lo, double* hi, double* until) const
   {
     if (*it < now)
     {
-      if (!held(inside(*it)))
+      if (!heldUnder(inside(*it)))
       {
         break;
       }
@@ -491,11 +487,7 @@ void Plant::beginSegment()
   }
   Contact wall = Contact::Forward;
   const double search = searchWindow(window);
-  double impact = impactNow(&wall);
-  if (impact != 0.0)
-  {
-    impact = seg.wide ? seg.wide->impactTime(search, &wall) : seg.free->impactTime(search, &wall);
-  }
+  const double impact = seg.wide ? firstImpact(*seg.wide, search, &wall) : firstImpact(*seg.free, search, &wall);
   seg.end = impact <= search ? Segment::End::Impact : Segment::End::Restart;
   seg.end_tau = std::min(impact, search);
   seg.wall = wall;
@@ -604,7 +596,7 @@ void Plant::beginDrySegment(Slide motor, Slide load)
     foldKineticFriction(params_, law_, motor, load, &folded, &law);
     double impact, motor_rest = INFINITY, load_rest = INFINITY;
     auto search = [&](const auto& m) {
-      impact = impactNow(&wall) == 0.0 ? 0.0 : m.impactTime(window, &wall);
+      impact = firstImpact(m, window, &wall);
       motor_rest = motor_dry ? m.restTime(true, motor, window) : INFINITY;
       load_rest = load_dry ? m.restTime(false, load, window) : INFINITY;
     };
@@ -627,7 +619,7 @@ void Plant::beginDrySegment(Slide motor, Slide load)
   const StuckMotion& m =
       seg.stuck.emplace(params_, law_, state_, motor_moves ? StuckMotion::Moving::Motor : StuckMotion::Moving::Load,
                         motor_moves ? motor : load);
-  const double impact = impactNow(&wall) == 0.0 ? 0.0 : m.impactTime(window, &wall);
+  const double impact = firstImpact(m, window, &wall);
   seg.wall = wall;
   seg.rest_motor = motor_moves;
   const bool moving_dry = motor_moves ? motor_dry : load_dry;

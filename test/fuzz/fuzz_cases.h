@@ -88,9 +88,9 @@ inline void drawWorkbench(Case* c, std::uint64_t seed, std::uint64_t index)
   const double omega_n = c->params.naturalFrequency();
   const double torque = c->params.gain * std::max(std::fabs(c->command), scale);
   DriveParams& d = c->drive;
+  const DriveParams plain = d;  // kept when a drawn compensator is refused
   if (d.sampled() && u(rng) < 0.4)
   {
-    const DriveParams plain = d;
     const double k = u(rng);
     if (k < 0.5)
     {
@@ -113,19 +113,10 @@ inline void drawWorkbench(Case* c, std::uint64_t seed, std::uint64_t index)
       d.dither_frequency = d.controller_rate * logu(0.01, 0.5);
       d.dither_shape = u(rng) < 0.5 ? "square" : "sine";
     }
-    try
-    {
-      d.validate();
-    }
-    catch (const InvalidParameterError&)
-    {
-      d = plain;
-    }
   }
   else if (!d.sampled() && u(rng) < 0.2)
   {
     // The continuous law's compensators: friction feed-forward with a dead band, square dither.
-    const DriveParams plain = d;
     if (u(rng) < 0.5)
     {
       d.compensation = "friction_feedforward";
@@ -138,14 +129,14 @@ inline void drawWorkbench(Case* c, std::uint64_t seed, std::uint64_t index)
       d.dither_amplitude = torque * logu(1e-3, 0.5);
       d.dither_frequency = omega_n / (2.0 * 3.14159265358979) * logu(0.1, 10.0);
     }
-    try
-    {
-      d.validate();
-    }
-    catch (const InvalidParameterError&)
-    {
-      d = plain;
-    }
+  }
+  try
+  {
+    d.validate();
+  }
+  catch (const InvalidParameterError&)
+  {
+    d = plain;
   }
   if (u(rng) < 0.2)
   {
