@@ -18,6 +18,7 @@
 #include "backlash_servo/gear_mesh.h"
 #include "backlash_servo/modes.h"
 #include "backlash_servo/params.h"
+#include "backlash_servo/short_flight.h"
 #include "backlash_servo/state.h"
 #include "backlash_servo/stuck_motion.h"
 
@@ -189,6 +190,11 @@ class Plant
   /// At most this many impacts — and, counted apart, this many rests and law switches — since the last setState()
   /// (0 = no limit); one more throws EventBudgetExceeded.
   void setEventBudget(std::uint64_t max_impacts) { event_budget_ = max_impacts; }
+  /// The chatter fast path (short_flight.h) on (default) or off: off, every flight uses the closed form — the two
+  /// agree to rounding; the switch exists to compare them (tests, bench_core). Takes effect at the next segment.
+  void setShortFlights(bool on) { short_flights_ = on; }
+  /// Flights taken by the fast path since construction.
+  std::uint64_t shortFlightCount() const { return short_flight_count_; }
 
   /// Sends an event of the given type with the current state to sink (may be null).
   void emit(EventSink* sink, EventType type, const ImpactInfo* impact = nullptr) const;
@@ -213,6 +219,7 @@ class Plant
     std::optional<FreeMotion> free;
     std::shared_ptr<const WideFreeMotion> wide;  // immutable: copies of the plant may share it
     std::optional<StuckMotion> stuck;            // dry friction holds a body (or the pair)
+    std::optional<ShortFlight> flight;           // a short chatter flight (apart, from a wall back to it)
     // Dry friction: slide directions of the bodies in this segment (0 stuck), kinetic friction folded into the
     // linear motions' inputs (dry_friction.h).
     bool dry = false;
@@ -261,7 +268,7 @@ class Plant
   void beginDrySegment(Slide motor, Slide load);
   /// Ends a segment at a Rest or Breakaway: the body comes to rest exactly, the rule decides at the next segment.
   void handleRest(const Segment& seg, EventSink* sink);
-  /// Calls f with the segment's motion (ContactMotion, FreeMotion or WideFreeMotion).
+  /// Calls f with the segment's motion (ContactMotion, FreeMotion, WideFreeMotion, StuckMotion or ShortFlight).
   template <class F>
   static void visitMotion(const Segment& seg, F&& f);
   /// Places state_ (and, with_energy, the ledger) at local time tau of the current segment.
@@ -294,6 +301,8 @@ class Plant
   std::uint64_t event_budget_ = 0;
   std::uint64_t switches_ = 0;  // rests and watch switches since setState(), counted against the same budget
   bool track_energy_ = true;
+  bool short_flights_ = true;
+  std::uint64_t short_flight_count_ = 0;
   bool dry_ = false;  // params_.hasDryFriction()
   double search_horizon_ = std::numeric_limits<double>::infinity();
   Slide forced_motor_breakaway_ = 0;  // set at a Breakaway: the motor slides this way from rest (no re-decision)

@@ -390,7 +390,11 @@ bool Plant::advanceTo(double t_end, EventSink* sink)
 template <class F>
 void Plant::visitMotion(const Segment& seg, F&& f)
 {
-  if (seg.contact)
+  if (seg.flight)
+  {
+    f(*seg.flight);
+  }
+  else if (seg.contact)
   {
     f(*seg.contact);
   }
@@ -477,6 +481,22 @@ void Plant::beginSegment()
   // Apart: search at most half a natural period ahead: impacts come sooner almost always, and a short window keeps
   // the critical points and brackets of the search local (a longer flight simply continues in a new segment).
   const double window = FREE_SEARCH_PERIODS * period;
+  Contact wall = Contact::Forward;
+  const double search = searchWindow(window);
+  if (short_flights_ && impactNow(&wall) != 0.0)
+  {
+    // Elastic chatter: a flight of microseconds from a wall back to it, as a certified Taylor series.
+    if (seg.flight.emplace().build(params_, law_, state_, search))
+    {
+      ++short_flight_count_;
+      seg.end = Segment::End::Impact;
+      seg.end_tau = seg.flight->impactTime();
+      seg.wall = seg.flight->wall();
+      applyWatch(seg);
+      return;
+    }
+    seg.flight.reset();
+  }
   if (apart_needs_series_)
   {
     seg.wide = std::make_shared<const WideFreeMotion>(params_, law_, state_, window);
@@ -485,8 +505,6 @@ void Plant::beginSegment()
   {
     seg.free.emplace(params_, law_, state_, window);
   }
-  Contact wall = Contact::Forward;
-  const double search = searchWindow(window);
   const double impact = seg.wide ? firstImpact(*seg.wide, search, &wall) : firstImpact(*seg.free, search, &wall);
   seg.end = impact <= search ? Segment::End::Impact : Segment::End::Restart;
   seg.end_tau = std::min(impact, search);

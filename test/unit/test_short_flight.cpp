@@ -1,0 +1,227 @@
+// The chatter fast path (short_flight.h) against independent truth: the apart mode's closed form written out in
+// long double (64-bit mantissa, ~2000x finer than double) with its return to the wall bisected in long double, the
+// energy balance of each flight, and whole chatter runs with the fast path off (closed form everywhere).
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <limits>
+#include <memory>
+#include <random>
+
+#include "backlash_servo/modes.h"
+#include "backlash_servo/plant.h"
+#include "backlash_servo/short_flight.h"
+#include "test_helpers.h"
+
+using namespace backlash_servo;
+
+namespace
+{
+constexpr double EPS = std::numeric_limits<double>::epsilon();
+
+/// The apart mode's solution for α ≠ β, both > 0, no load torque, in long double (as modes.h derives it).
+struct ReferenceFlight
+{
+  long double alpha, beta, rho, x0, v0, m0, w0, a_over_j, k_over_j;
+  ReferenceFlight(const ServoParams& p, const MotorInput& in, const State& s)
+      : alpha(static_cast<long double>(p.load_friction) / p.load_inertia),
+        beta(static_cast<long double>(p.motor_friction) / p.motor_inertia),
+        rho(p.gear_ratio),
+        x0(s.load_position),
+        v0(s.load_velocity),
+        m0(s.motor_position),
+        w0(s.motor_velocity),
+        a_over_j(static_cast<long double>(in.offset) / p.motor_inertia),
+        k_over_j(static_cast<long double>(in.stiffness) / p.motor_inertia)
+  {}
+  /// θ_c = x0 + (v0/α)(1 − e^{−ατ}); ω_m' + βω_m = f0 + f1 e^{−ατ}.
+  void at(long double tau, long double* xc, long double* vc, long double* xm, long double* vm) const
+  {
+    const long double ea = std::exp(-alpha * tau), eb = std::exp(-beta * tau);
+    const long double c1 = -v0 / alpha, c0 = x0 - c1;
+    *xc = x0 + c1 * std::expm1(-alpha * tau);
+    *vc = v0 * ea;
+    const long double f0 = a_over_j - k_over_j * c0, f1 = -k_over_j * c1;
+    const long double q0 = f0 / beta, q1 = f1 / (beta - alpha), q2 = w0 - q0 - q1;
+    *vm = q0 + q1 * ea + q2 * eb;
+    *xm = m0 + q0 * tau - q1 * std::expm1(-alpha * tau) / alpha - q2 * std::expm1(-beta * tau) / beta;
+  }
+  long double gap(long double tau) const
+  {
+    long double xc, vc, xm, vm;
+    at(tau, &xc, &vc, &xm, &vm);
+    return xc - rho * xm;
+  }
+};
+
+struct Draw
+{
+  ServoParams params;
+  MotorInput law;
+  State start;
+};
+
+/// A state on a wall just after an impact: the teeth separating at `speed` [rad/s], the law pressing them back or
+/// not (builds that fail are skipped by the caller).
+Draw drawFlight(std::mt19937_64& rng)
+{
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  auto logUniform = [&](double lo, double hi) { return lo * std::pow(hi / lo, u(rng)); };
+  Draw d;
+  d.params = test_helpers::chart(0.1 + 0.9 * u(rng), logUniform(0.01, 100.0), 0.05 + 0.9 * u(rng), u(rng), 0.3,
+                                 logUniform(0.1, 10.0), logUniform(0.5, 2.0));
+  const double gain = d.params.gain;
+  d.law.stiffness = gain;
+  d.law.offset = gain * (4.0 * u(rng) - 2.0);
+  const double rho = d.params.gear_ratio;
+  const bool forward = u(rng) < 0.5;
+  d.start.contact = Contact::Apart;
+  d.start.load_position = 4.0 * u(rng) - 2.0;
+  d.start.motor_position = (d.start.load_position - (forward ? 0.0 : d.params.backlash)) / rho;
+  d.start.motor_velocity = 2.0 * u(rng) - 1.0;
+  const double speed = logUniform(1e-4, 1e-1);
+  d.start.load_velocity = rho * d.start.motor_velocity + (forward ? speed : -speed);
+  return d;
+}
+}  // namespace
+
+TEST(ShortFlight, AgreesWithTheLongDoubleClosedFormToRounding)
+{
+  std::mt19937_64 rng(20261125);
+  int taken = 0;
+  double worst_time = 0.0, worst_closed_form = 0.0, worst_state = 0.0, worst_energy = 0.0;
+  for (int i = 0; i < 4000 && taken < 400; ++i)
+  {
+    const Draw d = drawFlight(rng);
+    ShortFlight f;
+    const double horizon = 0.5 * 2.0 * M_PI / std::sqrt(d.params.gain / d.params.totalInertia());
+    if (!f.build(d.params, d.law, d.start, horizon))
+    {
+      continue;
+    }
+    ++taken;
+    const ReferenceFlight ref(d.params, d.law, d.start);
+    const bool forward = f.wall() == Contact::Forward;
+    const long double level = forward ? 0.0L : static_cast<long double>(d.params.backlash);
+    const long double sign = forward ? 1.0L : -1.0L;
+    // The return: the first sign change of sign·(g − level) after it has risen, on a fine scan, then bisected.
+    const double t = f.impactTime();
+    long double a = 0.0L, b = 0.0L;
+    bool risen = false;
+    for (int k = 1; k <= 4000; ++k)
+    {
+      const long double tau = 3.0L * t * k / 4000.0L;
+      const long double fk = sign * (ref.gap(tau) - level);
+      if (fk > 0.0L)
+      {
+        risen = true;
+        a = tau;
+      }
+      else if (risen)
+      {
+        b = tau;
+        break;
+      }
+    }
+    ASSERT_GT(b, 0.0L) << "case " << i << ": the reference never returns; flight " << t << " s, gap at 0 "
+                       << static_cast<double>(ref.gap(0.0L) - level) << ", at t/2 "
+                       << static_cast<double>(ref.gap(0.5L * t) - level) << ", at t "
+                       << static_cast<double>(ref.gap(t) - level) << " alpha " << static_cast<double>(ref.alpha)
+                       << " beta " << static_cast<double>(ref.beta);
+    for (int it = 0; it < 200; ++it)
+    {
+      const long double mid = 0.5L * (a + b);
+      (sign * (ref.gap(mid) - level) > 0.0L ? a : b) = mid;
+    }
+    const long double t_ref = 0.5L * (a + b);
+    // Tolerance: the rounding of the gap (positions) over the closing speed, plus a few ε of the time.
+    const double position_scale =
+        std::fabs(d.start.load_position) + d.params.gear_ratio * std::fabs(d.start.motor_position) + 0.3;
+    const double speed = std::fabs(d.start.load_velocity - d.params.gear_ratio * d.start.motor_velocity);
+    const double tol = 64.0 * EPS * position_scale / speed + 16.0 * EPS * t;
+    const double err = static_cast<double>(std::fabs(t - t_ref));
+    EXPECT_LE(err, tol) << "case " << i << " flight " << t << " s";
+    worst_time = std::max(worst_time, err / tol);
+    // The double closed form's own error on the same flight, for the record.
+    FreeMotion closed(d.params, d.law, d.start, horizon);
+    Contact wall;
+    const double t_closed = closed.impactTime(horizon, &wall);
+    worst_closed_form = std::max(worst_closed_form, static_cast<double>(std::fabs(t_closed - t_ref)) / tol);
+    // The state at the impact against the reference at the same instant.
+    State s;
+    f.at(t, &s);
+    long double xc, vc, xm, vm;
+    ref.at(t, &xc, &vc, &xm, &vm);
+    const double velocity_scale = std::fabs(d.start.load_velocity) + std::fabs(d.start.motor_velocity) + 1e-3;
+    const double state_err = std::max({static_cast<double>(std::fabs(s.load_position - xc)) / position_scale,
+                                       static_cast<double>(std::fabs(s.motor_position - xm)) / position_scale,
+                                       static_cast<double>(std::fabs(s.load_velocity - vc)) / velocity_scale,
+                                       static_cast<double>(std::fabs(s.motor_velocity - vm)) / velocity_scale}) /
+                             EPS;
+    EXPECT_LE(state_err, 8.0) << "case " << i;
+    worst_state = std::max(worst_state, state_err);
+    // Energy balance of the flight: ΔKE = input − frictions (no impact inside it).
+    const EnergyFlows e = f.energy(t);
+    const double rho = d.params.gear_ratio;
+    auto kinetic = [&](const State& x) {
+      return 0.5 * d.params.load_inertia * x.load_velocity * x.load_velocity +
+             0.5 * d.params.motor_inertia * x.motor_velocity * x.motor_velocity;
+    };
+    const double balance = kinetic(s) - kinetic(d.start) - (e.input - e.motor_friction - e.load_friction);
+    const double energy_scale = kinetic(d.start) + std::fabs(e.input) + e.motor_friction + e.load_friction +
+                                std::fabs(d.law.torque(d.start.load_position)) * position_scale / rho;
+    EXPECT_LE(std::fabs(balance), 64.0 * EPS * energy_scale) << "case " << i;
+    worst_energy = std::max(worst_energy, std::fabs(balance) / (EPS * energy_scale));
+  }
+  EXPECT_GE(taken, 200);
+  std::printf(
+      "short flights: %d cases; worst impact time error %.3g of the tolerance (the double closed form: "
+      "%.3g); state %.3g eps; energy balance %.3g eps\n",
+      taken, worst_time, worst_closed_form, worst_state, worst_energy);
+}
+
+namespace
+{
+/// A continuous P law run (θ_R = 1 rad from rest) for `duration` [s], the fast path on or off; maxima of θ_c to
+/// *maxima.
+std::unique_ptr<Plant> runChatter(const ServoParams& params, bool short_flights, double duration,
+                                  std::vector<Event>* maxima)
+{
+  MotorInput law;
+  law.stiffness = params.gain;
+  law.offset = params.gain * 1.0;
+  auto plant = std::make_unique<Plant>(params, State(), law);
+  plant->setShortFlights(short_flights);
+  test_helpers::Recorder rec;
+  plant->advanceTo(duration, &rec);
+  *maxima = rec.of(EventType::Maximum);
+  return plant;
+}
+}  // namespace
+
+TEST(ShortFlight, ChatterRunsAgreeWithTheClosedFormEverywhere)
+{
+  // The thesis grid's costliest point (ζ = 0.8, ρ²J_L/J_m = 0.04, all friction on the load, e = 1): a light load
+  // rattling against the motor ~35 000 times per simulated second; and a plastic-ish e = 0.6 case.
+  for (const ServoParams& p : {test_helpers::chart(0.8, 0.04, 1.0, 1.0), test_helpers::chart(0.5, 0.04, 0.8, 0.6)})
+  {
+    std::vector<Event> with, without;
+    const std::unique_ptr<Plant> fast = runChatter(p, true, 25.0, &with);
+    const std::unique_ptr<Plant> slow = runChatter(p, false, 25.0, &without);
+    const std::uint64_t fast_impacts = fast->impactCount(), flights = fast->shortFlightCount();
+    EXPECT_EQ(slow->shortFlightCount(), 0u);
+    EXPECT_GT(flights, fast_impacts / 2) << "the fast path was hardly used";
+    ASSERT_EQ(with.size(), without.size());
+    ASSERT_GE(with.size(), 2u);
+    for (std::size_t i = 0; i < with.size(); ++i)
+    {
+      EXPECT_NEAR(with[i].state.load_position, without[i].state.load_position, 1e-9) << "maximum " << i;
+      EXPECT_NEAR(with[i].state.time, without[i].state.time, 1e-8) << "maximum " << i;
+    }
+    EXPECT_LE(std::fabs(fast->energyBalanceError()), 1e-12 * fast->energy().input);
+    EXPECT_LE(std::fabs(slow->energyBalanceError()), 1e-12 * slow->energy().input);
+    std::printf("chatter e = %.1f: %llu impacts (%llu short flights) vs %llu with the closed form\n", p.restitution,
+                static_cast<unsigned long long>(fast_impacts), static_cast<unsigned long long>(flights),
+                static_cast<unsigned long long>(slow->impactCount()));
+  }
+}
