@@ -171,6 +171,47 @@ void jointBenchmarks(double scale)
   }
 }
 
+/// The thesis grid's costliest points (elastic chatter of a light load: ρ²J_L/J_m = 0.04, e = 1), run as the sweep
+/// runs them (until the verdict settles, ledger off) with the chatter fast path off (the closed form for every
+/// flight: the code before it) and on. Returns false if a verdict or a limit-cycle amplitude (1e-6 rad) differs.
+bool chatterBenchmarks(bool quick)
+{
+  std::printf("\n== elastic chatter: the thesis grid's costliest points, until settled (closed form vs fast path)\n");
+  std::printf("%-16s %11s %11s %10s %10s %8s %9s %9s %s\n", "zeta/fr", "closed [ms]", "fast [ms]", "impacts", "impacts",
+              "ratio", "ns/imp", "amp diff", "verdict");
+  const std::vector<std::pair<double, double>> points =
+      quick ? std::vector<std::pair<double, double>>{{0.8, 0.6}}
+            : std::vector<std::pair<double, double>>{{0.3, 1.0}, {0.4, 1.0}, {0.5, 1.0}, {0.6, 1.0},
+                                                     {0.8, 1.0}, {0.5, 0.8}, {0.6, 0.8}, {0.8, 0.8}};
+  bool ok = true;
+  double closed_total = 0.0, fast_total = 0.0;
+  for (const auto& [zeta, fr] : points)
+  {
+    RunConfig config;
+    config.params = chart(zeta, 0.04, fr, 1.0);
+    config.track_energy = false;
+    RunSummary with, without;
+    config.short_flights = false;
+    const double closed = timeIt([&]() { without = runResponse(config, nullptr); });
+    config.short_flights = true;
+    const double fast = timeIt([&]() { with = runResponse(config, nullptr); });
+    closed_total += closed;
+    fast_total += fast;
+    const double amp_diff = std::fabs(with.status.error - without.status.error);
+    const bool same = with.status.verdict == without.status.verdict && amp_diff <= 1e-6;
+    ok = ok && same;
+    char name[32];
+    std::snprintf(name, sizeof name, "%.1f/%.1f", zeta, fr);
+    std::printf("%-16s %11.1f %11.1f %10llu %10llu %7.1fx %9.0f %9.1e %s%s\n", name, closed * 1e3, fast * 1e3,
+                static_cast<unsigned long long>(without.impacts), static_cast<unsigned long long>(with.impacts),
+                closed / fast, fast * 1e9 / std::max<double>(1.0, static_cast<double>(with.impacts)), amp_diff,
+                toString(with.status.verdict), same ? "" : " (DIFFERS)");
+  }
+  std::printf("%-16s %11.1f %11.1f %10s %10s %7.1fx\n", "total", closed_total * 1e3, fast_total * 1e3, "", "",
+              closed_total / fast_total);
+  return ok;
+}
+
 double maxError(const std::vector<bench::Max>& a, const std::vector<bench::Max>& ref, std::size_t* compared)
 {
   const std::size_t n = std::min(a.size(), ref.size());
@@ -292,6 +333,11 @@ int main(int argc, char** argv)
     }
   }
   jointBenchmarks(scale);
+  if (!chatterBenchmarks(quick))
+  {
+    std::printf("CHATTER CHECK FAILED: the fast path changed a verdict or an amplitude\n");
+    ok = false;
+  }
   rusage usage;
   getrusage(RUSAGE_SELF, &usage);
   std::printf("peak memory (whole benchmark process): %.1f MB\n", usage.ru_maxrss / 1024.0);

@@ -230,7 +230,7 @@ class Plant
     double end_tau = 0.0;  ///< local time of the end [s]
     End end = End::Restart;
     Contact wall = Contact::Forward;  ///< wall hit (Impact)
-    std::array<double, 16> maxima{};  ///< local times of θ_c maxima in (0, end_tau]
+    std::array<double, 16> maxima;    ///< local times of θ_c maxima in (0, end_tau] (set up to maxima_count)
     int maxima_count = 0;
     int maxima_emitted = 0;
   };
@@ -292,7 +292,8 @@ class Plant
   MotorInput law_;
   std::optional<Segment> segment_;
   bool apart_needs_series_ = false;
-  double period_ = 1.0;  // natural period 2π/ω_n of the current parameters [s] (sets the search windows)
+  double press_factor_ = 0.0;  // (J_m + ρ²J_L)/(J_m J_L) of the current parameters [1/(kg·m²)]
+  double period_ = 1.0;        // natural period 2π/ω_n of the current parameters [s] (sets the search windows)
   double watch_lo_ = -std::numeric_limits<double>::infinity();
   double watch_hi_ =
       std::numeric_limits<double>::infinity();  // apartNeedsSeries() for the current parameters (fixed window)
@@ -302,6 +303,7 @@ class Plant
   std::uint64_t switches_ = 0;  // rests and watch switches since setState(), counted against the same budget
   bool track_energy_ = true;
   bool short_flights_ = true;
+  std::optional<ShortFlight::Model> flight_model_;  // for params_ and law_ (reset when either changes)
   std::uint64_t short_flight_count_ = 0;
   bool dry_ = false;  // params_.hasDryFriction()
   double search_horizon_ = std::numeric_limits<double>::infinity();

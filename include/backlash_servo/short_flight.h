@@ -21,7 +21,8 @@
  * (its second derivative, with every higher term and the remainder bounded, keeps the sign of the pressing one), so
  * it rises once and comes back once; it is back beyond the wall at T; it cannot reach the other wall (the tangent at
  * 0 bounds a concave function); M·T ≤ 0.1. The return is then the only root in (peak, T], found by Newton's method
- * from T, which for a concave decreasing function approaches the root monotonically from the far side.
+ * from the quadratic return corrected by the cubic term: for a concave F decreasing past its peak, the first step
+ * lands at or beyond the root (the tangent lies above F) and the next ones approach it monotonically from there.
  */
 #pragma once
 
@@ -39,12 +40,35 @@ class ShortFlight
   /// Largest M·T [-] (norm of the mode's matrix times the flight) for which a flight is taken.
   static constexpr double MAX_NORM_TIME = 0.1;
 
+  // User-provided: value-initialising (optional::emplace()) would otherwise zero the series storage first.
+  ShortFlight() {}
+
+  /// The constants of the apart mode for one parameter set and motor law (built once, used by every flight).
+  struct Model
+  {
+    double load_friction = 0.0, motor_friction = 0.0, load_torque = 0.0;  ///< f_L, f_m [N·m·s/rad], T_ext [N·m]
+    double offset = 0.0, stiffness = 0.0;  ///< the law T_m = a − k θ_c: a [N·m], k [N·m/rad]
+    double alpha = 0.0, beta = 0.0;        ///< f_L/J_L, f_m/J_m [1/s]
+    double motor_stiffness = 0.0;          ///< k/J_m [1/s²]
+    double motor_offset = 0.0;             ///< a/J_m [rad/s²]
+    double load_accel = 0.0;               ///< T_ext/J_L [rad/s²]
+    double rho = 1.0, delta = 0.0;         ///< ρ [-], Δ [rad]
+    double omega_ref = 0.0;                ///< max(α, β, √(ρ|k|/J_m)) [1/s]: 1/s of the weighted norm (0: none)
+    double norm = 0.0;  ///< M [1/s], the matrix norm in the weighted norm with s = 1/ω_ref (when ω_ref > 0)
+    Model() = default;
+    Model(const ServoParams& params, const MotorInput& input);
+  };
+
   /**
-   * Builds the flight from state `start` (apart, on or at rounding distance from a wall) under `input`, with events
-   * searched up to `horizon` [s]. Returns false — and the caller uses the closed form — unless the conditions in the
-   * file comment hold and the impact falls within the horizon.
+   * Builds the flight from state `start` (apart, on or at rounding distance from a wall) under the model's law,
+   * with events searched up to `horizon` [s]. Returns false — and the caller uses the closed form — unless the
+   * conditions in the file comment hold and the impact falls within the horizon.
    */
-  bool build(const ServoParams& params, const MotorInput& input, const State& start, double horizon);
+  bool build(const Model& model, const State& start, double horizon);
+  bool build(const ServoParams& params, const MotorInput& input, const State& start, double horizon)
+  {
+    return build(Model(params, input), start, horizon);
+  }
 
   /// Local time [s] of the impact that ends the flight, and the wall hit (the wall the teeth left).
   double impactTime() const { return impact_; }
@@ -58,13 +82,11 @@ class ShortFlight
   double exitTime(double lo, double hi, double horizon) const;
 
  private:
-  /// Value of series c (order n_) at tau.
-  double evaluate(const double* c, double tau) const;
-  ServoParams params_;
-  MotorInput input_;
+  Model model_;
   int n_ = 0;  // order kept
-  double load_position_[MAX_ORDER + 1] = {}, load_velocity_[MAX_ORDER + 1] = {};
-  double motor_position_[MAX_ORDER + 1] = {}, motor_velocity_[MAX_ORDER + 1] = {};
+  // Taylor coefficients (uninitialised beyond n_: a flight is built per impact)
+  double load_position_[MAX_ORDER + 1], load_velocity_[MAX_ORDER + 1];
+  double motor_position_[MAX_ORDER + 1], motor_velocity_[MAX_ORDER + 1];
   double impact_ = 0.0;
   Contact wall_ = Contact::Forward;
 };

@@ -64,6 +64,8 @@ class Simulator
   /// Replaces the state (validated: finite, gap within [0, Δ], contact consistent); resets the energy ledger.
   void setState(const State& state);
 
+  /// The plant's chatter fast path (Plant::setShortFlights): on by default; off only to compare with the closed form.
+  void setShortFlights(bool on) { plant_.setShortFlights(on); }
   /// Advances exactly to time t_end [s], stopping at drive events on the way; events go in order to sink.
   void advanceTo(double t_end, EventSink* sink = nullptr);
   /// Called at every sample of a digital drive, just after the controller read its sensors (state at t_k, the

@@ -28,6 +28,7 @@ struct RunConfig
   double max_duration = 0.0;  ///< cap when running until settled [s]; 0 = 2000/ω_n
   bool track_energy = true;   ///< energy ledger (off: ~25 % faster, energy fields of the summary are zero)
   double max_events = 1e7;    ///< impact budget of the run; exceeded → stopped, verdict unsettled (not a hang)
+  bool short_flights = true;  ///< the chatter fast path (short_flight.h); off only to compare (bench_core)
   /// Optional set-point profile θ_R(t); the verdict is judged from its end on, against its final value (a run until
   /// settled lasts at least to its end). A digital drive samples any profile; the continuous law takes steps, points
   /// and (without dry friction) ramps exactly (Simulator::setProfile) and refuses sines and moves

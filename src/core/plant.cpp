@@ -25,6 +25,13 @@ constexpr double FREE_SEARCH_PERIODS = 0.5;
 /// Contact mode: separations and maxima are searched this far ahead per segment [natural periods].
 constexpr double CONTACT_SEARCH_PERIODS = 1.0;
 constexpr double PI = 3.14159265358979323846;
+
+/// (J_m + ρ²J_L)/(J_m J_L) [1/(kg·m²)]: the relative acceleration of the teeth per unit of mesh torque.
+double pressFactor(const ServoParams& p)
+{
+  const double rho = p.gear_ratio;
+  return (p.motor_inertia + rho * rho * p.load_inertia) / (p.motor_inertia * p.load_inertia);
+}
 }  // namespace
 
 const char* toString(Contact c)
@@ -83,6 +90,7 @@ Plant::Plant(const ServoParams& params, const State& initial, const MotorInput& 
   dry_ = params_.hasDryFriction();
   period_ = 2.0 * PI / params_.naturalFrequency();
   apart_needs_series_ = apartNeedsSeries(params_, FREE_SEARCH_PERIODS * period_);
+  press_factor_ = pressFactor(params_);
   setState(initial);
 }
 
@@ -135,6 +143,7 @@ void Plant::setState(const State& s)
 void Plant::setLaw(const MotorInput& law)
 {
   law_ = law;
+  flight_model_.reset();
   // A digital drive's new sample on a joint held by stiction (stick–slip phases: most samples): if the rest rule
   // still holds everything, the held segment is exactly what a new one would be.
   if (dry_ && segmentHeld() && forced_motor_breakaway_ == 0 && heldUnder(law_.torque(state_.load_position)))
@@ -205,11 +214,13 @@ void Plant::setParams(const ServoParams& params, EventSink* sink, bool frame)
   const double balance_before = energyBalanceError();
   const double old_gap = gap();
   params_ = params;
+  flight_model_.reset();
   dry_ = params_.hasDryFriction();
   forced_motor_breakaway_ = 0;
   mesh_ = GearMesh(params_);
   period_ = 2.0 * PI / params_.naturalFrequency();
   apart_needs_series_ = apartNeedsSeries(params_, FREE_SEARCH_PERIODS * period_);
+  press_factor_ = pressFactor(params_);
   const double delta = params_.backlash;
   // θ_c and ω_c are kept; the motor is re-expressed on the new mesh with the gap clamped into [0, Δ].
   double g = std::min(std::max(old_gap, 0.0), delta);
@@ -486,7 +497,11 @@ void Plant::beginSegment()
   if (short_flights_ && impactNow(&wall) != 0.0)
   {
     // Elastic chatter: a flight of microseconds from a wall back to it, as a certified Taylor series.
-    if (seg.flight.emplace().build(params_, law_, state_, search))
+    if (!flight_model_)
+    {
+      flight_model_.emplace(params_, law_);
+    }
+    if (seg.flight.emplace().build(*flight_model_, state_, search))
     {
       ++short_flight_count_;
       seg.end = Segment::End::Impact;
@@ -798,24 +813,25 @@ void Plant::handleImpact(Contact wall, EventSink* sink)
     wall = GearMesh::otherWall(wall);  // rigid mesh: leaving one flank is running into the other
   }
   const double closing = mesh_.closingSpeed(wall, v, w);  // > 0: teeth approach
-  // "Numerically zero" relative speed: below rounding of the velocities, or so small that the bounce it would start
-  // against the pressing mesh torque could not rise above the rounding of the gap (h = s²/2a).
+  // "Numerically zero" relative speed s: below rounding of the velocities, or so small that the bounce it would start
+  // against the pressing mesh torque could not rise above the rounding of the gap (h = s²/2a); squares compared, and
+  // the mesh torque computed only when the first test does not decide.
   const double speed_noise = 64.0 * EPS * (std::fabs(v) + rho * std::fabs(w));
-  const double jm = params_.motor_inertia;
-  const double jl = params_.load_inertia;
-  const double press_accel =
-      std::fabs(contactMeshTorque(params_, law_, state_.load_position, v)) * (jm + rho * rho * jl) / (jm * jl);
   const double gap_noise =
       64.0 * EPS * (std::fabs(state_.load_position) + rho * std::fabs(state_.motor_position) + delta);
-  const double stick_speed = std::max(speed_noise, std::sqrt(2.0 * press_accel * gap_noise));
-  if (!(closing > 0.0) && std::fabs(closing) > stick_speed)
+  auto bounce_floor = [&]() {  // s² of a bounce rising to the gap noise: 2 a h
+    return 2.0 * gap_noise * std::fabs(contactMeshTorque(params_, law_, state_.load_position, v)) * press_factor_;
+  };
+  if (!(closing > 0.0) && -closing > speed_noise && closing * closing > bounce_floor())
   {
     state_.contact = Contact::Apart;  // clearly moving away: only rounding put the gap on the wall
     return;
   }
   // A touch without closing (rounding) or a closing speed the stick rule calls zero is made plastic; so is every
   // impact of a rigid mesh (Δ = 0, e.g. the backlash tuned to 0 while the teeth float): no room to bounce into.
-  const double e = params_.restitution * closing <= stick_speed || delta == 0.0 ? 0.0 : params_.restitution;
+  const double rebound = params_.restitution * closing;
+  const bool plastic = delta == 0.0 || rebound <= speed_noise || rebound * rebound <= bounce_floor();
+  const double e = plastic ? 0.0 : params_.restitution;
   const ImpactOutcome o = resolveImpact(params_, v, w, e);
   state_.load_velocity = o.load_velocity;
   state_.motor_velocity = o.motor_velocity;

@@ -40,7 +40,7 @@ double integrateProduct(const double* a, const double* b, int n, double tau)
 }
 
 /// Σ_{k≥1} c_k τ^k: the series' change from its start (no rounding of c_0 in it).
-double increment(const double* c, int n, double tau)
+inline double increment(const double* c, int n, double tau)
 {
   double sum = 0.0;
   for (int k = n; k >= 1; --k)
@@ -49,24 +49,39 @@ double increment(const double* c, int n, double tau)
   }
   return sum * tau;
 }
+
+/// Value of series c (order n) at tau.
+inline double evaluate(const double* c, int n, double tau)
+{
+  return c[0] + increment(c, n, tau);
+}
 }  // namespace
 
-double ShortFlight::evaluate(const double* c, double tau) const
-{
-  return c[0] + increment(c, n_, tau);
-}
+ShortFlight::Model::Model(const ServoParams& p, const MotorInput& input)
+    : load_friction(p.load_friction),
+      motor_friction(p.motor_friction),
+      load_torque(p.load_torque),
+      offset(input.offset),
+      stiffness(input.stiffness),
+      alpha(p.load_friction / p.load_inertia),
+      beta(p.motor_friction / p.motor_inertia),
+      motor_stiffness(input.stiffness / p.motor_inertia),
+      motor_offset(input.offset / p.motor_inertia),
+      load_accel(p.load_torque / p.load_inertia),
+      rho(p.gear_ratio),
+      delta(p.backlash),
+      omega_ref(std::max({alpha, beta, std::sqrt(rho * std::fabs(motor_stiffness))})),
+      norm(omega_ref > 0.0 ? std::max({omega_ref, alpha, rho * std::fabs(motor_stiffness) / omega_ref + beta}) : 0.0)
+{}
 
-bool ShortFlight::build(const ServoParams& p, const MotorInput& input, const State& s, double horizon)
+bool ShortFlight::build(const Model& m, const State& s, double horizon)
 {
   if (s.contact != Contact::Apart || !(horizon > 0.0))
   {
     return false;
   }
-  const double rho = p.gear_ratio;
-  const double delta = p.backlash;
-  const double alpha = p.load_friction / p.load_inertia;
-  const double beta = p.motor_friction / p.motor_inertia;
-  const double stiffness = input.stiffness / p.motor_inertia;  // k/J_m [1/s²]
+  const double rho = m.rho;
+  const double delta = m.delta;
   const double pos_scale = std::fabs(s.load_position) + rho * std::fabs(s.motor_position) + delta;
   // The wall the teeth are on (after an impact: within rounding of it); F = sign·(g − level) > 0 in the free space.
   const double g0 = s.load_position - rho * s.motor_position;
@@ -102,15 +117,15 @@ bool ShortFlight::build(const ServoParams& p, const MotorInput& input, const Sta
   xm[0] = s.motor_position;
   vm[0] = s.motor_velocity;
   xc[1] = vc[0];
-  vc[1] = p.load_torque / p.load_inertia - alpha * vc[0];
+  vc[1] = m.load_accel - m.alpha * vc[0];
   xm[1] = vm[0];
-  vm[1] = input.torque(xc[0]) / p.motor_inertia - beta * vm[0];
+  vm[1] = m.motor_offset - m.motor_stiffness * xc[0] - m.beta * vm[0];
   auto next = [&](int k) {  // y_{k+1} from y_k, k ≥ 1
     const double inv = INVERSE[k + 1];
     xc[k + 1] = vc[k] * inv;
-    vc[k + 1] = -alpha * vc[k] * inv;
+    vc[k + 1] = -m.alpha * vc[k] * inv;
     xm[k + 1] = vm[k] * inv;
-    vm[k + 1] = (-stiffness * xc[k] - beta * vm[k]) * inv;
+    vm[k + 1] = (-m.motor_stiffness * xc[k] - m.beta * vm[k]) * inv;
   };
   next(1);
   const double f1 = sign * (xc[1] - rho * xm[1]);
@@ -126,24 +141,24 @@ bool ShortFlight::build(const ServoParams& p, const MotorInput& input, const Sta
     return false;
   }
   // Norm of A in the weighted norm ||y||_D = max(|θ_c|, s|ω_c|, ρ|θ_m|, sρ|ω_m|), s = 1/ω_ref.
-  const double omega_ref = std::max({alpha, beta, std::sqrt(rho * std::fabs(stiffness))});
-  const double scale_time = omega_ref > 0.0 ? 1.0 / omega_ref : 1e3 * t_end;
-  const double norm = std::max({1.0 / scale_time, alpha, scale_time * rho * std::fabs(stiffness) + beta});
-  const double mt = norm * t_end;
+  const double scale_time = m.omega_ref > 0.0 ? 1.0 / m.omega_ref : 1e3 * t_end;
+  const double mt = (m.omega_ref > 0.0 ? m.norm : 1.0 / scale_time) * t_end;
   if (!(mt <= MAX_NORM_TIME))
   {
     return false;
   }
-  // Order: the remainder on [0, T] below 1 % of the rounding of the positions and of the velocities.
+  // Order: the remainder on [0, T], R_N ≤ ||y_N|| T^N (MT/(N+1)) / (1 − MT/(N+2)) ≤ 1.03 ||y_N|| T^N MT/(N+1)
+  // (MT ≤ 0.1, N ≥ 2), below 1 % of the rounding of the positions and of the velocities.
   const double vel_scale = std::fabs(s.load_velocity) + rho * std::fabs(s.motor_velocity);
   const double tol = 0.01 * EPS * std::min(pos_scale, scale_time * vel_scale);
-  double weighted = 0.0, t_power = t_end * t_end;  // ||y_N||_D, T^N
+  const double tail_factor = 1.03 * mt;
+  double weighted = 0.0, t_power = t_end * t_end, t_power_2 = 1.0;  // ||y_N||_D, T^N, T^{N−2}
   int n = 2;
   for (;; ++n)
   {
-    weighted = std::max(
-        {std::fabs(xc[n]), scale_time * std::fabs(vc[n]), rho * std::fabs(xm[n]), scale_time * rho * std::fabs(vm[n])});
-    if (weighted * t_power * (mt / (n + 1)) / (1.0 - mt / (n + 2)) <= tol)
+    weighted = std::max(std::max(std::fabs(xc[n]), rho * std::fabs(xm[n])),
+                        scale_time * std::max(std::fabs(vc[n]), rho * std::fabs(vm[n])));
+    if (weighted * t_power * tail_factor * INVERSE[n + 1] <= tol)
     {
       break;
     }
@@ -153,9 +168,10 @@ bool ShortFlight::build(const ServoParams& p, const MotorInput& input, const Sta
     }
     next(n);
     t_power *= t_end;
+    t_power_2 *= t_end;
   }
   n_ = n;
-  const double remainder = weighted * t_power * (mt / (n + 1)) / (1.0 - mt / (n + 2));
+  const double remainder = weighted * t_power * tail_factor * INVERSE[n + 1];
   // The gap relative to the wall, F(τ) = Σ f_k τ^k (+ remainder ≤ 2R: two components in it).
   double f[MAX_ORDER + 1];
   f[0] = sign * (g0 - level);
@@ -163,13 +179,14 @@ bool ShortFlight::build(const ServoParams& p, const MotorInput& input, const Sta
   {
     f[k] = sign * (xc[k] - rho * xm[k]);
   }
-  // Concave on [0, T]: |Σ_{k≥3} k(k−1) f_k τ^{k−2}| plus the remainder's second derivative below −f'' (= −2 f_2).
+  // Concave on [0, T]: H = Σ_{k≥3} k(k−1)|f_k| T^{k−2} plus the remainder's second derivative bounds |F'' − 2f_2|;
+  // H < −f_2 gives 3f_2 < F'' < f_2 < 0 there.
   double higher = 0.0, tk = t_end;
   for (int k = 3; k <= n; ++k, tk *= t_end)
   {
     higher += k * (k - 1) * std::fabs(f[k]) * tk;
   }
-  higher += 2.0 * weighted * (t_power / (t_end * t_end)) * (n * mt + mt * mt / (1.0 - mt));
+  higher += 2.0 * weighted * t_power_2 * (n * mt + 1.12 * mt * mt);  // 1/(1 − MT) ≤ 1.12
   if (!(higher < -f2))
   {
     return false;
@@ -184,28 +201,34 @@ bool ShortFlight::build(const ServoParams& p, const MotorInput& input, const Sta
     *slope = d * tau + v;
     return v * tau + f[0];
   };
-  // The rise stays below the other wall (the tangent at 0 bounds a concave F); the gap rises above the wall and is
-  // back beyond it at T, both by more than the rounding of F (its increments are computed directly, so a bounce far
-  // below the rounding of the positions — micro-chatter — is resolved as well as a large one).
+  // The rise stays below the other wall (the tangent at 0 bounds a concave F). The gap rises above the wall by more
+  // than the rounding of F (its increments are computed directly, so a bounce far below the rounding of the
+  // positions — micro-chatter — is resolved as well as a large one): with F'' ≥ 2f_2 − H > 3f_2 on [0, T],
+  // F(τq/2) ≥ f_0 + f_1 τq/2 + 3f_2 τq²/8 = f_0 + f_1 τq/8, τq the quadratic return.
   const double rounding = 2.0 * remainder + 8.0 * EPS * (std::fabs(f[0]) + f1 * t_end);
-  double slope;
-  if (!(f[0] + f1 * t_end + 4.0 * near < delta) || !(value(0.5 * quadratic_return, &slope) > rounding))
+  if (!(f[0] + f1 * t_end + 4.0 * near < delta) || !(f[0] + 0.125 * f1 * quadratic_return > rounding))
   {
     return false;
   }
-  // Newton from the quadratic return (past the peak, which is near half of it): for a concave F decreasing there,
-  // the first step lands at or beyond the root (the tangent lies above F), and from there the iterates fall
-  // monotonically to it. The first step must stay within [0, T], where F is certified concave, and the gap must be
-  // back beyond the wall there (a root exists between the peak and it).
-  double x = quadratic_return;
+  // Start: the quadratic return corrected by the cubic term (a Newton step on f_1 + f_2 τ + f_3 τ², no series
+  // evaluation), past the peak (F' < 0 there). The first full Newton step lands at or beyond the root; it must stay
+  // in [0, T], where F is certified concave, and F must be back beyond the wall there (a root lies between the peak
+  // and it). Then monotone steps; one whose length is below 1e-8 of τ leaves an error below (1e-8)²·τ: taken as is.
+  const double f3 = n >= 3 ? f[3] : 0.0;
+  double x = quadratic_return - f3 * quadratic_return * quadratic_return / (f2 + 2.0 * f3 * quadratic_return);
+  double slope;
   double fx = value(x, &slope);
-  if (!(slope < 0.0))
+  if (!(slope < 0.0) || !(x > 0.5 * quadratic_return))
   {
     return false;
   }
   x -= fx / slope;
+  if (!(x <= t_end))
+  {
+    return false;
+  }
   fx = value(x, &slope);
-  if (!(x <= t_end) || !(fx < rounding))
+  if (!(fx < rounding) || !(slope < 0.0))
   {
     return false;
   }
@@ -213,46 +236,53 @@ bool ShortFlight::build(const ServoParams& p, const MotorInput& input, const Sta
   {
     const double step = fx / slope;
     const double candidate = x - step;
-    if (!(candidate < x) || !(slope < 0.0))
+    if (!(candidate < x))
     {
       break;
     }
     x = candidate;
+    if (step <= 1e-8 * x)
+    {
+      break;
+    }
     fx = value(x, &slope);
+    if (!(slope < 0.0))
+    {
+      break;
+    }
   }
   if (!(x > 0.5 * quadratic_return && x <= horizon))
   {
     return false;
   }
   impact_ = x;
-  params_ = p;
-  input_ = input;
+  model_ = m;
   return true;
 }
 
 void ShortFlight::at(double tau, State* out) const
 {
-  out->load_position = evaluate(load_position_, tau);
-  out->load_velocity = evaluate(load_velocity_, tau);
-  out->motor_position = evaluate(motor_position_, tau);
-  out->motor_velocity = evaluate(motor_velocity_, tau);
+  out->load_position = evaluate(load_position_, n_, tau);
+  out->load_velocity = evaluate(load_velocity_, n_, tau);
+  out->motor_position = evaluate(motor_position_, n_, tau);
+  out->motor_velocity = evaluate(motor_velocity_, n_, tau);
 }
 
 EnergyFlows ShortFlight::energy(double tau) const
 {
   double torque[MAX_ORDER + 1];  // T_m = a − k θ_c(τ) [N·m]
-  torque[0] = input_.torque(load_position_[0]);
+  torque[0] = model_.offset - model_.stiffness * load_position_[0];
   for (int k = 1; k <= n_; ++k)
   {
-    torque[k] = -input_.stiffness * load_position_[k];
+    torque[k] = -model_.stiffness * load_position_[k];
   }
   EnergyFlows e;
   e.input = integrateProduct(torque, motor_velocity_, n_, tau);
-  e.motor_friction = params_.motor_friction * integrateProduct(motor_velocity_, motor_velocity_, n_, tau);
-  e.load_friction = params_.load_friction * integrateProduct(load_velocity_, load_velocity_, n_, tau);
+  e.motor_friction = model_.motor_friction * integrateProduct(motor_velocity_, motor_velocity_, n_, tau);
+  e.load_friction = model_.load_friction * integrateProduct(load_velocity_, load_velocity_, n_, tau);
   e.load_displacement = increment(load_position_, n_, tau);
   e.motor_displacement = increment(motor_position_, n_, tau);
-  e.load_work = params_.load_torque * e.load_displacement;
+  e.load_work = model_.load_torque * e.load_displacement;
   return e;
 }
 
@@ -261,18 +291,18 @@ double ShortFlight::exitTime(double lo, double hi, double horizon) const
   // θ_c's only possible extremum: where the monotone ω_c crosses zero (bisection on the series).
   double crit[1];
   int m = 0;
-  const double v0 = load_velocity_[0], vh = evaluate(load_velocity_, horizon);
+  const double v0 = load_velocity_[0], vh = evaluate(load_velocity_, n_, horizon);
   if ((v0 > 0.0 && vh < 0.0) || (v0 < 0.0 && vh > 0.0))
   {
     double a = 0.0, b = horizon;
     for (int it = 0; it < 200 && b - a > 2.0 * EPS * b; ++it)
     {
       const double mid = 0.5 * (a + b);
-      ((evaluate(load_velocity_, mid) > 0.0) == (v0 > 0.0) ? a : b) = mid;
+      ((evaluate(load_velocity_, n_, mid) > 0.0) == (v0 > 0.0) ? a : b) = mid;
     }
     crit[m++] = b;
   }
-  return firstExit([&](double tau) { return evaluate(load_position_, tau); }, crit, m, horizon, lo, hi,
+  return firstExit([&](double tau) { return evaluate(load_position_, n_, tau); }, crit, m, horizon, lo, hi,
                    levelMagnitude(lo, hi));
 }
 

@@ -55,6 +55,7 @@ RunSummary runResponse(const RunConfig& config, EventSink* sink, double sample_p
     sim.setProfile(config.profile);
   }
   sim.setEnergyTracking(config.track_energy);
+  sim.setShortFlights(config.short_flights);
   sim.setEventBudget(static_cast<std::uint64_t>(config.max_events));
   RunSummary out;
   const double omega_n = config.params.naturalFrequency();
