@@ -251,7 +251,9 @@ bool ShortFlight::build(const Model& m, const State& s, double horizon)
       break;
     }
   }
-  if (!(x > 0.5 * quadratic_return && x <= horizon))
+  // A flight shorter than the clock resolves (a few ulps of the start time: teeth at rest to 1e-40 rad/s "bouncing"
+  // on rounding) would not advance time: left to the closed form, which sees no impact there.
+  if (!(x > 0.5 * quadratic_return && x <= horizon) || !(x > 64.0 * EPS * std::fabs(s.time)))
   {
     return false;
   }

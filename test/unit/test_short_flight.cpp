@@ -11,6 +11,7 @@
 #include "backlash_servo/modes.h"
 #include "backlash_servo/plant.h"
 #include "backlash_servo/short_flight.h"
+#include "backlash_servo/step_response.h"
 #include "test_helpers.h"
 
 using namespace backlash_servo;
@@ -224,4 +225,64 @@ TEST(ShortFlight, ChatterRunsAgreeWithTheClosedFormEverywhere)
                 static_cast<unsigned long long>(fast_impacts), static_cast<unsigned long long>(flights),
                 static_cast<unsigned long long>(slow->impactCount()));
   }
+}
+
+TEST(ShortFlight, AFlightShorterThanTheClockIsLeftToTheClosedForm)
+{
+  // Fuzz seed 7 #2364: a heavy, slow joint at rest to ~1e-40 rad/s on a wall at t ≈ 5568 s; a "flight" of the
+  // teeth there lasts less than an ulp of the clock and looped without advancing time. It is the closed form's.
+  RunConfig c;
+  c.params.motor_inertia = 0.1353220952460959;
+  c.params.load_inertia = 452410.49684263207;
+  c.params.motor_friction = 0.029472619056328284;
+  c.params.load_friction = 17480.744184480591;
+  c.params.gain = 0.34508804219038375;
+  c.params.gear_ratio = 0.0015582381501891426;
+  c.params.backlash = 1.2285908981316866;
+  c.params.restitution = 0.13076007930694492;
+  c.command = -63.901033223641178;
+  c.initial.contact = Contact::Forward;
+  c.initial.load_position = -82.176558081743266;
+  c.initial.load_velocity = -1.2336954810232209e-06;
+  c.initial.motor_position = -52736.841330555595;
+  c.initial.motor_velocity = -0.00079172460311889559;
+  c.duration = 6019.4164035323556;
+  RunSummary with, without;
+  ASSERT_NO_THROW(with = runResponse(c, nullptr));
+  c.short_flights = false;
+  ASSERT_NO_THROW(without = runResponse(c, nullptr));
+  EXPECT_EQ(with.status.verdict, without.status.verdict);
+  EXPECT_NEAR(with.final_state.load_position, without.final_state.load_position, 1e-9);
+}
+
+TEST(ShortFlight, AZenoSequenceUnderALoadTorqueEnds)
+{
+  // Fuzz seed 2 #1704: a light load (0.018 kg·m²) pressed onto the motor by a 1966 N·m load torque bounces with
+  // e = 0.91 — a Zeno sequence: the bounce speeds fall by e per impact, so from the first bounce (~0.1 rad/s) to the
+  // stick rule's floor (~1e-8 rad/s) it takes ~log(1e-7)/log(e) ≈ 175 impacts, and the teeth then stay in contact.
+  // The closed form's flight times blur at these scales and it ran into an impact storm (the event budget).
+  ServoParams p;
+  p.motor_inertia = 11.455467237803855;
+  p.load_inertia = 0.017811151141035708;
+  p.motor_friction = 0.043660632886314006;
+  p.load_friction = 0.25636777675638511;
+  p.gain = 14484.597308214459;
+  p.backlash = 0.0088220795059651552;
+  p.restitution = 0.9124706047265817;
+  p.load_torque = 1965.7241299690593;
+  State s;
+  s.contact = Contact::Apart;
+  s.load_position = s.motor_position = -0.048483557636273857;
+  s.load_velocity = 2.7293263088460525e-06;
+  s.motor_velocity = 5.5821290370738982e-06;
+  MotorInput law;
+  law.stiffness = p.gain;
+  law.offset = p.gain * -0.080380605444080128;
+  Plant plant(p, s, law);
+  plant.setEventBudget(100000);
+  ASSERT_NO_THROW(plant.advanceTo(0.5, nullptr));
+  EXPECT_NE(plant.state().contact, Contact::Apart);
+  EXPECT_GT(plant.impactCount(), 50u);
+  EXPECT_LT(plant.impactCount(), 1000u);
+  EXPECT_GT(plant.shortFlightCount(), plant.impactCount() / 2);
 }
