@@ -80,7 +80,7 @@ Draw drawFlight(std::mt19937_64& rng)
   d.start.load_position = 4.0 * u(rng) - 2.0;
   d.start.motor_position = (d.start.load_position - (forward ? 0.0 : d.params.backlash)) / rho;
   d.start.motor_velocity = 2.0 * u(rng) - 1.0;
-  const double speed = logUniform(1e-4, 1e-1);
+  const double speed = logUniform(1e-7, 1e-1);
   d.start.load_velocity = rho * d.start.motor_velocity + (forward ? speed : -speed);
   return d;
 }
