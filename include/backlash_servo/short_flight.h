@@ -80,10 +80,22 @@ class ShortFlight
   /// First τ in (0, horizon] where θ_c leaves [lo, hi] beyond rounding (a drive's watch event), or +inf. θ_c has
   /// at most one extremum in a flight (ω_c is monotone: it relaxes exponentially to T_ext/f_L).
   double exitTime(double lo, double hi, double horizon) const;
+  /**
+   * Dry friction (the kinetic friction folded into the model's constant torques): the first τ in (0, horizon]
+   * (horizon ≤ impactTime()) where sign·ω of the motor (motor = true) or the load falls below zero beyond rounding —
+   * the body comes to rest — or +inf. Certified on the series: no zero when sign·ω stays above the sum of the
+   * magnitudes of its terms and the remainder; else the velocity must be certified monotone (its slope's lowest
+   * term dominating the rest), and the zero is bisected. NaN when neither can be certified: the caller then uses
+   * the closed form.
+   */
+  double restTime(bool motor, double sign, double horizon) const;
 
  private:
   Model model_;
-  int n_ = 0;  // order kept
+  int n_ = 0;                // order kept
+  double weighted_ = 0.0;    // ||y_N||_D, the last kept order's weighted norm
+  double scale_time_ = 0.0;  // s [s] of the weighted norm
+  double norm_ = 0.0;        // M [1/s]
   // Taylor coefficients (uninitialised beyond n_: a flight is built per impact)
   double load_position_[MAX_ORDER + 1], load_velocity_[MAX_ORDER + 1];
   double motor_position_[MAX_ORDER + 1], motor_velocity_[MAX_ORDER + 1];

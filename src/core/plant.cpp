@@ -627,6 +627,26 @@ void Plant::beginDrySegment(Slide motor, Slide load)
     ServoParams folded;
     MotorInput law;
     foldKineticFriction(params_, law_, motor, load, &folded, &law);
+    if (short_flights_ && impactNow(&wall) != 0.0)
+    {
+      // A short chatter flight with both bodies sliding: the kinetic friction is a constant torque in the model.
+      ShortFlight& f = seg.flight.emplace();
+      if (f.build(ShortFlight::Model(folded, law), state_, window))
+      {
+        const double impact = f.impactTime();
+        const double motor_rest = motor_dry ? f.restTime(true, motor, impact) : INFINITY;
+        const double load_rest = load_dry ? f.restTime(false, load, impact) : INFINITY;
+        if (!std::isnan(motor_rest) && !std::isnan(load_rest))
+        {
+          ++short_flight_count_;
+          seg.wall = f.wall();
+          seg.rest_motor = motor_rest < load_rest;
+          finish(window, {{impact, Segment::End::Impact}, {std::min(motor_rest, load_rest), Segment::End::Rest}});
+          return;
+        }
+      }
+      seg.flight.reset();
+    }
     double impact, motor_rest = INFINITY, load_rest = INFINITY;
     auto search = [&](const auto& m) {
       impact = firstImpact(m, window, &wall);

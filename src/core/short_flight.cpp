@@ -12,6 +12,7 @@ namespace backlash_servo
 namespace
 {
 constexpr double EPS = std::numeric_limits<double>::epsilon();
+constexpr double INF = std::numeric_limits<double>::infinity();
 
 /// 1/k for k = 0..MAX_ORDER (0 unused): the series' recurrence divides by the order.
 constexpr auto INVERSE = [] {
@@ -259,6 +260,9 @@ bool ShortFlight::build(const Model& m, const State& s, double horizon)
   }
   impact_ = x;
   model_ = m;
+  weighted_ = weighted;
+  scale_time_ = scale_time;
+  norm_ = mt / t_end;
   return true;
 }
 
@@ -306,6 +310,58 @@ double ShortFlight::exitTime(double lo, double hi, double horizon) const
   }
   return firstExit([&](double tau) { return evaluate(load_position_, n_, tau); }, crit, m, horizon, lo, hi,
                    levelMagnitude(lo, hi));
+}
+
+double ShortFlight::restTime(bool motor, double sign, double horizon) const
+{
+  const double* c = motor ? motor_velocity_ : load_velocity_;
+  const double rho = motor ? model_.rho : 1.0;  // the weighted norm holds ρω_m
+  // Bounds on [0, h] of the velocity's series tail and of its slope's tail (orders > N), from ||y_{N+j}||_D ≤
+  // ||y_N||_D M^j N!/(N+j)! and |ω| ≤ ||y||_D/(s·ρ): Σ_j ... ≤ 1.03·||y_N|| h^N Mh/(N+1) and ≤ 1.12·||y_N|| M h^N.
+  const double h = horizon, mh = norm_ * h;
+  double h_n = 1.0;
+  for (int k = 0; k < n_; ++k)
+  {
+    h_n *= h;
+  }
+  const double unit = weighted_ / (scale_time_ * rho);
+  const double tail = 1.03 * unit * h_n * mh / (n_ + 1);
+  const double slope_tail = 1.12 * unit * norm_ * h_n;
+  double spread = tail, slope_spread = slope_tail, hk = 1.0;  // Σ_{k≥1}|c_k|h^k, Σ_{k≥2} k|c_k|h^{k−1}
+  for (int k = 1; k <= n_; ++k)
+  {
+    spread += std::fabs(c[k]) * hk * h;
+    if (k >= 2)
+    {
+      slope_spread += k * std::fabs(c[k]) * hk;
+    }
+    hk *= h;
+  }
+  if (sign * c[0] > spread)
+  {
+    return INF;  // stays away from zero
+  }
+  if (!(std::fabs(c[1]) > slope_spread))
+  {
+    return std::numeric_limits<double>::quiet_NaN();  // not certified monotone
+  }
+  const double rounding = 8.0 * EPS * (std::fabs(c[0]) + spread);
+  auto v = [&](double tau) { return sign * evaluate(c, n_, tau); };
+  if (!(v(h) < -rounding))
+  {
+    return INF;
+  }
+  if (!(v(0.0) > 0.0))
+  {
+    return std::numeric_limits<double>::quiet_NaN();  // already at or below zero: the closed form's rule decides
+  }
+  double a = 0.0, b = h;
+  for (int it = 0; it < 200 && b - a > 2.0 * EPS * b; ++it)
+  {
+    const double mid = 0.5 * (a + b);
+    (v(mid) > 0.0 ? a : b) = mid;
+  }
+  return b;
 }
 
 }  // namespace backlash_servo
