@@ -14,10 +14,10 @@ namespace
 constexpr double EPS = std::numeric_limits<double>::epsilon();
 constexpr double INF = std::numeric_limits<double>::infinity();
 
-/// 1/k for k = 0..MAX_ORDER (0 unused): the series' recurrence divides by the order.
+/// 1/k for k = 0..MAX_ORDER + 1 (0 unused): the series' recurrence divides by the order, the remainder bound by N + 1.
 constexpr auto INVERSE = [] {
-  std::array<double, ShortFlight::MAX_ORDER + 1> inv{};
-  for (int k = 1; k <= ShortFlight::MAX_ORDER; ++k)
+  std::array<double, ShortFlight::MAX_ORDER + 2> inv{};
+  for (int k = 1; k <= ShortFlight::MAX_ORDER + 1; ++k)
   {
     inv[k] = 1.0 / k;
   }
@@ -56,6 +56,135 @@ inline double evaluate(const double* c, int n, double tau)
 {
   return c[0] + increment(c, n, tau);
 }
+
+/// The gap of a flight relative to the wall it left, F(τ) = Σ_{k≤n} f_k τ^k (> 0 in the free space), with bounds
+/// over [0, T] on what its orders ≥ 3 and the series' remainder add to F'' (higher) and to F' (higher_slope).
+struct GapSeries
+{
+  double f[ShortFlight::MAX_ORDER + 1];
+  int n = 0;
+  double higher = 0.0, higher_slope = 0.0;
+
+  double value(double tau, double* slope) const
+  {
+    double v = 0.0, d = 0.0;
+    for (int k = n; k >= 1; --k)
+    {
+      d = d * tau + v;
+      v = v * tau + f[k];
+    }
+    *slope = d * tau + v;
+    return v * tau + f[0];
+  }
+
+  /**
+   * Back to the wall: certified concave on [0, T] (H < −f_2 gives 3f_2 < F'' < f_2 < 0), the rise below the other
+   * wall (F'' ≤ 2f_2 + H < 0 bounds F by f_0 + f_1²/(−2(2f_2 + H))) and clear of the wall by more than the
+   * rounding of F (its increments
+   * are computed directly, so a bounce far below the rounding of the positions — micro-chatter — is resolved as well
+   * as a large one: F(τq/2) ≥ f_0 + f_1 τq/2 + 3f_2 τq²/8 = f_0 + f_1 τq/8). The return is the only root past the
+   * peak: Newton from the quadratic return corrected by the cubic term (a Newton step on f_1 + f_2 τ + f_3 τ²),
+   * past the peak (F' < 0 there); the first step lands at or beyond the root (the tangent lies above F) and must
+   * stay in [0, T] with F back beyond the wall there; then monotone steps, one below 1e-8 of τ (error below
+   * (1e-8)²·τ) taken as is.
+   */
+  bool returnTime(double quadratic_return, double t_end, double near, double delta, double rounding, double* out) const
+  {
+    const double f1 = f[1], f2 = f[2];
+    if (!(higher < -f2) || !(f[0] + f1 * f1 / (-2.0 * (2.0 * f2 + higher)) + 4.0 * near < delta) ||
+        !(f[0] + 0.125 * f1 * quadratic_return > rounding))
+    {
+      return false;
+    }
+    const double f3 = n >= 3 ? f[3] : 0.0;
+    double x = quadratic_return - f3 * quadratic_return * quadratic_return / (f2 + 2.0 * f3 * quadratic_return);
+    double slope;
+    double fx = value(x, &slope);
+    if (!(slope < 0.0) || !(x > 0.5 * quadratic_return))
+    {
+      return false;
+    }
+    x -= fx / slope;
+    if (!(x <= t_end))
+    {
+      return false;
+    }
+    fx = value(x, &slope);
+    if (!(fx < rounding) || !(slope < 0.0))
+    {
+      return false;
+    }
+    for (int it = 0; it < 100; ++it)
+    {
+      const double step = fx / slope;
+      const double candidate = x - step;
+      if (!(candidate < x))
+      {
+        break;
+      }
+      x = candidate;
+      if (step <= 1e-8 * x)
+      {
+        break;
+      }
+      fx = value(x, &slope);
+      if (!(slope < 0.0))
+      {
+        break;
+      }
+    }
+    *out = x;
+    return x > 0.5 * quadratic_return;
+  }
+
+  /**
+   * Across to the other wall (F = Δ): F certified increasing on [0, T] (F' ≥ f_1 + 2 min(f_2, 0) T − the bound of
+   * the rest > 0, or, leaving from relative rest, F'' ≥ 2f_2 − H > 0) and beyond Δ at T by more than its rounding, so
+   * the crossing is the only root of F − Δ in (0, T]: Newton kept inside the shrinking bracket (bisection where a step
+   * would leave it), to full precision.
+   */
+  bool crossingTime(double t_end, double delta, double rounding, double* out) const
+  {
+    // Increasing: F' bounded away from 0 on [0, T], or F' ≥ 0 at 0 and F'' > 0 on [0, T] (from relative rest).
+    const bool increasing =
+        f[1] + 2.0 * std::min(f[2], 0.0) * t_end - higher_slope > 0.0 || (f[1] >= 0.0 && 2.0 * f[2] > higher);
+    double slope;
+    const double f_end = value(t_end, &slope) - delta;
+    if (!increasing || !(f_end > rounding))
+    {
+      return false;
+    }
+    double a = 0.0, b = t_end;
+    double x = b - f_end / slope;
+    for (int it = 0; it < 200; ++it)
+    {
+      if (!(x > a && x < b))
+      {
+        x = 0.5 * (a + b);
+      }
+      const double fx = value(x, &slope) - delta;
+      if (fx == 0.0)
+      {
+        break;
+      }
+      (fx < 0.0 ? a : b) = x;
+      const double next = x - fx / slope;
+      if (b - a <= 2.0 * EPS * b)
+      {
+        x = b;
+        break;
+      }
+      if (std::fabs(next - x) <= 2.0 * EPS * x && next >= a && next <= b)
+      {
+        x = next;
+        break;
+      }
+      x = next;
+    }
+    *out = x;
+    return x > 0.0 && x <= t_end;
+  }
+};
 }  // namespace
 
 ShortFlight::Model::Model(const ServoParams& p, const MotorInput& input)
@@ -131,12 +260,21 @@ bool ShortFlight::build(const Model& m, const State& s, double horizon)
   next(1);
   const double f1 = sign * (xc[1] - rho * xm[1]);
   const double f2 = sign * (xc[2] - rho * xm[2]);
-  if (!(f1 > 0.0 && f2 < 0.0))
+  const double f0 = sign * (g0 - level);
+  if (!(f1 > 0.0) && !(f1 == 0.0 && f2 > 0.0))
   {
-    return false;  // not leaving the wall, or nothing presses the teeth back
+    return false;  // not leaving the wall (from relative rest: pulled away)
   }
-  const double quadratic_return = -f1 / f2;  // root of f1 τ + f2 τ² [s]
-  const double t_end = 1.5 * quadratic_return;
+  // Back to the same wall (pressed back, the quadratic f0 + f1 τ + f2 τ² never reaching Δ) or across to the other
+  // one (its smaller root of = Δ, in the cancellation-free form); each then certified on the whole series.
+  const double disc = f1 * f1 + 4.0 * f2 * (delta - f0);
+  const bool returns = f2 < 0.0 && !(disc > 0.0);
+  if (!returns && !(disc > 0.0))
+  {
+    return false;
+  }
+  const double quadratic_return = returns ? -f1 / f2 : 2.0 * (delta - f0) / (f1 + std::sqrt(disc));  // [s]
+  const double t_end = (returns ? 1.5 : 1.25) * quadratic_return;
   if (!(t_end <= horizon))
   {
     return false;
@@ -174,87 +312,41 @@ bool ShortFlight::build(const Model& m, const State& s, double horizon)
   n_ = n;
   const double remainder = weighted * t_power * tail_factor * INVERSE[n + 1];
   // The gap relative to the wall, F(τ) = Σ f_k τ^k (+ remainder ≤ 2R: two components in it).
-  double f[MAX_ORDER + 1];
-  f[0] = sign * (g0 - level);
+  GapSeries gap;
+  gap.n = n;
+  gap.f[0] = f0;
   for (int k = 1; k <= n; ++k)
   {
-    f[k] = sign * (xc[k] - rho * xm[k]);
+    gap.f[k] = sign * (xc[k] - rho * xm[k]);
   }
-  // Concave on [0, T]: H = Σ_{k≥3} k(k−1)|f_k| T^{k−2} plus the remainder's second derivative bounds |F'' − 2f_2|;
-  // H < −f_2 gives 3f_2 < F'' < f_2 < 0 there.
-  double higher = 0.0, tk = t_end;
+  // Bound on |F'' − 2f_2| over [0, T] from the orders ≥ 3 and the remainder's second derivative (two components).
+  double tk = t_end;
   for (int k = 3; k <= n; ++k, tk *= t_end)
   {
-    higher += k * (k - 1) * std::fabs(f[k]) * tk;
+    gap.higher += k * (k - 1) * std::fabs(gap.f[k]) * tk;
   }
-  higher += 2.0 * weighted * t_power_2 * (n * mt + 1.12 * mt * mt);  // 1/(1 − MT) ≤ 1.12
-  if (!(higher < -f2))
+  gap.higher += 2.0 * weighted * t_power_2 * (n * mt + 1.12 * mt * mt);  // 1/(1 − MT) ≤ 1.12
+  // And on |F' − f_1 − 2f_2 τ| (orders ≥ 3 and the remainder's slope, 1.12·||y_N|| M T^N per component).
+  tk = t_end * t_end;
+  for (int k = 3; k <= n; ++k, tk *= t_end)
+  {
+    gap.higher_slope += k * std::fabs(gap.f[k]) * tk;
+  }
+  gap.higher_slope += 2.0 * 1.12 * weighted * t_power * mt / t_end;
+  const double rounding = 2.0 * remainder + 8.0 * EPS * (std::fabs(f0) + f1 * t_end + (returns ? 0.0 : delta));
+  double x = 0.0;
+  if (!(returns ? gap.returnTime(quadratic_return, t_end, near, delta, rounding, &x)
+                : gap.crossingTime(t_end, delta, rounding, &x)))
   {
     return false;
   }
-  auto value = [&](double tau, double* slope) {
-    double v = 0.0, d = 0.0;
-    for (int k = n; k >= 1; --k)
-    {
-      d = d * tau + v;
-      v = v * tau + f[k];
-    }
-    *slope = d * tau + v;
-    return v * tau + f[0];
-  };
-  // The rise stays below the other wall (the tangent at 0 bounds a concave F). The gap rises above the wall by more
-  // than the rounding of F (its increments are computed directly, so a bounce far below the rounding of the
-  // positions — micro-chatter — is resolved as well as a large one): with F'' ≥ 2f_2 − H > 3f_2 on [0, T],
-  // F(τq/2) ≥ f_0 + f_1 τq/2 + 3f_2 τq²/8 = f_0 + f_1 τq/8, τq the quadratic return.
-  const double rounding = 2.0 * remainder + 8.0 * EPS * (std::fabs(f[0]) + f1 * t_end);
-  if (!(f[0] + f1 * t_end + 4.0 * near < delta) || !(f[0] + 0.125 * f1 * quadratic_return > rounding))
+  if (!returns)
   {
-    return false;
-  }
-  // Start: the quadratic return corrected by the cubic term (a Newton step on f_1 + f_2 τ + f_3 τ², no series
-  // evaluation), past the peak (F' < 0 there). The first full Newton step lands at or beyond the root; it must stay
-  // in [0, T], where F is certified concave, and F must be back beyond the wall there (a root lies between the peak
-  // and it). Then monotone steps; one whose length is below 1e-8 of τ leaves an error below (1e-8)²·τ: taken as is.
-  const double f3 = n >= 3 ? f[3] : 0.0;
-  double x = quadratic_return - f3 * quadratic_return * quadratic_return / (f2 + 2.0 * f3 * quadratic_return);
-  double slope;
-  double fx = value(x, &slope);
-  if (!(slope < 0.0) || !(x > 0.5 * quadratic_return))
-  {
-    return false;
-  }
-  x -= fx / slope;
-  if (!(x <= t_end))
-  {
-    return false;
-  }
-  fx = value(x, &slope);
-  if (!(fx < rounding) || !(slope < 0.0))
-  {
-    return false;
-  }
-  for (int it = 0; it < 100; ++it)
-  {
-    const double step = fx / slope;
-    const double candidate = x - step;
-    if (!(candidate < x))
-    {
-      break;
-    }
-    x = candidate;
-    if (step <= 1e-8 * x)
-    {
-      break;
-    }
-    fx = value(x, &slope);
-    if (!(slope < 0.0))
-    {
-      break;
-    }
+    wall_ = wall_ == Contact::Forward ? Contact::Backward : Contact::Forward;
   }
   // A flight shorter than the clock resolves (a few ulps of the start time: teeth at rest to 1e-40 rad/s "bouncing"
   // on rounding) would not advance time: left to the closed form, which sees no impact there.
-  if (!(x > 0.5 * quadratic_return && x <= horizon) || !(x > 64.0 * EPS * std::fabs(s.time)))
+  if (!(x > 0.0 && x <= horizon) || !(x > 64.0 * EPS * std::fabs(s.time)))
   {
     return false;
   }

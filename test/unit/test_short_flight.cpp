@@ -103,6 +103,7 @@ struct Draw
   ServoParams params;
   MotorInput law;
   State start;
+  bool forward = true;  // the wall the teeth leave
 };
 
 /// A state on a wall just after an impact: the teeth separating at `speed` [rad/s], the law pressing them back or
@@ -112,13 +113,15 @@ Draw drawFlight(std::mt19937_64& rng)
   std::uniform_real_distribution<double> u(0.0, 1.0);
   auto logUniform = [&](double lo, double hi) { return lo * std::pow(hi / lo, u(rng)); };
   Draw d;
-  d.params = test_helpers::chart(0.1 + 0.9 * u(rng), logUniform(0.01, 100.0), 0.05 + 0.9 * u(rng), u(rng), 0.3,
+  // Half the draws with a small backlash: flights across to the other wall.
+  const double delta = u(rng) < 0.5 ? 0.3 : logUniform(1e-7, 1e-2);
+  d.params = test_helpers::chart(0.1 + 0.9 * u(rng), logUniform(0.01, 100.0), 0.05 + 0.9 * u(rng), u(rng), delta,
                                  logUniform(0.1, 10.0), logUniform(0.5, 2.0));
   const double gain = d.params.gain;
   d.law.stiffness = gain;
   d.law.offset = gain * (4.0 * u(rng) - 2.0);
   const double rho = d.params.gear_ratio;
-  const bool forward = u(rng) < 0.5;
+  const bool forward = d.forward = u(rng) < 0.5;
   d.start.contact = Contact::Apart;
   d.start.load_position = 4.0 * u(rng) - 2.0;
   d.start.motor_position = (d.start.load_position - (forward ? 0.0 : d.params.backlash)) / rho;
@@ -132,9 +135,9 @@ Draw drawFlight(std::mt19937_64& rng)
 TEST(ShortFlight, AgreesWithTheLongDoubleClosedFormToRounding)
 {
   std::mt19937_64 rng(20261125);
-  int taken = 0;
+  int taken = 0, returns = 0, crossings = 0;
   double worst_time = 0.0, worst_closed_form = 0.0, worst_state = 0.0, worst_energy = 0.0;
-  for (int i = 0; i < 4000 && taken < 400; ++i)
+  for (int i = 0; i < 8000 && taken < 600; ++i)
   {
     const Draw d = drawFlight(rng);
     ShortFlight f;
@@ -145,17 +148,25 @@ TEST(ShortFlight, AgreesWithTheLongDoubleClosedFormToRounding)
     }
     ++taken;
     const ReferenceFlight ref(d.params, d.law, d.start);
-    const bool forward = f.wall() == Contact::Forward;
-    const long double level = forward ? 0.0L : static_cast<long double>(d.params.backlash);
-    const long double sign = forward ? 1.0L : -1.0L;
-    // The return: the first sign change of sign·(g − level) after it has risen, on a fine scan, then bisected.
+    const long double level = d.forward ? 0.0L : static_cast<long double>(d.params.backlash);
+    const long double sign = d.forward ? 1.0L : -1.0L;
+    const long double delta = d.params.backlash;
+    // F = sign·(g − level) > 0 in the free space: the flight ends where F comes back to 0 after rising (the same
+    // wall) or reaches Δ (the other wall) — the first of the two on a fine scan, then bisected.
+    auto F = [&](long double tau) { return sign * (ref.gap(tau) - level); };
     const double t = f.impactTime();
     long double a = 0.0L, b = 0.0L;
-    bool risen = false;
+    bool risen = false, across = false;
     for (int k = 1; k <= 4000; ++k)
     {
       const long double tau = 3.0L * t * k / 4000.0L;
-      const long double fk = sign * (ref.gap(tau) - level);
+      const long double fk = F(tau);
+      if (fk >= delta)
+      {
+        across = true;
+        b = tau;
+        break;
+      }
       if (fk > 0.0L)
       {
         risen = true;
@@ -167,21 +178,23 @@ TEST(ShortFlight, AgreesWithTheLongDoubleClosedFormToRounding)
         break;
       }
     }
-    ASSERT_GT(b, 0.0L) << "case " << i << ": the reference never returns; flight " << t << " s, gap at 0 "
-                       << static_cast<double>(ref.gap(0.0L) - level) << ", at t/2 "
-                       << static_cast<double>(ref.gap(0.5L * t) - level) << ", at t "
-                       << static_cast<double>(ref.gap(t) - level) << " alpha " << static_cast<double>(ref.alpha)
-                       << " beta " << static_cast<double>(ref.beta);
+    ASSERT_GT(b, 0.0L) << "case " << i << ": the reference flight does not end; flight " << t << " s";
+    const Contact start_wall = d.forward ? Contact::Forward : Contact::Backward;
+    const Contact other_wall = d.forward ? Contact::Backward : Contact::Forward;
+    EXPECT_EQ(f.wall(), across ? other_wall : start_wall) << "case " << i;
+    (across ? crossings : returns) += 1;
     for (int it = 0; it < 200; ++it)
     {
       const long double mid = 0.5L * (a + b);
-      (sign * (ref.gap(mid) - level) > 0.0L ? a : b) = mid;
+      const bool before = across ? F(mid) < delta : F(mid) > 0.0L;
+      (before ? a : b) = mid;
     }
     const long double t_ref = 0.5L * (a + b);
     // Tolerance: the rounding of the gap (positions) over the closing speed, plus a few ε of the time.
     const double position_scale =
-        std::fabs(d.start.load_position) + d.params.gear_ratio * std::fabs(d.start.motor_position) + 0.3;
-    const double speed = std::fabs(d.start.load_velocity - d.params.gear_ratio * d.start.motor_velocity);
+        std::fabs(d.start.load_position) + d.params.gear_ratio * std::fabs(d.start.motor_position) + d.params.backlash;
+    const long double h = 1e-6L * t_ref;
+    const double speed = static_cast<double>(std::fabs(F(t_ref + h) - F(t_ref - h)) / (2.0L * h));  // at the wall
     const double tol = 64.0 * EPS * position_scale / speed + 16.0 * EPS * t;
     const double err = static_cast<double>(std::fabs(t - t_ref));
     EXPECT_LE(err, tol) << "case " << i << " flight " << t << " s";
@@ -217,11 +230,12 @@ TEST(ShortFlight, AgreesWithTheLongDoubleClosedFormToRounding)
     EXPECT_LE(std::fabs(balance), 64.0 * EPS * energy_scale) << "case " << i;
     worst_energy = std::max(worst_energy, std::fabs(balance) / (EPS * energy_scale));
   }
-  EXPECT_GE(taken, 200);
+  EXPECT_GE(returns, 200);
+  EXPECT_GE(crossings, 100);
   std::printf(
-      "short flights: %d cases; worst impact time error %.3g of the tolerance (the double closed form: "
-      "%.3g); state %.3g eps; energy balance %.3g eps\n",
-      taken, worst_time, worst_closed_form, worst_state, worst_energy);
+      "short flights: %d cases (%d back to the wall, %d across); worst impact time error %.3g of the "
+      "tolerance (the double closed form: %.3g); state %.3g eps; energy balance %.3g eps\n",
+      taken, returns, crossings, worst_time, worst_closed_form, worst_state, worst_energy);
 }
 
 namespace
