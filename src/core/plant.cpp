@@ -323,7 +323,7 @@ bool Plant::advanceTo(double t_end, EventSink* sink)
     }
     if (!segment_)
     {
-      if (state_.contact != Contact::Apart &&
+      if (state_.contact != Contact::Apart && rigid_flip_time_ != state_.time &&
           !contactHolds(params_, law_, state_.load_position, state_.load_velocity, state_.contact))
       {
         // The mesh torque pulls the teeth off this wall right now.
@@ -355,6 +355,7 @@ bool Plant::advanceTo(double t_end, EventSink* sink)
       return false;
     }
     const double before = state_.time;
+    const double ended_after = seg.end_tau;
     emitMaximaUpTo(seg.end_tau, sink);
     placeInSegment(seg.end_tau);
     state_.time = end_time;
@@ -377,6 +378,10 @@ bool Plant::advanceTo(double t_end, EventSink* sink)
     if (end == Segment::End::Separation)
     {
       state_.contact = mesh_.afterSeparation(state_.contact);
+      if (params_.backlash == 0.0 && ended_after <= 64.0 * EPS * std::fabs(state_.time))
+      {
+        rigid_flip_time_ = state_.time;  // the other flank at once (see the member's comment)
+      }
       emit(sink, EventType::Separation);
     }
     else if (end == Segment::End::Impact)
@@ -539,7 +544,7 @@ void Plant::chooseDryMode(EventSink* sink, Slide* motor, Slide* load)
     ServoParams folded;
     MotorInput law;
     foldKineticFriction(params_, law_, dir, dir, &folded, &law);
-    if (contactHolds(folded, law, s.load_position, s.load_velocity, s.contact))
+    if (rigid_flip_time_ == s.time || contactHolds(folded, law, s.load_position, s.load_velocity, s.contact))
     {
       return;
     }

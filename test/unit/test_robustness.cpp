@@ -120,4 +120,37 @@ TEST(Robustness, RigidMeshWithALoadTorqueDoesNotFlipFlanksForEver)
   EXPECT_LE(std::fabs(sim.energyBalanceError()),
             1e-9 * (std::fabs(sim.energy().input) + sim.energy().initial_kinetic + std::fabs(sim.energy().load_work)));
 }
+
+TEST(Robustness, RigidMeshWhoseMeshTorqueCrossesZeroWithinTheClockTakesTheOtherFlank)
+{
+  // Fuzz seed 7 #75234 (one of nine Δ = 0 cases in 1e5, all digital drives or dry friction): the mesh torque crosses
+  // zero within the clock's resolution; the segment on the flank it leaves ends at once, while the contact test on
+  // the other flank still sees the old sign (1e-14 N·m, above its rounding) — the flanks took turns at one instant.
+  ServoParams p;
+  p.motor_inertia = 0.019615907787737769;
+  p.load_inertia = 0.023648793528116191;
+  p.motor_friction = 1.4913874599777572;
+  p.load_friction = 1490.1542458770032;
+  p.gain = 65247.53429368083;
+  p.gear_ratio = 0.035187866633468283;
+  p.backlash = 0.0;
+  p.restitution = 0.99999999999900002;
+  State s;
+  s.load_position = 1.9522140477248004;
+  s.load_velocity = 2448.5359362387712;
+  s.motor_position = 55.479750109885565;
+  s.motor_velocity = 69584.66569581379;
+  DriveParams d;
+  d.controller_rate = 1238.4838717976791;
+  d.feedback = "motor";
+  const double command = -1.853828144061213;
+  Simulator sim(p, s, command);
+  sim.setDrive(makePositionDrive(d, p.gain, p.gear_ratio, command, 0.0));
+  const double duration = 0.36758641549514975;
+  for (int i = 1; i <= 1000; ++i)
+  {
+    ASSERT_NO_THROW(sim.advanceTo(duration * i / 1000.0)) << "step " << i;
+  }
+  EXPECT_NE(sim.state().contact, Contact::Apart);
+}
 }  // namespace
