@@ -282,6 +282,9 @@ class Plant
   }
   /// Ends the segment early where θ_c leaves the watch interval.
   void applyWatch(Segment& seg) const;
+  /// Apart with the load free of dry friction: a maximum of θ_c where a load torque turns the load round inside the
+  /// segment (its velocity crosses zero from + to −) goes into the segment's maxima.
+  void markLoadTurnaround(Segment& seg) const;
   void handleImpact(Contact wall, EventSink* sink);
   /// Puts teeth at relative rest on `wall` into contact if the mesh torque presses, else leaves them apart.
   void settleOnWall(Contact wall);
@@ -312,7 +315,8 @@ class Plant
   // the mesh torque is crossing zero there, still on the old flank's side by rounding, so the contact test would send
   // the teeth straight back (fuzz seed 7, nine cases in 1e5 looped without advancing time). The other flank is taken
   // at once, where the torque is heading.
-  double rigid_flip_time_ = -std::numeric_limits<double>::infinity();  // set at a Breakaway: the motor slides this way from rest (no re-decision)
+  double rigid_flip_time_ = -std::numeric_limits<double>::infinity();  // set at a Breakaway: the motor slides this way
+                                                                       // from rest (no re-decision)
 };
 
 }  // namespace backlash_servo

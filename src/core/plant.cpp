@@ -26,6 +26,22 @@ constexpr double FREE_SEARCH_PERIODS = 0.5;
 constexpr double CONTACT_SEARCH_PERIODS = 1.0;
 constexpr double PI = 3.14159265358979323846;
 
+/// Apart, the load alone under its viscous friction and a constant torque T [N·m] (the load torque): J_L ω̇ + f_L ω = T,
+/// so ω relaxes monotonically to T/f_L and turns from + to − at most once — a maximum of θ_c inside the flight — at
+/// τ* = (v0 J_L/(−T))·log1p(x)/x, x = v0 f_L/(−T) (→ v0 J_L/(−T) without friction). τ* [s] if in (0, horizon], else
+/// +inf.
+double loadTurnaround(const ServoParams& p, double v0, double horizon)
+{
+  const double t = p.load_torque;
+  if (!(v0 > 0.0) || !(t < 0.0))
+  {
+    return INFINITY;
+  }
+  const double x = v0 * p.load_friction / -t;
+  const double tau = v0 * p.load_inertia / -t * (x > 0.0 ? std::log1p(x) / x : 1.0);
+  return tau > 0.0 && tau <= horizon ? tau : INFINITY;
+}
+
 /// (J_m + ρ²J_L)/(J_m J_L) [1/(kg·m²)]: the relative acceleration of the teeth per unit of mesh torque.
 double pressFactor(const ServoParams& p)
 {
@@ -513,6 +529,7 @@ void Plant::beginSegment()
       seg.end_tau = seg.flight->impactTime();
       seg.wall = seg.flight->wall();
       applyWatch(seg);
+      markLoadTurnaround(seg);
       return;
     }
     seg.flight.reset();
@@ -530,6 +547,7 @@ void Plant::beginSegment()
   seg.end_tau = std::min(impact, search);
   seg.wall = wall;
   applyWatch(seg);
+  markLoadTurnaround(seg);
 }
 
 void Plant::chooseDryMode(EventSink* sink, Slide* motor, Slide* load)
@@ -647,6 +665,10 @@ void Plant::beginDrySegment(Slide motor, Slide load)
           seg.wall = f.wall();
           seg.rest_motor = motor_rest < load_rest;
           finish(window, {{impact, Segment::End::Impact}, {std::min(motor_rest, load_rest), Segment::End::Rest}});
+          if (!load_dry)
+          {
+            markLoadTurnaround(seg);  // a dry load's turnaround is its rest
+          }
           return;
         }
       }
@@ -670,6 +692,10 @@ void Plant::beginDrySegment(Slide motor, Slide load)
     seg.wall = wall;
     seg.rest_motor = motor_rest < load_rest;
     finish(window, {{impact, Segment::End::Impact}, {std::min(motor_rest, load_rest), Segment::End::Rest}});
+    if (!load_dry)
+    {
+      markLoadTurnaround(seg);
+    }
     return;
   }
   // One body slides, the other is held by its static friction.
@@ -684,6 +710,10 @@ void Plant::beginDrySegment(Slide motor, Slide load)
   finish(window, {{impact, Segment::End::Impact},
                   {moving_dry ? m.restTime(window) : INFINITY, Segment::End::Rest},
                   {m.breakawayTime(window), Segment::End::Breakaway}});
+  if (!motor_moves && !load_dry)
+  {
+    markLoadTurnaround(seg);
+  }
 }
 
 void Plant::countSwitch()
@@ -728,6 +758,16 @@ void Plant::handleRest(const Segment& seg, EventSink* sink)
     emit(sink, EventType::Maximum);  // a maximum of θ_c where the load comes to rest (MODEL.md Part 2)
   }
   emit(sink, EventType::Rest);
+}
+
+void Plant::markLoadTurnaround(Segment& seg) const
+{
+  const double tau = loadTurnaround(params_, seg.start.load_velocity, seg.end_tau);
+  if (tau <= seg.end_tau)
+  {
+    seg.maxima[0] = tau;
+    seg.maxima_count = 1;
+  }
 }
 
 void Plant::applyWatch(Segment& seg) const

@@ -5,6 +5,7 @@
 #include <cmath>
 
 #include "backlash_servo/modes.h"
+#include "backlash_servo/plant.h"
 #include "backlash_servo/step_response.h"
 #include "test_helpers.h"
 
@@ -117,6 +118,58 @@ TEST(LoadTorque, FloatingLoadFallsUnderItsTorqueExactly)
     EXPECT_NEAR(sim.state().load_position, x, fl == 3e-6 ? 1e-8 : 1e-12) << fl;
     // (the reference is itself a difference of positions near 500 rad: its rounding is ~1e-14 J)
     EXPECT_NEAR(sim.energy().load_work, p.load_torque * (sim.state().load_position - 500.0), 1e-13);
+  }
+}
+
+TEST(LoadTorque, ALoadTurnedRoundInFlightIsAMaximum)
+{
+  // Apart, a load thrown up against a load torque T < 0 turns round in the air: ω = v∞ + (v0 − v∞) e^{−ατ},
+  // v∞ = T/f_L, crosses zero at τ* = ln(1 − v0/v∞)/α, where θ_c = θ0 + v∞τ* + v0/α (without friction: τ* = v0 J_L/(−T),
+  // θ_c = θ0 + v0² J_L/(2(−T))). That is a maximum of θ_c (MODEL.md: ω_c from + to −) and must be reported — from a
+  // long flight in mid-gap (the closed form) and from a short one leaving the wall (the fast path), before the load
+  // falls back onto the motor tooth.
+  for (double fl : {0.32, 0.0})
+  {
+    for (bool short_flight : {false, true})
+    {
+      ServoParams p;
+      p.load_friction = fl;
+      p.load_torque = -1.0;
+      p.restitution = 0.5;
+      p.backlash = 2.0;
+      const double v0 = short_flight ? 1e-3 : 0.5;
+      State s;
+      s.contact = Contact::Apart;
+      s.load_position = short_flight ? 0.0 : 1.0;  // on the forward wall (g = 0), or mid-gap
+      s.load_velocity = v0;
+      s.motor_position = 0.0;
+      MotorInput law;  // no motor torque
+      Plant plant(p, s, law);
+      test_helpers::Recorder rec;
+      plant.advanceTo(short_flight ? 0.01 : 1.0, &rec);
+      const std::vector<Event> maxima = rec.of(EventType::Maximum);
+      ASSERT_EQ(maxima.size(), 1u) << "fl " << fl << (short_flight ? " short" : " long");
+      const double jl = p.load_inertia;
+      double tau, top;
+      if (fl > 0.0)
+      {
+        const double alpha = fl / jl, v_inf = p.load_torque / fl;
+        tau = std::log1p(-v0 / v_inf) / alpha;
+        top = s.load_position + v_inf * tau + v0 / alpha;
+      }
+      else
+      {
+        tau = v0 * jl / -p.load_torque;
+        top = s.load_position + v0 * v0 * jl / (2.0 * -p.load_torque);
+      }
+      EXPECT_NEAR(maxima[0].state.time, tau, 1e-12 * tau + 1e-15);
+      EXPECT_NEAR(maxima[0].state.load_position, top, 1e-13);
+      EXPECT_NEAR(maxima[0].state.load_velocity, 0.0, 1e-12 * v0);
+      if (short_flight)
+      {
+        EXPECT_GT(plant.shortFlightCount(), 0u);
+      }
+    }
   }
 }
 
