@@ -1,8 +1,8 @@
 /**
  * @file short_flight.h
- * @brief The chatter fast path: a short flight of the teeth apart (elastic chatter under a pressing torque, flights
- *        of microseconds between impacts) as a Taylor polynomial with a rigorous remainder bound, and its impact
- *        located by Newton's method on a certified concave gap. No ROS dependency.
+ * @brief The chatter fast path: a short flight of the teeth apart (elastic chatter under a pressing torque, rattle
+ *        across a small gap, flights of microseconds between impacts) as a Taylor polynomial with a rigorous remainder
+ *        bound, its impact located by Newton's method on a certified gap. No ROS dependency.
  *
  * Apart, the state y = (θ_c, ω_c, θ_m, ω_m) obeys the linear ODE y' = A y + b (modes.h, BasicFreeMotion):
  * \f[ \dot\omega_c = T_{ext}/J_L - \alpha\,\omega_c,\qquad \dot\omega_m = (a - k\theta_c)/J_m - \beta\,\omega_m,
@@ -16,13 +16,18 @@
  * in every (weighted) component. N is chosen so that R_N is below 1 % of the rounding of the positions: the flight
  * is as exact as the closed form, to the same tolerance (README, "How it is exact").
  *
- * A flight is taken only when it is certainly short and simple, otherwise the caller uses the closed form: the teeth
- * leave the wall they are on (ġ away from it) and the gap, relative to that wall, is certified concave on [0, T]
- * (its second derivative, with every higher term and the remainder bounded, keeps the sign of the pressing one), so
- * it rises once and comes back once; it is back beyond the wall at T; it cannot reach the other wall (the tangent at
- * 0 bounds a concave function); M·T ≤ 0.1. The return is then the only root in (peak, T], found by Newton's method
- * from the quadratic return corrected by the cubic term: for a concave F decreasing past its peak, the first step
- * lands at or beyond the root (the tangent lies above F) and the next ones approach it monotonically from there.
+ * A flight is taken only when it is certainly short and simple (M·T ≤ 0.1, longer than the clock resolves, the
+ * teeth leaving the wall they are on), otherwise the caller uses the closed form. Two kinds (F = the gap relative to
+ * that wall, > 0 in the free space):
+ * - **back to the same wall**: F certified concave on [0, T] (its second derivative, with every higher term and the
+ *   remainder bounded, keeps the sign of the pressing one), its rise below the other wall, back beyond the wall at T.
+ *   The return is the only root past the peak: Newton from the quadratic return corrected by the cubic term — for a
+ *   concave F decreasing past its peak the first step lands at or beyond the root (the tangent lies above F) and the
+ *   next ones approach it monotonically from there;
+ * - **across to the other wall** (F = Δ): F certified increasing on [0, T] (or convex, leaving from relative rest)
+ *   and beyond Δ at T: the only root, by Newton inside the shrinking bracket.
+ * With dry friction (both bodies sliding) the kinetic friction is a constant torque of the model, and restTime()
+ * finds a body coming to rest on the series.
  */
 #pragma once
 
@@ -70,7 +75,7 @@ class ShortFlight
     return build(Model(params, input), start, horizon);
   }
 
-  /// Local time [s] of the impact that ends the flight, and the wall hit (the wall the teeth left).
+  /// Local time [s] of the impact that ends the flight, and the wall hit (the one the teeth left, or the other).
   double impactTime() const { return impact_; }
   Contact wall() const { return wall_; }
   /// Positions [rad] and velocities [rad/s] at local time tau ∈ [0, impactTime()] [s] (time, contact untouched).

@@ -517,7 +517,7 @@ void Plant::beginSegment()
   const double search = searchWindow(window);
   if (short_flights_ && impactNow(&wall) != 0.0)
   {
-    // Elastic chatter: a flight of microseconds from a wall back to it, as a certified Taylor series.
+    // A short flight from a wall (chatter: back to it; rattle: across), as a certified Taylor series.
     if (!flight_model_)
     {
       flight_model_.emplace(params_, law_);
