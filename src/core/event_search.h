@@ -7,6 +7,22 @@
 namespace backlash_servo
 {
 /**
+ * Bisects [a, b] to full precision for the point where `before(τ)` stops holding (it holds at a, not at b, and
+ * changes once in between): returns the last upper end, where it does not hold.
+ */
+template <class Before>
+double bisectChange(const Before& before, double a, double b)
+{
+  constexpr double EPS = std::numeric_limits<double>::epsilon();
+  for (int it = 0; it < 200 && b - a > 2.0 * EPS * b; ++it)
+  {
+    const double mid = 0.5 * (a + b);
+    (before(mid) ? a : b) = mid;
+  }
+  return b;
+}
+
+/**
  * First τ in (0, horizon] where θ(τ) leaves [lo, hi] by more than its rounding, 64 ε (|θ| + magnitude), given the
  * critical points crit[0..m) of θ in (0, horizon) (θ is monotone between them): the piece where it happens is
  * bisected to full precision. +inf if none. magnitude: the size of the numbers θ is computed from (e.g. the levels).
@@ -25,14 +41,12 @@ double firstExit(const Theta& theta, const double* crit, int m, double horizon, 
     if (above || xq < lo - bound)
     {
       const double level = above ? hi : lo;
-      double a = p, b = q;
-      for (int it = 0; it < 200 && b - a > 2.0 * EPS * b; ++it)
-      {
-        const double mid = 0.5 * (a + b);
-        const double xm = theta(mid);
-        ((above ? xm > level : xm < level) ? b : a) = mid;
-      }
-      return b;
+      return bisectChange(
+          [&](double tau) {
+            const double x = theta(tau);
+            return !(above ? x > level : x < level);
+          },
+          p, q);
     }
     p = q;
   }

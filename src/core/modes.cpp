@@ -426,13 +426,7 @@ double ContactMotion::levelSeparationTime(double side, double horizon) const
       {
         return p;  // already at or below zero at the piece's start (rounding level there)
       }
-      double a = p, b = q;
-      for (int it = 0; it < 200 && b - a > 2.0 * EPS * b; ++it)
-      {
-        const double m = 0.5 * (a + b);
-        (f(m) > 0.0 ? a : b) = m;
-      }
-      return b;
+      return bisectChange([&](double tau) { return f(tau) > 0.0; }, p, q);
     }
     if (q >= horizon)
     {
@@ -854,13 +848,7 @@ double BasicFreeMotion<Poly>::restTime(bool motor, double sign, double horizon) 
       {
         return p > 0.0 ? p : q;  // already at zero where the piece begins (a critical point within rounding)
       }
-      double a = p, b = q;
-      for (int it = 0; it < 200 && b - a > 2.0 * EPS * b; ++it)
-      {
-        const double mid = 0.5 * (a + b);
-        (sign * v(mid) > 0.0 ? a : b) = mid;
-      }
-      return b;
+      return bisectChange([&](double tau) { return sign * v(tau) > 0.0; }, p, q);
     }
     p = q;
     fp = fq;

@@ -622,6 +622,10 @@ void Plant::beginDrySegment(Slide motor, Slide load)
       }
     }
     applyWatch(seg);
+    if (state_.contact == Contact::Apart && !load_dry)
+    {
+      markLoadTurnaround(seg);  // a dry load's turnaround is its rest (and a held load has none)
+    }
   };
   if (motor == 0 && load == 0)
   {
@@ -665,10 +669,6 @@ void Plant::beginDrySegment(Slide motor, Slide load)
           seg.wall = f.wall();
           seg.rest_motor = motor_rest < load_rest;
           finish(window, {{impact, Segment::End::Impact}, {std::min(motor_rest, load_rest), Segment::End::Rest}});
-          if (!load_dry)
-          {
-            markLoadTurnaround(seg);  // a dry load's turnaround is its rest
-          }
           return;
         }
       }
@@ -692,10 +692,6 @@ void Plant::beginDrySegment(Slide motor, Slide load)
     seg.wall = wall;
     seg.rest_motor = motor_rest < load_rest;
     finish(window, {{impact, Segment::End::Impact}, {std::min(motor_rest, load_rest), Segment::End::Rest}});
-    if (!load_dry)
-    {
-      markLoadTurnaround(seg);
-    }
     return;
   }
   // One body slides, the other is held by its static friction.
@@ -710,10 +706,6 @@ void Plant::beginDrySegment(Slide motor, Slide load)
   finish(window, {{impact, Segment::End::Impact},
                   {moving_dry ? m.restTime(window) : INFINITY, Segment::End::Rest},
                   {m.breakawayTime(window), Segment::End::Breakaway}});
-  if (!motor_moves && !load_dry)
-  {
-    markLoadTurnaround(seg);
-  }
 }
 
 void Plant::countSwitch()

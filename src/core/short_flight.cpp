@@ -392,13 +392,8 @@ double ShortFlight::exitTime(double lo, double hi, double horizon) const
   const double v0 = load_velocity_[0], vh = evaluate(load_velocity_, n_, horizon);
   if ((v0 > 0.0 && vh < 0.0) || (v0 < 0.0 && vh > 0.0))
   {
-    double a = 0.0, b = horizon;
-    for (int it = 0; it < 200 && b - a > 2.0 * EPS * b; ++it)
-    {
-      const double mid = 0.5 * (a + b);
-      ((evaluate(load_velocity_, n_, mid) > 0.0) == (v0 > 0.0) ? a : b) = mid;
-    }
-    crit[m++] = b;
+    crit[m++] =
+        bisectChange([&](double tau) { return (evaluate(load_velocity_, n_, tau) > 0.0) == (v0 > 0.0); }, 0.0, horizon);
   }
   return firstExit([&](double tau) { return evaluate(load_position_, n_, tau); }, crit, m, horizon, lo, hi,
                    levelMagnitude(lo, hi));
@@ -447,13 +442,7 @@ double ShortFlight::restTime(bool motor, double sign, double horizon) const
   {
     return std::numeric_limits<double>::quiet_NaN();  // already at or below zero: the closed form's rule decides
   }
-  double a = 0.0, b = h;
-  for (int it = 0; it < 200 && b - a > 2.0 * EPS * b; ++it)
-  {
-    const double mid = 0.5 * (a + b);
-    (v(mid) > 0.0 ? a : b) = mid;
-  }
-  return b;
+  return bisectChange([&](double tau) { return v(tau) > 0.0; }, 0.0, h);
 }
 
 }  // namespace backlash_servo
