@@ -172,6 +172,10 @@ std::vector<ParamSpec> makeTable()
      false, {}, {}},
     {"start_delay", "", "s", T::Real, S::Node, NON_NEGATIVE, "0",
      "wall time to wait before sim time starts (e.g. for rosbag)", false, {}, {}},
+    {"record_bag", "", "file", T::Text, S::Node, FINITE, "",
+     "bag the node writes itself: every topic it publishes and every input it receives, absolute names (written as "
+     "FILE.active, renamed at exit; '' = off). Cheaper than a recorder process: no socket write per message",
+     false, {}, {}},
     {"sync", "", "-", T::Boolean, S::Node, FINITE, "false",
      "lockstep with an external controller: after publishing the state at t_k the node waits for one motor_effort "
      "(effort mode) or command (position mode) before advancing to t_k+1 (needs publish_clock)", false, {}, {}},

@@ -10,6 +10,7 @@
 
 #include <condition_variable>
 #include <cstdio>
+#include <ctime>
 #include <deque>
 #include <exception>
 #include <mutex>
@@ -115,6 +116,7 @@ int main(int argc, char** argv)
     std::fprintf(stderr, "backlash_record: cannot rename '%s' to '%s'\n", active.c_str(), path.c_str());
     return 1;
   }
-  std::fprintf(stderr, "backlash_record: wrote %s (backlash_bag_report %s)\n", path.c_str(), path.c_str());
+  std::fprintf(stderr, "backlash_record: wrote %s (backlash_bag_report %s); CPU %.3f s\n", path.c_str(), path.c_str(),
+               static_cast<double>(std::clock()) / CLOCKS_PER_SEC);
   return 0;
 }

@@ -1,6 +1,9 @@
 // backlash_servo_node: loads ~params (exits with a message naming the key if they are bad) and runs the servo.
 #include "servo_node.h"
 
+#include <memory>
+#include <stdexcept>
+
 int main(int argc, char** argv)
 {
   ros::init(argc, argv, "backlash_servo_node");
@@ -15,7 +18,16 @@ int main(int argc, char** argv)
     ROS_FATAL("backlash_servo_node: bad parameter: %s", e.what());
     return 1;
   }
-  backlash_servo::ServoNode node(nh, pnh, config);
-  node.run();
+  std::unique_ptr<backlash_servo::ServoNode> node;
+  try
+  {
+    node = std::make_unique<backlash_servo::ServoNode>(nh, pnh, config);
+  }
+  catch (const std::runtime_error& e)  // e.g. record_bag cannot be written
+  {
+    ROS_FATAL("backlash_servo_node: %s", e.what());
+    return 1;
+  }
+  node->run();
   return 0;
 }

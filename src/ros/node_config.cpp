@@ -96,6 +96,7 @@ NodeConfig nodeSettingsFrom(const KeyValues& kv, const NodeConfig& base)
   c.paused = kv.has("paused") ? kv.boolean("paused") : c.paused;
   c.stop_after = realValue(kv, "stop_after", c.stop_after);
   c.start_delay = realValue(kv, "start_delay", c.start_delay);
+  c.record_bag = textValue(kv, "record_bag", c.record_bag);
   c.sync = kv.has("sync") ? kv.boolean("sync") : c.sync;
   c.sync_timeout = realValue(kv, "sync_timeout", c.sync_timeout);
   c.effort_timeout = realValue(kv, "effort_timeout", c.effort_timeout);

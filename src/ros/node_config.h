@@ -31,6 +31,7 @@ struct NodeConfig
   bool paused = false;                               ///< start paused (resume with ~resume)
   double stop_after = 0.0;                           ///< shut down after this much sim time [s]; 0 = never
   double start_delay = 0.0;                          ///< wall time before sim time starts, e.g. for rosbag [s]
+  std::string record_bag;       ///< the node records its outputs and inputs into this bag itself; empty = off
   bool sync = false;            ///< lockstep: one answer (effort or command) per published state before advancing
   double sync_timeout = 5.0;    ///< lockstep: wall time to wait for an answer [s]; 0 = for ever
   double effort_timeout = 0.0;  ///< effort mode: sim time without motor_effort before the torque drops to 0 [s]

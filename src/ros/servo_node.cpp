@@ -59,6 +59,10 @@ ServoNode::ServoNode(ros::NodeHandle& nh, ros::NodeHandle& pnh, const NodeConfig
     applyPositionDrive();
   }
   restartMonitor();
+  if (!config_.record_bag.empty())
+  {
+    recorder_ = std::make_unique<NodeRecorder>(config_.record_bag);  // throws naming record_bag
+  }
   joint_pub_ = nh.advertise<sensor_msgs::JointState>("joint_states", SAMPLE_QUEUE);
   impact_pub_ = nh.advertise<ImpactEvent>("impact", SAMPLE_QUEUE);
   state_pub_ = nh.advertise<BacklashState>("backlash_state", SAMPLE_QUEUE);
@@ -83,6 +87,17 @@ ServoNode::ServoNode(ros::NodeHandle& nh, ros::NodeHandle& pnh, const NodeConfig
   reset_srv_ = pnh.advertiseService("reset", &ServoNode::onReset, this);
   pause_srv_ = pnh.advertiseService("pause", &ServoNode::onPause, this);
   resume_srv_ = pnh.advertiseService("resume", &ServoNode::onResume, this);
+  // Resolved (absolute) names, as a recorder process would write them; kept so that a sample allocates nothing.
+  joint_topic_ = joint_pub_.getTopic();
+  impact_topic_ = impact_pub_.getTopic();
+  state_topic_ = state_pub_.getTopic();
+  limit_cycle_topic_ = limit_cycle_pub_.getTopic();
+  encoder_topic_ = encoder_pub_.getTopic();
+  clock_topic_ = clock_pub_ ? clock_pub_.getTopic() : std::string();
+  command_topic_ = command_sub_.getTopic();
+  trajectory_topic_ = trajectory_sub_.getTopic();
+  effort_topic_ = effort_sub_.getTopic();
+  load_torque_topic_ = load_torque_sub_.getTopic();
 
   // Seed the server with the loaded parameters before the callback is set (it is called once at once).
   reconfigure_ = std::make_unique<dynamic_reconfigure::Server<BacklashServoConfig>>(reconfigure_mutex_, pnh);
@@ -184,7 +199,7 @@ void ServoNode::run()
   {
     rosgraph_msgs::Clock clock;
     clock.clock = stamp(0.0);
-    clock_pub_.publish(clock);
+    emit(clock_pub_, clock_topic_, clock);
   }
   publishSample();
   sample_index_ = 1;
@@ -255,7 +270,7 @@ void ServoNode::run()
     {
       rosgraph_msgs::Clock clock;
       clock.clock = stamp(t);
-      clock_pub_.publish(clock);
+      emit(clock_pub_, clock_topic_, clock);
     }
     publishSample();
     if (!(config_.stop_after > 0.0 && t >= config_.stop_after))
@@ -281,6 +296,10 @@ void ServoNode::run()
       drainBeforeExit(wall);
       break;
     }
+  }
+  if (recorder_)
+  {
+    recorder_->close();  // every input served so far is in it (the drain above serves the last ones)
   }
   ros::shutdown();
 }
@@ -347,7 +366,7 @@ void ServoNode::publishEncoders(const State& s, const Drive& drive)
   js.position.resize(2);
   js.position[0] = motor;  // quantised readings q(θ_m) [rad, motor shaft] and q(θ_c) [rad]
   js.position[1] = load;
-  encoder_pub_.publish(js);
+  emit(encoder_pub_, encoder_topic_, js);
 }
 
 void ServoNode::setJointNames(sensor_msgs::JointState* js) const
@@ -374,7 +393,7 @@ void ServoNode::publishSample()
   js.velocity[1] = s.load_velocity;
   js.effort[0] = sim_.motorTorque();
   js.effort[1] = sim_.meshTorque();
-  joint_pub_.publish(js);
+  emit(joint_pub_, joint_topic_, js);
   published_ += 2 + (clock_mode_ == ClockMode::Publisher ? 1 : 0);  // joint_states, backlash_state, /clock
 
   BacklashState b;
@@ -402,7 +421,7 @@ void ServoNode::publishSample()
   }
   b.energy_kinetic = sim_.kineticEnergy();
   b.impacts = sim_.impactCount();
-  state_pub_.publish(b);
+  emit(state_pub_, state_topic_, b);
 }
 
 void ServoNode::onEvent(const Event& e)
@@ -425,7 +444,7 @@ void ServoNode::onEvent(const Event& e)
     m.impulse = e.impact.impulse;
     m.energy_loss = e.impact.energy_loss;
     m.stuck = e.impact.stuck;
-    impact_pub_.publish(m);
+    emit(impact_pub_, impact_topic_, m);
   }
   else if (e.type == EventType::Maximum)  // both modes: effort mode is judged against `command` as well
   {
@@ -458,7 +477,7 @@ void ServoNode::publishLimitCycle(double sim_time, bool maximum)
     m.last_maximum_velocity = last.velocity;
   }
   m.command = command_;
-  limit_cycle_pub_.publish(m);
+  emit(limit_cycle_pub_, limit_cycle_topic_, m);
   if (maximum)
   {
     ROS_INFO("maximum #%u at t = %.4f s: load %.6f rad (error %+.6f rad); verdict: %s", m.maxima_observed,
@@ -481,6 +500,7 @@ void ServoNode::publishLimitCycle(double sim_time, bool maximum)
 
 void ServoNode::onCommand(const std_msgs::Float64& msg)
 {
+  record(command_topic_, msg);
   try
   {
     param("command").check(msg.data);  // finite and inside the validated envelope
@@ -502,6 +522,7 @@ void ServoNode::onCommand(const std_msgs::Float64& msg)
 
 void ServoNode::onEffort(const std_msgs::Float64& msg)
 {
+  record(effort_topic_, msg);
   try
   {
     param("motor_effort").check(msg.data);
@@ -529,8 +550,13 @@ void ServoNode::drainBeforeExit(double wall)
   // roscpp keeps unsent messages in each subscriber's outgoing queue and loses them when the process exits; a
   // recorder that fell behind a fast run (real_time_factor 0) would miss the end of it. Wait as long as a recorder
   // needs at 20 000 messages per second for what was published faster than that (at most 30 s).
+  // (The node's own bag needs no wait: it is complete when closed.)
+  const bool subscribed = joint_pub_.getNumSubscribers() + state_pub_.getNumSubscribers() +
+                              impact_pub_.getNumSubscribers() + encoder_pub_.getNumSubscribers() >
+                          0;
   const double rate = static_cast<double>(published_) / std::max(wall, 1e-3);
-  const double drain = rate > 20000.0 ? std::min(30.0, static_cast<double>(published_) / 20000.0 - wall) : 0.0;
+  const double drain =
+      subscribed && rate > 20000.0 ? std::min(30.0, static_cast<double>(published_) / 20000.0 - wall) : 0.0;
   const ros::WallTime end = ros::WallTime::now() + ros::WallDuration(std::max(drain, 0.2));
   if (drain > 0.5)
   {
@@ -617,6 +643,7 @@ void ServoNode::applyPositionDrive()
 
 void ServoNode::onTrajectory(const trajectory_msgs::JointTrajectory& msg)
 {
+  record(trajectory_topic_, msg);
   const double now = sim_.state().time;
   try
   {
@@ -684,6 +711,7 @@ void ServoNode::onTrajectory(const trajectory_msgs::JointTrajectory& msg)
 
 void ServoNode::onLoadTorque(const std_msgs::Float64& msg)
 {
+  record(load_torque_topic_, msg);
   ServoParams p = sim_.params();
   p.load_torque = msg.data;
   try

@@ -25,6 +25,7 @@
 #include "backlash_servo/response_monitor.h"
 #include "backlash_servo/simulator.h"
 #include "node_config.h"
+#include "node_recorder.h"
 
 namespace backlash_servo
 {
@@ -88,6 +89,22 @@ class ServoNode : public EventSink
   void restartMonitor();
   void reanchorWallClock();
   ros::Time stamp(double sim_time) const { return origin_ + ros::Duration(sim_time); }
+  /// Publishes an output and writes it to the node's bag (record_bag) under its resolved topic name.
+  template <class M>
+  void emit(const ros::Publisher& pub, const std::string& topic, const M& msg)
+  {
+    pub.publish(msg);
+    record(topic, msg);
+  }
+  /// Writes a message (an output, or an input as received) to the node's bag, if it records.
+  template <class M>
+  void record(const std::string& topic, const M& msg)
+  {
+    if (recorder_)
+    {
+      recorder_->write(topic, msg);
+    }
+  }
   BacklashServoConfig currentConfig() const;
 
   NodeConfig config_;
@@ -100,7 +117,10 @@ class ServoNode : public EventSink
   std::unique_ptr<ResponseMonitor> monitor_;  // the same judge as backlash_sim (rest and quiet rules included)
   Verdict announced_ = Verdict::Undecided;
 
+  std::unique_ptr<NodeRecorder> recorder_;  // the node's own bag (record_bag), or null
   ros::Publisher joint_pub_, impact_pub_, state_pub_, limit_cycle_pub_, clock_pub_, encoder_pub_;
+  std::string joint_topic_, impact_topic_, state_topic_, limit_cycle_topic_, encoder_topic_, clock_topic_;
+  std::string command_topic_, trajectory_topic_, effort_topic_, load_torque_topic_;
   // The per-sample messages, kept so that a sample allocates nothing of its own (names and arrays are reused).
   sensor_msgs::JointState joint_msg_, encoder_msg_;
   ros::Subscriber command_sub_, effort_sub_, load_torque_sub_, trajectory_sub_;
