@@ -49,4 +49,34 @@ TEST(Fuzz, TwoThousandCasesKeepEveryProperty)
   EXPECT_GT(profiled, 200);
   EXPECT_GT(counts["ok"], n * 9 / 10);
 }
+
+// The gap property's rounding scale includes the set-point θ_R(t) (a ramp runs in a frame moving with it): seed 7
+// #52681, positions crossing zero at 26 rad/s during a ramp to −9.3 rad, the gap 1.7e-15 rad below 0 — rounding of
+// the frame's ~9 rad. A gap out by far more than rounding (a missed impact) is still flagged, with or without a
+// profile.
+TEST(Fuzz, GapPropertyCountsTheSetPointsRoundingOnly)
+{
+  const fuzz::Case c = fuzz::makeCase(7, 52681);
+  ASSERT_TRUE(c.profile != nullptr);
+  EXPECT_EQ(fuzz::check(c).klass, "ok");
+  fuzz::GapWatch watch;
+  watch.mesh = backlash_servo::GearMesh(c.params);
+  watch.profile = c.profile;
+  backlash_servo::Event e;
+  e.state.time = 1.43457985891;  // on the ramp, θ_R ≈ −8 rad
+  e.state.motor_position = -0.0086665826434568771;
+  e.state.load_position = c.params.gear_ratio * e.state.motor_position - 1.7e-15;
+  watch.onEvent(e);
+  EXPECT_LT(watch.worst, 1.0);
+  e.state.load_position = c.params.gear_ratio * e.state.motor_position - 1e-10;  // beyond rounding: flagged
+  watch.onEvent(e);
+  EXPECT_GT(watch.worst, 1.0);
+  fuzz::GapWatch constant;  // constant command 1 rad at positions ~1 rad: 1e-10 rad out is flagged too
+  constant.mesh = backlash_servo::GearMesh(c.params);
+  constant.command = 1.0;
+  e.state.motor_position = 1.0 / c.params.gear_ratio;
+  e.state.load_position = 1.0 - 1e-10;
+  constant.onEvent(e);
+  EXPECT_GT(constant.worst, 1.0);
+}
 }  // namespace
