@@ -136,7 +136,13 @@ class BasicFreeMotion
    * points, which are isolated exactly (ExpPoly::signChangeRoots). Returns +inf if none; *wall gets the wall hit.
    */
   double impactTime(double horizon, Contact* wall) const;
-  /// Energy flows over [0, tau].
+  /**
+   * Energy flows over [0, tau]: the products of the closed forms integrated exactly — unless their terms are more
+   * than 1e6× the flows they make (a load drifting under T_ext towards T_ext/f_L with light damping: θ_c's terms
+   * ~T_ext/(f_L α) ≫ its motion, the motor's ~k/J_m times those), where that integral would cancel away most of its
+   * digits: then 8-point Gauss–Legendre on panels of 1/(2 max(α, β)) (exact to rounding for these exponential
+   * polynomials) of the integrands written as start + increment (ExpPoly::increment).
+   */
   EnergyFlows energy(double tau) const;
   /// First τ in (0, horizon] where θ_c leaves [lo, hi] beyond rounding (a drive's watch event), or +inf.
   double exitTime(double lo, double hi, double horizon) const;
@@ -149,10 +155,13 @@ class BasicFreeMotion
   MotorInput input_;
   Poly load_position_, load_velocity_, motor_position_, motor_velocity_, gap_;
   double start_load_position_ = 0.0, start_motor_position_ = 0.0;  // θ_c(0), θ_m(0) [rad]: at() adds increments
+  double start_load_velocity_ = 0.0, start_motor_velocity_ = 0.0;  // ω_c(0), ω_m(0) [rad/s]: energy() adds increments
   bool large_load_terms_ = false, large_motor_terms_ = false;      // positions by increments (flagLargeTerms)
   /// Flags a position form whose terms are > 1e6× its position scale (|θ(0)| + Δ, at the shaft): at() then adds
   /// increments to the start instead of evaluating the form directly.
   void flagLargeTerms();
+  /// energy() by quadrature when the closed form's integrals would cancel; false (e untouched) otherwise.
+  bool energyByQuadrature(const Poly& torque, double tau, EnergyFlows* e) const;
 };
 using FreeMotion = BasicFreeMotion<ExpPoly>;
 using WideFreeMotion = BasicFreeMotion<WideExpPoly>;

@@ -665,7 +665,12 @@ bool apartNeedsSeries(const ServoParams& params, double window)
 template <>
 BasicFreeMotion<ExpPoly>::BasicFreeMotion(const ServoParams& params, const MotorInput& input, const State& s,
                                           double /*window*/)
-    : params_(params), input_(input), start_load_position_(s.load_position), start_motor_position_(s.motor_position)
+    : params_(params),
+      input_(input),
+      start_load_position_(s.load_position),
+      start_motor_position_(s.motor_position),
+      start_load_velocity_(s.load_velocity),
+      start_motor_velocity_(s.motor_velocity)
 {
   // Every rate here is 0 or fast over the window (apartNeedsSeries() is false); equal rates are merged exactly.
   const double alpha = params.load_friction / params.load_inertia;
@@ -740,7 +745,12 @@ BasicFreeMotion<ExpPoly>::BasicFreeMotion(const ServoParams& params, const Motor
 template <>
 BasicFreeMotion<WideExpPoly>::BasicFreeMotion(const ServoParams& params, const MotorInput& input, const State& s,
                                               double window)
-    : params_(params), input_(input), start_load_position_(s.load_position), start_motor_position_(s.motor_position)
+    : params_(params),
+      input_(input),
+      start_load_position_(s.load_position),
+      start_motor_position_(s.motor_position),
+      start_load_velocity_(s.load_velocity),
+      start_motor_velocity_(s.motor_velocity)
 {
   const double alpha = params.load_friction / params.load_inertia;
   const double beta = params.motor_friction / params.motor_inertia;
@@ -856,12 +866,88 @@ double BasicFreeMotion<Poly>::restTime(bool motor, double sign, double horizon) 
   return INF;
 }
 
+namespace
+{
+/// 8-point Gauss–Legendre rule on [−1, 1]: exact for polynomials of degree ≤ 15.
+constexpr double GAUSS_NODE[8] = {-0.96028985649753623168, -0.79666647741362673959, -0.52553240991632898582,
+                                  -0.18343464249564980494, 0.18343464249564980494,  0.52553240991632898582,
+                                  0.79666647741362673959,  0.96028985649753623168};
+constexpr double GAUSS_WEIGHT[8] = {0.10122853629037625915, 0.22238103445337447054, 0.31370664587788728734,
+                                    0.36268378337836198297, 0.36268378337836198297, 0.31370664587788728734,
+                                    0.22238103445337447054, 0.10122853629037625915};
+/// Most panels of the energy quadrature (beyond it, the closed form's integrals are kept).
+constexpr int MAX_ENERGY_PANELS = 512;
+/// The closed form's product integrals are replaced when their terms exceed the flows' size by more than this.
+constexpr double ENERGY_CANCELLATION = 1e3;
+
+/// Σ|terms| of f (its rounding scale) and max |f| at τ = 0 and τ = tau.
+template <class Poly>
+double termMagnitude(const Poly& f, double tau, double* value_max)
+{
+  double v0, s0, m0, v1, s1, m1;
+  f.evaluateWithDerivative(0.0, &v0, &s0, &m0);
+  f.evaluateWithDerivative(tau, &v1, &s1, &m1);
+  *value_max = std::max(std::fabs(v0), std::fabs(v1));
+  return std::max(m0, m1);
+}
+}  // namespace
+
+template <class Poly>
+bool BasicFreeMotion<Poly>::energyByQuadrature(const Poly& torque, double tau, EnergyFlows* e) const
+{
+  double torque_max, motor_max, load_max;
+  const double torque_terms = termMagnitude(torque, tau, &torque_max);
+  const double motor_terms = termMagnitude(motor_velocity_, tau, &motor_max);
+  const double load_terms = termMagnitude(load_velocity_, tau, &load_max);
+  const bool cancels = torque_terms * motor_terms > ENERGY_CANCELLATION * torque_max * motor_max ||
+                       motor_terms * motor_terms > ENERGY_CANCELLATION * motor_max * motor_max ||
+                       load_terms * load_terms > ENERGY_CANCELLATION * load_max * load_max;
+  // The integrands are exponential polynomials with rates −α, −β (and their sums: at most 2·max(α, β)) times low
+  // powers of τ: panels of 1/(2 max(α, β)) make the rule exact to rounding.
+  const double rate =
+      std::max(params_.load_friction / params_.load_inertia, params_.motor_friction / params_.motor_inertia);
+  const double panels = std::max(1.0, std::ceil(2.0 * rate * tau));
+  if (!cancels || !(panels <= MAX_ENERGY_PANELS))
+  {
+    return false;
+  }
+  const int n = static_cast<int>(panels);
+  const double h = tau / n;
+  // Every value as the start plus an increment (exact to the rounding of its own size, ExpPoly::increment).
+  const double start_torque = input_.offset - input_.stiffness * start_load_position_;
+  double input = 0.0, motor = 0.0, load = 0.0;
+  for (int p = 0; p < n; ++p)
+  {
+    for (int i = 0; i < 8; ++i)
+    {
+      const double t = h * (p + 0.5 + 0.5 * GAUSS_NODE[i]);
+      const double torque_t = start_torque - input_.stiffness * load_position_.increment(t);
+      const double motor_t = start_motor_velocity_ + motor_velocity_.increment(t);
+      const double load_t = start_load_velocity_ + load_velocity_.increment(t);
+      input += GAUSS_WEIGHT[i] * torque_t * motor_t;
+      motor += GAUSS_WEIGHT[i] * motor_t * motor_t;
+      load += GAUSS_WEIGHT[i] * load_t * load_t;
+    }
+  }
+  e->input = 0.5 * h * input;
+  e->motor_friction = params_.motor_friction * 0.5 * h * motor;
+  e->load_friction = params_.load_friction * 0.5 * h * load;
+  e->load_displacement = load_position_.increment(tau);
+  e->motor_displacement = motor_position_.increment(tau);
+  e->load_work = params_.load_torque * e->load_displacement;
+  return true;
+}
+
 template <class Poly>
 EnergyFlows BasicFreeMotion<Poly>::energy(double tau) const
 {
   Poly torque = load_position_ * -input_.stiffness;
   torque.addConstant(input_.offset);
   EnergyFlows e;
+  if (energyByQuadrature(torque, tau, &e))
+  {
+    return e;
+  }
   e.input = (torque * motor_velocity_).integral(tau);
   e.motor_friction = params_.motor_friction * (motor_velocity_ * motor_velocity_).integral(tau);
   e.load_friction = params_.load_friction * (load_velocity_ * load_velocity_).integral(tau);

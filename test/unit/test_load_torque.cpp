@@ -235,3 +235,104 @@ TEST(LoadTorque, ABalancedStartStaysAtRestWithoutHanging)
   EXPECT_EQ(sim.state().load_velocity, 0.0);
   EXPECT_EQ(sim.impactCount(), 0u);
 }
+
+// Fuzz seed 7 #44852 (1e5 run; ten more cases of the kind): a lightly damped load drifting apart under T_ext towards
+// u = T_ext/f_L = 0.012 rad/s with α = 0.28 1/s while it moves at ~1e-4 rad/s. The apart closed form's terms
+// (θ_c ~ (v0 − u)/α ~ 0.04 rad, ω_m ~ k/J_m times those ~ 0.6 rad/s) are 1e4–1e5× the motion, and the energy flows
+// integrated from their products cancelled ~9 digits (the run's balance off by 2e-8 of its energy scale). Truth:
+// the apart-mode ODE with the flows as extra states, integrated by classical RK4 in long double (its right-hand side
+// has no large terms), and the load's flows in closed form in long double (ω_c = u + (v0 − u) e^{−ατ}, expm1).
+// Both apart forms (compact and wide), short and long flights.
+struct ApartFlows
+{
+  long double input = 0, motor_friction = 0, load_friction = 0;
+};
+
+ApartFlows rk4Flows(const ServoParams& p, const MotorInput& law, const State& s, double tau, int steps)
+{
+  using L = long double;
+  // y = (θ_c, ω_c, θ_m, ω_m, ∫T_m ω_m, ∫ω_m², ∫ω_c²)
+  L y[7] = {s.load_position, s.load_velocity, s.motor_position, s.motor_velocity, 0, 0, 0};
+  auto f = [&](const L* x, L* d) {
+    const L torque = static_cast<L>(law.offset) - static_cast<L>(law.stiffness) * x[0];
+    d[0] = x[1];
+    d[1] = (static_cast<L>(p.load_torque) - static_cast<L>(p.load_friction) * x[1]) / p.load_inertia;
+    d[2] = x[3];
+    d[3] = (torque - static_cast<L>(p.motor_friction) * x[3]) / p.motor_inertia;
+    d[4] = torque * x[3];
+    d[5] = x[3] * x[3];
+    d[6] = x[1] * x[1];
+  };
+  const L h = static_cast<L>(tau) / steps;
+  for (int n = 0; n < steps; ++n)
+  {
+    L k1[7], k2[7], k3[7], k4[7], t[7];
+    f(y, k1);
+    for (int i = 0; i < 7; ++i)
+      t[i] = y[i] + h / 2 * k1[i];
+    f(t, k2);
+    for (int i = 0; i < 7; ++i)
+      t[i] = y[i] + h / 2 * k2[i];
+    f(t, k3);
+    for (int i = 0; i < 7; ++i)
+      t[i] = y[i] + h * k3[i];
+    f(t, k4);
+    for (int i = 0; i < 7; ++i)
+      y[i] += h / 6 * (k1[i] + 2 * k2[i] + 2 * k3[i] + k4[i]);
+  }
+  return {y[4], p.motor_friction * y[5], p.load_friction * y[6]};
+}
+
+template <class Motion>
+void expectExactFlows(const ServoParams& p, const MotorInput& law, const State& s, double tau, const ApartFlows& ref)
+{
+  const Motion m(p, law, s, tau);
+  const EnergyFlows e = m.energy(tau);
+  const double input = static_cast<double>(ref.input), motor = static_cast<double>(ref.motor_friction);
+  const double load = static_cast<double>(ref.load_friction);
+  EXPECT_NEAR(e.input, input, 1e-12 * std::fabs(input)) << tau;
+  EXPECT_NEAR(e.motor_friction, motor, 1e-12 * motor) << tau;
+  EXPECT_NEAR(e.load_friction, load, 1e-12 * load) << tau;
+  // The load alone, in closed form (long double).
+  using L = long double;
+  const L alpha = static_cast<L>(p.load_friction) / p.load_inertia;
+  const L u = static_cast<L>(p.load_torque) / p.load_friction, w = s.load_velocity - u;
+  const L em1 = std::expm1(-alpha * tau), em2 = std::expm1(-2 * alpha * tau);
+  const double displacement = static_cast<double>(u * tau - w * em1 / alpha);
+  const double friction =
+      static_cast<double>(p.load_friction * (u * u * tau - 2 * u * w * em1 / alpha - w * w * em2 / (2 * alpha)));
+  EXPECT_NEAR(e.load_displacement, displacement, 1e-14 * std::fabs(displacement)) << tau;
+  EXPECT_NEAR(load, friction, 1e-13 * friction) << tau;  // the reference itself
+}
+
+TEST(LoadTorque, ALightlyDampedDriftKeepsItsEnergyFlowsExact)
+{
+  ServoParams p;
+  p.motor_inertia = 0.0035079845442365682;
+  p.load_inertia = 9.878924459762661e-05;
+  p.motor_friction = 0.00027603721286588033;
+  p.load_friction = 2.7609253606252575e-05;
+  p.gain = 0.010018095558593799;
+  p.backlash = 5.6715467154069532e-05;
+  p.load_torque = 3.3808121719035958e-07;
+  const double command = 0.00034696651579279003;
+  const MotorInput law{p.gain * command, p.gain};
+  State s;
+  s.contact = Contact::Apart;
+  s.load_position = 3.5e-4;
+  s.load_velocity = 1e-4;
+  s.motor_position = 3.5e-4 - 2e-5;
+  s.motor_velocity = -2e-7;
+  int compact = 0;
+  for (double tau : {0.01, 0.1, 1.0, 3.0})
+  {
+    const ApartFlows ref = rk4Flows(p, law, s, tau, 20000);
+    expectExactFlows<WideFreeMotion>(p, law, s, tau, ref);
+    if (!apartNeedsSeries(p, tau))  // the compact form where it applies (every rate fast over the window)
+    {
+      expectExactFlows<FreeMotion>(p, law, s, tau, ref);
+      ++compact;
+    }
+  }
+  EXPECT_GE(compact, 1);
+}
