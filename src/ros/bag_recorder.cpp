@@ -9,6 +9,7 @@
 #include <topic_tools/shape_shifter.h>
 
 #include <condition_variable>
+#include <csignal>
 #include <cstdio>
 #include <ctime>
 #include <deque>
@@ -20,6 +21,12 @@
 
 namespace
 {
+/// SIGTERM ends the recorder as SIGINT does: every queued message is written and the bag closed and renamed.
+extern "C" void requestShutdown(int)
+{
+  ros::requestShutdown();
+}
+
 struct Item
 {
   std::string topic;
@@ -37,6 +44,7 @@ bool g_done = false;
 int main(int argc, char** argv)
 {
   ros::init(argc, argv, "backlash_record", ros::init_options::AnonymousName);
+  std::signal(SIGTERM, requestShutdown);
   const std::vector<std::string> args(argv + 1, argv + argc);
   if (args.size() < 2)
   {

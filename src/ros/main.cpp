@@ -1,12 +1,24 @@
 // backlash_servo_node: loads ~params (exits with a message naming the key if they are bad) and runs the servo.
 #include "servo_node.h"
 
+#include <csignal>
 #include <memory>
 #include <stdexcept>
+
+namespace
+{
+/// SIGTERM (docker stop, systemd, kill) ends the node as SIGINT does: the sample loop stops at a step boundary and
+/// the node's own bag is written out and closed (roscpp handles only SIGINT; ros::requestShutdown only sets a flag).
+extern "C" void requestShutdown(int)
+{
+  ros::requestShutdown();
+}
+}  // namespace
 
 int main(int argc, char** argv)
 {
   ros::init(argc, argv, "backlash_servo_node");
+  std::signal(SIGTERM, requestShutdown);
   ros::NodeHandle nh, pnh("~");
   backlash_servo::NodeConfig config;
   try
