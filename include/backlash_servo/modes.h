@@ -154,9 +154,8 @@ class BasicFreeMotion
   ServoParams params_;
   MotorInput input_;
   Poly load_position_, load_velocity_, motor_position_, motor_velocity_, gap_;
-  double start_load_position_ = 0.0, start_motor_position_ = 0.0;  // θ_c(0), θ_m(0) [rad]: at() adds increments
-  double start_load_velocity_ = 0.0, start_motor_velocity_ = 0.0;  // ω_c(0), ω_m(0) [rad/s]: energy() adds increments
-  bool large_load_terms_ = false, large_motor_terms_ = false;      // positions by increments (flagLargeTerms)
+  State start_;  // the start [rad, rad/s]: at() adds position increments to it, energy() velocity increments too
+  bool large_load_terms_ = false, large_motor_terms_ = false;  // positions by increments (flagLargeTerms)
   /// Flags a position form whose terms are > 1e6× its position scale (|θ(0)| + Δ, at the shaft): at() then adds
   /// increments to the start instead of evaluating the form directly.
   void flagLargeTerms();

@@ -665,12 +665,7 @@ bool apartNeedsSeries(const ServoParams& params, double window)
 template <>
 BasicFreeMotion<ExpPoly>::BasicFreeMotion(const ServoParams& params, const MotorInput& input, const State& s,
                                           double /*window*/)
-    : params_(params),
-      input_(input),
-      start_load_position_(s.load_position),
-      start_motor_position_(s.motor_position),
-      start_load_velocity_(s.load_velocity),
-      start_motor_velocity_(s.motor_velocity)
+    : params_(params), input_(input), start_(s)
 {
   // Every rate here is 0 or fast over the window (apartNeedsSeries() is false); equal rates are merged exactly.
   const double alpha = params.load_friction / params.load_inertia;
@@ -745,12 +740,7 @@ BasicFreeMotion<ExpPoly>::BasicFreeMotion(const ServoParams& params, const Motor
 template <>
 BasicFreeMotion<WideExpPoly>::BasicFreeMotion(const ServoParams& params, const MotorInput& input, const State& s,
                                               double window)
-    : params_(params),
-      input_(input),
-      start_load_position_(s.load_position),
-      start_motor_position_(s.motor_position),
-      start_load_velocity_(s.load_velocity),
-      start_motor_velocity_(s.motor_velocity)
+    : params_(params), input_(input), start_(s)
 {
   const double alpha = params.load_friction / params.load_inertia;
   const double beta = params.motor_friction / params.motor_inertia;
@@ -782,8 +772,8 @@ void BasicFreeMotion<Poly>::flagLargeTerms()
   double load_bound = 0.0, motor_bound = 0.0;
   load_position_.evaluate(0.0, &load_bound);
   motor_position_.evaluate(0.0, &motor_bound);
-  const double load_scale = std::fabs(start_load_position_) + params_.backlash;
-  const double motor_scale = std::fabs(start_motor_position_) + params_.backlash / params_.gear_ratio;
+  const double load_scale = std::fabs(start_.load_position) + params_.backlash;
+  const double motor_scale = std::fabs(start_.motor_position) + params_.backlash / params_.gear_ratio;
   large_load_terms_ = load_bound > 1e6 * EPS * load_scale;
   large_motor_terms_ = motor_bound > 1e6 * EPS * motor_scale;
 }
@@ -794,10 +784,10 @@ void BasicFreeMotion<Poly>::at(double tau, State* out) const
   // Where the closed form's terms are far larger than the motion (a light body under a huge torque: θ = c − c e^{−ατ}
   // with c ~ 1e8 rad for a displacement of 1e-11 rad), positions are start + increment, which keeps the rounding of
   // the motion, not of the coefficients; elsewhere the direct form (cheaper, and the golden outputs' form).
-  out->load_position = large_load_terms_ ? start_load_position_ + load_position_.increment(tau) : load_position_(tau);
+  out->load_position = large_load_terms_ ? start_.load_position + load_position_.increment(tau) : load_position_(tau);
   out->load_velocity = load_velocity_(tau);
   out->motor_position =
-      large_motor_terms_ ? start_motor_position_ + motor_position_.increment(tau) : motor_position_(tau);
+      large_motor_terms_ ? start_.motor_position + motor_position_.increment(tau) : motor_position_(tau);
   out->motor_velocity = motor_velocity_(tau);
 }
 
@@ -914,7 +904,7 @@ bool BasicFreeMotion<Poly>::energyByQuadrature(const Poly& torque, double tau, E
   const int n = static_cast<int>(panels);
   const double h = tau / n;
   // Every value as the start plus an increment (exact to the rounding of its own size, ExpPoly::increment).
-  const double start_torque = input_.offset - input_.stiffness * start_load_position_;
+  const double start_torque = input_.offset - input_.stiffness * start_.load_position;
   double input = 0.0, motor = 0.0, load = 0.0;
   for (int p = 0; p < n; ++p)
   {
@@ -922,8 +912,8 @@ bool BasicFreeMotion<Poly>::energyByQuadrature(const Poly& torque, double tau, E
     {
       const double t = h * (p + 0.5 + 0.5 * GAUSS_NODE[i]);
       const double torque_t = start_torque - input_.stiffness * load_position_.increment(t);
-      const double motor_t = start_motor_velocity_ + motor_velocity_.increment(t);
-      const double load_t = start_load_velocity_ + load_velocity_.increment(t);
+      const double motor_t = start_.motor_velocity + motor_velocity_.increment(t);
+      const double load_t = start_.load_velocity + load_velocity_.increment(t);
       input += GAUSS_WEIGHT[i] * torque_t * motor_t;
       motor += GAUSS_WEIGHT[i] * motor_t * motor_t;
       load += GAUSS_WEIGHT[i] * load_t * load_t;

@@ -84,4 +84,26 @@ inline std::string runCapture(const std::string& cmd, int* code = nullptr)
   }
   return out;
 }
+/// Classical RK4 in long double, `steps` steps of h on y' = f(y) (f(y, dy) writes dy): a reference integrator.
+template <int N, class F>
+void rk4(const F& f, long double (&y)[N], long double h, int steps)
+{
+  for (int n = 0; n < steps; ++n)
+  {
+    long double k1[N], k2[N], k3[N], k4[N], t[N];
+    f(y, k1);
+    for (int i = 0; i < N; ++i)
+      t[i] = y[i] + h / 2 * k1[i];
+    f(t, k2);
+    for (int i = 0; i < N; ++i)
+      t[i] = y[i] + h / 2 * k2[i];
+    f(t, k3);
+    for (int i = 0; i < N; ++i)
+      t[i] = y[i] + h * k3[i];
+    f(t, k4);
+    for (int i = 0; i < N; ++i)
+      y[i] += h / 6 * (k1[i] + 2 * k2[i] + 2 * k3[i] + k4[i]);
+  }
+}
+
 }  // namespace test_helpers

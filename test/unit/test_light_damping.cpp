@@ -25,23 +25,7 @@ State rk4Apart(const ServoParams& p, double a, double k, const State& s0, double
     d[2] = y[3];
     d[3] = (static_cast<L>(a) - k * y[0] - static_cast<L>(p.motor_friction) * y[3]) / p.motor_inertia;
   };
-  const L h = static_cast<L>(duration) / steps;
-  for (int n = 0; n < steps; ++n)
-  {
-    L k1[4], k2[4], k3[4], k4[4], t[4];
-    f(x, k1);
-    for (int i = 0; i < 4; ++i)
-      t[i] = x[i] + h / 2 * k1[i];
-    f(t, k2);
-    for (int i = 0; i < 4; ++i)
-      t[i] = x[i] + h / 2 * k2[i];
-    f(t, k3);
-    for (int i = 0; i < 4; ++i)
-      t[i] = x[i] + h * k3[i];
-    f(t, k4);
-    for (int i = 0; i < 4; ++i)
-      x[i] += h / 6 * (k1[i] + 2 * k2[i] + 2 * k3[i] + k4[i]);
-  }
+  test_helpers::rk4(f, x, static_cast<L>(duration) / steps, steps);
   State out = s0;
   out.load_position = static_cast<double>(x[0]);
   out.load_velocity = static_cast<double>(x[1]);

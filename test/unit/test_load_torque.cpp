@@ -263,23 +263,7 @@ ApartFlows rk4Flows(const ServoParams& p, const MotorInput& law, const State& s,
     d[5] = x[3] * x[3];
     d[6] = x[1] * x[1];
   };
-  const L h = static_cast<L>(tau) / steps;
-  for (int n = 0; n < steps; ++n)
-  {
-    L k1[7], k2[7], k3[7], k4[7], t[7];
-    f(y, k1);
-    for (int i = 0; i < 7; ++i)
-      t[i] = y[i] + h / 2 * k1[i];
-    f(t, k2);
-    for (int i = 0; i < 7; ++i)
-      t[i] = y[i] + h / 2 * k2[i];
-    f(t, k3);
-    for (int i = 0; i < 7; ++i)
-      t[i] = y[i] + h * k3[i];
-    f(t, k4);
-    for (int i = 0; i < 7; ++i)
-      y[i] += h / 6 * (k1[i] + 2 * k2[i] + 2 * k3[i] + k4[i]);
-  }
+  test_helpers::rk4(f, y, static_cast<L>(tau) / steps, steps);
   return {y[4], p.motor_friction * y[5], p.load_friction * y[6]};
 }
 
