@@ -51,10 +51,15 @@ class NodeRecorder
   NodeRecorder(const NodeRecorder&) = delete;
   NodeRecorder& operator=(const NodeRecorder&) = delete;
 
-  /// Queues one message for the absolute topic name `topic`, stamped with the wall time now.
+  /// Queues one message for the absolute topic name `topic`, stamped with the wall time now (the publishing thread
+  /// only: write() and close() are called from one thread).
   template <class M>
   void write(const std::string& topic, const M& msg)
   {
+    if (!open_)
+    {
+      return;  // closed (the node is shutting down): nothing more goes into the bag
+    }
     namespace mt = ros::message_traits;
     const int id = topicId(topic, mt::datatype<M>(), mt::md5sum<M>(), mt::definition<M>());
     const uint32_t length = ros::serialization::serializationLength(msg);
