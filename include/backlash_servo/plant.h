@@ -310,13 +310,12 @@ class Plant
   std::uint64_t short_flight_count_ = 0;
   bool dry_ = false;  // params_.hasDryFriction()
   double search_horizon_ = std::numeric_limits<double>::infinity();
-  Slide forced_motor_breakaway_ = 0;
+  Slide forced_motor_breakaway_ = 0;  // set at a Breakaway: the motor slides this way from rest (no re-decision)
   // Time [s] of the last separation of a rigid mesh (Δ = 0) that ended its segment within the clock's resolution:
   // the mesh torque is crossing zero there, still on the old flank's side by rounding, so the contact test would send
   // the teeth straight back (fuzz seed 7, nine cases in 1e5 looped without advancing time). The other flank is taken
   // at once, where the torque is heading.
-  double rigid_flip_time_ = -std::numeric_limits<double>::infinity();  // set at a Breakaway: the motor slides this way
-                                                                       // from rest (no re-decision)
+  double rigid_flip_time_ = -std::numeric_limits<double>::infinity();
 };
 
 }  // namespace backlash_servo
