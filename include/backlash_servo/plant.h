@@ -67,6 +67,10 @@ class EventSink
  public:
   virtual ~EventSink() = default;
   virtual void onEvent(const Event& event) = 0;
+  /// Whether this sink reads Impact events (default: yes). One that does not — the response monitor reads only
+  /// maxima — spares the plant building them: elastic chatter has millions (the sweep's runs). Asked once per
+  /// Plant::advanceTo(); every other event type is always sent.
+  virtual bool wantsImpacts() const { return true; }
 };
 
 /// The run met more impacts than its budget allows (an impact storm): stopped instead of hanging.
@@ -285,7 +289,8 @@ class Plant
   /// Apart with the load free of dry friction: a maximum of θ_c where a load torque turns the load round inside the
   /// segment (its velocity crosses zero from + to −) goes into the segment's maxima.
   void markLoadTurnaround(Segment& seg) const;
-  void handleImpact(Contact wall, EventSink* sink);
+  /// `report`: send the Impact event (the sink wants it); a maximum at the impact goes to sink either way.
+  void handleImpact(Contact wall, EventSink* sink, bool report);
   /// Puts teeth at relative rest on `wall` into contact if the mesh torque presses, else leaves them apart.
   void settleOnWall(Contact wall);
 

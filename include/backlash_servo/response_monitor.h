@@ -45,6 +45,7 @@ class ResponseMonitor : public EventSink
   void restartAt(const State& state);
   /// Maxima (EventType::Maximum) go to the detector; every other event is ignored.
   void onEvent(const Event& event) override;
+  bool wantsImpacts() const override { return false; }
   /// Where the P law comes to rest: θ_R + ρ T_ext / K [rad].
   double equilibrium() const { return equilibrium_; }
   /// Applies the rest and quiet rules to the state at a check time. drive_winding: the drive's integrator still

@@ -256,7 +256,7 @@ void Plant::setParams(const ServoParams& params, EventSink* sink, bool frame)
   else if (old_gap < 0.0 || old_gap > delta || (g == delta && delta == 0.0))
   {
     // Δ shrank below the gap: the wall now touches the teeth; closing teeth collide, resting ones settle.
-    handleImpact(g == 0.0 ? Contact::Forward : Contact::Backward, sink);
+    handleImpact(g == 0.0 ? Contact::Forward : Contact::Backward, sink, sink != nullptr && sink->wantsImpacts());
   }
   // A parameter change is not a physical process: re-base the kinetic energy so the ledger keeps its balance.
   energy_.initial_kinetic = kineticEnergy() - energy_.input - energy_.load_work + energy_.motor_friction +
@@ -329,6 +329,7 @@ bool Plant::advanceTo(double t_end, EventSink* sink)
                                 std::to_string(state_.time) + " s or not finite");
   }
   int stalled = 0;
+  const bool report_impacts = sink != nullptr && sink->wantsImpacts();
   while (state_.time < t_end)
   {
     if (!segment_ && dry_)
@@ -402,7 +403,7 @@ bool Plant::advanceTo(double t_end, EventSink* sink)
     }
     else if (end == Segment::End::Impact)
     {
-      handleImpact(wall, sink);
+      handleImpact(wall, sink, report_impacts);
     }
     else if (end == Segment::End::Watch)
     {
@@ -857,7 +858,7 @@ void Plant::settleOnWall(Contact wall)
                        : mesh_.afterSeparation(wall);
 }
 
-void Plant::handleImpact(Contact wall, EventSink* sink)
+void Plant::handleImpact(Contact wall, EventSink* sink, bool report)
 {
   const double rho = params_.gear_ratio;
   const double delta = params_.backlash;
@@ -915,17 +916,20 @@ void Plant::handleImpact(Contact wall, EventSink* sink)
   {
     state_.contact = Contact::Apart;
   }
-  ImpactInfo info;
-  info.wall = wall;
-  info.load_velocity_before = v;
-  info.load_velocity_after = o.load_velocity;
-  info.motor_velocity_before = w;
-  info.motor_velocity_after = o.motor_velocity;
-  info.approach_speed = closing;
-  info.impulse = o.impulse;
-  info.energy_loss = o.energy_loss;
-  info.stuck = state_.contact != Contact::Apart;
-  emit(sink, EventType::Impact, &info);
+  if (report)
+  {
+    ImpactInfo info;
+    info.wall = wall;
+    info.load_velocity_before = v;
+    info.load_velocity_after = o.load_velocity;
+    info.motor_velocity_before = w;
+    info.motor_velocity_after = o.motor_velocity;
+    info.approach_speed = closing;
+    info.impulse = o.impulse;
+    info.energy_loss = o.energy_loss;
+    info.stuck = state_.contact != Contact::Apart;
+    emit(sink, EventType::Impact, &info);
+  }
   if (v > 0.0 && o.load_velocity <= 0.0)
   {
     emit(sink, EventType::Maximum);

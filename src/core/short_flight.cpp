@@ -4,6 +4,7 @@
 #include <array>
 #include <cmath>
 #include <limits>
+#include <type_traits>
 
 #include "event_search.h"
 
@@ -40,21 +41,49 @@ double integrateProduct(const double* a, const double* b, int n, double tau)
   return sum * tau;
 }
 
-/// Σ_{k≥1} c_k τ^k: the series' change from its start (no rounding of c_0 in it).
+/**
+ * Calls f with std::integral_constant<int, N> for the orders flights mostly have (N = 2 … 6: chatter flights are
+ * of order 3–4), else with N = 0 (the order then read at run time). The loops over the orders below take
+ * `N ? N : n` as their length, so the compiler unrolls the common ones; the operations and their order are the
+ * same either way (bit-identical results).
+ */
+template <class F>
+decltype(auto) withOrder(int n, F&& f)
+{
+  switch (n)
+  {
+    case 2:
+      return f(std::integral_constant<int, 2>{});
+    case 3:
+      return f(std::integral_constant<int, 3>{});
+    case 4:
+      return f(std::integral_constant<int, 4>{});
+    case 5:
+      return f(std::integral_constant<int, 5>{});
+    case 6:
+      return f(std::integral_constant<int, 6>{});
+    default:
+      return f(std::integral_constant<int, 0>{});
+  }
+}
+
+/// Σ_{k≥1} c_k τ^k: the series' change from its start (no rounding of c_0 in it); order N (0: n).
+template <int N = 0>
 inline double increment(const double* c, int n, double tau)
 {
   double sum = 0.0;
-  for (int k = n; k >= 1; --k)
+  for (int k = N ? N : n; k >= 1; --k)
   {
     sum = sum * tau + c[k];
   }
   return sum * tau;
 }
 
-/// Value of series c (order n) at tau.
+/// Value of series c (order N; 0: n) at tau.
+template <int N = 0>
 inline double evaluate(const double* c, int n, double tau)
 {
-  return c[0] + increment(c, n, tau);
+  return c[0] + increment<N>(c, n, tau);
 }
 
 /// The gap of a flight relative to the wall it left, F(τ) = Σ_{k≤n} f_k τ^k (> 0 in the free space), with bounds
@@ -65,10 +94,12 @@ struct GapSeries
   int n = 0;
   double higher = 0.0, higher_slope = 0.0;
 
+  /// F(τ) and F'(τ), order N (0: n).
+  template <int N = 0>
   double value(double tau, double* slope) const
   {
     double v = 0.0, d = 0.0;
-    for (int k = n; k >= 1; --k)
+    for (int k = N ? N : n; k >= 1; --k)
     {
       d = d * tau + v;
       v = v * tau + f[k];
@@ -88,6 +119,7 @@ struct GapSeries
    * stay in [0, T] with F back beyond the wall there; then monotone steps, one below 1e-8 of τ (error below
    * (1e-8)²·τ) taken as is.
    */
+  template <int N = 0>
   bool returnTime(double quadratic_return, double t_end, double near, double delta, double rounding, double* out) const
   {
     const double f1 = f[1], f2 = f[2];
@@ -99,7 +131,7 @@ struct GapSeries
     const double f3 = n >= 3 ? f[3] : 0.0;
     double x = quadratic_return - f3 * quadratic_return * quadratic_return / (f2 + 2.0 * f3 * quadratic_return);
     double slope;
-    double fx = value(x, &slope);
+    double fx = value<N>(x, &slope);
     if (!(slope < 0.0) || !(x > 0.5 * quadratic_return))
     {
       return false;
@@ -109,7 +141,7 @@ struct GapSeries
     {
       return false;
     }
-    fx = value(x, &slope);
+    fx = value<N>(x, &slope);
     if (!(fx < rounding) || !(slope < 0.0))
     {
       return false;
@@ -127,7 +159,7 @@ struct GapSeries
       {
         break;
       }
-      fx = value(x, &slope);
+      fx = value<N>(x, &slope);
       if (!(slope < 0.0))
       {
         break;
@@ -143,13 +175,14 @@ struct GapSeries
    * the crossing is the only root of F − Δ in (0, T]: Newton kept inside the shrinking bracket (bisection where a step
    * would leave it), to full precision.
    */
+  template <int N = 0>
   bool crossingTime(double t_end, double delta, double rounding, double* out) const
   {
     // Increasing: F' bounded away from 0 on [0, T], or F' ≥ 0 at 0 and F'' > 0 on [0, T] (from relative rest).
     const bool increasing =
         f[1] + 2.0 * std::min(f[2], 0.0) * t_end - higher_slope > 0.0 || (f[1] >= 0.0 && 2.0 * f[2] > higher);
     double slope;
-    const double f_end = value(t_end, &slope) - delta;
+    const double f_end = value<N>(t_end, &slope) - delta;
     if (!increasing || !(f_end > rounding))
     {
       return false;
@@ -162,7 +195,7 @@ struct GapSeries
       {
         x = 0.5 * (a + b);
       }
-      const double fx = value(x, &slope) - delta;
+      const double fx = value<N>(x, &slope) - delta;
       if (fx == 0.0)
       {
         break;
@@ -201,7 +234,8 @@ ShortFlight::Model::Model(const ServoParams& p, const MotorInput& input)
       rho(p.gear_ratio),
       delta(p.backlash),
       omega_ref(std::max({alpha, beta, std::sqrt(rho * std::fabs(motor_stiffness))})),
-      norm(omega_ref > 0.0 ? std::max({omega_ref, alpha, rho * std::fabs(motor_stiffness) / omega_ref + beta}) : 0.0)
+      norm(omega_ref > 0.0 ? std::max({omega_ref, alpha, rho * std::fabs(motor_stiffness) / omega_ref + beta}) : 0.0),
+      scale_time(omega_ref > 0.0 ? 1.0 / omega_ref : 0.0)
 {}
 
 bool ShortFlight::build(const Model& m, const State& s, double horizon)
@@ -280,7 +314,7 @@ bool ShortFlight::build(const Model& m, const State& s, double horizon)
     return false;
   }
   // Norm of A in the weighted norm ||y||_D = max(|θ_c|, s|ω_c|, ρ|θ_m|, sρ|ω_m|), s = 1/ω_ref.
-  const double scale_time = m.omega_ref > 0.0 ? 1.0 / m.omega_ref : 1e3 * t_end;
+  const double scale_time = m.omega_ref > 0.0 ? m.scale_time : 1e3 * t_end;
   const double mt = (m.omega_ref > 0.0 ? m.norm : 1.0 / scale_time) * t_end;
   if (!(mt <= MAX_NORM_TIME))
   {
@@ -326,17 +360,24 @@ bool ShortFlight::build(const Model& m, const State& s, double horizon)
     gap.higher += k * (k - 1) * std::fabs(gap.f[k]) * tk;
   }
   gap.higher += 2.0 * weighted * t_power_2 * (n * mt + 1.12 * mt * mt);  // 1/(1 − MT) ≤ 1.12
-  // And on |F' − f_1 − 2f_2 τ| (orders ≥ 3 and the remainder's slope, 1.12·||y_N|| M T^N per component).
-  tk = t_end * t_end;
-  for (int k = 3; k <= n; ++k, tk *= t_end)
+  if (!returns)
   {
-    gap.higher_slope += k * std::fabs(gap.f[k]) * tk;
+    // And on |F' − f_1 − 2f_2 τ| (orders ≥ 3 and the remainder's slope, 1.12·||y_N|| M T^N per component).
+    tk = t_end * t_end;
+    for (int k = 3; k <= n; ++k, tk *= t_end)
+    {
+      gap.higher_slope += k * std::fabs(gap.f[k]) * tk;
+    }
+    gap.higher_slope += 2.0 * 1.12 * weighted * t_power * mt / t_end;
   }
-  gap.higher_slope += 2.0 * 1.12 * weighted * t_power * mt / t_end;
   const double rounding = 2.0 * remainder + 8.0 * EPS * (std::fabs(f0) + f1 * t_end + (returns ? 0.0 : delta));
   double x = 0.0;
-  if (!(returns ? gap.returnTime(quadratic_return, t_end, near, delta, rounding, &x)
-                : gap.crossingTime(t_end, delta, rounding, &x)))
+  const bool found = withOrder(n, [&](auto order) {
+    constexpr int N = decltype(order)::value;
+    return returns ? gap.returnTime<N>(quadratic_return, t_end, near, delta, rounding, &x)
+                   : gap.crossingTime<N>(t_end, delta, rounding, &x);
+  });
+  if (!found)
   {
     return false;
   }
@@ -351,36 +392,45 @@ bool ShortFlight::build(const Model& m, const State& s, double horizon)
     return false;
   }
   impact_ = x;
-  model_ = m;
+  offset_ = m.offset;
+  stiffness_ = m.stiffness;
+  motor_friction_ = m.motor_friction;
+  load_friction_ = m.load_friction;
+  load_torque_ = m.load_torque;
+  rho_ = m.rho;
   weighted_ = weighted;
   scale_time_ = scale_time;
-  norm_ = mt / t_end;
+  norm_time_ = mt;
+  span_ = t_end;
   return true;
 }
 
 void ShortFlight::at(double tau, State* out) const
 {
-  out->load_position = evaluate(load_position_, n_, tau);
-  out->load_velocity = evaluate(load_velocity_, n_, tau);
-  out->motor_position = evaluate(motor_position_, n_, tau);
-  out->motor_velocity = evaluate(motor_velocity_, n_, tau);
+  withOrder(n_, [&](auto order) {
+    constexpr int N = decltype(order)::value;
+    out->load_position = evaluate<N>(load_position_, n_, tau);
+    out->load_velocity = evaluate<N>(load_velocity_, n_, tau);
+    out->motor_position = evaluate<N>(motor_position_, n_, tau);
+    out->motor_velocity = evaluate<N>(motor_velocity_, n_, tau);
+  });
 }
 
 EnergyFlows ShortFlight::energy(double tau) const
 {
   double torque[MAX_ORDER + 1];  // T_m = a − k θ_c(τ) [N·m]
-  torque[0] = model_.offset - model_.stiffness * load_position_[0];
+  torque[0] = offset_ - stiffness_ * load_position_[0];
   for (int k = 1; k <= n_; ++k)
   {
-    torque[k] = -model_.stiffness * load_position_[k];
+    torque[k] = -stiffness_ * load_position_[k];
   }
   EnergyFlows e;
   e.input = integrateProduct(torque, motor_velocity_, n_, tau);
-  e.motor_friction = model_.motor_friction * integrateProduct(motor_velocity_, motor_velocity_, n_, tau);
-  e.load_friction = model_.load_friction * integrateProduct(load_velocity_, load_velocity_, n_, tau);
+  e.motor_friction = motor_friction_ * integrateProduct(motor_velocity_, motor_velocity_, n_, tau);
+  e.load_friction = load_friction_ * integrateProduct(load_velocity_, load_velocity_, n_, tau);
   e.load_displacement = increment(load_position_, n_, tau);
   e.motor_displacement = increment(motor_position_, n_, tau);
-  e.load_work = model_.load_torque * e.load_displacement;
+  e.load_work = load_torque_ * e.load_displacement;
   return e;
 }
 
@@ -402,10 +452,11 @@ double ShortFlight::exitTime(double lo, double hi, double horizon) const
 double ShortFlight::restTime(bool motor, double sign, double horizon) const
 {
   const double* c = motor ? motor_velocity_ : load_velocity_;
-  const double rho = motor ? model_.rho : 1.0;  // the weighted norm holds ρω_m
+  const double rho = motor ? rho_ : 1.0;  // the weighted norm holds ρω_m
+  const double norm = norm_time_ / span_;
   // Bounds on [0, h] of the velocity's series tail and of its slope's tail (orders > N), from ||y_{N+j}||_D ≤
   // ||y_N||_D M^j N!/(N+j)! and |ω| ≤ ||y||_D/(s·ρ): Σ_j ... ≤ 1.03·||y_N|| h^N Mh/(N+1) and ≤ 1.12·||y_N|| M h^N.
-  const double h = horizon, mh = norm_ * h;
+  const double h = horizon, mh = norm * h;
   double h_n = 1.0;
   for (int k = 0; k < n_; ++k)
   {
@@ -413,7 +464,7 @@ double ShortFlight::restTime(bool motor, double sign, double horizon) const
   }
   const double unit = weighted_ / (scale_time_ * rho);
   const double tail = 1.03 * unit * h_n * mh / (n_ + 1);
-  const double slope_tail = 1.12 * unit * norm_ * h_n;
+  const double slope_tail = 1.12 * unit * norm * h_n;
   double spread = tail, slope_spread = slope_tail, hk = 1.0;  // Σ_{k≥1}|c_k|h^k, Σ_{k≥2} k|c_k|h^{k−1}
   for (int k = 1; k <= n_; ++k)
   {

@@ -87,6 +87,7 @@ class FrameSink : public EventSink
     c.law.offset += -bias_ + c.law.stiffness * v_ * tau;
     next_->onEvent(c);
   }
+  bool wantsImpacts() const override { return next_->wantsImpacts(); }
 
  private:
   EventSink* next_;

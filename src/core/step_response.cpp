@@ -23,6 +23,7 @@ class Tee : public EventSink
       next_->onEvent(e);
     }
   }
+  bool wantsImpacts() const override { return monitor_->wantsImpacts() || (next_ != nullptr && next_->wantsImpacts()); }
 
  private:
   ResponseMonitor* monitor_;

@@ -207,6 +207,54 @@ TEST(Events, ResultsDoNotDependOnTheCallersSteps)
   EXPECT_NEAR(a.state().load_position, c.state().load_position, 1e-9);
 }
 
+TEST(Events, ASinkThatSkipsImpactsGetsEveryOtherEventBitForBit)
+{
+  // Elastic chatter with maxima at impacts (a light load rattling: e = 1, ρ²J_L/J_m = 0.04) and a Zeno case with
+  // separations: a sink that does not want impacts gets none, and every other event — maxima at impacts included —
+  // and the final state exactly as a sink that takes everything.
+  struct NoImpacts : Recorder
+  {
+    bool wantsImpacts() const override { return false; }
+  };
+  int at_impacts = 0;  // maxima where an impact turned the load round
+  for (const ServoParams& p : {chart(0.5, 0.04, 1.0, 1.0), chart(0.4, 9.0, 0.4, 0.8)})
+  {
+    Recorder all;
+    NoImpacts some;
+    Simulator a(p, State(), 1.0), b(p, State(), 1.0);
+    a.advanceTo(25.0, &all);
+    b.advanceTo(25.0, &some);
+    ASSERT_GT(all.of(EventType::Impact).size(), 100u);
+    EXPECT_TRUE(some.of(EventType::Impact).empty());
+    std::vector<Event> rest;
+    for (const Event& e : all.events)
+    {
+      if (e.type != EventType::Impact)
+      {
+        rest.push_back(e);
+      }
+    }
+    ASSERT_EQ(rest.size(), some.events.size());
+    ASSERT_GE(all.of(EventType::Maximum).size(), 3u);
+    const std::vector<double> impacts = all.times(EventType::Impact);
+    for (double t : all.times(EventType::Maximum))
+    {
+      at_impacts += std::binary_search(impacts.begin(), impacts.end(), t);
+    }
+    for (std::size_t i = 0; i < rest.size(); ++i)
+    {
+      EXPECT_EQ(rest[i].type, some.events[i].type) << i;
+      EXPECT_EQ(rest[i].state.time, some.events[i].state.time) << i;
+      EXPECT_EQ(rest[i].state.load_position, some.events[i].state.load_position) << i;
+      EXPECT_EQ(rest[i].state.load_velocity, some.events[i].state.load_velocity) << i;
+    }
+    EXPECT_EQ(a.impactCount(), b.impactCount());
+    EXPECT_EQ(a.state().motor_position, b.state().motor_position);
+    EXPECT_EQ(a.state().motor_velocity, b.state().motor_velocity);
+  }
+  EXPECT_GT(at_impacts, 0);
+}
+
 TEST(Events, ZenoBouncesEndInContactAtTheAnalyticAccumulationTime)
 {
   for (double e : {0.5, 0.8})
