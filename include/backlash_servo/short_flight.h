@@ -59,8 +59,7 @@ class ShortFlight
     double load_accel = 0.0;               ///< T_ext/J_L [rad/s²]
     double rho = 1.0, delta = 0.0;         ///< ρ [-], Δ [rad]
     double omega_ref = 0.0;                ///< max(α, β, √(ρ|k|/J_m)) [1/s]: 1/s of the weighted norm (0: none)
-    double norm = 0.0;        ///< M [1/s], the matrix norm in the weighted norm with s = 1/ω_ref (when ω_ref > 0)
-    double scale_time = 0.0;  ///< s = 1/ω_ref [s] (when ω_ref > 0)
+    double norm = 0.0;  ///< M [1/s], the matrix norm in the weighted norm with s = 1/ω_ref (when ω_ref > 0)
     Model() = default;
     Model(const ServoParams& params, const MotorInput& input);
   };
@@ -97,15 +96,11 @@ class ShortFlight
   double restTime(bool motor, double sign, double horizon) const;
 
  private:
-  // What energy() and restTime() need of the model (a flight is built per impact: the whole Model is not copied).
-  double offset_ = 0.0, stiffness_ = 0.0;                                  // a [N·m], k [N·m/rad]
-  double motor_friction_ = 0.0, load_friction_ = 0.0, load_torque_ = 0.0;  // f_m, f_L [N·m·s/rad], T_ext [N·m]
-  double rho_ = 1.0;                                                       // ρ [-]
-  int n_ = 0;                                                              // order kept
+  Model model_;
+  int n_ = 0;                // order kept
   double weighted_ = 0.0;    // ||y_N||_D, the last kept order's weighted norm
   double scale_time_ = 0.0;  // s [s] of the weighted norm
-  double norm_time_ = 0.0;   // M·T [-] over the certified span T = span_ [s] (M = norm_time_/span_, [1/s])
-  double span_ = 0.0;
+  double norm_ = 0.0;        // M [1/s]
   // Taylor coefficients (uninitialised beyond n_: a flight is built per impact)
   double load_position_[MAX_ORDER + 1], load_velocity_[MAX_ORDER + 1];
   double motor_position_[MAX_ORDER + 1], motor_velocity_[MAX_ORDER + 1];

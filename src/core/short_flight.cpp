@@ -234,8 +234,7 @@ ShortFlight::Model::Model(const ServoParams& p, const MotorInput& input)
       rho(p.gear_ratio),
       delta(p.backlash),
       omega_ref(std::max({alpha, beta, std::sqrt(rho * std::fabs(motor_stiffness))})),
-      norm(omega_ref > 0.0 ? std::max({omega_ref, alpha, rho * std::fabs(motor_stiffness) / omega_ref + beta}) : 0.0),
-      scale_time(omega_ref > 0.0 ? 1.0 / omega_ref : 0.0)
+      norm(omega_ref > 0.0 ? std::max({omega_ref, alpha, rho * std::fabs(motor_stiffness) / omega_ref + beta}) : 0.0)
 {}
 
 bool ShortFlight::build(const Model& m, const State& s, double horizon)
@@ -314,7 +313,7 @@ bool ShortFlight::build(const Model& m, const State& s, double horizon)
     return false;
   }
   // Norm of A in the weighted norm ||y||_D = max(|θ_c|, s|ω_c|, ρ|θ_m|, sρ|ω_m|), s = 1/ω_ref.
-  const double scale_time = m.omega_ref > 0.0 ? m.scale_time : 1e3 * t_end;
+  const double scale_time = m.omega_ref > 0.0 ? 1.0 / m.omega_ref : 1e3 * t_end;
   const double mt = (m.omega_ref > 0.0 ? m.norm : 1.0 / scale_time) * t_end;
   if (!(mt <= MAX_NORM_TIME))
   {
@@ -392,16 +391,10 @@ bool ShortFlight::build(const Model& m, const State& s, double horizon)
     return false;
   }
   impact_ = x;
-  offset_ = m.offset;
-  stiffness_ = m.stiffness;
-  motor_friction_ = m.motor_friction;
-  load_friction_ = m.load_friction;
-  load_torque_ = m.load_torque;
-  rho_ = m.rho;
+  model_ = m;
   weighted_ = weighted;
   scale_time_ = scale_time;
-  norm_time_ = mt;
-  span_ = t_end;
+  norm_ = mt / t_end;
   return true;
 }
 
@@ -419,18 +412,18 @@ void ShortFlight::at(double tau, State* out) const
 EnergyFlows ShortFlight::energy(double tau) const
 {
   double torque[MAX_ORDER + 1];  // T_m = a − k θ_c(τ) [N·m]
-  torque[0] = offset_ - stiffness_ * load_position_[0];
+  torque[0] = model_.offset - model_.stiffness * load_position_[0];
   for (int k = 1; k <= n_; ++k)
   {
-    torque[k] = -stiffness_ * load_position_[k];
+    torque[k] = -model_.stiffness * load_position_[k];
   }
   EnergyFlows e;
   e.input = integrateProduct(torque, motor_velocity_, n_, tau);
-  e.motor_friction = motor_friction_ * integrateProduct(motor_velocity_, motor_velocity_, n_, tau);
-  e.load_friction = load_friction_ * integrateProduct(load_velocity_, load_velocity_, n_, tau);
+  e.motor_friction = model_.motor_friction * integrateProduct(motor_velocity_, motor_velocity_, n_, tau);
+  e.load_friction = model_.load_friction * integrateProduct(load_velocity_, load_velocity_, n_, tau);
   e.load_displacement = increment(load_position_, n_, tau);
   e.motor_displacement = increment(motor_position_, n_, tau);
-  e.load_work = load_torque_ * e.load_displacement;
+  e.load_work = model_.load_torque * e.load_displacement;
   return e;
 }
 
@@ -452,11 +445,10 @@ double ShortFlight::exitTime(double lo, double hi, double horizon) const
 double ShortFlight::restTime(bool motor, double sign, double horizon) const
 {
   const double* c = motor ? motor_velocity_ : load_velocity_;
-  const double rho = motor ? rho_ : 1.0;  // the weighted norm holds ρω_m
-  const double norm = norm_time_ / span_;
+  const double rho = motor ? model_.rho : 1.0;  // the weighted norm holds ρω_m
   // Bounds on [0, h] of the velocity's series tail and of its slope's tail (orders > N), from ||y_{N+j}||_D ≤
   // ||y_N||_D M^j N!/(N+j)! and |ω| ≤ ||y||_D/(s·ρ): Σ_j ... ≤ 1.03·||y_N|| h^N Mh/(N+1) and ≤ 1.12·||y_N|| M h^N.
-  const double h = horizon, mh = norm * h;
+  const double h = horizon, mh = norm_ * h;
   double h_n = 1.0;
   for (int k = 0; k < n_; ++k)
   {
@@ -464,7 +456,7 @@ double ShortFlight::restTime(bool motor, double sign, double horizon) const
   }
   const double unit = weighted_ / (scale_time_ * rho);
   const double tail = 1.03 * unit * h_n * mh / (n_ + 1);
-  const double slope_tail = 1.12 * unit * norm * h_n;
+  const double slope_tail = 1.12 * unit * norm_ * h_n;
   double spread = tail, slope_spread = slope_tail, hk = 1.0;  // Σ_{k≥1}|c_k|h^k, Σ_{k≥2} k|c_k|h^{k−1}
   for (int k = 1; k <= n_; ++k)
   {
