@@ -289,6 +289,10 @@ class Plant
   /// Apart with the load free of dry friction: a maximum of θ_c where a load torque turns the load round inside the
   /// segment (its velocity crosses zero from + to −) goes into the segment's maxima.
   void markLoadTurnaround(Segment& seg) const;
+  /// After a short flight's impact, with the teeth apart: the following short flights ending before t_end [s]
+  /// (elastic chatter, up to ~10⁵ impacts per second) taken one after another, each exactly as advanceTo's loop
+  /// takes a flight segment, without building segments; returns at the first one it does not take.
+  void chatter(double t_end, EventSink* sink, bool report);
   /// `report`: send the Impact event (the sink wants it); a maximum at the impact goes to sink either way.
   void handleImpact(Contact wall, EventSink* sink, bool report);
   /// Puts teeth at relative rest on `wall` into contact if the mesh torque presses, else leaves them apart.
@@ -299,12 +303,11 @@ class Plant
   State state_;
   MotorInput law_;
   std::optional<Segment> segment_;
-  bool apart_needs_series_ = false;
-  double press_factor_ = 0.0;  // (J_m + ρ²J_L)/(J_m J_L) of the current parameters [1/(kg·m²)]
-  double period_ = 1.0;        // natural period 2π/ω_n of the current parameters [s] (sets the search windows)
-  double watch_lo_ = -std::numeric_limits<double>::infinity();
-  double watch_hi_ =
-      std::numeric_limits<double>::infinity();  // apartNeedsSeries() for the current parameters (fixed window)
+  bool apart_needs_series_ = false;  // apartNeedsSeries() for the current parameters (fixed window)
+  double press_factor_ = 0.0;        // (J_m + ρ²J_L)/(J_m J_L) of the current parameters [1/(kg·m²)]
+  double period_ = 1.0;              // natural period 2π/ω_n of the current parameters [s] (sets the search windows)
+  double watch_lo_ = -std::numeric_limits<double>::infinity();  // the drive's watch interval of θ_c [rad]
+  double watch_hi_ = std::numeric_limits<double>::infinity();
   EnergyLedger energy_;
   std::uint64_t impacts_ = 0;
   std::uint64_t event_budget_ = 0;
@@ -312,6 +315,7 @@ class Plant
   bool track_energy_ = true;
   bool short_flights_ = true;
   std::optional<ShortFlight::Model> flight_model_;  // for params_ and law_ (reset when either changes)
+  ShortFlight chatter_flight_;                      // chatter()'s flight (rebuilt per impact)
   std::uint64_t short_flight_count_ = 0;
   bool dry_ = false;  // params_.hasDryFriction()
   double search_horizon_ = std::numeric_limits<double>::infinity();

@@ -378,6 +378,7 @@ bool Plant::advanceTo(double t_end, EventSink* sink)
     state_.time = end_time;
     const Segment::End end = seg.end;
     const Contact wall = seg.wall;
+    const bool flight = seg.flight.has_value();
     if (end == Segment::End::Rest || end == Segment::End::Breakaway)
     {
       const Segment ended = seg;
@@ -404,6 +405,10 @@ bool Plant::advanceTo(double t_end, EventSink* sink)
     else if (end == Segment::End::Impact)
     {
       handleImpact(wall, sink, report_impacts);
+      if (flight)
+      {
+        chatter(t_end, sink, report_impacts);
+      }
     }
     else if (end == Segment::End::Watch)
     {
@@ -418,6 +423,41 @@ bool Plant::advanceTo(double t_end, EventSink* sink)
     }
   }
   return false;
+}
+
+void Plant::chatter(double t_end, EventSink* sink, bool report)
+{
+  // What advanceTo's loop does for each flight segment ending before t_end, without the segment: the same checks,
+  // build, evaluation and impact in the same order (bit-identical). Anything else goes back to the loop.
+  if (dry_ || !(std::isinf(watch_lo_) && std::isinf(watch_hi_)) || !flight_model_)
+  {
+    return;
+  }
+  const double window = FREE_SEARCH_PERIODS * period_;
+  ShortFlight& f = chatter_flight_;
+  Contact wall = Contact::Forward;
+  while (state_.contact == Contact::Apart && state_.time < t_end)
+  {
+    requireBounded();
+    if (impactNow(&wall) == 0.0 || !f.build(*flight_model_, state_, searchWindow(window)))
+    {
+      return;
+    }
+    const double tau = f.impactTime();
+    const double end_time = state_.time + tau;
+    if (end_time > t_end || loadTurnaround(params_, state_.load_velocity, tau) <= tau)
+    {
+      return;  // ends beyond t_end, or a maximum inside: the loop's segment keeps it
+    }
+    ++short_flight_count_;
+    if (track_energy_)
+    {
+      addFlows(f.energy(tau));
+    }
+    f.at(tau, &state_);
+    state_.time = end_time;
+    handleImpact(f.wall(), sink, report);
+  }
 }
 
 template <class F>
