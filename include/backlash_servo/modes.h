@@ -7,6 +7,8 @@
  */
 #pragma once
 
+#include <cmath>
+
 #include "backlash_servo/exp_poly.h"
 #include "backlash_servo/params.h"
 #include "backlash_servo/state.h"
@@ -194,6 +196,27 @@ double contactAcceleration(const ServoParams& params, const MotorInput& input, d
 /// Mesh torque on the load in contact [N·m] for the given state: \f$ T_L = J_L\ddot\theta_c + f_L\dot\theta_c \f$.
 double contactMeshTorque(const ServoParams& params, const MotorInput& input, double load_position,
                          double load_velocity);
+
+/**
+ * An upper bound of |contactMeshTorque()| [N·m] without its division, for one parameter set: its terms by magnitude,
+ * \f$ \frac{J_L}{J}(\rho|T_m| + \rho^2|T_{ext}| + F_T|\dot\theta_c|) + f_L|\dot\theta_c| + |T_{ext}| \f$, × 1.001 —
+ * above contactMeshTorque()'s computed value too (its rounding is ~10 ε of that sum). The impact rule tests a rebound
+ * against it first and computes the mesh torque only when the bound does not decide.
+ */
+class MeshTorqueBound
+{
+ public:
+  MeshTorqueBound() = default;
+  explicit MeshTorqueBound(const ServoParams& params);
+  /// For motor torque T_m [N·m] and load velocity ω_c [rad/s].
+  double operator()(double motor_torque, double load_velocity) const
+  {
+    return 1.001 * (motor_ * std::fabs(motor_torque) + constant_ + velocity_ * std::fabs(load_velocity));
+  }
+
+ private:
+  double motor_ = 0.0, constant_ = 0.0, velocity_ = 0.0;  // J_L ρ/J [-], the T_ext part [N·m], [N·m·s/rad]
+};
 
 /// Mesh torque on the load [N·m] in state s: the contact value, or 0 when the teeth are apart.
 double meshTorque(const ServoParams& params, const MotorInput& input, const State& s);

@@ -305,6 +305,7 @@ class Plant
   std::optional<Segment> segment_;
   bool apart_needs_series_ = false;  // apartNeedsSeries() for the current parameters (fixed window)
   double press_factor_ = 0.0;        // (J_m + ρ²J_L)/(J_m J_L) of the current parameters [1/(kg·m²)]
+  MeshTorqueBound mesh_bound_;       // of the current parameters
   double period_ = 1.0;              // natural period 2π/ω_n of the current parameters [s] (sets the search windows)
   double watch_lo_ = -std::numeric_limits<double>::infinity();  // the drive's watch interval of θ_c [rad]
   double watch_hi_ = std::numeric_limits<double>::infinity();

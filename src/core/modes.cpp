@@ -131,6 +131,15 @@ double contactMeshTorque(const ServoParams& p, const MotorInput& in, double x, d
   return p.load_inertia * contactAcceleration(p, in, x, v) + p.load_friction * v - p.load_torque;
 }
 
+MeshTorqueBound::MeshTorqueBound(const ServoParams& p)
+{
+  const double rho = p.gear_ratio;
+  const double share = p.load_inertia / p.totalInertia();  // J_L/J
+  motor_ = share * rho;
+  constant_ = share * rho * rho * std::fabs(p.load_torque) + std::fabs(p.load_torque);
+  velocity_ = share * p.totalFriction() + p.load_friction;
+}
+
 double meshTorque(const ServoParams& p, const MotorInput& in, const State& s)
 {
   return s.contact == Contact::Apart ? 0.0 : contactMeshTorque(p, in, s.load_position, s.load_velocity);

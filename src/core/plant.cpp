@@ -107,6 +107,7 @@ Plant::Plant(const ServoParams& params, const State& initial, const MotorInput& 
   period_ = 2.0 * PI / params_.naturalFrequency();
   apart_needs_series_ = apartNeedsSeries(params_, FREE_SEARCH_PERIODS * period_);
   press_factor_ = pressFactor(params_);
+  mesh_bound_ = MeshTorqueBound(params_);
   setState(initial);
 }
 
@@ -237,6 +238,7 @@ void Plant::setParams(const ServoParams& params, EventSink* sink, bool frame)
   period_ = 2.0 * PI / params_.naturalFrequency();
   apart_needs_series_ = apartNeedsSeries(params_, FREE_SEARCH_PERIODS * period_);
   press_factor_ = pressFactor(params_);
+  mesh_bound_ = MeshTorqueBound(params_);
   const double delta = params_.backlash;
   // θ_c and ω_c are kept; the motor is re-expressed on the new mesh with the gap clamped into [0, Δ].
   double g = std::min(std::max(old_gap, 0.0), delta);
@@ -922,6 +924,12 @@ void Plant::handleImpact(Contact wall, EventSink* sink, bool report)
   auto bounce_floor = [&]() {  // s² of a bounce rising to the gap noise: 2 a h
     return 2.0 * gap_noise * std::fabs(contactMeshTorque(params_, law_, state_.load_position, v)) * press_factor_;
   };
+  // A speed whose square exceeds the floor's bound (no division) exceeds the floor: most rebounds of a chatter are
+  // decided without computing it (the same decisions: the bound is above the floor's computed value).
+  auto above_floor = [&](double s) {
+    return s * s > 2.0 * gap_noise * mesh_bound_(law_.torque(state_.load_position), v) * press_factor_ ||
+           s * s > bounce_floor();
+  };
   if (!(closing > 0.0) && -closing > speed_noise && closing * closing > bounce_floor())
   {
     state_.contact = Contact::Apart;  // clearly moving away: only rounding put the gap on the wall
@@ -930,7 +938,7 @@ void Plant::handleImpact(Contact wall, EventSink* sink, bool report)
   // A touch without closing (rounding) or a closing speed the stick rule calls zero is made plastic; so is every
   // impact of a rigid mesh (Δ = 0, e.g. the backlash tuned to 0 while the teeth float): no room to bounce into.
   const double rebound = params_.restitution * closing;
-  const bool plastic = delta == 0.0 || rebound <= speed_noise || rebound * rebound <= bounce_floor();
+  const bool plastic = delta == 0.0 || rebound <= speed_noise || !above_floor(rebound);
   const double e = plastic ? 0.0 : params_.restitution;
   const ImpactOutcome o = resolveImpact(params_, v, w, e);
   state_.load_velocity = o.load_velocity;

@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <random>
 
 #include "backlash_servo/modes.h"
 #include "backlash_servo/plant.h"
@@ -320,3 +321,50 @@ TEST(LoadTorque, ALightlyDampedDriftKeepsItsEnergyFlowsExact)
   }
   EXPECT_GE(compact, 1);
 }
+
+namespace
+{
+TEST(LoadTorque, TheMeshTorqueBoundIsAboveTheComputedMeshTorque)
+{
+  // The impact rule decides a rebound against MeshTorqueBound first and computes the mesh torque only when the bound
+  // does not decide: the bound must lie above contactMeshTorque()'s computed value for every parameter set and state
+  // (else a rebound would be called elastic that the torque calls plastic), and be its terms' magnitudes (a loose
+  // bound would decide nothing). Checked against the torque written out here in long double.
+  std::mt19937 rng(5);
+  auto logUniform = [&](double lo, double hi) {
+    return std::exp(std::uniform_real_distribution<double>(std::log(lo), std::log(hi))(rng));
+  };
+  auto signedLog = [&](double lo, double hi) { return (rng() % 2 ? 1.0 : -1.0) * logUniform(lo, hi); };
+  int tight = 0;
+  for (int i = 0; i < 100000; ++i)
+  {
+    ServoParams p;
+    p.motor_inertia = logUniform(1e-5, 1e2);
+    p.load_inertia = logUniform(1e-5, 1e2);
+    p.gear_ratio = logUniform(1e-2, 1e2);
+    p.motor_friction = i % 7 == 0 ? 0.0 : logUniform(1e-4, 1e2);
+    p.load_friction = i % 5 == 0 ? 0.0 : logUniform(1e-4, 1e2);
+    p.load_torque = i % 3 == 0 ? 0.0 : signedLog(1e-4, 1e3);
+    MotorInput law;
+    law.offset = signedLog(1e-4, 1e3);
+    law.stiffness = logUniform(1e-3, 1e3);
+    const double x = signedLog(1e-6, 1e3), v = signedLog(1e-9, 1e3);
+    const double bound = MeshTorqueBound(p)(law.torque(x), v);
+    const double computed = std::fabs(contactMeshTorque(p, law, x, v));
+    ASSERT_GE(bound, computed) << "case " << i;
+    // Independent: J_L (ρ T_m + ρ² T_ext − F v)/J + f_L v − T_ext and its terms by magnitude, in long double.
+    using L = long double;
+    const L rho = p.gear_ratio, jl = p.load_inertia, j = L(p.motor_inertia) + rho * rho * jl;
+    const L f = L(p.motor_friction) + rho * rho * L(p.load_friction);
+    const L tm = law.torque(x), te = p.load_torque;
+    const L exact = jl * (rho * tm + rho * rho * te - f * v) / j + L(p.load_friction) * v - te;
+    const L terms = jl / j * (rho * std::fabs(tm) + rho * rho * std::fabs(te) + f * std::fabs(v)) +
+                    L(p.load_friction) * std::fabs(L(v)) + std::fabs(te);
+    ASSERT_GE(L(bound), std::fabs(exact)) << "case " << i;
+    ASSERT_GE(L(bound), terms) << "case " << i;
+    ASSERT_LE(L(bound), 1.0011L * terms) << "case " << i;
+    tight += L(bound) <= 1.0011L * std::fabs(exact);  // no cancellation: the bound is the torque itself (+0.1 %)
+  }
+  EXPECT_GT(tight, 10000);  // the same-sign states are decided at the torque's own size
+}
+}  // namespace
