@@ -316,7 +316,6 @@ class Plant
   bool track_energy_ = true;
   bool short_flights_ = true;
   std::optional<ShortFlight::Model> flight_model_;  // for params_ and law_ (reset when either changes)
-  ShortFlight chatter_flight_;                      // chatter()'s flight (rebuilt per impact)
   std::uint64_t short_flight_count_ = 0;
   bool dry_ = false;  // params_.hasDryFriction()
   double search_horizon_ = std::numeric_limits<double>::infinity();

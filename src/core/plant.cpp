@@ -439,7 +439,7 @@ void Plant::chatter(double t_end, EventSink* sink, bool report)
     return;
   }
   const double window = FREE_SEARCH_PERIODS * period_;
-  ShortFlight& f = chatter_flight_;
+  ShortFlight f;  // rebuilt per impact (nothing initialised on construction)
   while (state_.contact == Contact::Apart && state_.time < t_end)
   {
     requireBounded();
@@ -924,13 +924,13 @@ void Plant::handleImpact(Contact wall, EventSink* sink, bool report)
   auto bounce_floor = [&]() {  // s² of a bounce rising to the gap noise: 2 a h
     return 2.0 * gap_noise * std::fabs(contactMeshTorque(params_, law_, state_.load_position, v)) * press_factor_;
   };
-  // A speed whose square exceeds the floor's bound (no division) exceeds the floor: most rebounds of a chatter are
-  // decided without computing it (the same decisions: the bound is above the floor's computed value).
+  // s² > the floor, tested on the floor's bound first (no division): most speeds — every rebound of a chatter — are
+  // decided without computing the floor (the same decisions: the bound is above the floor's computed value).
   auto above_floor = [&](double s) {
     return s * s > 2.0 * gap_noise * mesh_bound_(law_.torque(state_.load_position), v) * press_factor_ ||
            s * s > bounce_floor();
   };
-  if (!(closing > 0.0) && -closing > speed_noise && closing * closing > bounce_floor())
+  if (!(closing > 0.0) && -closing > speed_noise && above_floor(-closing))
   {
     state_.contact = Contact::Apart;  // clearly moving away: only rounding put the gap on the wall
     return;
