@@ -15,26 +15,28 @@ namespace backlash_servo
 {
 struct GearMesh
 {
-  double ratio = 1.0;     ///< ρ [-]
-  double backlash = 0.0;  ///< Δ at the load shaft [rad]
+  double ratio = 1.0;          ///< ρ [-]
+  double backlash = 0.0;       ///< Δ at the load shaft [rad]
+  double inverse_ratio = 1.0;  ///< 1/ρ [-] (set with ρ)
 
   GearMesh() = default;
-  GearMesh(double rho, double delta) : ratio(rho), backlash(delta) {}
-  explicit GearMesh(const ServoParams& p) : ratio(p.gear_ratio), backlash(p.backlash) {}
+  GearMesh(double rho, double delta) : ratio(rho), backlash(delta), inverse_ratio(1.0 / rho) {}
+  explicit GearMesh(const ServoParams& p) : GearMesh(p.gear_ratio, p.backlash) {}
 
   /// Gap g [rad] of wall `wall`: 0 (Forward) or Δ (Backward).
   double wallGap(Contact wall) const { return wall == Contact::Backward ? backlash : 0.0; }
   /// Gap g = θ_c − ρ θ_m [rad].
   double gap(double load_position, double motor_position) const { return load_position - ratio * motor_position; }
-  /// Motor position θ_m = (θ_c − g)/ρ [rad] that puts the gap at g.
-  double motorPosition(double load_position, double gap) const { return (load_position - gap) / ratio; }
+  /// Motor position θ_m = (θ_c − g)/ρ [rad] that puts the gap at g (multiplied by 1/ρ: no division on the impact's
+  /// critical path).
+  double motorPosition(double load_position, double gap) const { return (load_position - gap) * inverse_ratio; }
   /// Motor position on wall `wall` [rad].
   double motorPositionOnWall(double load_position, Contact wall) const
   {
     return motorPosition(load_position, wallGap(wall));
   }
   /// Motor velocity ω_m = ω_c/ρ of teeth moving together [rad/s].
-  double motorVelocityInContact(double load_velocity) const { return load_velocity / ratio; }
+  double motorVelocityInContact(double load_velocity) const { return load_velocity * inverse_ratio; }
   /// Speed [rad/s] at which the teeth close onto `wall` (> 0: approaching): −ġ forward, +ġ backward.
   double closingSpeed(Contact wall, double load_velocity, double motor_velocity) const
   {

@@ -21,9 +21,10 @@
  * that wall, > 0 in the free space):
  * - **back to the same wall**: F certified concave on [0, T] (its second derivative, with every higher term and the
  *   remainder bounded, keeps the sign of the pressing one), its rise below the other wall, back beyond the wall at T.
- *   The return is the only root past the peak: Newton from the quadratic return corrected by the cubic term — for a
- *   concave F decreasing past its peak the first step lands at or beyond the root (the tangent lies above F) and the
- *   next ones approach it monotonically from there;
+ *   The return is the only root past the peak: Newton from the quadratic return corrected by the cubic term and by
+ *   the start offset f_0 — for a concave F decreasing past its peak the first step lands at or beyond the root (the
+ *   tangent lies above F) and the next ones approach it monotonically from there; a step below 1e-8 of τ ends it
+ *   (in chatter the first one: one Newton step per impact);
  * - **across to the other wall** (F = Δ): F certified increasing on [0, T] (or convex, leaving from relative rest)
  *   and beyond Δ at T: the only root, by Newton inside the shrinking bracket.
  * With dry friction (both bodies sliding) the kinetic friction is a constant torque of the model, and restTime()

@@ -10,9 +10,10 @@ ImpactOutcome resolveImpact(const ServoParams& p, double v, double w, double e)
   const double j = jm + rho * rho * jl;
   const double relative = rho * w - v;  // closing speed of the motor tooth onto the load tooth [rad/s]
   ImpactOutcome out;
-  // Written with the relative speed so that e = 0 gives exactly equal velocities (no rounding residue).
-  out.load_velocity = v + jm * (1.0 + e) * relative / j;
-  out.motor_velocity = (out.load_velocity - e * relative) / rho;
+  // Written with the relative speed so that e = 0 gives exactly equal velocities (no rounding residue); the constant
+  // factors multiply (1/ρ as the gear mesh does), so no division lies on the chain from one impact to the next.
+  out.load_velocity = v + (jm * (1.0 + e) / j) * relative;
+  out.motor_velocity = (out.load_velocity - e * relative) * (1.0 / rho);
   out.impulse = jl * (out.load_velocity - v);
   const double mu = jm * jl / j;
   out.energy_loss = (1.0 - e * e) * 0.5 * mu * relative * relative;

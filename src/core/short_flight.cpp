@@ -114,10 +114,13 @@ struct GapSeries
    * rounding of F (its increments
    * are computed directly, so a bounce far below the rounding of the positions — micro-chatter — is resolved as well
    * as a large one: F(τq/2) ≥ f_0 + f_1 τq/2 + 3f_2 τq²/8 = f_0 + f_1 τq/8). The return is the only root past the
-   * peak: Newton from the quadratic return corrected by the cubic term (a Newton step on f_1 + f_2 τ + f_3 τ²),
-   * past the peak (F' < 0 there); the first step lands at or beyond the root (the tangent lies above F) and must
-   * stay in [0, T] with F back beyond the wall there; then monotone steps, one below 1e-8 of τ (error below
-   * (1e-8)²·τ) taken as is.
+   * peak: Newton from a guess past the peak (F' < 0 there) — the quadratic return q = −f_1/f_2 corrected by the
+   * cubic term (a Newton step on f_1 + f_2 τ + f_3 τ²) and by the start offset f_0 (the root of f_0 + f_1 τ + f_2 τ²
+   * near q is q + δ, δ = f_0/f_1 + f_2 δ²/f_1, to second order); the first step lands at or beyond the root (the
+   * tangent lies above F) and must stay in [0, T] with F back beyond the wall there; a step below 1e-8 of τ (error
+   * below (1e-8)²·τ) ends the search — the first one, in chatter, whose micro-bounces start at an offset f_0 of the
+   * order of the rounding of the positions (the guess without f_0 cost one more step on the critical path of every
+   * impact) — otherwise monotone steps follow.
    */
   template <int N = 0>
   bool returnTime(double quadratic_return, double t_end, double near, double delta, double rounding, double* out) const
@@ -129,14 +132,17 @@ struct GapSeries
       return false;
     }
     const double f3 = n >= 3 ? f[3] : 0.0;
-    double x = quadratic_return - f3 * quadratic_return * quadratic_return / (f2 + 2.0 * f3 * quadratic_return);
+    const double offset = f[0] / f1;  // δ to first order [s]
+    double x = quadratic_return - f3 * quadratic_return * quadratic_return / (f2 + 2.0 * f3 * quadratic_return) +
+               (offset + f2 * offset * offset / f1);
     double slope;
     double fx = value<N>(x, &slope);
     if (!(slope < 0.0) || !(x > 0.5 * quadratic_return))
     {
       return false;
     }
-    x -= fx / slope;
+    const double first = fx / slope;
+    x -= first;
     if (!(x <= t_end))
     {
       return false;
@@ -145,6 +151,11 @@ struct GapSeries
     if (!(fx < rounding) || !(slope < 0.0))
     {
       return false;
+    }
+    if (std::fabs(first) <= 1e-8 * x)
+    {
+      *out = x;
+      return x > 0.5 * quadratic_return;
     }
     for (int it = 0; it < 100; ++it)
     {
