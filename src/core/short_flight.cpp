@@ -71,8 +71,15 @@ decltype(auto) withOrder(int n, F&& f)
 template <int N = 0>
 inline double increment(const double* c, int n, double tau)
 {
-  double sum = 0.0;
-  for (int k = N ? N : n; k >= 1; --k)
+  // Horner started at the top coefficient, not at 0·τ + c_N: the same values for a finite τ (0·τ is not folded by
+  // the compiler, as τ could be infinite), one multiply-add less on the critical path of every impact.
+  const int top = N ? N : n;
+  if (top < 1)
+  {
+    return 0.0;
+  }
+  double sum = c[top];
+  for (int k = top - 1; k >= 1; --k)
   {
     sum = sum * tau + c[k];
   }
@@ -98,8 +105,10 @@ struct GapSeries
   template <int N = 0>
   double value(double tau, double* slope) const
   {
-    double v = 0.0, d = 0.0;
-    for (int k = N ? N : n; k >= 1; --k)
+    // Horner for F and F' together, its first two steps from 0 written out (as in increment(); n ≥ 2).
+    const int top = N ? N : n;
+    double d = f[top], v = f[top] * tau + f[top - 1];
+    for (int k = top - 2; k >= 1; --k)
     {
       d = d * tau + v;
       v = v * tau + f[k];
