@@ -365,35 +365,37 @@ bool ShortFlight::build(const Model& m, const State& s, double horizon)
   }
   n_ = n;
   const double remainder = weighted * t_power * tail_factor * INVERSE[n + 1];
-  // The gap relative to the wall, F(τ) = Σ f_k τ^k (+ remainder ≤ 2R: two components in it).
-  GapSeries gap;
-  gap.n = n;
-  gap.f[0] = f0;
-  for (int k = 1; k <= n; ++k)
-  {
-    gap.f[k] = sign * (xc[k] - rho * xm[k]);
-  }
-  // Bound on |F'' − 2f_2| over [0, T] from the orders ≥ 3 and the remainder's second derivative (two components).
-  double tk = t_end;
-  for (int k = 3; k <= n; ++k, tk *= t_end)
-  {
-    gap.higher += k * (k - 1) * std::fabs(gap.f[k]) * tk;
-  }
-  gap.higher += 2.0 * weighted * t_power_2 * (n * mt + 1.12 * mt * mt);  // 1/(1 − MT) ≤ 1.12
-  if (!returns)
-  {
-    // And on |F' − f_1 − 2f_2 τ| (orders ≥ 3 and the remainder's slope, 1.12·||y_N|| M T^N per component).
-    tk = t_end * t_end;
-    for (int k = 3; k <= n; ++k, tk *= t_end)
-    {
-      gap.higher_slope += k * std::fabs(gap.f[k]) * tk;
-    }
-    gap.higher_slope += 2.0 * 1.12 * weighted * t_power * mt / t_end;
-  }
-  const double rounding = 2.0 * remainder + 8.0 * EPS * (std::fabs(f0) + f1 * t_end + (returns ? 0.0 : delta));
+  const double rounding_base = 8.0 * EPS * (std::fabs(f0) + f1 * t_end + (returns ? 0.0 : delta));
   double x = 0.0;
   const bool found = withOrder(n, [&](auto order) {
     constexpr int N = decltype(order)::value;
+    const int top = N ? N : n;
+    // The gap relative to the wall, F(τ) = Σ f_k τ^k (+ remainder ≤ 2R: two components in it).
+    GapSeries gap;
+    gap.n = n;
+    gap.f[0] = f0;
+    for (int k = 1; k <= top; ++k)
+    {
+      gap.f[k] = sign * (xc[k] - rho * xm[k]);
+    }
+    // Bound on |F'' − 2f_2| over [0, T] from the orders ≥ 3 and the remainder's second derivative (two components).
+    double tk = t_end;
+    for (int k = 3; k <= top; ++k, tk *= t_end)
+    {
+      gap.higher += k * (k - 1) * std::fabs(gap.f[k]) * tk;
+    }
+    gap.higher += 2.0 * weighted * t_power_2 * (top * mt + 1.12 * mt * mt);  // 1/(1 − MT) ≤ 1.12
+    if (!returns)
+    {
+      // And on |F' − f_1 − 2f_2 τ| (orders ≥ 3 and the remainder's slope, 1.12·||y_N|| M T^N per component).
+      tk = t_end * t_end;
+      for (int k = 3; k <= top; ++k, tk *= t_end)
+      {
+        gap.higher_slope += k * std::fabs(gap.f[k]) * tk;
+      }
+      gap.higher_slope += 2.0 * 1.12 * weighted * t_power * mt / t_end;
+    }
+    const double rounding = 2.0 * remainder + rounding_base;
     return returns ? gap.returnTime<N>(quadratic_return, t_end, near, delta, rounding, &x)
                    : gap.crossingTime<N>(t_end, delta, rounding, &x);
   });
