@@ -367,6 +367,7 @@ bool ShortFlight::build(const Model& m, const State& s, double horizon)
   const double remainder = weighted * t_power * tail_factor * INVERSE[n + 1];
   const double rounding_base = 8.0 * EPS * (std::fabs(f0) + f1 * t_end + (returns ? 0.0 : delta));
   double x = 0.0;
+  // The gap series and its bounds are built inside the order dispatch: their loops unroll for the usual orders.
   const bool found = withOrder(n, [&](auto order) {
     constexpr int N = decltype(order)::value;
     const int top = N ? N : n;
