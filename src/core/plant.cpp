@@ -48,6 +48,12 @@ double pressFactor(const ServoParams& p)
   const double rho = p.gear_ratio;
   return (p.motor_inertia + rho * rho * p.load_inertia) / (p.motor_inertia * p.load_inertia);
 }
+
+/// Whether Impact events are built for `sink` (there is one, and it reads them).
+bool reportsImpacts(const EventSink* sink)
+{
+  return sink != nullptr && sink->wantsImpacts();
+}
 }  // namespace
 
 const char* toString(Contact c)
@@ -258,7 +264,7 @@ void Plant::setParams(const ServoParams& params, EventSink* sink, bool frame)
   else if (old_gap < 0.0 || old_gap > delta || (g == delta && delta == 0.0))
   {
     // Δ shrank below the gap: the wall now touches the teeth; closing teeth collide, resting ones settle.
-    handleImpact(g == 0.0 ? Contact::Forward : Contact::Backward, sink, sink != nullptr && sink->wantsImpacts());
+    handleImpact(g == 0.0 ? Contact::Forward : Contact::Backward, sink, reportsImpacts(sink));
   }
   // A parameter change is not a physical process: re-base the kinetic energy so the ledger keeps its balance.
   energy_.initial_kinetic = kineticEnergy() - energy_.input - energy_.load_work + energy_.motor_friction +
@@ -331,7 +337,7 @@ bool Plant::advanceTo(double t_end, EventSink* sink)
                                 std::to_string(state_.time) + " s or not finite");
   }
   int stalled = 0;
-  const bool report_impacts = sink != nullptr && sink->wantsImpacts();
+  const bool report_impacts = reportsImpacts(sink);
   while (state_.time < t_end)
   {
     if (!segment_ && dry_)

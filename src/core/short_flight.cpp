@@ -67,17 +67,14 @@ decltype(auto) withOrder(int n, F&& f)
   }
 }
 
-/// Σ_{k≥1} c_k τ^k: the series' change from its start (no rounding of c_0 in it); order N (0: n).
+/// Σ_{k≥1} c_k τ^k: the series' change from its start (no rounding of c_0 in it); order N (0: n ≥ 1 — a flight
+/// keeps at least order 2).
 template <int N = 0>
 inline double increment(const double* c, int n, double tau)
 {
   // Horner started at the top coefficient, not at 0·τ + c_N: the same values for a finite τ (0·τ is not folded by
   // the compiler, as τ could be infinite), one multiply-add less on the critical path of every impact.
   const int top = N ? N : n;
-  if (top < 1)
-  {
-    return 0.0;
-  }
   double sum = c[top];
   for (int k = top - 1; k >= 1; --k)
   {
