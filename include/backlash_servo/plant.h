@@ -16,6 +16,7 @@
 
 #include "backlash_servo/dry_friction.h"
 #include "backlash_servo/gear_mesh.h"
+#include "backlash_servo/impact.h"
 #include "backlash_servo/modes.h"
 #include "backlash_servo/params.h"
 #include "backlash_servo/short_flight.h"
@@ -265,6 +266,8 @@ class Plant
   }
   /// Throws MotionDiverged when the state is beyond the bounds of the closed forms (or not finite).
   void requireBounded() const;
+  /// The constants derived from params_ (search period, press factor, mesh torque bound, impact maps).
+  void deriveConstants();
   /// Dry friction: the rest rule and the contact check at the current state; the slide directions go to *motor and
   /// *load. A contact that no longer holds is left (Separation emitted).
   void chooseDryMode(EventSink* sink, Slide* motor, Slide* load);
@@ -306,6 +309,8 @@ class Plant
   bool apart_needs_series_ = false;  // apartNeedsSeries() for the current parameters (fixed window)
   double press_factor_ = 0.0;        // (J_m + ρ²J_L)/(J_m J_L) of the current parameters [1/(kg·m²)]
   MeshTorqueBound mesh_bound_;       // of the current parameters
+  ImpactMap elastic_impact_;         // the impact map with the parameters' restitution e
+  ImpactMap plastic_impact_;         // and with e = 0 (an impact the stick rule makes plastic)
   double period_ = 1.0;              // natural period 2π/ω_n of the current parameters [s] (sets the search windows)
   double watch_lo_ = -std::numeric_limits<double>::infinity();  // the drive's watch interval of θ_c [rad]
   double watch_hi_ = std::numeric_limits<double>::infinity();

@@ -60,7 +60,8 @@ class ShortFlight
     double load_accel = 0.0;               ///< T_ext/J_L [rad/s²]
     double rho = 1.0, delta = 0.0;         ///< ρ [-], Δ [rad]
     double omega_ref = 0.0;                ///< max(α, β, √(ρ|k|/J_m)) [1/s]: 1/s of the weighted norm (0: none)
-    double norm = 0.0;  ///< M [1/s], the matrix norm in the weighted norm with s = 1/ω_ref (when ω_ref > 0)
+    double norm = 0.0;        ///< M [1/s], the matrix norm in the weighted norm with s = 1/ω_ref (when ω_ref > 0)
+    double scale_time = 0.0;  ///< s = 1/ω_ref [s] (0 when ω_ref = 0: each flight then takes its own)
     Model() = default;
     Model(const ServoParams& params, const MotorInput& input);
   };
@@ -75,6 +76,15 @@ class ShortFlight
   {
     return build(Model(params, input), start, horizon);
   }
+
+  /**
+   * build() and at(impactTime()) in one, for a flight followed at once by its impact (the chatter loop): the
+   * positions [rad] and velocities [rad/s] at the impact go into *end (its time and contact untouched; it may be
+   * `start` itself, written only once the flight is accepted); the model is
+   * not kept, so energy() and restTime() are not available after it. The same operations as build() then at()
+   * (bit-identical results), without a second dispatch on the order or a copy of the model.
+   */
+  bool flyToImpact(const Model& model, const State& start, double horizon, State* end);
 
   /// Local time [s] of the impact that ends the flight, and the wall hit (the one the teeth left, or the other).
   double impactTime() const { return impact_; }
@@ -97,11 +107,20 @@ class ShortFlight
   double restTime(bool motor, double sign, double horizon) const;
 
  private:
+  /// What build() and flyToImpact() share: the series, its order and the certified impact; at_impact(order, τ) is
+  /// called with the order as a compile-time constant (0: read at run time) once the impact is accepted.
+  template <class AtImpact>
+  bool solve(const Model& model, const State& start, double horizon, AtImpact&& at_impact);
+  /// at() for order N (0: n_).
+  template <int N>
+  void evaluateAt(double tau, State* out) const;
+
   Model model_;
   int n_ = 0;                // order kept
   double weighted_ = 0.0;    // ||y_N||_D, the last kept order's weighted norm
   double scale_time_ = 0.0;  // s [s] of the weighted norm
-  double norm_ = 0.0;        // M [1/s]
+  double norm_time_ = 0.0;   // M·T [-] (T = end_)
+  double end_ = 0.0;         // T [s], the end of the interval the series is certified on
   // Taylor coefficients (uninitialised beyond n_: a flight is built per impact)
   double load_position_[MAX_ORDER + 1], load_velocity_[MAX_ORDER + 1];
   double motor_position_[MAX_ORDER + 1], motor_velocity_[MAX_ORDER + 1];

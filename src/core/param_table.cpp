@@ -3,6 +3,8 @@
 #include <cmath>
 #include <cstdlib>
 #include <stdexcept>
+#include <string_view>
+#include <unordered_map>
 
 #include "backlash_servo/step_response.h"
 
@@ -262,7 +264,7 @@ bool ParamSpec::isChoice(const std::string& value) const
 
 bool inChartForm(const ParamSpec& spec)
 {
-  const std::string key = spec.key;
+  const std::string_view key = spec.key;  // no copy: asked for every key of every run's configuration
   return spec.section == ParamSection::Chart || key == "gear_ratio" || key == "backlash" || key == "restitution" ||
          key == "load_torque" || key == "motor_coulomb_friction" || key == "motor_static_friction" ||
          key == "load_coulomb_friction" || key == "load_static_friction";
@@ -276,14 +278,17 @@ const std::vector<ParamSpec>& parameterTable()
 
 const ParamSpec* findParam(const std::string& key)
 {
-  for (const ParamSpec& p : parameterTable())
-  {
-    if (key == p.key)
+  // An index over the table, built once: every run's configuration looks its keys up (a sweep, for each point).
+  static const std::unordered_map<std::string_view, const ParamSpec*> index = [] {
+    std::unordered_map<std::string_view, const ParamSpec*> out;
+    for (const ParamSpec& p : parameterTable())
     {
-      return &p;
+      out.emplace(p.key, &p);
     }
-  }
-  return nullptr;
+    return out;
+  }();
+  const auto it = index.find(key);
+  return it == index.end() ? nullptr : it->second;
 }
 
 const ParamSpec& param(const std::string& key)

@@ -110,11 +110,18 @@ Plant::Plant(const ServoParams& params, const State& initial, const MotorInput& 
 {
   params_.validate();
   dry_ = params_.hasDryFriction();
+  deriveConstants();
+  setState(initial);
+}
+
+void Plant::deriveConstants()
+{
   period_ = 2.0 * PI / params_.naturalFrequency();
   apart_needs_series_ = apartNeedsSeries(params_, FREE_SEARCH_PERIODS * period_);
   press_factor_ = pressFactor(params_);
   mesh_bound_ = MeshTorqueBound(params_);
-  setState(initial);
+  elastic_impact_ = ImpactMap(params_, params_.restitution);
+  plastic_impact_ = ImpactMap(params_, 0.0);
 }
 
 void Plant::setState(const State& s)
@@ -241,10 +248,7 @@ void Plant::setParams(const ServoParams& params, EventSink* sink, bool frame)
   dry_ = params_.hasDryFriction();
   forced_motor_breakaway_ = 0;
   mesh_ = GearMesh(params_);
-  period_ = 2.0 * PI / params_.naturalFrequency();
-  apart_needs_series_ = apartNeedsSeries(params_, FREE_SEARCH_PERIODS * period_);
-  press_factor_ = pressFactor(params_);
-  mesh_bound_ = MeshTorqueBound(params_);
+  deriveConstants();
   const double delta = params_.backlash;
   // θ_c and ω_c are kept; the motor is re-expressed on the new mesh with the gap clamped into [0, Δ].
   double g = std::min(std::max(old_gap, 0.0), delta);
@@ -449,23 +453,28 @@ void Plant::chatter(double t_end, EventSink* sink, bool report)
   while (state_.contact == Contact::Apart && state_.time < t_end)
   {
     requireBounded();
-    if (!f.build(*flight_model_, state_, searchWindow(window)))
+    // With the ledger kept the flight's series stays for its energy flows; else only the state at the impact is
+    // formed, in place (the start kept in case the flight is handed back to the loop).
+    const State start = state_;
+    const double horizon = searchWindow(window);
+    if (!(track_energy_ ? f.build(*flight_model_, state_, horizon)
+                        : f.flyToImpact(*flight_model_, state_, horizon, &state_)))
     {
       return;
     }
     const double tau = f.impactTime();
-    const double end_time = state_.time + tau;
-    if (end_time > t_end || loadTurnaround(params_, state_.load_velocity, tau) <= tau)
+    if (start.time + tau > t_end || loadTurnaround(params_, start.load_velocity, tau) <= tau)
     {
+      state_ = start;
       return;  // ends beyond t_end, or a maximum inside: the loop's segment keeps it
     }
     ++short_flight_count_;
     if (track_energy_)
     {
       addFlows(f.energy(tau));
+      f.at(tau, &state_);
     }
-    f.at(tau, &state_);
-    state_.time = end_time;
+    state_.time += tau;
     handleImpact(f.wall(), sink, report);
   }
 }
@@ -945,8 +954,9 @@ void Plant::handleImpact(Contact wall, EventSink* sink, bool report)
   // impact of a rigid mesh (Δ = 0, e.g. the backlash tuned to 0 while the teeth float): no room to bounce into.
   const double rebound = params_.restitution * closing;
   const bool plastic = delta == 0.0 || rebound <= speed_noise || !above_floor(rebound);
-  const double e = plastic ? 0.0 : params_.restitution;
-  const ImpactOutcome o = resolveImpact(params_, v, w, e);
+  const ImpactMap& impact = plastic ? plastic_impact_ : elastic_impact_;
+  const double e = impact.restitution();
+  const ImpactOutcome o = impact(v, w);
   state_.load_velocity = o.load_velocity;
   state_.motor_velocity = o.motor_velocity;
   energy_.impact_loss += o.energy_loss;

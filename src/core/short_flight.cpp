@@ -252,10 +252,36 @@ ShortFlight::Model::Model(const ServoParams& p, const MotorInput& input)
       rho(p.gear_ratio),
       delta(p.backlash),
       omega_ref(std::max({alpha, beta, std::sqrt(rho * std::fabs(motor_stiffness))})),
-      norm(omega_ref > 0.0 ? std::max({omega_ref, alpha, rho * std::fabs(motor_stiffness) / omega_ref + beta}) : 0.0)
+      norm(omega_ref > 0.0 ? std::max({omega_ref, alpha, rho * std::fabs(motor_stiffness) / omega_ref + beta}) : 0.0),
+      scale_time(omega_ref > 0.0 ? 1.0 / omega_ref : 0.0)
 {}
 
 bool ShortFlight::build(const Model& m, const State& s, double horizon)
+{
+  if (!solve(m, s, horizon, [](auto, double) {}))
+  {
+    return false;
+  }
+  model_ = m;
+  return true;
+}
+
+bool ShortFlight::flyToImpact(const Model& m, const State& s, double horizon, State* end)
+{
+  return solve(m, s, horizon, [&](auto order, double tau) { evaluateAt<decltype(order)::value>(tau, end); });
+}
+
+template <int N>
+void ShortFlight::evaluateAt(double tau, State* out) const
+{
+  out->load_position = evaluate<N>(load_position_, n_, tau);
+  out->load_velocity = evaluate<N>(load_velocity_, n_, tau);
+  out->motor_position = evaluate<N>(motor_position_, n_, tau);
+  out->motor_velocity = evaluate<N>(motor_velocity_, n_, tau);
+}
+
+template <class AtImpact>
+bool ShortFlight::solve(const Model& m, const State& s, double horizon, AtImpact&& at_impact)
 {
   if (s.contact != Contact::Apart || !(horizon > 0.0))
   {
@@ -331,7 +357,7 @@ bool ShortFlight::build(const Model& m, const State& s, double horizon)
     return false;
   }
   // Norm of A in the weighted norm ||y||_D = max(|θ_c|, s|ω_c|, ρ|θ_m|, sρ|ω_m|), s = 1/ω_ref.
-  const double scale_time = m.omega_ref > 0.0 ? 1.0 / m.omega_ref : 1e3 * t_end;
+  const double scale_time = m.omega_ref > 0.0 ? m.scale_time : 1e3 * t_end;
   const double mt = (m.omega_ref > 0.0 ? m.norm : 1.0 / scale_time) * t_end;
   if (!(mt <= MAX_NORM_TIME))
   {
@@ -363,7 +389,6 @@ bool ShortFlight::build(const Model& m, const State& s, double horizon)
   n_ = n;
   const double remainder = weighted * t_power * tail_factor * INVERSE[n + 1];
   const double rounding_base = 8.0 * EPS * (std::fabs(f0) + f1 * t_end + (returns ? 0.0 : delta));
-  double x = 0.0;
   // The gap series and its bounds are built inside the order dispatch: their loops unroll for the usual orders.
   const bool found = withOrder(n, [&](auto order) {
     constexpr int N = decltype(order)::value;
@@ -394,8 +419,18 @@ bool ShortFlight::build(const Model& m, const State& s, double horizon)
       gap.higher_slope += 2.0 * 1.12 * weighted * t_power * mt / t_end;
     }
     const double rounding = 2.0 * remainder + rounding_base;
-    return returns ? gap.returnTime<N>(quadratic_return, t_end, near, delta, rounding, &x)
-                   : gap.crossingTime<N>(t_end, delta, rounding, &x);
+    double x = 0.0;
+    const bool root = returns ? gap.returnTime<N>(quadratic_return, t_end, near, delta, rounding, &x)
+                              : gap.crossingTime<N>(t_end, delta, rounding, &x);
+    // A flight shorter than the clock resolves (a few ulps of the start time: teeth at rest to 1e-40 rad/s
+    // "bouncing" on rounding) would not advance time: left to the closed form, which sees no impact there.
+    if (!root || !(x > 0.0 && x <= horizon) || !(x > 64.0 * EPS * std::fabs(s.time)))
+    {
+      return false;
+    }
+    impact_ = x;
+    at_impact(order, x);
+    return true;
   });
   if (!found)
   {
@@ -405,29 +440,16 @@ bool ShortFlight::build(const Model& m, const State& s, double horizon)
   {
     wall_ = wall_ == Contact::Forward ? Contact::Backward : Contact::Forward;
   }
-  // A flight shorter than the clock resolves (a few ulps of the start time: teeth at rest to 1e-40 rad/s "bouncing"
-  // on rounding) would not advance time: left to the closed form, which sees no impact there.
-  if (!(x > 0.0 && x <= horizon) || !(x > 64.0 * EPS * std::fabs(s.time)))
-  {
-    return false;
-  }
-  impact_ = x;
-  model_ = m;
   weighted_ = weighted;
   scale_time_ = scale_time;
-  norm_ = mt / t_end;
+  norm_time_ = mt;
+  end_ = t_end;
   return true;
 }
 
 void ShortFlight::at(double tau, State* out) const
 {
-  withOrder(n_, [&](auto order) {
-    constexpr int N = decltype(order)::value;
-    out->load_position = evaluate<N>(load_position_, n_, tau);
-    out->load_velocity = evaluate<N>(load_velocity_, n_, tau);
-    out->motor_position = evaluate<N>(motor_position_, n_, tau);
-    out->motor_velocity = evaluate<N>(motor_velocity_, n_, tau);
-  });
+  withOrder(n_, [&](auto order) { evaluateAt<decltype(order)::value>(tau, out); });
 }
 
 EnergyFlows ShortFlight::energy(double tau) const
@@ -469,7 +491,8 @@ double ShortFlight::restTime(bool motor, double sign, double horizon) const
   const double rho = motor ? model_.rho : 1.0;  // the weighted norm holds ρω_m
   // Bounds on [0, h] of the velocity's series tail and of its slope's tail (orders > N), from ||y_{N+j}||_D ≤
   // ||y_N||_D M^j N!/(N+j)! and |ω| ≤ ||y||_D/(s·ρ): Σ_j ... ≤ 1.03·||y_N|| h^N Mh/(N+1) and ≤ 1.12·||y_N|| M h^N.
-  const double h = horizon, mh = norm_ * h;
+  const double norm = norm_time_ / end_;  // M [1/s]
+  const double h = horizon, mh = norm * h;
   double h_n = 1.0;
   for (int k = 0; k < n_; ++k)
   {
@@ -477,7 +500,7 @@ double ShortFlight::restTime(bool motor, double sign, double horizon) const
   }
   const double unit = weighted_ / (scale_time_ * rho);
   const double tail = 1.03 * unit * h_n * mh / (n_ + 1);
-  const double slope_tail = 1.12 * unit * norm_ * h_n;
+  const double slope_tail = 1.12 * unit * norm * h_n;
   double spread = tail, slope_spread = slope_tail, hk = 1.0;  // Σ_{k≥1}|c_k|h^k, Σ_{k≥2} k|c_k|h^{k−1}
   for (int k = 1; k <= n_; ++k)
   {

@@ -9,6 +9,7 @@
 #include <map>
 #include <stdexcept>
 #include <string>
+#include <string_view>
 
 namespace YAML
 {
@@ -50,7 +51,8 @@ class KeyValues
   void setNumber(const std::string& key, double value);
   /// A value that already is a boolean.
   void setBoolean(const std::string& key, bool value);
-  bool has(const std::string& key) const { return values_.count(key) != 0; }
+  /// (A view: the parameter table's keys are looked up for every run's configuration without a string built.)
+  bool has(std::string_view key) const { return values_.count(key) != 0; }
   /// Later sources override earlier ones: copies every value of other over this.
   void overrideWith(const KeyValues& other);
 
@@ -81,7 +83,7 @@ class KeyValues
     double number = 0.0;
     bool boolean = false;
   };
-  std::map<std::string, Value> values_;
+  std::map<std::string, Value, std::less<>> values_;  // transparent: looked up by std::string_view too
   bool flags_ = true;
 };
 
