@@ -266,6 +266,8 @@ class Plant
   }
   /// Throws MotionDiverged when the state is beyond the bounds of the closed forms (or not finite).
   void requireBounded() const;
+  /// requireBounded()'s error (out of line: the check itself runs before every flight of a chatter).
+  [[noreturn]] void throwDiverged() const;
   /// The constants derived from params_ (search period, press factor, mesh torque bound, impact maps).
   void deriveConstants();
   /// Dry friction: the rest rule and the contact check at the current state; the slide directions go to *motor and
@@ -298,6 +300,8 @@ class Plant
   void chatter(double t_end, EventSink* sink, bool report);
   /// `report`: send the Impact event (the sink wants it); a maximum at the impact goes to sink either way.
   void handleImpact(Contact wall, EventSink* sink, bool report);
+  /// handleImpact()'s error when the impacts exceed the event budget (out of line, off the chatter's path).
+  [[noreturn]] void throwImpactBudget() const;
   /// Puts teeth at relative rest on `wall` into contact if the mesh torque presses, else leaves them apart.
   void settleOnWall(Contact wall);
 

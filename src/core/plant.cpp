@@ -515,6 +515,12 @@ void Plant::requireBounded() const
   {
     return;
   }
+  throwDiverged();
+}
+
+void Plant::throwDiverged() const
+{
+  const State& s = state_;
   char buf[256];
   std::snprintf(buf, sizeof buf,
                 "the motion diverged at t = %.9g s (load %.3g rad, %.3g rad/s): the loop is unstable, or the run "
@@ -917,6 +923,15 @@ void Plant::settleOnWall(Contact wall)
                        : mesh_.afterSeparation(wall);
 }
 
+void Plant::throwImpactBudget() const
+{
+  char buf[200];
+  std::snprintf(buf, sizeof buf,
+                "event budget of %llu impacts exceeded at t = %.9g s (an impact storm; raise max_events to go on)",
+                static_cast<unsigned long long>(event_budget_), state_.time);
+  throw EventBudgetExceeded(buf);
+}
+
 void Plant::handleImpact(Contact wall, EventSink* sink, bool report)
 {
   const double rho = params_.gear_ratio;
@@ -968,11 +983,7 @@ void Plant::handleImpact(Contact wall, EventSink* sink, bool report)
   ++impacts_;
   if (event_budget_ != 0 && impacts_ > event_budget_)
   {
-    char buf[200];
-    std::snprintf(buf, sizeof buf,
-                  "event budget of %llu impacts exceeded at t = %.9g s (an impact storm; raise max_events to go on)",
-                  static_cast<unsigned long long>(event_budget_), state_.time);
-    throw EventBudgetExceeded(buf);
+    throwImpactBudget();
   }
   if (e == 0.0)
   {
