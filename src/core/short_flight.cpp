@@ -319,24 +319,36 @@ bool ShortFlight::solve(const Model& m, const State& s, double horizon, AtImpact
   double* vc = load_velocity_;
   double* xm = motor_position_;
   double* vm = motor_velocity_;
+  // The latest order is carried in registers (y_k below), the arrays only written: the recurrence — on the path from
+  // one impact to the next — does not wait for its own stores to be read back.
+  double y_xc = s.load_velocity;                                                                  // y_1
+  double y_vc = m.load_accel - m.alpha * s.load_velocity;                                         //
+  double y_xm = s.motor_velocity;                                                                 //
+  double y_vm = m.motor_offset - m.motor_stiffness * s.load_position - m.beta * s.motor_velocity;  //
   xc[0] = s.load_position;
   vc[0] = s.load_velocity;
   xm[0] = s.motor_position;
   vm[0] = s.motor_velocity;
-  xc[1] = vc[0];
-  vc[1] = m.load_accel - m.alpha * vc[0];
-  xm[1] = vm[0];
-  vm[1] = m.motor_offset - m.motor_stiffness * xc[0] - m.beta * vm[0];
-  auto next = [&](int k) {  // y_{k+1} from y_k, k ≥ 1
+  xc[1] = y_xc;
+  vc[1] = y_vc;
+  xm[1] = y_xm;
+  vm[1] = y_vm;
+  // y_{k+1} from y_k (k ≥ 1).
+  const double minus_alpha = -m.alpha, minus_stiffness = -m.motor_stiffness, beta = m.beta;
+  auto next = [&](int k) {
     const double inv = INVERSE[k + 1];
-    xc[k + 1] = vc[k] * inv;
-    vc[k + 1] = -m.alpha * vc[k] * inv;
-    xm[k + 1] = vm[k] * inv;
-    vm[k + 1] = (-m.motor_stiffness * xc[k] - m.beta * vm[k]) * inv;
+    const double xc_next = y_vc * inv;
+    const double vc_next = minus_alpha * y_vc * inv;
+    const double xm_next = y_vm * inv;
+    const double vm_next = (minus_stiffness * y_xc - beta * y_vm) * inv;
+    xc[k + 1] = y_xc = xc_next;
+    vc[k + 1] = y_vc = vc_next;
+    xm[k + 1] = y_xm = xm_next;
+    vm[k + 1] = y_vm = vm_next;
   };
+  const double f1 = sign * (y_xc - rho * y_xm);
   next(1);
-  const double f1 = sign * (xc[1] - rho * xm[1]);
-  const double f2 = sign * (xc[2] - rho * xm[2]);
+  const double f2 = sign * (y_xc - rho * y_xm);
   const double f0 = sign * (g0 - level);
   if (!(f1 > 0.0) && !(f1 == 0.0 && f2 > 0.0))
   {
@@ -372,8 +384,8 @@ bool ShortFlight::solve(const Model& m, const State& s, double horizon, AtImpact
   int n = 2;
   for (;; ++n)
   {
-    weighted = std::max(std::max(std::fabs(xc[n]), rho * std::fabs(xm[n])),
-                        scale_time * std::max(std::fabs(vc[n]), rho * std::fabs(vm[n])));
+    weighted = std::max(std::max(std::fabs(y_xc), rho * std::fabs(y_xm)),
+                        scale_time * std::max(std::fabs(y_vc), rho * std::fabs(y_vm)));  // y_n
     if (weighted * t_power * tail_factor * INVERSE[n + 1] <= tol)
     {
       break;
@@ -397,9 +409,15 @@ bool ShortFlight::solve(const Model& m, const State& s, double horizon, AtImpact
     GapSeries gap;
     gap.n = n;
     gap.f[0] = f0;
-    for (int k = 1; k <= top; ++k)
+    gap.f[1] = f1;
+    gap.f[2] = f2;
+    for (int k = 3; k < top; ++k)
     {
       gap.f[k] = sign * (xc[k] - rho * xm[k]);
+    }
+    if (top >= 3)
+    {
+      gap.f[top] = sign * (y_xc - rho * y_xm);  // y_n, still in registers
     }
     // Bound on |F'' − 2f_2| over [0, T] from the orders ≥ 3 and the remainder's second derivative (two components).
     double tk = t_end;
