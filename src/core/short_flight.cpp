@@ -321,10 +321,11 @@ bool ShortFlight::solve(const Model& m, const State& s, double horizon, AtImpact
   double* vm = motor_velocity_;
   // The latest order is carried in registers (y_k below), the arrays only written: the recurrence — on the path from
   // one impact to the next — does not wait for its own stores to be read back.
-  double y_xc = s.load_velocity;                                                                  // y_1
-  double y_vc = m.load_accel - m.alpha * s.load_velocity;                                         //
-  double y_xm = s.motor_velocity;                                                                 //
-  double y_vm = m.motor_offset - m.motor_stiffness * s.load_position - m.beta * s.motor_velocity;  //
+  // y_1 = A y_0 + b:
+  double y_xc = s.load_velocity;
+  double y_vc = m.load_accel - m.alpha * s.load_velocity;
+  double y_xm = s.motor_velocity;
+  double y_vm = m.motor_offset - m.motor_stiffness * s.load_position - m.beta * s.motor_velocity;
   xc[0] = s.load_position;
   vc[0] = s.load_velocity;
   xm[0] = s.motor_position;
