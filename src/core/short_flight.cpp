@@ -138,8 +138,8 @@ struct GapSeries
     {
       return false;
     }
-    const double f3 = n >= 3 ? f[3] : 0.0;
-    const double offset = f[0] / f1;  // δ to first order [s]
+    const double f3 = (N ? N : n) >= 3 ? f[3] : 0.0;  // (N ≠ 0 is n: for N = 2, f[3] is not even read)
+    const double offset = f[0] / f1;                  // δ to first order [s]
     double x = quadratic_return - f3 * quadratic_return * quadratic_return / (f2 + 2.0 * f3 * quadratic_return) +
                (offset + f2 * offset * offset / f1);
     double slope;
