@@ -66,7 +66,7 @@ void checkProfile(const RunConfig& config);
 /**
  * Runs config; events go to sink (may be null) as well as to the response monitor (checked every natural period,
  * or at every sample; running until settled without samples, an oscillation stops within 1/16 of a natural period of
- * the maximum that settles it); samples every
+ * the maximum that settles it, once four maxima are recorded); samples every
  * sample_period [s] (0 = none) go to on_sample. Throws InvalidParameterError on bad parameters.
  */
 RunSummary runResponse(const RunConfig& config, EventSink* sink = nullptr, double sample_period = 0.0,

@@ -87,7 +87,8 @@ RunSummary runResponse(const RunConfig& config, EventSink* sink, double sample_p
         monitor.restartAt(sim.state());
         judge_from = -INFINITY;
       }
-      if (until_settled && sample_period <= 0.0)
+      // (Sub-steps only once four maxima are recorded: no sustained oscillation is settled before its fifth.)
+      if (until_settled && sample_period <= 0.0 && monitor.maxima().size() >= 4)
       {
         // A sustained oscillation settled by a maximum ends the run within a sub-step of it, not at the chunk's end
         // (up to a natural period later: in elastic chatter, 10⁵ impacts). Its figures come from the maxima, and the
