@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # One command: builds in Release (build/release/: inside build/, which rosrun does not search, so the relays in
 # bin/ stay the only backlash_sim it finds) and prints the speed/accuracy table of the core against the
-# methods users would write instead, the scipy rows, the thesis-grid sweep wall time and peak memory.
+# methods users would write instead, the scipy rows, the thesis-grid sweep wall time and peak memory, and the thesis
+# study against one scipy solution (bench/thesis_vs_scipy.sh).
 # usage: bash bench/run_benchmarks.sh [--quick]
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -9,7 +10,7 @@ export PATH=/usr/bin:$PATH
 bash scripts/setup.sh >/dev/null   # dependencies (and the normal build)
 mkdir -p build/release/devel/lib/python3/dist-packages
 cmake -S . -B build/release -DPYTHON_EXECUTABLE=/usr/bin/python3 -DCMAKE_BUILD_TYPE=Release >/dev/null
-make -C build/release -j"$(nproc)" bench_core backlash_sweep >/dev/null
+make -C build/release -j"$(nproc)" bench_core backlash_sweep backlash_sim >/dev/null
 bin=build/release/devel/lib/backlash_servo
 ref=$(mktemp)
 trap 'rm -f "$ref"' EXIT
@@ -20,3 +21,5 @@ echo "== scipy solve_ivp with events (python; first 200 s of each case, or 20 s 
 echo "== thesis grid (1344 points, until each verdict is settled)"
 /usr/bin/time -f "peak memory %M kB" "$bin/backlash_sweep" --preset thesis --output "$ref.sweep.csv"
 rm -f "$ref.sweep.csv"
+echo "== the thesis study against one scipy solution of App. D1 (issue 13's ratio; whole processes, alternately)"
+bash bench/thesis_vs_scipy.sh "$([ "${1:-}" = --quick ] && echo 1 || echo 5)" "$bin"

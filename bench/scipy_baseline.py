@@ -4,6 +4,7 @@ hybrid model as backlash_servo, tight tolerances. Reads the cases and reference 
 `bench_core --reference-out FILE` and prints rows in the same table format, with the speed ratio to ours.
 
 usage: scipy_baseline.py REFERENCE_FILE [--max-sim SECONDS]
+       scipy_baseline.py --d1 SECONDS    one solution of App. D1 over SECONDS [s] (bench/thesis_vs_scipy.sh times it)
 """
 import sys
 import time
@@ -89,10 +90,17 @@ def simulate(p, duration, rtol=1e-10, atol=1e-12):
     return maxima, events
 
 
+D1 = [0.1, 0.9, 0.48, 0.32, 1.0, 1.0, 0.3, 1.0]  # J_m, J_L, f_m, f_L, K, rho, Delta, e: the thesis' App. D1
+
+
 def main(argv):
     if not argv:
         print(__doc__)
         return 2
+    if argv[0] == "--d1":
+        maxima, events = simulate(D1, float(argv[1]))
+        print("scipy D1: %d maxima, %d events" % (len(maxima), events))
+        return 0
     max_sim = float(argv[argv.index("--max-sim") + 1]) if "--max-sim" in argv else 200.0
     for line in open(argv[0]):
         parts = line.split()
