@@ -98,6 +98,9 @@ def main(argv):
         print(__doc__)
         return 2
     if argv[0] == "--d1":
+        if len(argv) != 2:
+            print("scipy_baseline.py: --d1 takes one duration [s]\n" + __doc__, file=sys.stderr)
+            return 2
         maxima, events = simulate(D1, float(argv[1]))
         print("scipy D1: %d maxima, %d events" % (len(maxima), events))
         return 0

@@ -268,7 +268,8 @@ class Plant
   void requireBounded() const;
   /// requireBounded()'s error (out of line: the check itself runs before every flight of a chatter).
   [[noreturn]] void throwDiverged() const;
-  /// The constants derived from params_ (search period, press factor, mesh torque bound, impact maps).
+  /// What is derived from params_: dry friction or not, the gear mesh, search period, press factor, mesh torque
+  /// bound, impact maps.
   void deriveConstants();
   /// Dry friction: the rest rule and the contact check at the current state; the slide directions go to *motor and
   /// *load. A contact that no longer holds is left (Separation emitted).

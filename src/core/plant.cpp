@@ -105,17 +105,17 @@ const char* toString(EventType t)
   }
 }
 
-Plant::Plant(const ServoParams& params, const State& initial, const MotorInput& law)
-    : params_(params), mesh_(params), law_(law)
+Plant::Plant(const ServoParams& params, const State& initial, const MotorInput& law) : params_(params), law_(law)
 {
   params_.validate();
-  dry_ = params_.hasDryFriction();
   deriveConstants();
   setState(initial);
 }
 
 void Plant::deriveConstants()
 {
+  dry_ = params_.hasDryFriction();
+  mesh_ = GearMesh(params_);
   period_ = 2.0 * PI / params_.naturalFrequency();
   apart_needs_series_ = apartNeedsSeries(params_, FREE_SEARCH_PERIODS * period_);
   press_factor_ = pressFactor(params_);
@@ -245,9 +245,7 @@ void Plant::setParams(const ServoParams& params, EventSink* sink, bool frame)
   const double old_gap = gap();
   params_ = params;
   flight_model_.reset();
-  dry_ = params_.hasDryFriction();
   forced_motor_breakaway_ = 0;
-  mesh_ = GearMesh(params_);
   deriveConstants();
   const double delta = params_.backlash;
   // θ_c and ω_c are kept; the motor is re-expressed on the new mesh with the gap clamped into [0, Δ].

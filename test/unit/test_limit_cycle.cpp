@@ -5,6 +5,7 @@
 
 #include "backlash_servo/limit_cycle.h"
 #include "backlash_servo/step_response.h"
+#include "test_helpers.h"
 
 using namespace backlash_servo;
 
@@ -119,13 +120,8 @@ namespace
 {
 RunConfig chartPoint(double zeta, double inertia_ratio, double friction_ratio, double restitution)
 {
-  ChartParams ch;
-  ch.zeta = zeta;
-  ch.inertia_ratio = inertia_ratio;
-  ch.friction_ratio = friction_ratio;
-  ch.restitution = restitution;
   RunConfig c;
-  c.params = ch.toServoParams();
+  c.params = test_helpers::chart(zeta, inertia_ratio, friction_ratio, restitution);
   return c;
 }
 }  // namespace
