@@ -293,10 +293,7 @@ bool interleavingProbe(bool quick)
     std::printf("no micro-chatter found in 30..40 s\n");
     return false;
   }
-  MotorInput law;
-  law.offset = p.gain * 1.0;  // K θ_R for the unit step [N·m]
-  law.stiffness = p.gain;     // [N·m/rad]
-  const ShortFlight::Model model(p, law);
+  const ShortFlight::Model model(p, sim.drive().law());  // the law in force: T_m = K(θ_R − θ_c)
   const GearMesh mesh(p);
   const ImpactMap map(p, p.restitution);
   // The probe's chain is the Plant's chatter: its first impacts are the simulation's, bit for bit.
