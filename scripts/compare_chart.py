@@ -24,7 +24,6 @@ def save(fig, out):
     base = out[:-4] if out.endswith(".png") else out
     fig.savefig(base + ".png", dpi=100)
     fig.savefig(base + ".svg")
-    print(base + ".png")
 
 
 def vary_chart(metrics, key, out):

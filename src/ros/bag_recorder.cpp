@@ -8,9 +8,14 @@
 #include <rosbag/bag.h>
 #include <topic_tools/shape_shifter.h>
 
+#include "safe_output.h"
+
+#include <unistd.h>
+
 #include <condition_variable>
 #include <csignal>
 #include <cstdio>
+#include <cstdlib>
 #include <ctime>
 #include <deque>
 #include <exception>
@@ -52,7 +57,17 @@ int main(int argc, char** argv)
     return 2;
   }
   const std::string path = args[0];
-  const std::string active = path + ".active";
+  // Checked before recording: a device, directory or symbolic link is refused, an earlier PATH.active is kept.
+  std::string active;
+  try
+  {
+    active = backlash_servo::claimActiveFile("backlash_record", path);
+  }
+  catch (const std::exception& e)
+  {
+    std::fprintf(stderr, "backlash_record: error: %s\n", e.what());
+    return 2;
+  }
   rosbag::Bag bag;
   try
   {
@@ -60,6 +75,7 @@ int main(int argc, char** argv)
   }
   catch (const rosbag::BagException& e)
   {
+    ::unlink(active.c_str());
     std::fprintf(stderr, "backlash_record: cannot write '%s': %s\n", active.c_str(), e.what());
     return 2;
   }
@@ -118,10 +134,23 @@ int main(int argc, char** argv)
   }
   g_ready.notify_one();
   writer.join();
-  bag.close();
-  if (std::rename(active.c_str(), path.c_str()) != 0)
+  try
   {
-    std::fprintf(stderr, "backlash_record: cannot rename '%s' to '%s'\n", active.c_str(), path.c_str());
+    bag.close();
+  }
+  catch (const std::exception& e)
+  {
+    std::fprintf(stderr, "backlash_record: error: closing '%s' failed: %s (kept as is; try rosbag reindex)\n",
+                 active.c_str(), e.what());
+    std::_Exit(1);  // rosbag::Bag's destructor would retry the close and throw again
+  }
+  try
+  {
+    backlash_servo::publishActiveFile("backlash_record", path);
+  }
+  catch (const std::exception& e)
+  {
+    std::fprintf(stderr, "backlash_record: error: %s\n", e.what());
     return 1;
   }
   std::fprintf(stderr, "backlash_record: wrote %s (backlash_bag_report %s); CPU %.3f s\n", path.c_str(), path.c_str(),

@@ -1,5 +1,9 @@
 #include "node_recorder.h"
 
+#include <unistd.h>
+
+#include "safe_output.h"
+
 #include <ros/console.h>
 #include <topic_tools/shape_shifter.h>
 
@@ -12,13 +16,16 @@ namespace backlash_servo
 {
 NodeRecorder::NodeRecorder(const std::string& path) : path_(path)
 {
+  // Refuses a device, directory or symbolic link as the target and never overwrites an earlier PATH.active.
+  const std::string active = claimActiveFile("record_bag", path_);
   try
   {
-    bag_.open(path_ + ".active", rosbag::bagmode::Write);
+    bag_->open(active, rosbag::bagmode::Write);
   }
   catch (const rosbag::BagException& e)
   {
-    throw std::runtime_error("record_bag: cannot write '" + path_ + ".active': " + e.what());
+    ::unlink(active.c_str());
+    throw std::runtime_error("record_bag: cannot write '" + active + "': " + e.what());
   }
   open_ = true;
   pending_.reserve(BATCH);
@@ -100,7 +107,7 @@ void NodeRecorder::writerLoop()
         topic_tools::ShapeShifter& shape = shapes[item.topic];
         ros::serialization::IStream in(item.data.data(), static_cast<uint32_t>(item.data.size()));
         shape.read(in);
-        bag_.write(topics[item.topic].name, item.time, shape);
+        bag_->write(topics[item.topic].name, item.time, shape);
         ++written_;
       }
       catch (const std::exception& e)
@@ -137,18 +144,22 @@ void NodeRecorder::close()
   writer_.join();
   try
   {
-    bag_.close();
+    bag_->close();
   }
   catch (const std::exception& e)
   {
+    (void)bag_.release();  // abandoned, never destroyed: its destructor would throw the same error again
     ROS_ERROR("backlash_servo_node: record_bag: closing %s.active failed: %s (left as is; try rosbag reindex)",
               path_.c_str(), e.what());
     return;
   }
-  const std::string active = path_ + ".active";
-  if (std::rename(active.c_str(), path_.c_str()) != 0)
+  try
   {
-    ROS_ERROR("backlash_servo_node: record_bag: cannot rename %s to %s", active.c_str(), path_.c_str());
+    publishActiveFile("record_bag", path_);
+  }
+  catch (const std::exception& e)
+  {
+    ROS_ERROR("backlash_servo_node: %s", e.what());
     return;
   }
   ROS_INFO("backlash_servo_node: wrote %s: %llu messages%s (backlash_bag_report %s)", path_.c_str(),

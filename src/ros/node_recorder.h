@@ -27,6 +27,7 @@
 
 #include <condition_variable>
 #include <cstdint>
+#include <memory>
 #include <mutex>
 #include <string>
 #include <thread>
@@ -95,7 +96,9 @@ class NodeRecorder
   void writerLoop();
 
   std::string path_;
-  rosbag::Bag bag_;
+  /// Heap-held so that a bag whose close failed (disk full) can be abandoned: rosbag::Bag's destructor would retry
+  /// the close and throw out of a destructor, ending the node.
+  std::unique_ptr<rosbag::Bag> bag_ = std::make_unique<rosbag::Bag>();
   bool open_ = false;
   std::vector<Topic> topics_;  // read by the writer under mutex_ only when it grows (copied per batch)
   std::mutex mutex_;

@@ -8,6 +8,7 @@
 #include <cstdlib>
 #include <fstream>
 #include <iostream>
+#include <memory>
 #include <mutex>
 #include <sstream>
 #include <string>
@@ -19,8 +20,9 @@
 #include "backlash_servo/param_table.h"
 #include "compare/compare_metrics.h"
 #include "json_writer.h"
-#include "output_file.h"
 #include "progress.h"
+#include "run_program.h"
+#include "safe_output.h"
 
 using namespace backlash_servo;
 
@@ -151,6 +153,57 @@ std::string csvText(const std::string& s)
 }
 }  // namespace
 
+/// Copies a finished file into a SafeOutput (checked writes, then commit).
+void copyInto(const std::string& from, SafeOutput& to)
+{
+  std::ifstream in(from, std::ios::binary);
+  if (!in)
+  {
+    throw std::runtime_error("--png: the chart script wrote no '" + from + "'");
+  }
+  to.stream() << in.rdbuf();
+  to.commit();
+  std::cerr << "backlash_compare: wrote " << to.path() << "\n";
+}
+
+/// Trajectories and the table to a private temporary directory, drawn there by the chart script (run without a
+/// shell), then moved into place through the safe-write path; exactly the files made are removed afterwards.
+void drawCharts(const std::string& script, TemporaryDirectory& dir,
+                const std::vector<std::vector<CompareSample>>& trajectories, const std::vector<CompareMetrics>& metrics,
+                const std::string& vary_key, const std::vector<double>& run_values, SafeOutput& png, SafeOutput& svg)
+{
+  {
+    // (--vary: no trajectories; the script then charts the metrics against the varied value)
+    std::ofstream t(dir.file(vary_key.empty() ? "trajectories.csv" : "no_trajectories.csv"));
+    t << "strategy,time,reference,load_position,motor_position,motor_torque\n";
+    t.precision(10);
+    for (std::size_t i = 0; i < trajectories.size(); ++i)
+    {
+      for (const CompareSample& s : trajectories[i])
+      {
+        t << i << "," << s.time << "," << s.reference << "," << s.load_position << "," << s.motor_position << ","
+          << s.motor_torque << "\n";
+      }
+    }
+    std::ofstream m(dir.file("metrics.csv"));
+    writeMetricsCsv(m, metrics, vary_key, run_values);
+    if (!t.flush() || !m.flush())
+    {
+      throw std::runtime_error("--png: writing the chart data to '" + dir.path() + "' failed (disk full?)");
+    }
+  }
+  const std::string png_tmp = dir.file("chart.png");
+  const std::string svg_tmp = dir.file("chart.svg");
+  const int status = runProgram({"/usr/bin/python3", script, dir.path(), png_tmp});
+  if (status != 0)
+  {
+    throw std::runtime_error("--png: the chart script " + script + " failed (exit status " + std::to_string(status) +
+                             ")");
+  }
+  copyInto(png_tmp, png);
+  copyInto(svg_tmp, svg);
+}
+
 int main(int argc, char** argv)
 {
   std::string config_path, csv_path, png_path, vary_text;
@@ -207,7 +260,11 @@ int main(int argc, char** argv)
     std::cerr << "backlash_compare: error: --config FILE.yaml is required (see --help)\n";
     return 2;
   }
+  removeTemporariesOnSignals();
   CompareConfig config;
+  std::unique_ptr<SafeOutput> csv_file, png_file, svg_file;
+  std::string chart_script;
+  std::unique_ptr<TemporaryDirectory> chart_dir;  // the chart's data, drawn there and removed file by file
   Vary vary;
   std::vector<CompareStrategy> runs;  // what is run: the strategies, or each strategy at each varied value
   std::vector<double> run_values;     // --vary: the value [SI] of each run
@@ -239,12 +296,29 @@ int main(int argc, char** argv)
         }
       }
     }
-    for (const std::string& path : {csv_path, png_path})
+    // Every output is checked and its temporary created before any strategy runs.
+    if (!csv_path.empty())
     {
-      if (!path.empty())
+      csv_file = std::make_unique<SafeOutput>("--csv", csv_path, std::vector<std::string>{config_path});
+    }
+    if (!png_path.empty())
+    {
+      if (png_path.size() < 5 || png_path.compare(png_path.size() - 4, 4, ".png") != 0)
       {
-        requireRegularTarget(path == csv_path ? "--csv" : "--png", path);
+        throw ConfigError("--png: '" + png_path + "' must end in .png (the SVG is written beside it)");
       }
+      const std::string svg_path = png_path.substr(0, png_path.size() - 4) + ".svg";
+      for (const std::string& other : {svg_path, png_path})
+      {
+        if (!csv_path.empty() && (other == csv_path || sameFile(other, csv_path)))
+        {
+          throw ConfigError("--png: '" + other + "' is also the --csv file");
+        }
+      }
+      png_file = std::make_unique<SafeOutput>("--png", png_path, std::vector<std::string>{config_path});
+      svg_file = std::make_unique<SafeOutput>("--png", svg_path, std::vector<std::string>{config_path});
+      chart_script = helperBesideExecutable("compare_chart.py");
+      chart_dir = std::make_unique<TemporaryDirectory>("backlash_compare");
     }
   }
   catch (const std::exception& e)
@@ -299,41 +373,16 @@ int main(int argc, char** argv)
   const std::vector<std::string>& names = metricNames();
   try
   {
-    if (!csv_path.empty())
+    if (csv_file)
     {
-      OutputFile file("--csv", csv_path);
-      writeMetricsCsv(file.stream(), metrics, vary_text.empty() ? "" : vary.key, run_values);
-      file.commit();
+      writeMetricsCsv(csv_file->stream(), metrics, vary_text.empty() ? "" : vary.key, run_values);
+      csv_file->commit();
+      std::cerr << "backlash_compare: wrote " << csv_path << "\n";
     }
-    if (!png_path.empty())
+    if (png_file)
     {
-      // Trajectories and the table to a temporary directory, drawn by the chart script.
-      char tmpl[] = "/tmp/backlash_compare.XXXXXX";
-      const std::string dir = mkdtemp(tmpl) ? tmpl : "/tmp";
-      {
-        // (--vary: no trajectories; the script then charts the metrics against the varied value)
-        std::ofstream t(dir + (vary_text.empty() ? "/trajectories.csv" : "/no_trajectories.csv"));
-        t << "strategy,time,reference,load_position,motor_position,motor_torque\n";
-        t.precision(10);
-        for (std::size_t i = 0; i < n; ++i)
-        {
-          for (const CompareSample& s : trajectories[i])
-          {
-            t << i << "," << s.time << "," << s.reference << "," << s.load_position << "," << s.motor_position << ","
-              << s.motor_torque << "\n";
-          }
-        }
-        std::ofstream m(dir + "/metrics.csv");
-        writeMetricsCsv(m, metrics, vary_text.empty() ? "" : vary.key, run_values);
-      }
-      const std::string script = std::string(BACKLASH_SOURCE_DIR) + "/scripts/compare_chart.py";
-      const std::string cmd = "/usr/bin/python3 '" + script + "' '" + dir + "' '" + png_path + "' 1>&2";
-      const int status = std::system(cmd.c_str());
-      std::system(("rm -rf '" + dir + "'").c_str());
-      if (status != 0)
-      {
-        throw std::runtime_error("--png: the chart script failed (" + cmd + ")");
-      }
+      drawCharts(chart_script, *chart_dir, trajectories, metrics, vary_text.empty() ? "" : vary.key, run_values,
+                 *png_file, *svg_file);
     }
   }
   catch (const std::exception& e)

@@ -14,7 +14,7 @@
 #include "backlash_servo/param_table.h"
 #include "backlash_servo/step_response.h"
 #include "json_writer.h"
-#include "output_file.h"
+#include "safe_output.h"
 
 using namespace backlash_servo;
 

@@ -15,8 +15,8 @@
 #include "backlash_servo/gear_mesh.h"
 #include "backlash_servo/modes.h"
 #include "json_writer.h"
-#include "output_file.h"
 #include "progress.h"
+#include "safe_output.h"
 
 using namespace backlash_servo;
 
@@ -242,14 +242,17 @@ int main(int argc, char** argv)
   }
   try
   {
-    std::unique_ptr<OutputFile> csv_file;
+    std::unique_ptr<SafeOutput> csv_file;
     std::unique_ptr<CsvWriter> csv;
     SampleCallback on_sample;
     double sample_period = 0.0;
     if (!csv_path.empty())
     {
-      // Streamed to FILE.tmp and renamed only when complete: a failed run never leaves a half-written FILE.
-      csv_file = std::make_unique<OutputFile>("--csv", csv_path);
+      // Streamed to a private temporary beside FILE and renamed only when complete: a failed or interrupted run
+      // never leaves a half-written FILE (nor its temporary).
+      removeTemporariesOnSignals();
+      csv_file = std::make_unique<SafeOutput>(
+          "--csv", csv_path, std::vector<std::string>{options.option("config"), options.keys().text("profile", "")});
       csv = std::make_unique<CsvWriter>(csv_file->stream(), config.params);
       sample_period = 1.0 / sample_rate;
       on_sample = [&](const Simulator& sim) { csv->sample(sim); };

@@ -9,11 +9,12 @@
 #include <cstdio>
 #include <fstream>
 #include <iostream>
+#include <memory>
 #include <thread>
 
 #include "backlash_servo/config/flag_parser.h"
-#include "output_file.h"
 #include "progress.h"
+#include "safe_output.h"
 #include "sweep/sweep_csv.h"
 #include "sweep/sweep_grid.h"
 #include "sweep/sweep_runner.h"
@@ -30,16 +31,19 @@ order. Any numeric parameter below is an axis when given a list "0.1,0.2,0.5", a
 (--motor-inertia ... --gain) switch to the physical form. Defaults: App. D1.
 )";
 
-std::atomic<bool> g_interrupted{false};
+std::atomic<bool> g_stop{false};               // no further points: interrupted, or the output failed
+volatile std::sig_atomic_t g_interrupted = 0;  // SIGINT/SIGTERM/SIGHUP seen
 void onSignal(int)
 {
-  g_interrupted = true;
+  g_interrupted = 1;
+  g_stop = true;
 }
 
 struct SweepOptions
 {
   SweepGrid grid;
   std::string output = "-";
+  std::vector<std::string> inputs;  ///< files the run reads (--config, profile): never an output
   int jobs = 1;
   bool resume = false;
   double max_duration = 0.0;
@@ -101,6 +105,7 @@ SweepOptions parse(int argc, char** argv)
   }
   o.grid.setFixed(fixed);
   o.output = parser.option("output", "-");
+  o.inputs = {parser.option("config"), kv.text("profile", "")};
   o.jobs = static_cast<int>(parser.optionNumber("jobs", std::max(1u, std::thread::hardware_concurrency())));
   if (o.jobs < 1 || o.jobs > 4096)
   {
@@ -178,8 +183,8 @@ int merge(int argc, char** argv)
     {
       throw ConfigError("--merge needs --output FILE");
     }
+    SafeOutput file("--output", output, parts);  // checked before the parts are read
     const std::string csv = mergeParts(parts);
-    OutputFile file("--output", output);
     file.stream() << csv;
     file.commit();
   }
@@ -225,26 +230,26 @@ int main(int argc, char** argv)
   }
   const std::size_t total = o.grid.size();
 
-  std::ofstream file;
+  // An interrupted run keeps the rows it completed (--resume continues them): the handlers only stop the pool.
+  std::signal(SIGINT, onSignal);
+  std::signal(SIGTERM, onSignal);
+  std::signal(SIGHUP, onSignal);
+  std::unique_ptr<SafeOutput> file;
   std::ostream* out = &std::cout;
   if (o.output != "-")
   {
     try
     {
-      requireRegularTarget("--output", o.output);
+      // Checked and created before the first point: the rows go to a private temporary beside the target, which
+      // replaces it only when the run ends (complete, interrupted or stopped by a point's error).
+      file = std::make_unique<SafeOutput>("--output", o.output, o.inputs);
     }
     catch (const std::exception& e)
     {
       std::cerr << "backlash_sweep: error: " << e.what() << "\n";
       return 2;
     }
-    file.open(o.output, std::ios::trunc);
-    if (!file)
-    {
-      std::cerr << "backlash_sweep: error: cannot write '" << o.output << "'\n";
-      return 2;
-    }
-    out = &file;
+    out = &file->stream();
   }
   SweepCsvWriter csv(*out);
   if (!shard.whole())
@@ -256,27 +261,56 @@ int main(int argc, char** argv)
   {
     csv.row(line);
   }
-  csv.flush();
+  bool write_failed = !csv.flush();
+  std::size_t written = write_failed ? 0 : kept.size();
 
-  std::signal(SIGINT, onSignal);
-  std::signal(SIGTERM, onSignal);
   Progress progress(isatty(2) && o.output != "-");
   const std::size_t first = shard.whole() ? 0 : shard.first;
   const std::size_t last = shard.whole() ? total : shard.last;
-  const SweepRunResult run = runSweepPoints(
-      first + kept.size(), last, o.jobs, [&](std::size_t i) { return evaluate(o.grid.point(i), o.max_duration); },
-      [&](std::size_t i, const std::string& row) {
-        csv.row(row);
-        csv.flush();
-        progress.update(i + 1 - first, last - first);
-      },
-      g_interrupted);
+  const SweepRunResult run = write_failed
+                                 ? SweepRunResult()
+                                 : runSweepPoints(
+                                       first + kept.size(), last, o.jobs,
+                                       [&](std::size_t i) { return evaluate(o.grid.point(i), o.max_duration); },
+                                       [&](std::size_t i, const std::string& row) {
+                                         if (write_failed)
+                                         {
+                                           return;
+                                         }
+                                         csv.row(row);
+                                         if (!csv.flush())
+                                         {
+                                           write_failed = true;
+                                           g_stop = true;  // no point computing what cannot be written
+                                           return;
+                                         }
+                                         ++written;
+                                         progress.update(i + 1 - first, last - first);
+                                       },
+                                       g_stop);
   progress.finish();
-  if (!csv.flush())
+  if (write_failed)
   {
-    std::cerr << "backlash_sweep: error: writing '" << o.output << "' failed after " << kept.size() + run.delivered
-              << " of " << last - first << " rows (disk full?)\n";
+    if (file)
+    {
+      file->discard();
+    }
+    std::cerr << "backlash_sweep: error: writing " << (file ? "'" + o.output + "'" : std::string("standard output"))
+              << " failed after " << written << " of " << last - first << " rows (disk full?); stopped computing"
+              << (file ? "; the partial file was removed and '" + o.output + "' is as before" : std::string()) << "\n";
     return 1;
+  }
+  if (file)
+  {
+    try
+    {
+      file->commit();
+    }
+    catch (const std::exception& e)
+    {
+      std::cerr << "backlash_sweep: error: " << e.what() << "\n";
+      return 1;
+    }
   }
   if (!run.failure.empty())
   {
