@@ -131,6 +131,9 @@ void parseRange(const KeyValues& kv, const std::string& key, double* value, doub
   *lo = part.number(key);
   part.set(key, text.substr(colon + 1));
   *hi = part.number(key);
+  // Both ends must be values the key accepts (a search never leaves the key's valid range).
+  param(key).check(*lo);
+  param(key).check(*hi);
   if (!(*lo > 0.0 && *hi > *lo))
   {
     throw ConfigError(flagName(key) + ": a range LO:HI needs 0 < LO < HI");
@@ -207,6 +210,22 @@ Design parse(int argc, char** argv)
     d.rho_lo = d.rho / 10.0;
     d.rho_hi = d.rho * 10.0;
   }
+  // Default ranges are clipped to what each key accepts.
+  auto clip = [](const std::string& key, double* lo, double* hi) {
+    const ParamRange& r = param(key).range;
+    *lo = std::max(*lo, r.lower);
+    *hi = std::min(*hi, r.upper);
+    while (!r.contains(*lo) && *lo < *hi)
+    {
+      *lo = std::nextafter(*lo, *hi);
+    }
+    while (!r.contains(*hi) && *hi > *lo)
+    {
+      *hi = std::nextafter(*hi, *lo);
+    }
+  };
+  clip(d.tune, &d.gain_lo, &d.gain_hi);
+  clip("gear_ratio", &d.rho_lo, &d.rho_hi);
   configOf(d, d.gain, d.rho);  // the candidate must be valid (one clear line otherwise)
   return d;
 }
@@ -278,20 +297,9 @@ void evaluationJson(JsonWriter& j, const char* key, const Evaluation& e, const s
 }
 }  // namespace
 
-int main(int argc, char** argv)
+/// Evaluates the candidate and runs the search asked for, writing the text and JSON reports.
+void design(const Design& d, std::ostringstream& text, std::ostringstream& json_text)
 {
-  Design d;
-  try
-  {
-    d = parse(argc, argv);
-  }
-  catch (const std::exception& e)
-  {
-    std::cerr << "backlash_design: error: " << e.what() << "\n";
-    return 2;
-  }
-  std::ostringstream text;
-  std::ostringstream json_text;
   JsonWriter j(json_text);
   j.beginObject();
   const Evaluation candidate = evaluate(d, d.gain, d.rho);
@@ -409,6 +417,31 @@ int main(int argc, char** argv)
     }
   }
   j.endObject();
+}
+
+int main(int argc, char** argv)
+{
+  Design d;
+  try
+  {
+    d = parse(argc, argv);
+  }
+  catch (const std::exception& e)
+  {
+    std::cerr << "backlash_design: error: " << e.what() << "\n";
+    return 2;
+  }
+  std::ostringstream text;
+  std::ostringstream json_text;
+  try
+  {
+    design(d, text, json_text);
+  }
+  catch (const std::exception& e)  // a candidate the search reached that the model refuses: one line, never abort
+  {
+    std::cerr << "backlash_design: error: " << e.what() << "\n";
+    return 1;
+  }
   std::cout << (d.json ? json_text.str() + "\n" : text.str());
   try
   {

@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <atomic>
 #include <csignal>
+#include <cstdint>
 #include <cstdio>
 #include <fstream>
 #include <iostream>
@@ -14,6 +15,7 @@
 
 #include "backlash_servo/config/flag_parser.h"
 #include "progress.h"
+#include "safe_input.h"
 #include "safe_output.h"
 #include "sweep/sweep_csv.h"
 #include "sweep/sweep_grid.h"
@@ -126,6 +128,25 @@ SweepOptions parse(int argc, char** argv)
   }
   o.max_duration = parser.keys().number("max_duration", 0.0);
   param("max_duration").check(o.max_duration);
+  // Parts made with another run-length cap or another profile content must not merge or resume together.
+  std::string signature;
+  if (o.max_duration > 0.0)
+  {
+    char buf[40];
+    std::snprintf(buf, sizeof buf, "max_duration=%.17g;", o.max_duration);
+    signature += buf;
+  }
+  if (kv.has("profile"))
+  {
+    const std::string content = readRegularFile("--profile", kv.text("profile", ""), std::size_t(1) << 30);
+    std::uint64_t h = 1469598103934665603ull;
+    for (unsigned char c : content)
+    {
+      h = (h ^ c) * 1099511628211ull;
+    }
+    signature += "profile=" + std::to_string(h) + ";";
+  }
+  o.grid.setRunSignature(signature);
   if (o.resume && o.output == "-")
   {
     throw ConfigError("--resume needs --output FILE");

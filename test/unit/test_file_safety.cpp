@@ -11,6 +11,7 @@
 #include <cstdlib>
 #include <fstream>
 #include <regex>
+#include <sstream>
 #include <string>
 #include <thread>
 #include <vector>
@@ -316,4 +317,122 @@ TEST_F(FullDisk, NoToolLeavesAPartialOrEmptyFile)
   }
 }
 
+}  // namespace
+
+namespace
+{
+using SweepInputs = Sandbox;
+
+/// `row` with its cell `index` (0-based) replaced by `value`.
+std::string withCell(const std::string& row, std::size_t index, const std::string& value)
+{
+  std::vector<std::string> cells;
+  std::stringstream ss(row);
+  for (std::string c; std::getline(ss, c, ',');)
+  {
+    cells.push_back(c);
+  }
+  if (!row.empty() && row.back() == ',')
+  {
+    cells.push_back("");  // the empty last cell getline does not return
+  }
+  cells.at(index) = value;
+  std::string out;
+  for (std::size_t i = 0; i < cells.size(); ++i)
+  {
+    out += (i ? "," : "") + cells[i];
+  }
+  return out;
+}
+
+/// Replaces the first occurrence of `from` in the file by `to`.
+void edit(const std::string& path, const std::string& from, const std::string& to)
+{
+  std::string text = readFile(path);
+  const auto at = text.find(from);
+  ASSERT_NE(at, std::string::npos) << from;
+  text.replace(at, from.size(), to);
+  std::ofstream(path) << text;
+}
+
+TEST_F(SweepInputs, DamagedForgedOrForeignPartsAreRefusedWithOneLine)
+{
+  const std::string grid = " --zeta 0.3,0.5,0.7 --restitution 0,1";
+  int code = -1;
+  for (const std::string k : {"1", "2"})
+  {
+    ASSERT_EQ((run(q(SWEEP) + grid + " --shard " + k + "/2 --output p" + k + ".csv", &code), code), 0);
+  }
+  ASSERT_EQ((run(q(SWEEP) + grid + " --output whole.csv", &code), code), 0);
+  ASSERT_EQ((run(q(SWEEP) + " --merge p1.csv p2.csv --output merged.csv", &code), code), 0);
+  ASSERT_EQ(readFile(dir + "/merged.csv"), readFile(dir + "/whole.csv"));
+  const std::string good1 = readFile(dir + "/p1.csv"), good2 = readFile(dir + "/p2.csv");
+  const std::string p1_line = good1.substr(0, good1.find('\n'));
+  const std::string header =
+      good1.substr(good1.find('\n') + 1, good1.find('\n', good1.find('\n') + 1) - good1.find('\n') - 1);
+  const std::string row1 =
+      good1.substr(p1_line.size() + header.size() + 2,
+                   good1.find('\n', p1_line.size() + header.size() + 2) - p1_line.size() - header.size() - 2);
+  const std::size_t v = static_cast<std::size_t>(std::count(header.begin(), header.end(), ',')) + 1 - 8;  // verdict
+  struct Case
+  {
+    std::string name, from, to, says;
+  };
+  const std::vector<Case> cases = {
+      {"index 2^64-1", "points [0, 3)", "points [0, 18446744073709551615)", "damaged part line"},
+      {"part count 1e12", "part 1/2", "part 1/1000000000000", "no valid part line"},
+      {"total 1e12", "of 6,", "of 1000000000000,", "damaged part line"},
+      {"garbage verdict", row1, withCell(row1, v, "garbage"), "unknown verdict"},
+      {"extra column", row1, row1 + ",7", "columns, the header has"},
+      {"not a number", row1, withCell(row1, 0, "x"), "is not a number"},
+      {"flag not 0/1", row1, withCell(row1, v + 1, "2"), "is not 0 or 1"},
+  };
+  for (const Case& c : cases)
+  {
+    std::ofstream(dir + "/p1.csv") << good1;
+    edit(dir + "/p1.csv", c.from, c.to);
+    const std::string out = run(q(SWEEP) + " --merge p1.csv p2.csv --output bad.csv", &code);
+    EXPECT_EQ(code, 2) << c.name << "\n" << out;
+    EXPECT_NE(out.find(c.says), std::string::npos) << c.name << "\n" << out;
+    EXPECT_EQ(std::count(out.begin(), out.end(), '\n'), 1) << c.name << "\n" << out;
+    EXPECT_FALSE(exists(dir + "/bad.csv")) << c.name;
+  }
+  // Two rows swapped inside a part: both rows well formed, the grid order is not.
+  {
+    std::vector<std::string> lines;
+    std::stringstream ss(good1);
+    for (std::string l; std::getline(ss, l);)
+    {
+      lines.push_back(l);
+    }
+    std::swap(lines[2], lines[3]);
+    std::ofstream f(dir + "/p1.csv");
+    for (const std::string& l : lines)
+    {
+      f << l << "\n";
+    }
+  }
+  std::string out = run(q(SWEEP) + " --merge p1.csv p2.csv --output bad.csv", &code);
+  EXPECT_EQ(code, 2) << out;
+  EXPECT_NE(out.find("rows swapped or altered"), std::string::npos) << out;
+  std::ofstream(dir + "/p1.csv") << good1;
+  // A part computed with another run-length cap belongs to another sweep.
+  ASSERT_EQ((run(q(SWEEP) + grid + " --max-duration 500 --shard 2/2 --output p2.csv", &code), code), 0);
+  out = run(q(SWEEP) + " --merge p1.csv p2.csv --output bad.csv", &code);
+  EXPECT_EQ(code, 2) << out;
+  EXPECT_NE(out.find("belongs to another sweep"), std::string::npos) << out;
+  std::ofstream(dir + "/p2.csv") << good2;
+  // Special files: one line each, and nothing read for ever.
+  ASSERT_EQ(::mkdir((dir + "/adir").c_str(), 0700), 0);
+  for (const char* part : {"/dev/zero", "adir"})
+  {
+    out = run(q(SWEEP) + " --merge p1.csv " + std::string(part) + " --output bad.csv", &code);
+    EXPECT_EQ(code, 2) << part << "\n" << out;
+    EXPECT_NE(out.find("give a file"), std::string::npos) << part << "\n" << out;
+    EXPECT_EQ(std::count(out.begin(), out.end(), '\n'), 1) << out;
+  }
+  out = run(q(SWEEP) + grid + " --resume --output /dev/zero", &code);
+  EXPECT_EQ(code, 2) << out;
+  EXPECT_EQ(listing(), "adir\nc.yaml\nmerged.csv\np1.csv\np2.csv\nwhole.csv\n");
+}
 }  // namespace

@@ -602,3 +602,33 @@ TEST(SweepShards, PartsInAnyOrderMergeIntoExactlyTheUnshardedCsv)
   EXPECT_EQ(readFile(dir + "shard_torn.csv"), part);
 }
 }  // namespace
+
+TEST(Design, SearchRangesOutsideAKeysRangeAreRefusedNeverAborted)
+{
+  const std::string joint =
+      DESIGN +
+      " --motor-inertia 1 --load-inertia 1 --motor-friction 0.4 --load-friction 0.4 --backlash 0.3"
+      " --restitution 0.5";
+  struct Case
+  {
+    std::string flags, says;
+  };
+  for (const Case& c : std::vector<Case>{{" --gain 1e-300:1e300 --find max-gain", "gain: must be in"},
+                                         {" --gain 1:1e13 --find max-gain", "(got 10000000000000)"},
+                                         {" --gear-ratio 1e-9:1e9 --find gear-ratio", "gear_ratio: must be in"}})
+  {
+    int code = -1;
+    const std::string out = runCapture(joint + c.flags + " 2>&1", &code);
+    EXPECT_EQ(code, 2) << c.flags << "\n" << out;  // a one-line refusal, not SIGABRT (134)
+    EXPECT_NE(out.find(c.says), std::string::npos) << c.flags << "\n" << out;
+    EXPECT_EQ(std::count(out.begin(), out.end(), '\n'), 1) << out;
+  }
+  // The default range of a large integral gain (value/1000 … value·1000) is clipped to the key's range.
+  int code = -1;
+  const std::string out = runCapture(joint +
+                                         " --controller-rate 1000 --control-law pid --tune integral-gain"
+                                         " --integral-gain 1e12 --find max-gain --json 2>/dev/null",
+                                     &code);
+  EXPECT_EQ(code, 0) << out;
+  EXPECT_EQ(out.find("1e+15"), std::string::npos) << out;
+}

@@ -1,12 +1,19 @@
 #include "sweep_csv.h"
 
+#include <sys/stat.h>
+
 #include <algorithm>
+#include <cctype>
+#include <cerrno>
+#include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <fstream>
 #include <iterator>
 #include <sstream>
 
 #include "backlash_servo/config/key_values.h"
+#include "safe_input.h"
 
 namespace backlash_servo
 {
@@ -44,6 +51,135 @@ std::string SweepShard::headerLine(const SweepGrid& grid) const
          ", " + std::to_string(last) + ") of " + std::to_string(grid.size()) + ", grid " + grid.fingerprint();
 }
 
+namespace
+{
+/// Largest part or sweep file read back (a 1344-point sweep is ~150 kB).
+constexpr std::size_t kMaxSweepFileBytes = std::size_t(1) << 30;
+
+std::vector<std::string> splitCells(const std::string& line)
+{
+  std::vector<std::string> cells;
+  std::size_t start = 0;
+  for (;;)
+  {
+    const std::size_t comma = line.find(',', start);
+    cells.push_back(line.substr(start, comma == std::string::npos ? std::string::npos : comma - start));
+    if (comma == std::string::npos)
+    {
+      return cells;
+    }
+    start = comma + 1;
+  }
+}
+
+bool isNumber(const std::string& cell)
+{
+  if (cell.empty() || cell.size() > 40)
+  {
+    return false;
+  }
+  char* end = nullptr;
+  const double v = std::strtod(cell.c_str(), &end);
+  return *end == '\0' && std::isfinite(v) && !std::isspace(static_cast<unsigned char>(cell[0]));
+}
+
+/// Throws ConfigError unless `line` is a well-formed result row under `header` (column count and every cell's
+/// type: parameter values, a verdict name, 0/1 flags, numbers; steady_error empty unless converged).
+void checkRow(const std::string& line, const std::vector<std::string>& header, const std::string& where)
+{
+  const std::vector<std::string> cells = splitCells(line);
+  auto bad = [&](const std::string& why) {
+    throw ConfigError(where + ": " + why + " (" + line.substr(0, std::min<std::size_t>(line.size(), 80)) + ")");
+  };
+  if (cells.size() != header.size())
+  {
+    bad(std::to_string(cells.size()) + " columns, the header has " + std::to_string(header.size()));
+  }
+  const std::size_t v = header.size() - 8;  // the verdict column: RESULT_COLUMNS are the last 8
+  for (std::size_t c = 0; c < v; ++c)
+  {
+    if (!isNumber(cells[c]))
+    {
+      bad("'" + header[c] + "' is not a number");
+    }
+  }
+  static const char* const verdicts[] = {"limit_cycle", "converged", "irregular_oscillation", "diverged", "undecided"};
+  if (std::find(std::begin(verdicts), std::end(verdicts), cells[v]) == std::end(verdicts))
+  {
+    bad("unknown verdict '" + cells[v] + "'");
+  }
+  for (std::size_t c : {v + 1, v + 6})
+  {
+    if (cells[c] != "0" && cells[c] != "1")
+    {
+      bad("'" + header[c] + "' is not 0 or 1");
+    }
+  }
+  for (std::size_t c : {v + 2, v + 3, v + 4, v + 5})
+  {
+    if (!isNumber(cells[c]))
+    {
+      bad("'" + header[c] + "' is not a number");
+    }
+  }
+  if (cells[v + 4].find_first_not_of("0123456789") != std::string::npos)
+  {
+    bad("'impacts' is not a whole number");
+  }
+  const bool converged = cells[v] == "converged";
+  if (converged ? !isNumber(cells[v + 7]) : !cells[v + 7].empty())
+  {
+    bad("'steady_error' must be a number for a converged point and empty otherwise");
+  }
+}
+
+/**
+ * The merged rows must enumerate the grid in its order (last axis fastest): each axis' values are those of its
+ * column in order of first appearance, their product must be the grid's size, and row i must hold point i. Catches
+ * swapped, repeated or altered parameter values.
+ */
+void checkGridOrder(const std::vector<const std::string*>& rows, std::size_t axes, std::size_t total)
+{
+  std::vector<std::vector<std::string>> values(axes);
+  std::vector<std::vector<std::string>> cells;
+  cells.reserve(rows.size());
+  for (const std::string* row : rows)
+  {
+    cells.push_back(splitCells(*row));
+    for (std::size_t a = 0; a < axes; ++a)
+    {
+      if (std::find(values[a].begin(), values[a].end(), cells.back()[a]) == values[a].end())
+      {
+        values[a].push_back(cells.back()[a]);
+      }
+    }
+  }
+  double product = 1.0;
+  for (const auto& v : values)
+  {
+    product *= static_cast<double>(v.size());
+  }
+  if (product != static_cast<double>(total))
+  {
+    throw ConfigError("--merge: the parts' parameter columns do not form a grid of " + std::to_string(total) +
+                      " points (altered or foreign rows)");
+  }
+  for (std::size_t i = 0; i < cells.size(); ++i)
+  {
+    std::size_t index = i;
+    for (std::size_t a = axes; a-- > 0;)
+    {
+      if (cells[i][a] != values[a][index % values[a].size()])
+      {
+        throw ConfigError("--merge: row " + std::to_string(i + 1) + " is not point " + std::to_string(i + 1) +
+                          " of the grid (rows swapped or altered)");
+      }
+      index /= values[a].size();
+    }
+  }
+}
+}  // namespace
+
 std::string mergeParts(const std::vector<std::string>& paths)
 {
   struct Part
@@ -56,12 +192,7 @@ std::string mergeParts(const std::vector<std::string>& paths)
   std::string header;
   for (const std::string& path : paths)
   {
-    std::ifstream in(path);
-    if (!in)
-    {
-      throw ConfigError("--merge: cannot read '" + path + "'");
-    }
-    const std::string content((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    const std::string content = readRegularFile("--merge", path, kMaxSweepFileBytes);
     std::stringstream ss(content);
     std::string line;
     std::getline(ss, line);
@@ -69,11 +200,20 @@ std::string mergeParts(const std::vector<std::string>& paths)
     p.path = path;
     char grid[64] = {0};
     unsigned long long k, n, first, last, total;
-    if (std::sscanf(line.c_str(), "# backlash_sweep part %llu/%llu: points [%llu, %llu) of %llu, grid %63s", &k, &n,
-                    &first, &last, &total, grid) != 6 ||
-        k < 1 || k > n || last < first)
+    char tail = 0;
+    if (std::sscanf(line.c_str(), "# backlash_sweep part %llu/%llu: points [%llu, %llu) of %llu, grid %63s%c", &k, &n,
+                    &first, &last, &total, grid, &tail) != 6 ||
+        k < 1 || k > n || n > 100000 || total > 1000000000000ull)
     {
-      throw ConfigError("--merge: '" + path + "' is not a part of a sharded sweep (no part line)");
+      throw ConfigError("--merge: '" + path + "' is not a part of a sharded sweep (no valid part line)");
+    }
+    const SweepShard expected = shardOf(k, n, total);
+    if (first != expected.first || last != expected.last)
+    {
+      throw ConfigError("--merge: '" + path + "': part " + std::to_string(k) + "/" + std::to_string(n) + " of " +
+                        std::to_string(total) + " points holds points [" + std::to_string(expected.first) + ", " +
+                        std::to_string(expected.last) + "), not [" + std::to_string(first) + ", " +
+                        std::to_string(last) + ") (a damaged part line)");
     }
     p.k = k, p.n = n, p.first = first, p.last = last, p.total = total, p.grid = grid;
     std::getline(ss, line);
@@ -82,13 +222,21 @@ std::string mergeParts(const std::vector<std::string>& paths)
       throw ConfigError("--merge: '" + path + "' has no sweep CSV header, or another grid's");
     }
     header = line;
+    const std::vector<std::string> columns = splitCells(header);
     while (std::getline(ss, line))
     {
       const bool complete = ss.good() || (!content.empty() && content.back() == '\n');
-      if (complete)
+      if (!complete)
       {
-        p.rows.push_back(line);
+        break;  // torn last line: the part is then short, reported below
       }
+      if (p.rows.size() == p.last - p.first)
+      {
+        throw ConfigError("--merge: part " + std::to_string(p.k) + "/" + std::to_string(p.n) + " ('" + path +
+                          "') has more than its " + std::to_string(p.last - p.first) + " rows");
+      }
+      checkRow(line, columns, "--merge: '" + path + "' row " + std::to_string(p.rows.size() + 1));
+      p.rows.push_back(line);
     }
     if (p.rows.size() != p.last - p.first)
     {
@@ -130,21 +278,28 @@ std::string mergeParts(const std::vector<std::string>& paths)
   {
     throw ConfigError("--merge: missing part(s) " + missing + " of " + std::to_string(ref.n));
   }
+  std::vector<const std::string*> rows;
   std::string out = header + "\n";
   for (std::size_t k = 1; k <= ref.n; ++k)
   {
     for (const std::string& row : by_k[k]->rows)
     {
+      rows.push_back(&row);
       out += row + "\n";
     }
   }
+  checkGridOrder(rows, splitCells(header).size() - 8, ref.total);
   return out;
 }
 
 std::vector<std::string> resumableRows(const std::string& path, const SweepGrid& grid, const SweepShard& shard)
 {
-  std::ifstream in(path);
-  const std::string content((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  struct stat st;
+  if (::stat(path.c_str(), &st) != 0 && errno == ENOENT)
+  {
+    return {};  // nothing to resume: a fresh start
+  }
+  const std::string content = readRegularFile("--resume", path, kMaxSweepFileBytes);
   std::stringstream ss(content);
   std::string line;
   std::vector<std::string> kept;
@@ -187,6 +342,7 @@ std::vector<std::string> resumableRows(const std::string& path, const SweepGrid&
                         std::to_string(index + 1) +
                         " of this grid: it was written for a different grid; refusing to resume");
     }
+    checkRow(line, splitCells(header), "--resume: '" + path + "' row " + std::to_string(index + 1));
     kept.push_back(line);
   }
   return kept;

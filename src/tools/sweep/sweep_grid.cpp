@@ -238,6 +238,10 @@ std::string SweepGrid::fingerprint() const
     mixText(item.first);
     mixText(item.second);
   }
+  if (!signature_.empty())
+  {
+    mixText(signature_);
+  }
   char buf[20];
   std::snprintf(buf, sizeof buf, "%016llx", static_cast<unsigned long long>(h));
   return buf;

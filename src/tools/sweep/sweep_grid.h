@@ -62,8 +62,12 @@ class SweepGrid
   std::size_t size() const;
   /// Point `index` in [0, size()): nested loops over the axes in column order, the last axis fastest.
   SweepPoint point(std::size_t index) const;
-  /// A fingerprint of the axes' keys and values and the fixed settings (FNV-1a, hex): parts of one grid agree.
+  /// A fingerprint of the axes' keys and values, the fixed settings and the run signature (FNV-1a, hex): parts of
+  /// one grid agree.
   std::string fingerprint() const;
+  /// What else changes a row besides the settings (the run-length cap, a profile file's content); part of the
+  /// fingerprint when not empty.
+  void setRunSignature(const std::string& signature) { signature_ = signature; }
 
  private:
   /// Refuses a mix of the two forms; the physical form drops the chart axes left at their defaults.
@@ -72,6 +76,7 @@ class SweepGrid
   std::vector<SweepAxis> axes_;
   std::vector<bool> given_;  // axis set explicitly (a chart axis left at its default is dropped by the physical form)
   KeyValues fixed_;
+  std::string signature_;
 };
 
 /// Values of an axis flag: a list "0.1,0.2", a range "start:stop:count" or "log:start:stop:count". Throws

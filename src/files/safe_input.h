@@ -1,0 +1,15 @@
+// Reading an input file the way every tool should: a regular file only, and bounded.
+#pragma once
+
+#include <cstddef>
+#include <string>
+
+namespace backlash_servo
+{
+/**
+ * The whole content of `path`. Throws ConfigError naming `flag` (one line) when the path is missing, is a
+ * directory, device, FIFO or socket (a FIFO or /dev/zero would be read for ever), or is larger than `max_bytes`.
+ */
+std::string readRegularFile(const std::string& flag, const std::string& path, std::size_t max_bytes);
+
+}  // namespace backlash_servo
