@@ -1,5 +1,7 @@
 #include "backlash_servo/config/key_values.h"
 
+#include "backlash_servo/config/safe_input.h"
+
 #include <yaml-cpp/yaml.h>
 
 #include <algorithm>
@@ -18,20 +20,55 @@ std::string flagName(const std::string& key)
   return f;
 }
 
-YAML::Node loadYamlFile(const std::string& path)
+namespace
 {
+/// Throws ConfigError when a mapping anywhere in `node` holds the same key twice.
+void refuseDuplicateKeys(const YAML::Node& node, const std::string& where)
+{
+  if (node.IsMap())
+  {
+    std::vector<std::string> seen;
+    for (const auto& item : node)
+    {
+      const std::string key = item.first.IsScalar() ? item.first.Scalar() : std::string();
+      if (!key.empty() && std::find(seen.begin(), seen.end(), key) != seen.end())
+      {
+        const YAML::Mark mark = item.first.Mark();
+        throw ConfigError(where + ": key '" + key + "' is given twice" +
+                          (mark.line >= 0 ? " (again at line " + std::to_string(mark.line + 1) + ")" : ""));
+      }
+      seen.push_back(key);
+      refuseDuplicateKeys(item.second, where);
+    }
+  }
+  else if (node.IsSequence())
+  {
+    for (const auto& item : node)
+    {
+      refuseDuplicateKeys(item, where);
+    }
+  }
+}
+}  // namespace
+
+YAML::Node loadYamlFile(const std::string& path, const std::string& what)
+{
+  const std::string text = readRegularFile(what, path, std::size_t(64) << 20);
+  if (text.find('\0') != std::string::npos)
+  {
+    throw ConfigError(what + " '" + path + "' contains a NUL byte (not a text file)");
+  }
+  YAML::Node root;
   try
   {
-    return YAML::LoadFile(path);
-  }
-  catch (const YAML::BadFile&)
-  {
-    throw ConfigError("cannot read config file '" + path + "'");
+    root = YAML::Load(text);
   }
   catch (const YAML::Exception& e)
   {
-    throw ConfigError("config file '" + path + "' is not valid YAML: " + e.what());
+    throw ConfigError(what + " '" + path + "' is not valid YAML: " + e.what());
   }
+  refuseDuplicateKeys(root, what + " '" + path + "'");
+  return root;
 }
 
 double yamlNumber(const YAML::Node& node, const std::string& key, const std::string& where, bool required,

@@ -3,12 +3,14 @@
 #include <yaml-cpp/yaml.h>
 
 #include <algorithm>
+#include <cctype>
 #include <fstream>
 #include <map>
 #include <sstream>
 #include <vector>
 
 #include "backlash_servo/config/key_values.h"
+#include "backlash_servo/config/safe_input.h"
 #include "backlash_servo/params.h"
 
 namespace backlash_servo
@@ -49,33 +51,89 @@ void requireFields(const YAML::Node& f, const std::string& kind, const std::stri
   }
 }
 
+/// True for a header cell: a name ("time", "command [rad]"), never something that reads as a number (".5", "nan").
+bool isHeaderCell(const std::string& cell)
+{
+  if (cell.empty() || !std::isalpha(static_cast<unsigned char>(cell[0])))
+  {
+    return false;
+  }
+  std::string lower;
+  for (char c : cell)
+  {
+    lower += static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  }
+  return lower.rfind("nan", 0) != 0 && lower.rfind("inf", 0) != 0;
+}
+
+/**
+ * A CSV of time,value rows (time [s] from the segment's start, value [rad]): exactly two columns per row; '#' lines
+ * and empty lines are comments; the first row may be a header of two names. NUL bytes, carriage returns (Windows
+ * line ends) and anything that is not a number are refused with the row named.
+ */
 std::vector<std::pair<double, double>> readPoints(const std::string& path, const std::string& where)
 {
-  std::ifstream in(path);
-  if (!in)
-  {
-    throw ConfigError(where + ": cannot read '" + path + "'");
-  }
+  const std::string text = readRegularFile(where, path, std::size_t(256) << 20);
   std::vector<std::pair<double, double>> points;
-  std::string line;
+  std::size_t start = 0;
   int row = 0;
-  while (std::getline(in, line))
+  bool first_data_row = true;
+  while (start < text.size())
   {
+    std::size_t end = text.find('\n', start);
+    if (end == std::string::npos)
+    {
+      end = text.size();
+    }
+    const std::string line = text.substr(start, end - start);
+    start = end + 1;
     ++row;
-    if (line.empty() || line[0] == '#' || (row == 1 && line.find_first_of("0123456789") != 0 && line[0] != '-'))
+    const std::string at = where + ": '" + path + "' row " + std::to_string(row);
+    if (line.find('\0') != std::string::npos)
     {
-      continue;  // header or comment
+      throw ConfigError(at + " contains a NUL byte (not a text file)");
     }
-    std::stringstream ss(line);
-    std::string a, b;
-    if (!std::getline(ss, a, ',') || !std::getline(ss, b, ','))
+    if (line.find('\r') != std::string::npos)
     {
-      throw ConfigError(where + ": '" + path + "' row " + std::to_string(row) + " is not time,value");
+      throw ConfigError(at + " ends in a carriage return (Windows line ends): convert the file, e.g. dos2unix");
     }
+    if (line.empty() || line[0] == '#')
+    {
+      continue;
+    }
+    std::vector<std::string> cells;
+    std::size_t c0 = 0;
+    for (;;)
+    {
+      const std::size_t comma = line.find(',', c0);
+      cells.push_back(line.substr(c0, comma == std::string::npos ? std::string::npos : comma - c0));
+      if (comma == std::string::npos)
+      {
+        break;
+      }
+      c0 = comma + 1;
+    }
+    if (cells.size() != 2)
+    {
+      throw ConfigError(at + " has " + std::to_string(cells.size()) + " columns; each row is time,value");
+    }
+    if (first_data_row && isHeaderCell(cells[0]) && isHeaderCell(cells[1]))
+    {
+      first_data_row = false;
+      continue;  // the header
+    }
+    first_data_row = false;
     KeyValues kv;
-    kv.set("time", a);
-    kv.set("value", b);
-    points.emplace_back(kv.number("time"), kv.number("value"));
+    kv.set("time", cells[0]);
+    kv.set("value", cells[1]);
+    try
+    {
+      points.emplace_back(kv.number("time"), kv.number("value"));
+    }
+    catch (const ConfigError& e)
+    {
+      throw ConfigError(at + ": " + e.what());
+    }
   }
   return points;
 }
@@ -84,9 +142,9 @@ std::vector<std::pair<double, double>> readPoints(const std::string& path, const
 
 std::shared_ptr<const CommandProfile> profileFromYaml(const YAML::Node& list, const std::string& dir, double start)
 {
-  if (!list.IsSequence())
+  if (!list.IsSequence() || list.size() == 0)
   {
-    throw ConfigError("profile: must be a list of segments (- step: {...}, - ramp: {...}, ...)");
+    throw ConfigError("profile: must be a non-empty list of segments (- step: {...}, - ramp: {...}, ...)");
   }
   std::vector<ProfileSegment> segments;
   for (std::size_t i = 0; i < list.size(); ++i)
@@ -187,7 +245,7 @@ std::shared_ptr<const CommandProfile> loadProfileFile(const std::string& path, d
       throw ConfigError("profile file '" + path + "': " + e.what());
     }
   }
-  const YAML::Node root = loadYamlFile(path);
+  const YAML::Node root = loadYamlFile(path, "profile file");
   const YAML::Node list = root.IsMap() ? root["profile"] : root;
   if (!list || !list.IsSequence())
   {

@@ -2,8 +2,10 @@
 
 #include <algorithm>
 #include <cmath>
+#include <iterator>
 #include <limits>
 
+#include "backlash_servo/param_table.h"
 #include "backlash_servo/params.h"
 
 namespace backlash_servo
@@ -79,6 +81,13 @@ CommandProfile::CommandProfile(double start, std::vector<ProfileSegment> segment
     {
       need(std::isfinite(v), "every value must be a finite number");
     }
+    // Positions the profile reaches stay in the range of `command` (a set-point of 1e12 rad is a typo, not a test).
+    const ParamRange& positions = param("command").range;
+    for (double v : {s.target, s.amplitude, s.distance})
+    {
+      need(positions.contains(v),
+           "a target, amplitude or distance must be " + positions.describe() + " rad (got " + formatNumber(v) + ")");
+    }
     need(s.time >= 0.0 && s.time >= last, "times must be >= 0 and in order (got " + formatNumber(s.time) + " s)");
     last = s.time;
     switch (s.kind)
@@ -98,6 +107,9 @@ CommandProfile::CommandProfile(double start, std::vector<ProfileSegment> segment
         for (std::size_t k = 0; k < s.points.size(); ++k)
         {
           need(std::isfinite(s.points[k].first) && std::isfinite(s.points[k].second), "points must be finite numbers");
+          need(positions.contains(s.points[k].second), "point " + std::to_string(k + 1) + ": the value must be " +
+                                                           positions.describe() + " rad (got " +
+                                                           formatNumber(s.points[k].second) + ")");
           need(k == 0 || s.points[k].first >= s.points[k - 1].first, "point times must be in order");
         }
         break;
@@ -124,15 +136,10 @@ double CommandProfile::evaluate(const ProfileSegment& s, double v0, double tau) 
       return v0 + sign * trapezoid(std::fabs(s.distance), s.max_velocity, s.max_acceleration, tau);
     }
     default: {
-      double v = v0;
-      for (const auto& p : s.points)
-      {
-        if (p.first > s.time + tau)
-        {
-          break;
-        }
-        v = p.second;
-      }
+      // The last point at or before s.time + tau (points are in time order: a binary search, O(log N)).
+      const auto after = std::upper_bound(s.points.begin(), s.points.end(), s.time + tau,
+                                          [](double t, const std::pair<double, double>& p) { return t < p.first; });
+      const double v = after == s.points.begin() ? v0 : std::prev(after)->second;
       return v;
     }
   }
@@ -176,13 +183,11 @@ double CommandProfile::nextChange(double t) const
     {
       next = std::min(next, s.time);
     }
-    for (const auto& p : s.points)
+    const auto after = std::upper_bound(s.points.begin(), s.points.end(), t,
+                                        [](double x, const std::pair<double, double>& p) { return x < p.first; });
+    if (after != s.points.end())
     {
-      if (p.first > t)
-      {
-        next = std::min(next, p.first);
-        break;
-      }
+      next = std::min(next, after->first);
     }
   }
   return next;

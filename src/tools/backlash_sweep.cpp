@@ -15,7 +15,7 @@
 
 #include "backlash_servo/config/flag_parser.h"
 #include "progress.h"
-#include "safe_input.h"
+#include "backlash_servo/config/safe_input.h"
 #include "safe_output.h"
 #include "sweep/sweep_csv.h"
 #include "sweep/sweep_grid.h"

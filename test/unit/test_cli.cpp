@@ -6,6 +6,7 @@
 #include <sys/stat.h>
 #include <sys/wait.h>
 #include <algorithm>
+#include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <fstream>
@@ -172,7 +173,22 @@ TEST(Cli, BadInputIsOneClearLineAndExitCode2)
       {"--profile " + profile("sine", "- sine: {time: 0, amplitude: 0.1, frequency: 1, duration: 2}"),
        "controller_rate"},
       {"--profile " + profile("ramp", "- ramp: {time: 0, target: 1, duration: 2}") + " --load-coulomb-friction 0.01",
-       "dry friction"}};
+       "dry friction"},
+      // Profile files are input like parameters: in the envelope, a strict CSV grammar, no silent defaults.
+      {"--profile " + profile("huge", "- step: {time: 0, target: 1e12}"), "(got 1000000000000)"},
+      {"--profile " + profile("empty", "profile: []"), "non-empty list"},
+      {"--profile " + profile("dup", "- step: {time: 0, target: 1, target: 2}"), "'target' is given twice"},
+      {"--config " + writeFile("backlash_sim_dup.yaml", "gain: 1\ngain: 2\n"), "'gain' is given twice"},
+      {"--profile " + writeFile("backlash_sim_nan_first.csv", "nan,2\n1,3\n"), "row 1"},
+      {"--profile " + writeFile("backlash_sim_three.csv", "0,1\n1,2,3\n"), "row 2 has 3 columns"},
+      {"--profile " + writeFile("backlash_sim_crlf.csv", "time,value\r\n0,1\r\n"), "carriage return"},
+      {"--profile " + writeFile("backlash_sim_nul.csv", std::string("0,1\n1,2\0"
+                                                                    "5\n",
+                                                                    9)),
+       "NUL byte"},
+      {"--profile " + writeFile("backlash_sim_bigpoint.csv", "0,1\n1,1e300\n"), "point 2"},
+      {"--profile /dev/zero", "not a regular file"},
+      {"--config /tmp", "a directory"}};
   for (const Case& c : cases)
   {
     const std::string csv = "/tmp/backlash_sim_never.csv";
@@ -252,3 +268,48 @@ TEST(Cli, ProfilesFromAFileInlineOrCsvAreTheSameRun)
   const std::string first_time = maxima(a.out).substr(std::string("\"maxima\":[{\"time\":").size(), 10);
   EXPECT_GE(std::stod(first_time), 30.5) << maxima(a.out);
 }
+
+namespace
+{
+TEST(Cli, AProfileCsvsFirstRowIsDataUnlessItIsANameHeader)
+{
+  // ".5,2" is the first point, not a header to drop: the command reaches 2 at 0.5 s, then 3 at 1 s.
+  const std::string dot = writeFile("backlash_sim_dot.csv", ".5,2\n1,3\n");
+  const std::string named = writeFile("backlash_sim_named.csv", "time [s],command [rad]\n0.5,2\n1,3\n");
+  for (const std::string& path : {dot, named})
+  {
+    const Result r = run("--profile " + path + " --duration 0.75 --csv /tmp/backlash_sim_dot_out.csv");
+    ASSERT_EQ(r.code, 0) << r.err;
+    const std::string csv = test_helpers::readFile("/tmp/backlash_sim_dot_out.csv");
+    // The reference column at 0.7 s (the 70th sample at 100 Hz) is the first point's value.
+    const auto header_end = csv.find('\n');
+    const std::string header = csv.substr(0, header_end);
+    std::stringstream rows(csv.substr(header_end + 1));
+    std::string line, at_07;
+    while (std::getline(rows, line))
+    {
+      if (line.rfind("0.7,", 0) == 0)
+      {
+        at_07 = line;
+      }
+    }
+    ASSERT_FALSE(at_07.empty()) << csv.substr(0, 400);
+    std::vector<std::string> names, cells;
+    std::stringstream hs(header), ls(at_07);
+    for (std::string c; std::getline(hs, c, ',');)
+    {
+      names.push_back(c);
+    }
+    for (std::string c; std::getline(ls, c, ',');)
+    {
+      cells.push_back(c);
+    }
+    // The continuous P law with K = 1 N·m/rad (the default): command = motor_torque / K + load_position.
+    auto cell = [&](const char* name) {
+      const auto col = static_cast<std::size_t>(std::find(names.begin(), names.end(), name) - names.begin());
+      return col < cells.size() ? std::stod(cells[col]) : NAN;
+    };
+    EXPECT_NEAR(cell("motor_torque") + cell("load_position"), 2.0, 1e-12) << path << ": " << at_07;
+  }
+}
+}  // namespace

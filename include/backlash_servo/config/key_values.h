@@ -28,8 +28,12 @@ class ConfigError : public std::runtime_error
 /// "--motor-inertia" for "motor_inertia".
 std::string flagName(const std::string& key);
 
-/// The YAML document in `path`; throws ConfigError "cannot read config file …" or "… is not valid YAML: …".
-YAML::Node loadYamlFile(const std::string& path);
+/**
+ * The YAML document in `path` (a regular file of at most 64 MiB). Throws ConfigError naming `what` ("config file",
+ * "profile file") and the path when it cannot be read, is not valid YAML, or a mapping repeats a key (which value
+ * wins would otherwise depend on the reader).
+ */
+YAML::Node loadYamlFile(const std::string& path, const std::string& what = "config file");
 
 /// The text of a YAML scalar; throws ConfigError "<what> must be a single value …" for a list, a mapping or a
 /// missing node (a key written as `? [a, b]` or `{a: 1}: 2` too).

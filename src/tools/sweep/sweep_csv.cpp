@@ -13,7 +13,7 @@
 #include <sstream>
 
 #include "backlash_servo/config/key_values.h"
-#include "safe_input.h"
+#include "backlash_servo/config/safe_input.h"
 
 namespace backlash_servo
 {

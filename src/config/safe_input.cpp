@@ -1,4 +1,4 @@
-#include "safe_input.h"
+#include "backlash_servo/config/safe_input.h"
 
 #include <fcntl.h>
 #include <sys/stat.h>
