@@ -49,5 +49,108 @@ class BagReport(unittest.TestCase):
         self.assertNotEqual(torn.returncode, 0)
 
 
+def write_bag(path, servo_ns="", arm=False, joints=("motor_joint", "load_joint"), state_type="servo", nan=False,
+              samples=50):
+    """A small bag as the node records it (optionally with an arm's joint_states beside a namespaced servo)."""
+    import rospy
+    from backlash_servo.msg import BacklashState
+    from sensor_msgs.msg import JointState
+    from std_msgs.msg import String
+    with rosbag.Bag(path, "w") as bag:
+        for i in range(samples):
+            t = rospy.Time(1000 + i * 0.01)
+            js = JointState(name=list(joints), position=[0.1 * i] * len(joints), velocity=[0.0] * len(joints))
+            js.header.stamp = t
+            bag.write(servo_ns + "/joint_states", js, t)
+            if state_type == "servo":
+                st = BacklashState(sim_time=i * 0.01, command=1.0, gap=0.1, impacts=i)
+                st.energy_impact_loss = float("nan") if nan else 0.01 * i
+                bag.write(servo_ns + "/backlash_state", st, t)
+            else:
+                bag.write(servo_ns + "/backlash_state", String(data="not a servo"), t)
+            if arm:
+                a = JointState(name=["shoulder", "elbow", "wrist"], position=[0.5, 0.5, 0.5], velocity=[0, 0, 0])
+                a.header.stamp = t
+                bag.write("/joint_states", a, t)
+
+
+class BagReportInputs(unittest.TestCase):
+    """Damaged, foreign and ambiguous bags: one line and exit 2, never a traceback; JSON is valid; PNG writes checked."""
+
+    def report(self, *args):
+        r = subprocess.run(["/usr/bin/python3", REPORT] + list(args), capture_output=True, text=True, timeout=60)
+        return r.returncode, r.stdout, r.stderr
+
+    def assert_one_line_refusal(self, args, says):
+        code, out, err = self.report(*args)
+        self.assertEqual(code, 2, err)
+        self.assertNotIn("Traceback", err)
+        self.assertEqual(err.count("\n"), 1, err)
+        self.assertIn(says, err)
+
+    def test_damaged_foreign_and_ambiguous_bags(self):
+        with tempfile.TemporaryDirectory() as d:
+            good = os.path.join(d, "good.bag")
+            write_bag(good)
+            code, out, err = self.report(good, "--json")
+            self.assertEqual(code, 0, err)
+            self.assertEqual(json.loads(out)["samples"], 50)
+            # Damaged: the middle of the file overwritten, and the file cut short.
+            data = open(good, "rb").read()
+            damaged = os.path.join(d, "damaged.bag")
+            with open(damaged, "wb") as f:
+                f.write(data[:len(data) // 3] + b"\xff" * 2000 + data[len(data) // 3 + 2000:])
+            code, _, err = self.report(damaged)
+            self.assertEqual(code, 2, err)
+            self.assertNotIn("Traceback", err)
+            garbage = os.path.join(d, "garbage.bag")
+            with open(garbage, "wb") as f:
+                f.write(b"#ROSBAG V2.0\n" + os.urandom(5000))
+            code, _, err = self.report(garbage)
+            self.assertEqual(code, 2, err)
+            self.assertNotIn("Traceback", err)
+            one = os.path.join(d, "one_joint.bag")
+            write_bag(one, joints=("motor_joint",))
+            self.assert_one_line_refusal([one], "no joint 'load_joint'")
+            foreign = os.path.join(d, "foreign.bag")
+            write_bag(foreign, state_type="string")
+            self.assert_one_line_refusal([foreign], "not a backlash_servo recording")
+            # A whole robot: the arm's /joint_states beside /servo/*: the servo's own topics are read.
+            robot = os.path.join(d, "robot.bag")
+            write_bag(robot, servo_ns="/servo", arm=True, samples=80)
+            code, out, err = self.report(robot, "--json")
+            self.assertEqual(code, 0, err)
+            self.assertEqual(json.loads(out)["samples"], 80)
+            two = os.path.join(d, "two.bag")
+            with rosbag.Bag(two, "w") as b:
+                for src in (robot, good):
+                    with rosbag.Bag(src) as r:
+                        for topic, msg, t in r.read_messages():
+                            b.write(topic, msg, t)
+            self.assert_one_line_refusal([two], "choose one with --namespace")
+            code, out, err = self.report(two, "--namespace", "/servo", "--json")
+            self.assertEqual(code, 0, err)
+            self.assertEqual(json.loads(out)["samples"], 80)
+
+    def test_json_is_valid_and_png_writes_are_checked(self):
+        with tempfile.TemporaryDirectory() as d:
+            bag = os.path.join(d, "nan.bag")
+            write_bag(bag, nan=True)
+            code, out, err = self.report(bag, "--json")
+            self.assertEqual(code, 0, err)
+            self.assertNotIn("NaN", out)
+            report = json.loads(out)
+            self.assertIsNone(report["impact_energy_per_second"])
+            self.assert_one_line_refusal([bag, "--png", "/dev/full"], "not a regular file")
+            self.assert_one_line_refusal([bag, "--png", os.path.join(d, "missing", "r.png")], "does not exist")
+            os.symlink("elsewhere.png", os.path.join(d, "link.png"))
+            self.assert_one_line_refusal([bag, "--png", os.path.join(d, "link.png")], "symbolic link")
+            code, _, err = self.report(bag, "--png", os.path.join(d, "r.png"))
+            self.assertEqual(code, 0, err)
+            self.assertEqual(open(os.path.join(d, "r.png"), "rb").read(4), b"\x89PNG")
+            self.assertEqual(sorted(os.listdir(d)), ["link.png", "nan.bag", "r.png"])  # no temporary left
+
+
 if __name__ == "__main__":
-    rostest.rosrun("backlash_servo", "bag_report", BagReport)
+    ALL = unittest.TestSuite([unittest.TestLoader().loadTestsFromTestCase(c) for c in (BagReport, BagReportInputs)])
+    rostest.rosrun("backlash_servo", "bag_report", "__main__.ALL")
