@@ -1,7 +1,9 @@
 // backlash_params: prints the parameter table (param_table.h) in the forms that derive from it — the
 // dynamic_reconfigure .cfg, the README's Markdown tables, JSON. scripts/generate_params.sh writes the files; a test
 // fails when a committed file differs from what this prints.
+#include <algorithm>
 #include <iostream>
+#include <iterator>
 #include <sstream>
 #include <string>
 
@@ -163,6 +165,29 @@ int main(int argc, char** argv)
   {
     parser.parse(argc, argv);
     const std::string format = parser.option("format");
+    if (parser.given("sections"))
+    {
+      if (format != "markdown")
+      {
+        throw ConfigError("--sections applies to --format markdown only");
+      }
+      // Every name must be a section: a typo must not print an empty table with exit status 0.
+      std::stringstream ss(parser.option("sections"));
+      for (std::string name; std::getline(ss, name, ',');)
+      {
+        static const ParamSection all[] = {ParamSection::Servo, ParamSection::Chart, ParamSection::Initial,
+                                           ParamSection::Drive, ParamSection::Run,   ParamSection::Node};
+        if (std::none_of(std::begin(all), std::end(all), [&](ParamSection s) { return name == toString(s); }))
+        {
+          std::string list;
+          for (ParamSection s : all)
+          {
+            list += (list.empty() ? "" : ", ") + std::string(toString(s));
+          }
+          throw ConfigError("--sections: unknown section '" + name + "' (" + list + ")");
+        }
+      }
+    }
     if (format == "cfg")
     {
       printCfg(std::cout);

@@ -37,7 +37,7 @@ FlagParser makeParser()
       {{"config", "FILE.yaml", "the same keys in snake_case (the YAML the node loads; flags override it)"},
        {"json", "", "one JSON object on stdout"},
        {"csv", "FILE", "trajectory samples plus one row per event"},
-       {"sample_rate", "HZ", "CSV sample rate [Hz] (default 100)"}});
+       {"sample_rate", "HZ", "CSV sample rate [Hz] in (0, 1e6] (default 100)"}});
 }
 
 /// Writes trajectory samples and event rows as CSV.
@@ -230,9 +230,10 @@ int main(int argc, char** argv)
     config = runConfigFrom(options.keys());
     csv_path = options.option("csv");
     sample_rate = options.optionNumber("sample_rate", sample_rate);
-    if (!(sample_rate > 0.0))
+    // Above 1 MHz the sample period nears the rounding of the time itself (a rate of 1e308 Hz never advances).
+    if (!(sample_rate > 0.0 && sample_rate <= 1e6))
     {
-      throw ConfigError("--sample-rate must be > 0 Hz");
+      throw ConfigError("--sample-rate must be in (0, 1e6] Hz (got " + options.option("sample_rate") + ")");
     }
   }
   catch (const std::exception& e)

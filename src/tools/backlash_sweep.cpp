@@ -14,8 +14,8 @@
 #include <thread>
 
 #include "backlash_servo/config/flag_parser.h"
-#include "progress.h"
 #include "backlash_servo/config/safe_input.h"
+#include "progress.h"
 #include "safe_output.h"
 #include "sweep/sweep_csv.h"
 #include "sweep/sweep_grid.h"

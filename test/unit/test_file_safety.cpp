@@ -2,6 +2,7 @@
 // private directory (never the real /tmp): planted links, outputs equal to inputs, devices, full disks (a file-size
 // limit, as a full disk answers EFBIG/ENOSPC), signals and concurrent writers.
 #include <gtest/gtest.h>
+#include <sys/resource.h>
 #include <sys/stat.h>
 #include <sys/wait.h>
 #include <unistd.h>
@@ -28,6 +29,7 @@ const std::string SIM = BACKLASH_SIM_EXE;
 const std::string SWEEP = BACKLASH_SWEEP_EXE;
 const std::string COMPARE = BACKLASH_COMPARE_EXE;
 const std::string RECORD = BACKLASH_RECORD_EXE;
+const std::string PARAMS = BACKLASH_PARAMS_EXE;
 const std::string SRC = SOURCE_DIR;
 
 /// A shell word that stays one word whatever it holds.
@@ -434,5 +436,52 @@ TEST_F(SweepInputs, DamagedForgedOrForeignPartsAreRefusedWithOneLine)
   out = run(q(SWEEP) + grid + " --resume --output /dev/zero", &code);
   EXPECT_EQ(code, 2) << out;
   EXPECT_EQ(listing(), "adir\nc.yaml\nmerged.csv\np1.csv\np2.csv\nwhole.csv\n");
+}
+}  // namespace
+
+namespace
+{
+using BoundedWork = Sandbox;
+
+TEST_F(BoundedWork, AChartOfManySamplesKeepsABoundedTrajectory)
+{
+  // 2e6 samples per strategy: every one enters the metrics, at most 20001 the chart (before: all of them, ~80 MB
+  // of samples and ~150 MB of chart data per strategy).
+  write(dir + "/many.yaml",
+        "motor_inertia: 0.1\nload_inertia: 0.9\nmotor_friction: 0.48\nload_friction: 0.32\ngain: 1\n"
+        "backlash: 0.3\nrestitution: 1\nduration: 20\nsample_rate: 100000\n"
+        "profile:\n  - step: {time: 0, target: 1}\nstrategies:\n  - name: P\n    control_law: proportional\n");
+  const std::string tmp = dir + "/tmpdir";
+  ASSERT_EQ(::mkdir(tmp.c_str(), 0700), 0);
+  const pid_t pid = ::fork();
+  ASSERT_GE(pid, 0);
+  if (pid == 0)
+  {
+    ::setenv("TMPDIR", tmp.c_str(), 1);
+    const std::string png = dir + "/many.png", cfg = dir + "/many.yaml";
+    ::execl(COMPARE.c_str(), COMPARE.c_str(), "--config", cfg.c_str(), "--png", png.c_str(), "--json",
+            static_cast<char*>(nullptr));
+    ::_exit(98);
+  }
+  int status = 0;
+  struct rusage usage;
+  ASSERT_EQ(::wait4(pid, &status, 0, &usage), pid);
+  ASSERT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0) << status;
+  // The largest of the tool and its chart script (matplotlib alone: ~90 MB); 2e6 rows would be ~400 MB in Python.
+  EXPECT_LT(usage.ru_maxrss, 150 * 1024) << "peak resident set [KiB] of backlash_compare or its chart script";
+  EXPECT_GT(readFile(dir + "/many.png").size(), 1000u);
+  EXPECT_EQ(runCapture("ls -A " + q(tmp)), "");
+}
+
+TEST_F(BoundedWork, RatesAndSectionsThatCannotBeHonouredAreRefused)
+{
+  int code = -1;
+  std::string out = run(q(SIM) + " --config c.yaml --sample-rate 1e308 --csv out.csv", &code);
+  EXPECT_EQ(code, 2) << out;
+  EXPECT_NE(out.find("--sample-rate must be in (0, 1e6]"), std::string::npos) << out;
+  out = run(q(PARAMS) + " --format markdown --sections servo,bogus", &code);
+  EXPECT_EQ(code, 2) << out;
+  EXPECT_NE(out.find("unknown section 'bogus'"), std::string::npos) << out;
+  EXPECT_EQ(listing(), "c.yaml\n");
 }
 }  // namespace

@@ -80,6 +80,8 @@ CompareMetrics runStrategy(const std::string& name, const RunConfig& config, dou
   {
     direction = final_ref >= profile.at(0.0) ? 1.0 : -1.0;
   }
+  // The chart keeps every stride-th sample: at most kMaxChartSamples per strategy whatever the sample rate.
+  const long chart_stride = std::max(1L, (n + kMaxChartSamples) / kMaxChartSamples);
   double sum_e2 = 0.0, sum_t2 = 0.0, peak = 0.0, max_after = 0.0, overshoot = 0.0, last_outside = NAN;
   long count = 0;
   ImpactTally tally;
@@ -101,7 +103,7 @@ CompareMetrics runStrategy(const std::string& name, const RunConfig& config, dou
         last_outside = s.time;
       }
     }
-    if (trajectory != nullptr)
+    if (trajectory != nullptr && (count - 1) % chart_stride == 0)
     {
       trajectory->push_back({s.time, ref, s.load_position, s.motor_position, tm});
     }

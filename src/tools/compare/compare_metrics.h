@@ -33,7 +33,11 @@ struct CompareSample
   double time, reference, load_position, motor_position, motor_torque;
 };
 
-/// Runs one strategy (its config carries the profile and duration), sampling at sample_rate [Hz].
+/// Most trajectory points kept per strategy for the chart (every k-th sample beyond that; the metrics use all).
+constexpr long kMaxChartSamples = 20000;
+
+/// Runs one strategy (its config carries the profile and duration), sampling at sample_rate [Hz]; the chart's
+/// trajectory (if asked for) holds at most kMaxChartSamples + 1 of the samples, evenly strided.
 CompareMetrics runStrategy(const std::string& name, const RunConfig& config, double sample_rate,
                            std::vector<CompareSample>* trajectory);
 
