@@ -7,6 +7,7 @@
 #include <ros/ros.h>
 #include <rosbag/bag.h>
 #include <topic_tools/shape_shifter.h>
+#include "wall_throttle.h"
 
 #include "safe_output.h"
 
@@ -122,7 +123,8 @@ int main(int argc, char** argv)
       }
       catch (const std::exception& e)
       {
-        ROS_ERROR_THROTTLE(1.0, "backlash_record: could not write a %s message: %s", item.topic.c_str(), e.what());
+        BACKLASH_LOG_WALL_THROTTLE(ERROR, 1.0, "backlash_record: could not write a %s message: %s", item.topic.c_str(),
+                                   e.what());
       }
       lock.lock();
     }

@@ -6,6 +6,7 @@
 
 #include <ros/console.h>
 #include <topic_tools/shape_shifter.h>
+#include "wall_throttle.h"
 
 #include <chrono>
 #include <cstdio>
@@ -113,11 +114,11 @@ void NodeRecorder::writerLoop()
       catch (const std::exception& e)
       {
         ++failures_;
-        ROS_ERROR_THROTTLE(1.0,
-                           "backlash_servo_node: record_bag: could not write a %s message to %s.active (%llu so "
-                           "far): %s",
-                           topics[item.topic].name.c_str(), path_.c_str(), static_cast<unsigned long long>(failures_),
-                           e.what());
+        BACKLASH_LOG_WALL_THROTTLE(
+            ERROR, 1.0,
+            "backlash_servo_node: record_bag: could not write a %s message to %s.active (%llu so "
+            "far): %s",
+            topics[item.topic].name.c_str(), path_.c_str(), static_cast<unsigned long long>(failures_), e.what());
       }
     }
     lock.lock();

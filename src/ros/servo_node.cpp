@@ -15,6 +15,7 @@
 #include "backlash_servo/ImpactEvent.h"
 #include "backlash_servo/LimitCycleStatus.h"
 #include "backlash_servo/param_table.h"
+#include "wall_throttle.h"
 
 namespace backlash_servo
 {
@@ -210,6 +211,7 @@ void ServoNode::run()
     if ((ros::WallTime::now() - last_diagnostics_).toSec() >= 1.0)
     {
       publishDiagnostics();
+      refreshReconfigureMirror();
     }
     if (paused_ || !fault_.empty())
     {
@@ -507,7 +509,8 @@ void ServoNode::onCommand(const std_msgs::Float64& msg)
   }
   catch (const std::exception& e)
   {
-    ROS_WARN_THROTTLE(1.0, "backlash_servo_node: dropped command (%s); keeping %g rad", e.what(), command_);
+    BACKLASH_LOG_WALL_THROTTLE(WARN, 1.0, "backlash_servo_node: dropped command (%s); keeping %g rad", e.what(),
+                               command_);
     return;
   }
   command_ = msg.data;
@@ -529,13 +532,15 @@ void ServoNode::onEffort(const std_msgs::Float64& msg)
   }
   catch (const std::exception& e)
   {
-    ROS_WARN_THROTTLE(1.0, "backlash_servo_node: dropped motor_effort (%s); keeping %g N·m", e.what(), effort_);
+    BACKLASH_LOG_WALL_THROTTLE(WARN, 1.0, "backlash_servo_node: dropped motor_effort (%s); keeping %g N·m", e.what(),
+                               effort_);
     return;
   }
   if (sim_.controlMode() != ControlMode::Effort)
   {
     // Not kept either: a torque sent in position mode must not surface later when the mode switches.
-    ROS_WARN_THROTTLE(5.0, "backlash_servo_node: motor_effort ignored in position mode (set control_mode: effort)");
+    BACKLASH_LOG_WALL_THROTTLE(WARN, 5.0,
+                               "backlash_servo_node: motor_effort ignored in position mode (set control_mode: effort)");
     return;
   }
   effort_ = msg.data;
@@ -717,16 +722,27 @@ void ServoNode::onLoadTorque(const std_msgs::Float64& msg)
   try
   {
     p.validate();
-    sim_.setParams(p);  // at this step boundary, no jump in θ_c or ω_c
+    sim_.setParams(p);  // at this step boundary (callbacks run between samples), no jump in θ_c or ω_c
   }
   catch (const std::exception& e)
   {
-    ROS_WARN_THROTTLE(1.0, "backlash_servo_node: dropped load_torque (%s); keeping %g N·m", e.what(),
-                      sim_.params().load_torque);
+    BACKLASH_LOG_WALL_THROTTLE(WARN, 1.0, "backlash_servo_node: dropped load_torque (%s); keeping %g N·m", e.what(),
+                               sim_.params().load_torque);
     return;
   }
-  last_good_ = currentConfig();
-  reconfigure_->updateConfig(last_good_);
+  // The dynamic_reconfigure mirror (one parameter-server call per parameter) is brought up to date at most once per
+  // wall second, not per message: a 1 kHz load-torque stream would otherwise cost the node its rate.
+  mirror_stale_ = true;
+}
+
+void ServoNode::refreshReconfigureMirror()
+{
+  if (mirror_stale_)
+  {
+    mirror_stale_ = false;
+    last_good_ = currentConfig();
+    reconfigure_->updateConfig(last_good_);
+  }
 }
 
 bool ServoNode::onReset(std_srvs::Trigger::Request&, std_srvs::Trigger::Response& res)
@@ -784,6 +800,12 @@ bool ServoNode::onResume(std_srvs::Trigger::Request&, std_srvs::Trigger::Respons
 
 void ServoNode::onReconfigure(BacklashServoConfig& c, uint32_t)
 {
+  if (mirror_stale_ && c.load_torque == last_good_.load_torque)
+  {
+    // Not touched by this reconfigure: the value the load_torque topic set since the mirror's last refresh stays.
+    c.load_torque = sim_.params().load_torque;
+  }
+  mirror_stale_ = false;
   // The generated config → key values, by the names of the parameter table.
   KeyValues kv;
   kv.nameKeysAsFlags(false);

@@ -128,6 +128,9 @@ class ServoNode : public EventSink
   boost::recursive_mutex reconfigure_mutex_;
   std::unique_ptr<dynamic_reconfigure::Server<BacklashServoConfig>> reconfigure_;
   BacklashServoConfig last_good_;
+  bool mirror_stale_ = false;  ///< a topic changed a live value that last_good_ and dynamic_reconfigure do not show
+  /// Brings last_good_ and the dynamic_reconfigure parameters up to date (called once per wall second).
+  void refreshReconfigureMirror();
 
   ros::Time origin_;          // ROS time of sim time 0
   double sample_base_ = 0.0;  // sim time of sample 0 of the current schedule [s]

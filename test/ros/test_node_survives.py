@@ -116,5 +116,41 @@ class NodeSurvives(unittest.TestCase):
         self.assertTrue(wait_for(lambda: len(self.states.msgs) > n + 50, 20.0))
 
 
+    def test_3_a_load_torque_stream_keeps_the_rate_and_its_value(self):
+        load = rospy.Publisher("/load_torque", Float64, queue_size=1000)
+        self.assertTrue(wait_for(lambda: load.get_num_connections() > 0, 10.0))
+        self.client.update_configuration({"backlash": 0.3, "restitution": 1.0, "gain": 1.0})
+        # 1 kHz of load-torque messages for 4 s: each applied at the next sample, no full reconfigure per message
+        # (which cost the node ~98 % of its rate). At real_time_factor 5 and 200 Hz the node publishes ~1000 states
+        # per wall second; half of that is a loose floor (was ~15).
+        n = len(self.states.msgs)
+        start = time.time()
+        k = 0
+        while time.time() - start < 4.0:
+            load.publish(Float64(0.01 * (k % 5)))
+            k += 1
+            time.sleep(0.001)
+        elapsed = time.time() - start
+        rate = (len(self.states.msgs) - n) / elapsed
+        print("load_torque stream: %d messages in %.2f s; backlash_state %.0f msg/s" % (k, elapsed, rate))
+        self.assertGreater(rate, 500.0)
+        # The last value stays, also through a reconfigure of another key that arrives before the parameter mirror
+        # is refreshed, and the mirror shows it within a few wall seconds.
+        load.publish(Float64(0.05))
+        time.sleep(0.3)
+        self.client.update_configuration({"restitution": 0.9})
+        self.assertTrue(wait_for(lambda: abs(self.client.get_configuration(timeout=5)["load_torque"] - 0.05) < 1e-12,
+                                 5.0), self.client.get_configuration(timeout=5)["load_torque"])
+        # A rate the node cannot honour is refused; the node keeps its rate and keeps publishing.
+        try:
+            self.client.update_configuration({"publish_rate": 1e9})
+        except Exception:  # a refused set may come back as an error to the client
+            pass
+        self.assertEqual(self.client.get_configuration(timeout=5)["publish_rate"], 200.0)
+        n = len(self.states.msgs)
+        self.assertTrue(wait_for(lambda: len(self.states.msgs) > n + 100, 10.0))
+        load.publish(Float64(0.0))
+
+
 if __name__ == "__main__":
     rostest.rosrun("backlash_servo", "node_survives", NodeSurvives)
