@@ -28,6 +28,6 @@ else
   echo '<testsuite tests="1" failures="1"><testcase name="sanitize_build"><failure/></testcase></testsuite>' \
     >build/test_results/backlash_servo/gtest-sanitize-build.xml
 fi
-# Coverage-guided fuzzing of the YAML/flag parsers and what they accept (clang/libFuzzer + ASan/UBSan), bounded.
-bash scripts/fuzz_parsers.sh 60 build/test_results/backlash_servo/libfuzzer-parsers.xml | tail -n 3
+# Coverage-guided fuzzing of every input parser (clang/libFuzzer + ASan/UBSan): kept findings, then 50000 inputs, seed 1.
+bash scripts/fuzz_parsers.sh --ci 50000 build/test_results/backlash_servo/libfuzzer-parsers.xml
 /usr/bin/python3 scripts/count_results.py build/test_results

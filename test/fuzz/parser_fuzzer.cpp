@@ -6,11 +6,15 @@
 //   0: a run's YAML (KeyValues::loadYaml + runConfigFrom, with an inline `profile:` list),
 //   1: the workbench's experiment file (loadCompareConfig),
 //   2: a profile file (YAML list, loadProfileFile),
-//   3: command-line flags (FlagParser, whitespace-separated, then runConfigFrom).
+//   3: command-line flags (FlagParser, whitespace-separated, then runConfigFrom),
+//   4: a profile CSV of time,value rows (loadProfileFile of a .csv),
+//   5: a sweep part file (mergeParts of one part).
 // Properties: only ConfigError / InvalidParameterError escape a parser (a yaml-cpp exception or a logic_error
 // escaping is a finding: libFuzzer reports the uncaught exception as a crash), nothing crashes or hangs;
 // an accepted run config simulates (0.2 s, at most 1e4 impacts and 1e4 controller samples) to a finite state whose
-// gap lies in [0, Δ] to rounding.
+// gap lies in [0, Δ] to rounding; an accepted profile CSV holds finite points in time order whose value at every
+// point time (and between) equals a linear scan written here; an accepted part merges into its header and exactly
+// its rows.
 #include <unistd.h>
 
 #include <algorithm>
@@ -31,15 +35,39 @@
 #include "backlash_servo/gear_mesh.h"
 #include "backlash_servo/param_table.h"
 #include "backlash_servo/step_response.h"
+#include "sweep/sweep_csv.h"
 
 using namespace backlash_servo;
 
 namespace
 {
-/// The input as a file (the parsers read files, as the tools do); one per process, rewritten each time.
+/// The input as a file (the parsers read files, as the tools do); one per process, rewritten each time. Its path
+/// does not depend on the process (a pid's digits formatted would vary the coverage from one run to the next), and
+/// scripts/fuzz_parsers.sh --ci also fixes the directory and disables address randomisation (yaml-cpp orders its
+/// nodes by address): with a fixed seed a run then repeats exactly.
 std::string asFile(const std::string& text, const char* suffix)
 {
-  static const std::string base = "/tmp/backlash_parser_fuzz_" + std::to_string(getpid());
+  static const std::string base = [] {
+    // BACKLASH_FUZZ_DIR: a directory of this run's own (scripts/fuzz_parsers.sh --ci), the same path every time.
+    const char* fixed = std::getenv("BACKLASH_FUZZ_DIR");
+    if (fixed != nullptr && *fixed != '\0')
+    {
+      return std::string(fixed) + "/input";
+    }
+    static char tmpl[] = "/tmp/backlash_parser_fuzz.XXXXXX";
+    if (mkdtemp(tmpl) == nullptr)
+    {
+      std::abort();
+    }
+    std::atexit([] {
+      for (const char* suffix : {".yaml", ".csv"})
+      {
+        std::remove((std::string(tmpl) + "/input" + suffix).c_str());
+      }
+      ::rmdir(tmpl);
+    });
+    return std::string(tmpl) + "/input";
+  }();
   const std::string path = base + suffix;
   std::ofstream(path, std::ios::binary | std::ios::trunc) << text;
   return path;
@@ -136,6 +164,63 @@ void runFlags(const std::string& text)
   }
   simulate(runConfigFrom(keys));
 }
+/// An accepted CSV profile: points finite and in order, and at() equal to a linear scan (the reference).
+void runProfileCsv(const std::string& text)
+{
+  const auto profile = loadProfileFile(asFile(text, ".csv"), 0.0);
+  const std::vector<ProfileSegment>& segments = profile->segments();
+  if (segments.size() != 1 || segments[0].points.empty())
+  {
+    fail("a CSV profile is one non-empty points segment");
+  }
+  const auto& points = segments[0].points;
+  auto linear = [&](double t) {
+    double v = 0.0;  // the start value passed above
+    for (const auto& p : points)
+    {
+      if (p.first > t)
+      {
+        break;
+      }
+      v = p.second;
+    }
+    return v;
+  };
+  for (std::size_t k = 0; k < points.size() && k < 64; ++k)
+  {
+    if (!std::isfinite(points[k].first) || !std::isfinite(points[k].second) ||
+        (k > 0 && points[k].first < points[k - 1].first))
+    {
+      fail("a CSV profile accepted a non-finite or unordered point");
+    }
+    for (double t : {points[k].first, std::nextafter(points[k].first, -INFINITY), points[k].first + 0.5})
+    {
+      if (t >= 0.0 && profile->at(t) != linear(t))
+      {
+        fail("profile value differs from the linear scan");
+      }
+    }
+  }
+}
+
+/// An accepted part: the merge is its header line and exactly its rows.
+void runSweepPart(const std::string& text)
+{
+  const std::string merged = mergeParts({asFile(text, ".csv")});
+  const auto lines = std::count(merged.begin(), merged.end(), '\n');
+  const auto first = text.find('\n');
+  unsigned long long k = 0, n = 0, a = 0, b = 0, total = 0;
+  if (first == std::string::npos ||
+      std::sscanf(text.c_str(), "# backlash_sweep part %llu/%llu: points [%llu, %llu) of %llu", &k, &n, &a, &b,
+                  &total) != 5)
+  {
+    fail("a part without a part line was merged");
+  }
+  if (static_cast<unsigned long long>(lines) != total + 1 || n != 1)
+  {
+    fail("a merge is not the header and every row of the grid");
+  }
+}
 }  // namespace
 
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size)
@@ -147,8 +232,14 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size)
   const std::string text(reinterpret_cast<const char*>(data) + 1, size - 1);
   try
   {
-    switch (data[0] % 4)
+    switch (data[0] % 6)
     {
+      case 4:
+        runProfileCsv(text);
+        break;
+      case 5:
+        runSweepPart(text);
+        break;
       case 0:
         runYaml(text);
         break;
@@ -163,6 +254,8 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size)
         loadProfileFile(asFile(text, ".yaml"), 0.0)->finalValue();
         break;
       default:
+        break;
+      case 3:
         runFlags(text);
         break;
     }
