@@ -13,6 +13,7 @@
  */
 #pragma once
 
+#include <cmath>
 #include <limits>
 #include <memory>
 #include <string>
@@ -81,6 +82,10 @@ class Drive
   /// Whether the drive's own state still moves its output with the plant standing still (an integrator whose input
   /// is beyond rounding of zero): a joint stuck by dry friction is not converged while this holds.
   virtual bool winding() const { return false; }
+  /// The output stays what it is for ever while the plant stands still: no integrator moving beyond rounding, no
+  /// derivative or delay still changing, no dither or profile ahead. Together with a plant held by stiction under that
+  /// output (Simulator::atRestForever) the joint can never move again. Default: a law with no events of its own.
+  virtual bool steady() const { return std::isinf(nextEventTime(-std::numeric_limits<double>::infinity())); }
   /// A digital drive (samples at known instants) rather than a continuous law.
   virtual bool sampled() const { return false; }
   /// What the controller read at its latest sample: quantised motor angle on the motor shaft and load angle [rad].
@@ -166,6 +171,8 @@ class EffortDrive : public Drive
   std::unique_ptr<Drive> clone() const override { return std::make_unique<EffortDrive>(*this); }
 
   double torque() const { return torque_; }
+  /// An external controller may change the torque at any time: never steady.
+  bool steady() const override { return false; }
   /// New torque u [N·m] (finite) from now on.
   void setTorque(double torque);
 
@@ -198,6 +205,9 @@ class SampledDrive : public Drive
   std::unique_ptr<Drive> clone() const override { return std::make_unique<SampledDrive>(*this); }
   /// The integrator moved beyond rounding at the latest sample (pid, cascade).
   bool winding() const override { return winding_; }
+  /// At the latest sample: the integrator frozen, the measurement unchanged (no derivative or velocity estimate),
+  /// the delayed output equal to the held one, no compensator and no profile change ahead.
+  bool steady() const override { return steady_; }
   bool sampled() const override { return true; }
   long holdSamples(const State& state, double until, double lo, double hi, long max_count, double* last) override;
   bool readings(double* motor, double* load) const override
@@ -247,6 +257,7 @@ class SampledDrive : public Drive
   double qm_prev_ = 0.0;   // q_m(θ_m,k−1) [rad]
   double motor_reading_ = 0.0, load_reading_ = 0.0;
   bool winding_ = false;
+  bool steady_ = false;
 };
 
 /**

@@ -10,6 +10,7 @@
  */
 #pragma once
 
+#include <cmath>
 #include <vector>
 
 namespace backlash_servo
@@ -53,15 +54,19 @@ class LimitCycleDetector
 {
  public:
   /**
-   * @param command θ_R [rad] the maxima are measured from
+   * @param command θ_R [rad]: reported errors are θ_c,max − θ_R (the thesis' limit-cycle error)
    * @param scale size [rad] below which errors count as zero (use max(Δ, |step|)); thresholds are fractions of it
+   * @param centre the equilibrium [rad] the maxima are judged against (a load torque shifts it off θ_R); NaN: θ_R
    */
-  LimitCycleDetector(double command, double scale);
+  LimitCycleDetector(double command, double scale, double centre = NAN);
 
-  /// Records a maximum; only maxima above the command are kept. Updates the status.
+  /// Records a maximum: kept for the verdict when above the centre, reported when above θ_R. Updates the status.
   void addMaximum(const Maximum& m);
   /// Tells the detector the servo is at rest on its command: settles a Converged verdict.
   void markAtRest();
+  /// Tells the detector the joint can never move again (held by stiction under a constant torque): Converged,
+  /// replacing any earlier verdict (maxima that looked periodic before it stuck were not a sustained oscillation).
+  void markStuck();
   /// Whether a settled narrow band of maxima counts as a (quasi-periodic) limit cycle: on for sampled drives and dry
   /// friction (MODEL.md Part 2), off for the continuous thesis servo, whose wandering maxima stay Irregular.
   void allowBands(bool on) { bands_ = on; }
@@ -69,7 +74,10 @@ class LimitCycleDetector
   /// under micro-bounces makes maxima 1e-7 s apart); the higher is kept. 0 (default): every maximum counts.
   void setMinimumSpacing(double seconds) { min_spacing_ = seconds; }
 
-  const std::vector<Maximum>& maxima() const { return maxima_; }
+  /// The positive maxima θ_c,max > θ_R (what is reported: the thesis' maxima).
+  const std::vector<Maximum>& maxima() const { return centre_ == command_ ? maxima_ : reported_; }
+  /// The maxima above the centre, on which the verdict is judged (the same list when the centre is θ_R).
+  const std::vector<Maximum>& judged() const { return maxima_; }
   const LimitCycleReport& status() const { return status_; }
   bool settled() const { return status_.verdict != Verdict::Undecided; }
   double command() const { return command_; }
@@ -97,8 +105,10 @@ class LimitCycleDetector
   double min_spacing_ = 0.0;  // [s]
 
   double command_;
+  double centre_;  // the equilibrium the maxima are judged against [rad]
   double scale_;
-  std::vector<Maximum> maxima_;
+  std::vector<Maximum> maxima_;    // above the centre: judged
+  std::vector<Maximum> reported_;  // above θ_R, when the centre differs
   LimitCycleReport status_;
   int decay_votes_ = 0;
 };

@@ -6,9 +6,12 @@
  *        No ROS dependency.
  *
  * Rules applied at each check (a time the caller chooses: a natural period, an output sample):
+ * - the maxima are judged against the loop's equilibrium θ_eq (loopEquilibrium: θ_R shifted by a load torque
+ *   unless integral action removes the offset), so that a joint decaying onto an offset equilibrium is converged;
  * - **rest**: |θ_c − θ_eq|, |ω_c|/ω_n and |ρ ω_m|/ω_n all within LimitCycleDetector::ZERO_FRACTION of the scale
- *   max(Δ, |θ_R − θ_c(0)|, |θ_eq − θ_R|) → converged, where θ_eq = θ_R + ρ T_ext / K is where a load torque shifts
- *   the P law's rest (the steady error);
+ *   max(Δ, |θ_R − θ_c(0)|, |θ_eq − θ_R|) → converged (the steady error is θ_c − θ_R);
+ * - **held for ever**: dry friction holds both bodies under a drive output that can no longer change
+ *   (Simulator::atRestForever) → converged, also after maxima that looked like a cycle;
  * - **quiet**: no new positive maximum for max(10 natural periods, 5 × the longest interval between maxima so far)
  *   while |θ_c − θ_eq| ≤ QUIET_ERROR_FRACTION × scale → converged (the motor creeping across the backlash under a
  *   vanishing torque is not an oscillation).
@@ -23,6 +26,16 @@
 
 namespace backlash_servo
 {
+struct DriveParams;
+
+/**
+ * Where the loop comes to rest under the load torque T_ext [N·m] with set-point θ_R [rad]: in contact at rest the
+ * motor holds T_m = −ρ T_ext. Integral action (pid with K_i > 0, cascade with K_vi > 0) removes the offset: θ_R. A
+ * proportional law: K (θ_R − θ_c) = −ρ T_ext, so θ_R + ρ T_ext / K; a cascade without integral action:
+ * K_v K_p (θ_R − θ_c) = −ρ T_ext, so θ_R + ρ T_ext / (K_v K_p).
+ */
+double loopEquilibrium(const ServoParams& params, const DriveParams& drive, double command);
+
 class ResponseMonitor : public EventSink
 {
  public:
@@ -39,6 +52,9 @@ class ResponseMonitor : public EventSink
    *        be quasi-periodic bands (LimitCycleDetector::allowBands); the continuous thesis servo keeps its verdicts
    */
   ResponseMonitor(const ServoParams& params, double command, const State& start, bool sampled_drive = false);
+  /// As above, with the loop's equilibrium given (loopEquilibrium): maxima and the rest rules are judged against it.
+  ResponseMonitor(const ServoParams& params, double command, double equilibrium, const State& start,
+                  bool sampled_drive);
 
   /// Judges afresh from `state` on (a profile has ended): maxima and verdict forgotten, the same command, scale and
   /// rules; the quiet clock starts at state.time.
@@ -46,17 +62,22 @@ class ResponseMonitor : public EventSink
   /// Maxima (EventType::Maximum) go to the detector; every other event is ignored.
   void onEvent(const Event& event) override;
   bool wantsImpacts() const override { return false; }
-  /// Where the P law comes to rest: θ_R + ρ T_ext / K [rad].
+  /// Where the loop comes to rest [rad] (loopEquilibrium; by default the P law's θ_R + ρ T_ext / K).
   double equilibrium() const { return equilibrium_; }
   /// Applies the rest and quiet rules to the state at a check time. drive_winding: the drive's integrator still
   /// moves (Drive::winding()): a joint standing still is then not converged (stick–slip hunting), neither rule applies.
-  void check(const State& state, bool drive_winding = false);
+  /// at_rest_forever: the joint is in a state it can never leave (Simulator::atRestForever): converged, whatever
+  /// the maxima said before.
+  void check(const State& state, bool drive_winding = false, bool at_rest_forever = false);
 
   const LimitCycleReport& status() const { return detector_.status(); }
+  /// The positive maxima above θ_R (reported).
   const std::vector<Maximum>& maxima() const { return detector_.maxima(); }
+  /// The maxima above the equilibrium, on which the verdict is judged.
+  const std::vector<Maximum>& judged() const { return detector_.judged(); }
   bool settled() const { return detector_.settled(); }
   bool oscillating() const { return detector_.oscillating(); }
-  double command() const { return detector_.command(); }
+  double command() const { return command_; }
   /// The scale max(Δ, |θ_R − θ_c(0)|) [rad] below which errors count as zero.
   double scale() const { return scale_; }
 

@@ -91,6 +91,14 @@ class Simulator
   /// input − friction − impact losses − (kinetic − initial kinetic) [J]; zero up to rounding.
   double energyBalanceError() const { return energy_valid_ ? plant_.energyBalanceError() : NAN; }
   std::uint64_t impactCount() const { return plant_.impactCount(); }
+  /**
+   * The joint is at a state the dynamics can never leave: dry friction holds both bodies (and the contact) under the
+   * motor torque in force, the hold has no end of its own, and the drive's output stays that torque for ever
+   * (Drive::steady: no integrator moving beyond rounding, no derivative, delay, dither or profile change ahead) — so
+   * no torque on either body ever changes and the rest rule keeps deciding "held". Sound because every torque the
+   * rest rule weighs (the law's, the load torque, the static bands) is then constant.
+   */
+  bool atRestForever() const;
   /// Controller samples taken through stick phases in blocks (the digital drive's fast path, holdSamples()): a
   /// figure for benchmarks and tests.
   std::uint64_t heldSamples() const { return held_samples_; }

@@ -310,6 +310,7 @@ void SampledDrive::sample(const State& s)
   const double limit = p_.torque_limit;
   auto beyond = [&](double u, double sign) { return limit > 0.0 && std::fabs(u) > limit && u * sign > 0.0; };
   double u = 0.0;
+  bool steady = false;  // the output is the same at every later sample while the plant stands still
   if (law_ == Law::Pid)
   {
     const double y_prev = first ? y : y_prev_;
@@ -321,8 +322,12 @@ void SampledDrive::sample(const State& s)
       integral = integral_;  // conditional integration: no wind-up against the limit
       u = gain_ * e + integral - derivative;
     }
-    winding_ = std::fabs(integral - integral_) > 4.0 * EPS * std::fabs(integral);
+    // Frozen when the increment is lost in rounding, or when its input is: an error within a few ulps of the
+    // positions it is the difference of (the load on the command to 3e-16 rad) is rounding, not a drift.
+    winding_ = std::fabs(integral - integral_) > 4.0 * EPS * std::fabs(integral) &&
+               std::fabs(e) > 4.0 * EPS * std::max(std::fabs(reference_), std::fabs(y));
     integral_ = integral;
+    steady = !winding_ && y == y_prev;
   }
   else if (law_ == Law::Cascade)
   {
@@ -336,16 +341,20 @@ void SampledDrive::sample(const State& s)
       integral = integral_;
       u = p_.velocity_loop_gain * err + integral;
     }
-    winding_ = std::fabs(integral - integral_) > 4.0 * EPS * std::fabs(integral);
+    winding_ = std::fabs(integral - integral_) > 4.0 * EPS * std::fabs(integral) &&
+               !(w_hat == 0.0 && std::fabs(e) <= 4.0 * EPS * std::max(std::fabs(reference_), std::fabs(y)));
     integral_ = integral;
+    steady = !winding_ && w_hat == 0.0;
   }
   else
   {
     u = gain_ * e;
+    steady = true;
   }
   if (compensated)
   {
     u = compensator_.torque(u, e, t_k);
+    steady = false;
   }
   if (limit > 0.0)
   {
@@ -362,6 +371,7 @@ void SampledDrive::sample(const State& s)
   {
     held_ = u;
   }
+  steady_ = steady && held_ == u && (!profile_ || std::isinf(profile_->nextChange(t_k)));
   ++next_;
 }
 

@@ -22,29 +22,52 @@ const char* toString(Verdict v)
   }
 }
 
-LimitCycleDetector::LimitCycleDetector(double command, double scale) : command_(command), scale_(scale) {}
+LimitCycleDetector::LimitCycleDetector(double command, double scale, double centre)
+    : command_(command), centre_(std::isnan(centre) ? command : centre), scale_(scale)
+{}
 
 bool LimitCycleDetector::oscillating() const
 {
   return status_.verdict == Verdict::LimitCycle || status_.verdict == Verdict::Irregular;
 }
 
+namespace
+{
+/// Appends m to list unless it is the same hump as the last (closer than min_spacing [s]: the higher is kept).
+bool record(std::vector<Maximum>& list, const Maximum& m, double min_spacing)
+{
+  if (!list.empty() && m.time - list.back().time < min_spacing)
+  {
+    if (m.position > list.back().position)
+    {
+      list.back() = m;  // the same hump: keep its top (the verdict is not re-judged on it)
+    }
+    return false;
+  }
+  list.push_back(m);
+  return true;
+}
+}  // namespace
+
 void LimitCycleDetector::addMaximum(const Maximum& m)
 {
-  if (m.position - command_ <= ZERO_FRACTION * scale_)
+  if (centre_ != command_ && m.position - command_ > ZERO_FRACTION * scale_)
   {
-    return;
+    record(reported_, m, min_spacing_);
   }
-  if (!maxima_.empty() && m.time - maxima_.back().time < min_spacing_)
+  if (m.position - centre_ > ZERO_FRACTION * scale_ && record(maxima_, m, min_spacing_))
   {
-    if (m.position > maxima_.back().position)
-    {
-      maxima_.back() = m;  // the same hump: keep its top (the verdict is not re-judged on it)
-    }
-    return;
+    update();
   }
-  maxima_.push_back(m);
-  update();
+}
+
+void LimitCycleDetector::markStuck()
+{
+  if (status_.verdict != Verdict::Converged)
+  {
+    status_ = LimitCycleReport();
+    status_.verdict = Verdict::Converged;
+  }
 }
 
 void LimitCycleDetector::markAtRest()
@@ -70,10 +93,11 @@ double aitken(double s0, double s1, double s2)
 void LimitCycleDetector::update()
 {
   const int n = static_cast<int>(maxima_.size());
-  auto x = [&](int i) { return maxima_[i].position - command_; };
+  auto x = [&](int i) { return maxima_[i].position - centre_; };
+  const double offset = centre_ - command_;  // reported errors are from θ_R
   if (n >= 3)
   {
-    status_.extrapolated = aitken(x(n - 1), x(n - 2), x(n - 3));
+    status_.extrapolated = aitken(x(n - 1), x(n - 2), x(n - 3)) + offset;
   }
   if (status_.verdict != Verdict::Undecided)
   {
@@ -106,7 +130,7 @@ void LimitCycleDetector::update()
     if (pinned && period > 0.5 * interval(0))
     {
       status_.verdict = Verdict::LimitCycle;
-      status_.error = error;
+      status_.error = error + offset;
       status_.period = period;
       status_.multiplicity = k;
       return;
@@ -161,9 +185,9 @@ void LimitCycleDetector::update()
     {
       status_.verdict = Verdict::LimitCycle;
       status_.quasi_periodic = true;
-      status_.error = hi_b;
-      status_.band_low = lo_b;
-      status_.band_high = hi_b;
+      status_.error = hi_b + offset;
+      status_.band_low = lo_b + offset;
+      status_.band_high = hi_b + offset;
       status_.period = (maxima_[n - 1].time - maxima_[n - b].time) / (b - 1);
       status_.multiplicity = 1;
       return;
@@ -189,7 +213,7 @@ void LimitCycleDetector::update()
     if (mean_b >= 0.99 * mean_a && min_b >= 0.5 * mean_a && turns >= w / 4)
     {
       status_.verdict = Verdict::Irregular;
-      status_.error = max_b;
+      status_.error = max_b + offset;
       status_.period = (maxima_[n - 1].time - maxima_[n - w].time) / (w - 1);
       status_.multiplicity = 0;
     }

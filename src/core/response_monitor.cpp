@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <cmath>
 
+#include "backlash_servo/drive.h"
+
 namespace backlash_servo
 {
 namespace
@@ -15,22 +17,42 @@ double equilibriumOf(const ServoParams& params, double command)
   return command + params.gear_ratio * params.load_torque / params.gain;
 }
 
-double scaleOf(const ServoParams& params, double command, const State& start)
+double scaleOf(const ServoParams& params, double command, double equilibrium, const State& start)
 {
-  return std::max({params.backlash, std::fabs(command - start.load_position),
-                   std::fabs(equilibriumOf(params, command) - command), 1e-12});
+  return std::max({params.backlash, std::fabs(command - start.load_position), std::fabs(equilibrium - command), 1e-12});
 }
 }  // namespace
 
+double loopEquilibrium(const ServoParams& params, const DriveParams& drive, double command)
+{
+  const double held = params.gear_ratio * params.load_torque;  // −T_m at rest [N·m]
+  const bool sampled = drive.controller_rate > 0.0;
+  if (sampled && drive.control_law == "pid" && drive.integral_gain > 0.0)
+  {
+    return command;
+  }
+  if (sampled && drive.control_law == "cascade")
+  {
+    const double k = drive.velocity_loop_gain * drive.position_loop_gain;
+    return drive.velocity_loop_integral_gain > 0.0 || !(k > 0.0) ? command : command + held / k;
+  }
+  return command + held / params.gain;
+}
+
 ResponseMonitor::ResponseMonitor(const ServoParams& params, double command, const State& start, bool sampled_drive)
+    : ResponseMonitor(params, command, equilibriumOf(params, command), start, sampled_drive)
+{}
+
+ResponseMonitor::ResponseMonitor(const ServoParams& params, double command, double equilibrium, const State& start,
+                                 bool sampled_drive)
     : command_(command),
-      equilibrium_(equilibriumOf(params, command)),
+      equilibrium_(equilibrium),
       omega_n_(params.naturalFrequency()),
       rho_(params.gear_ratio),
-      scale_(scaleOf(params, command, start)),
+      scale_(scaleOf(params, command, equilibrium, start)),
       start_time_(start.time),
       bands_(sampled_drive || params.hasDryFriction()),
-      detector_(command, scale_)
+      detector_(command, scale_, equilibrium)
 {
   restartAt(start);
 }
@@ -38,7 +60,7 @@ ResponseMonitor::ResponseMonitor(const ServoParams& params, double command, cons
 void ResponseMonitor::restartAt(const State& state)
 {
   start_time_ = state.time;
-  detector_ = LimitCycleDetector(command_, scale_);
+  detector_ = LimitCycleDetector(command_, scale_, equilibrium_);
   detector_.allowBands(bands_);
   // A thousandth of the natural period: far below any cycle of the loop, far above micro-bounces.
   detector_.setMinimumSpacing(1e-3 * 2.0 * PI / omega_n_);
@@ -54,8 +76,13 @@ void ResponseMonitor::onEvent(const Event& e)
   }
 }
 
-void ResponseMonitor::check(const State& s, bool drive_winding)
+void ResponseMonitor::check(const State& s, bool drive_winding, bool at_rest_forever)
 {
+  if (at_rest_forever)
+  {
+    detector_.markStuck();
+    return;
+  }
   if (drive_winding)
   {
     return;
@@ -66,7 +93,7 @@ void ResponseMonitor::check(const State& s, bool drive_winding)
   {
     detector_.markAtRest();
   }
-  const std::vector<Maximum>& m = detector_.maxima();
+  const std::vector<Maximum>& m = detector_.judged();
   for (; intervals_seen_ + 1 < m.size(); ++intervals_seen_)
   {
     longest_ = std::max(longest_, m[intervals_seen_ + 1].time - m[intervals_seen_].time);

@@ -188,6 +188,20 @@ void Simulator::takeSample()
   }
 }
 
+bool Simulator::atRestForever() const
+{
+  double lo, hi, until;
+  if (motor_bias_ != 0.0 || !plant_.heldTorqueRange(&lo, &hi, &until))
+  {
+    return false;  // (in a ramp's moving frame the law changes)
+  }
+  if (profile_ && !std::isinf(profile_->nextChange(plant_.state().time)))
+  {
+    return false;
+  }
+  return std::isinf(until) && drive_->steady();
+}
+
 bool Simulator::holdSamples(double t_end)
 {
   double lo, hi, until;

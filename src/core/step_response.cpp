@@ -63,7 +63,8 @@ RunSummary runResponse(const RunConfig& config, EventSink* sink, double sample_p
   sim.setEventBudget(static_cast<std::uint64_t>(config.max_events));
   RunSummary out;
   const double omega_n = config.params.naturalFrequency();
-  ResponseMonitor monitor(config.params, command, config.initial, sim.drive().sampled());
+  ResponseMonitor monitor(config.params, command, loopEquilibrium(config.params, config.drive, command), config.initial,
+                          sim.drive().sampled());
   Tee tee(&monitor, sink);
   // With a profile the verdict is judged from its end on, against its final value: a fresh monitor there (a hunt
   // around an intermediate set-point is not the final limit cycle).
@@ -88,7 +89,7 @@ RunSummary runResponse(const RunConfig& config, EventSink* sink, double sample_p
         judge_from = -INFINITY;
       }
       // (Sub-steps only once four maxima are recorded: no sustained oscillation is settled before its fifth.)
-      if (until_settled && sample_period <= 0.0 && monitor.maxima().size() >= 4)
+      if (until_settled && sample_period <= 0.0 && monitor.judged().size() >= 4)
       {
         // A sustained oscillation settled by a maximum ends the run within a sub-step of it, not at the chunk's end
         // (up to a natural period later: in elastic chatter, 10⁵ impacts). Its figures come from the maxima, and the
@@ -123,7 +124,7 @@ RunSummary runResponse(const RunConfig& config, EventSink* sink, double sample_p
     {
       on_sample(sim);
     }
-    monitor.check(sim.state(), sim.drive().winding());
+    monitor.check(sim.state(), sim.drive().winding(), judge_from == -INFINITY && sim.atRestForever());
     if (on_progress)
     {
       on_progress((t - t0) / (t_stop - t0));

@@ -158,7 +158,11 @@ void ServoNode::restartMonitor()
 {
   judge_from_ = profile_ && sim_.controlMode() == ControlMode::Position ? profile_->endTime() : -1.0;
   // Effort mode is fed by an external, usually digital, controller: its cycles may be quasi-periodic bands too.
-  monitor_ = std::make_unique<ResponseMonitor>(sim_.params(), command_, sim_.state(),
+  // Effort mode: the external controller's law is unknown; its rest is judged against `command` itself.
+  const double equilibrium = sim_.controlMode() == ControlMode::Effort
+                                 ? command_
+                                 : loopEquilibrium(sim_.params(), config_.run.drive, command_);
+  monitor_ = std::make_unique<ResponseMonitor>(sim_.params(), command_, equilibrium, sim_.state(),
                                                sim_.drive().sampled() || sim_.controlMode() == ControlMode::Effort);
   announced_ = Verdict::Undecided;
 }
@@ -262,7 +266,7 @@ void ServoNode::run()
       announced_ = Verdict::Undecided;
       judge_from_ = -1.0;
     }
-    monitor_->check(sim_.state(), sim_.drive().winding());
+    monitor_->check(sim_.state(), sim_.drive().winding(), judge_from_ < 0.0 && sim_.atRestForever());
     if (monitor_->status().verdict != announced_)
     {
       publishLimitCycle(t, false);

@@ -1,0 +1,130 @@
+// Verdicts of real joints against independent truth: a decay onto an offset equilibrium (closed-form ratio and
+// limit), a joint held by stiction under a frozen integrator (a continued run that does not move), and an error at
+// the rounding level of the positions that is not a winding integrator.
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include "backlash_servo/simulator.h"
+#include "backlash_servo/step_response.h"
+
+namespace
+{
+using namespace backlash_servo;
+
+TEST(Verdicts, ADecayOntoAnOffsetEquilibriumIsConvergenceNotALimitCycle)
+{
+  // App. D1 (ζ = 0.4, ω_n = 1 rad/s) with e = 0.8 and a small load torque T_ext = +0.02 N·m pushing the load up:
+  // the P law rests at θ_eq = θ_R + ρ T_ext / K = 1.02 rad. Its maxima fall onto θ_eq, not onto θ_R: judged against
+  // θ_R they would settle at 0.02 rad, a "limit cycle" whose error is the offset itself.
+  RunConfig c;
+  c.params.restitution = 0.8;
+  c.params.load_torque = 0.02;
+  const double eq = c.command + c.params.gear_ratio * c.params.load_torque / c.params.gain;
+  const RunSummary settled = runResponse(c);
+  EXPECT_EQ(settled.status.verdict, Verdict::Converged);
+  c.duration = 300.0;
+  const RunSummary r = runResponse(c);
+  EXPECT_EQ(r.status.verdict, Verdict::Converged);
+  EXPECT_NEAR(r.final_state.load_position - c.command, eq - c.command, 1e-9);  // the steady error ρ T_ext / K
+  // Once the teeth stay in contact the motion is the rigid linear mode about θ_eq: successive maxima above θ_eq fall
+  // by exp(−2πζ/√(1−ζ²)) per period.
+  const double zeta = c.params.dampingRatio();
+  const double ratio = std::exp(-2.0 * M_PI * zeta / std::sqrt(1.0 - zeta * zeta));
+  ASSERT_GE(r.maxima.size(), 6u);
+  for (std::size_t n = 4; n + 1 < r.maxima.size() && r.maxima[n + 1].position - eq > 1e-7; ++n)
+  {
+    EXPECT_NEAR((r.maxima[n + 1].position - eq) / (r.maxima[n].position - eq), ratio, 1e-6 * ratio) << n;
+  }
+}
+
+/// A 100:1 robot joint holding its load against gravity with a 1 kHz PID (J_m 2e-5 kg·m², J_L 0.05 kg·m², Δ 0.2°
+/// at the output, motor Coulomb friction 0.01 N·m, load torque 2 N·m).
+RunConfig robotJoint(double encoder_counts, double command)
+{
+  RunConfig c;
+  c.params.motor_inertia = 2e-5;
+  c.params.load_inertia = 0.05;
+  c.params.motor_friction = 1e-5;
+  c.params.load_friction = 0.05;
+  c.params.gear_ratio = 0.01;
+  c.params.backlash = 0.2 * M_PI / 180.0;
+  c.params.restitution = 0.5;
+  c.params.motor_coulomb_friction = 0.01;
+  c.params.motor_static_friction = 0.01;
+  c.params.load_torque = 2.0;
+  c.params.gain = 5.0;
+  c.drive.control_law = "pid";
+  c.drive.controller_rate = 1000.0;
+  c.drive.integral_gain = 20.0;
+  c.drive.derivative_gain = 0.1;
+  c.drive.load_encoder_resolution = encoder_counts;
+  c.command = command;
+  return c;
+}
+
+/// The run continued for `extra` seconds from where it converged stays there: bit for bit when it converged by being
+/// held for ever, within `tolerance` [rad] when the last motion was still dying out at the rounding level.
+void expectFixedPoint(const RunConfig& c, const RunSummary& r, double extra, double tolerance)
+{
+  RunConfig longer = c;
+  longer.duration = r.simulated + extra;
+  const RunSummary l = runResponse(longer);
+  EXPECT_NEAR(l.final_state.load_position, r.final_state.load_position, tolerance);
+  EXPECT_NEAR(l.final_state.motor_position, r.final_state.motor_position, tolerance / c.params.gear_ratio);
+  EXPECT_EQ(l.final_state.load_velocity, 0.0);
+  EXPECT_EQ(l.final_state.motor_velocity, 0.0);
+  EXPECT_EQ(l.status.verdict, Verdict::Converged);
+}
+
+TEST(Verdicts, ARobotJointHoldingAgainstGravityConverges)
+{
+  // Ideal encoder: the integrator takes the offset away; the load rests on the command to rounding, where the
+  // error is a few ulps of the positions — rounding, not a winding integrator.
+  const RunConfig ideal = robotJoint(0.0, 1.0);
+  const RunSummary r = runResponse(ideal);
+  EXPECT_EQ(r.status.verdict, Verdict::Converged);
+  EXPECT_EQ(r.stopped_by, "settled");
+  EXPECT_NEAR(r.final_state.load_position, 1.0, 1e-9);
+  expectFixedPoint(ideal, r, 100.0, 1e-12);
+}
+
+TEST(Verdicts, AJointStuckInsideOneEncoderCountConverges)
+{
+  // 4096 counts/rev, the command on a count: the load stops inside the count, the quantised error is exactly 0, so
+  // the integrator is frozen and the motor held by its static friction — nothing can change any torque again.
+  const double count = 2.0 * M_PI / 4096.0;
+  const RunConfig quantised = robotJoint(4096.0, 652.0 * count);
+  const RunSummary r = runResponse(quantised);
+  EXPECT_EQ(r.status.verdict, Verdict::Converged);
+  EXPECT_EQ(r.stopped_by, "settled");
+  const double steady = r.final_state.load_position - quantised.command;
+  EXPECT_GE(steady, 0.0);  // floor quantiser: a reading equal to the command means θ_c in [θ_R, θ_R + count)
+  EXPECT_LT(steady, count);
+  expectFixedPoint(quantised, r, 100.0, 0.0);
+}
+
+TEST(Verdicts, AnIntegratorStillWindingIsNotConvergence)
+{
+  // The same joint with the command between counts: the quantised error stays one part-count, the integrator winds
+  // while the joint is held, so the joint is not converged while it stands still (it breaks away later).
+  const double count = 2.0 * M_PI / 4096.0;
+  RunConfig c = robotJoint(4096.0, 652.5 * count);
+  c.duration = 2.0;
+  Simulator sim(c.params, c.initial, c.command);
+  sim.setDrive(makePositionDrive(c.drive, c.params.gain, c.params.gear_ratio, c.command, 0.0));
+  bool stood_still_winding = false;
+  for (double t = 0.01; t <= 5.0; t += 0.01)
+  {
+    sim.advanceTo(t);
+    const State& s = sim.state();
+    if (s.load_velocity == 0.0 && s.motor_velocity == 0.0 && sim.drive().winding())
+    {
+      stood_still_winding = true;
+      EXPECT_FALSE(sim.atRestForever()) << t;
+    }
+  }
+  EXPECT_TRUE(stood_still_winding);
+}
+
+}  // namespace
