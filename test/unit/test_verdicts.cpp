@@ -128,3 +128,51 @@ TEST(Verdicts, AnIntegratorStillWindingIsNotConvergence)
 }
 
 }  // namespace
+
+namespace
+{
+TEST(Verdicts, AJointStuckByLoadStictionAfterOneMaximumConverges)
+{
+  // D1 (ρ = 1, K = 1 N·m/rad) with load stiction T_sL = 0.2 N·m (Coulomb 0.1 N·m), e = 0.5: the load overshoots
+  // once and sticks above the command; the motor, without friction of its own, comes back and presses it from the
+  // backward flank. Continuous law started with the teeth apart, and a 1 kHz sampled P law.
+  for (const bool sampled : {false, true})
+  {
+    RunConfig c;
+    c.params.restitution = 0.5;
+    c.params.load_coulomb_friction = 0.1;
+    c.params.load_static_friction = 0.2;
+    if (sampled)
+    {
+      c.drive.controller_rate = 1000.0;
+    }
+    else
+    {
+      c.initial.contact = Contact::Apart;
+      c.initial.motor_position = -0.2;
+    }
+    const RunSummary r = runResponse(c);
+    SCOPED_TRACE(sampled ? "1 kHz P law" : "continuous P law");
+    EXPECT_EQ(r.status.verdict, Verdict::Converged);
+    EXPECT_EQ(r.stopped_by, "settled");
+    EXPECT_EQ(r.maxima.size(), 1u);
+    const State& s = r.final_state;
+    EXPECT_EQ(s.load_velocity, 0.0);
+    EXPECT_EQ(s.motor_velocity, 0.0);
+    // The static-band margins of the rest rule: the motor torque K(θ_R − θ_c) < 0 presses the motor onto the
+    // backward flank (the motor alone, frictionless, cannot hold it), so the pair decides as one body:
+    // |ρ T_m + ρ² T_ext| ≤ ρ T_sm + ρ² T_sL.
+    const double tm = c.params.gain * (c.command - s.load_position);
+    EXPECT_LT(tm, 0.0);
+    EXPECT_EQ(s.contact, Contact::Backward);
+    EXPECT_LT(std::fabs(tm), c.params.load_static_friction - 0.05);  // held with a margin, not at the edge
+    expectFixedPoint(c, r, 200.0, 0.0);
+    // A fixed-duration run ends with the same verdict and steady error.
+    RunConfig fixed = c;
+    fixed.duration = 300.0;
+    const RunSummary f = runResponse(fixed);
+    EXPECT_EQ(f.status.verdict, Verdict::Converged);
+    EXPECT_EQ(f.final_state.load_position, s.load_position);
+  }
+}
+}  // namespace
