@@ -154,8 +154,9 @@ void ServoNode::reanchorWallClock()
   sim_anchor_ = sim_.state().time;
 }
 
-void ServoNode::restartMonitor()
+void ServoNode::restartMonitor(const std::string& reason)
 {
+  const bool running = monitor_ != nullptr;
   judge_from_ = profile_ && sim_.controlMode() == ControlMode::Position ? profile_->endTime() : -1.0;
   // Effort mode is fed by an external, usually digital, controller: its cycles may be quasi-periodic bands too.
   // Effort mode: the external controller's law is unknown; its rest is judged against `command` itself.
@@ -165,6 +166,11 @@ void ServoNode::restartMonitor()
   monitor_ = std::make_unique<ResponseMonitor>(sim_.params(), command_, equilibrium, sim_.state(),
                                                sim_.drive().sampled() || sim_.controlMode() == ControlMode::Effort);
   announced_ = Verdict::Undecided;
+  if (running && !reason.empty())
+  {
+    verdict_reason_ = reason + " at t = " + formatNumber(sim_.state().time) + " s: judging afresh";
+    publishLimitCycle(sim_.state().time, false);  // no stale verdict: undecided, with the reason, until the new one
+  }
 }
 
 void ServoNode::run()
@@ -252,6 +258,11 @@ void ServoNode::run()
     {
       sim_.advanceTo(t, this);
     }
+    catch (const MotionDiverged& e)
+    {
+      enterFault(e.what(), true);
+      continue;
+    }
     catch (const std::exception& e)
     {
       enterFault(e.what());
@@ -310,9 +321,15 @@ void ServoNode::run()
   ros::shutdown();
 }
 
-void ServoNode::enterFault(const std::string& what)
+void ServoNode::enterFault(const std::string& what, bool diverged)
 {
   fault_ = what;
+  // /limit_cycle no longer shows the verdict of a motion that has ended: diverged (an unstable loop ran away) or
+  // undecided with the fault as its reason.
+  monitor_->restartAt(sim_.state());
+  announced_ = diverged ? Verdict::Diverged : Verdict::Undecided;
+  verdict_reason_ = "simulation stopped at t = " + formatNumber(sim_.state().time) + " s: " + what;
+  publishLimitCycle(sim_.state().time, false, diverged);
   const ServoParams& p = sim_.params();
   ROS_ERROR(
       "backlash_servo_node: simulation error at t = %.9g s: %s; parameters: motor_inertia %g, load_inertia %g, "
@@ -464,13 +481,13 @@ void ServoNode::onEvent(const Event& e)
   }
 }
 
-void ServoNode::publishLimitCycle(double sim_time, bool maximum)
+void ServoNode::publishLimitCycle(double sim_time, bool maximum, bool diverged)
 {
   const auto& st = monitor_->status();
   LimitCycleStatus m;
   m.header.stamp = stamp(sim_time);
   m.sim_time = sim_time;
-  m.verdict = toString(st.verdict);
+  m.verdict = diverged ? toString(Verdict::Diverged) : toString(st.verdict);
   m.detected = monitor_->oscillating();
   m.error = m.detected ? st.error : 0.0;
   m.period = m.detected ? st.period : 0.0;
@@ -483,6 +500,11 @@ void ServoNode::publishLimitCycle(double sim_time, bool maximum)
     m.last_maximum_velocity = last.velocity;
   }
   m.command = command_;
+  if (st.verdict != Verdict::Undecided && fault_.empty())
+  {
+    verdict_reason_.clear();  // a verdict reached: nothing pending to explain
+  }
+  m.reason = verdict_reason_;
   emit(limit_cycle_pub_, limit_cycle_topic_, m);
   if (maximum)
   {
@@ -524,7 +546,7 @@ void ServoNode::onCommand(const std_msgs::Float64& msg)
     sim_.setCommand(command_);
     answered_ = answered_ || awaiting_;  // lockstep: the answer for the state just published
   }
-  restartMonitor();  // both modes judge against the command
+  restartMonitor("new command " + formatNumber(command_) + " rad");  // both modes judge against the command
 }
 
 void ServoNode::onEffort(const std_msgs::Float64& msg)
@@ -715,13 +737,14 @@ void ServoNode::onTrajectory(const trajectory_msgs::JointTrajectory& msg)
     return;
   }
   answered_ = answered_ || awaiting_;  // lockstep: a trajectory answers the state just published, as a command does
-  restartMonitor();                    // judged against the trajectory's final point
+  restartMonitor("new command_trajectory");  // judged against the trajectory's final point
 }
 
 void ServoNode::onLoadTorque(const std_msgs::Float64& msg)
 {
   record(load_torque_topic_, msg);
   ServoParams p = sim_.params();
+  const double before = p.load_torque;
   p.load_torque = msg.data;
   try
   {
@@ -737,6 +760,10 @@ void ServoNode::onLoadTorque(const std_msgs::Float64& msg)
   // The dynamic_reconfigure mirror (one parameter-server call per parameter) is brought up to date at most once per
   // wall second, not per message: a 1 kHz load-torque stream would otherwise cost the node its rate.
   mirror_stale_ = true;
+  if (p.load_torque != before)
+  {
+    restartMonitor("load_torque " + formatNumber(p.load_torque) + " N·m");  // a new equilibrium to judge against
+  }
 }
 
 void ServoNode::refreshReconfigureMirror()
@@ -772,7 +799,7 @@ bool ServoNode::onReset(std_srvs::Trigger::Request&, std_srvs::Trigger::Response
   {
     applyPositionDrive();  // a fresh controller: integrators and sample clock restart with the state
   }
-  restartMonitor();
+  restartMonitor("reset");
   if (!fault_.empty())
   {
     ROS_INFO("backlash_servo_node: reset clears the simulation error; running again");
@@ -861,6 +888,28 @@ void ServoNode::onReconfigure(BacklashServoConfig& c, uint32_t)
     c = last_good_;
     return;
   }
+  // A live change of anything the joint's motion depends on (plant or drive, not the node's own settings) restarts
+  // the judgement: the maxima before it belong to another joint.
+  std::string changed;
+  for (const auto& d : BacklashServoConfig::__getParamDescriptions__())
+  {
+    const ParamSpec* spec = findParam(d->name);
+    if (spec == nullptr || spec->section == ParamSection::Node)
+    {
+      continue;
+    }
+    boost::any now, before;
+    d->getValue(c, now);
+    d->getValue(last_good_, before);
+    const bool differs = d->type == "double"   ? boost::any_cast<double>(now) != boost::any_cast<double>(before)
+                         : d->type == "int"    ? boost::any_cast<int>(now) != boost::any_cast<int>(before)
+                         : d->type == "bool"   ? boost::any_cast<bool>(now) != boost::any_cast<bool>(before)
+                                               : boost::any_cast<std::string>(now) != boost::any_cast<std::string>(before);
+    if (differs)
+    {
+      changed += (changed.empty() ? "" : ", ") + d->name;
+    }
+  }
   if (next.control_mode != config_.control_mode)
   {
     if (next.control_mode == ControlMode::Effort)
@@ -875,7 +924,11 @@ void ServoNode::onReconfigure(BacklashServoConfig& c, uint32_t)
     {
       applyPositionDrive();
     }
-    restartMonitor();
+    restartMonitor("control_mode changed");
+  }
+  else if (!changed.empty())
+  {
+    restartMonitor("live change of " + changed);
   }
   if (next.publish_rate != config_.publish_rate)
   {

@@ -82,11 +82,14 @@ class ServoNode : public EventSink
   /// sim time, impacts, verdict, cycle error/period, impact rate, real-time factor achieved, late lockstep answers.
   void diagnose(diagnostic_updater::DiagnosticStatusWrapper& status);
   /// A core error at sim time t: logged with the parameters, the simulation paused until ~reset or good parameters.
-  void enterFault(const std::string& what);
+  /// Pauses on a simulation error; diverged: the motion ran away (published as the verdict `diverged`).
+  void enterFault(const std::string& what, bool diverged = false);
   /// Publishes the monitor's status on limit_cycle (latched) and logs it; `maximum`: a new maximum caused it.
-  void publishLimitCycle(double sim_time, bool maximum);
+  void publishLimitCycle(double sim_time, bool maximum, bool diverged = false);
   /// A fresh monitor from the current state and command (after a command step, a reset, a mode switch).
-  void restartMonitor();
+  /// Judges afresh from now on (a new command, trajectory, reset, mode or a live change of a plant or drive
+  /// parameter); `reason` says what restarted it and /limit_cycle is published at once with verdict undecided.
+  void restartMonitor(const std::string& reason = "");
   void reanchorWallClock();
   ros::Time stamp(double sim_time) const { return origin_ + ros::Duration(sim_time); }
   /// Publishes an output and writes it to the node's bag (record_bag) under its resolved topic name.
@@ -128,6 +131,7 @@ class ServoNode : public EventSink
   boost::recursive_mutex reconfigure_mutex_;
   std::unique_ptr<dynamic_reconfigure::Server<BacklashServoConfig>> reconfigure_;
   BacklashServoConfig last_good_;
+  std::string verdict_reason_;  ///< /limit_cycle's reason while the verdict is undecided (or the fault)
   bool mirror_stale_ = false;  ///< a topic changed a live value that last_good_ and dynamic_reconfigure do not show
   /// Brings last_good_ and the dynamic_reconfigure parameters up to date (called once per wall second).
   void refreshReconfigureMirror();

@@ -1,5 +1,6 @@
 #!/usr/bin/python3
-"""A unit step on the node reproduces backlash_sim: same maxima (1e-9 rad), same impacts at the same exact times."""
+"""A unit step on the node reproduces backlash_sim: same maxima (1e-9 rad), same impacts at the same exact times; a
+live change of the backlash restarts the verdict, which then matches backlash_sim's for the new joint."""
 import csv
 import json
 import os
@@ -57,6 +58,24 @@ class ThesisStep(unittest.TestCase):
         self.assertTrue(wait_for(lambda: cycles.msgs[-1].detected, 60.0))
         self.assertEqual(cycles.msgs[-1].verdict, "limit_cycle")
         self.assertAlmostEqual(cycles.msgs[-1].error, 0.0515, delta=5e-4)
+        self.assertEqual(cycles.msgs[-1].reason, "")
+
+        # A live change of the backlash restarts the judgement: at once undecided, saying why, then the verdict of
+        # the new joint — the cycle backlash_sim finds for Δ = 0.2 rad (a cycle is an attractor: the same one).
+        import dynamic_reconfigure.client
+        client = dynamic_reconfigure.client.Client(NODE, timeout=10)
+        n = len(cycles.msgs)
+        client.update_configuration({"backlash": 0.2})
+        self.assertTrue(wait_for(lambda: len(cycles.msgs) > n, 20.0))
+        self.assertEqual(cycles.msgs[n].verdict, "undecided")
+        self.assertFalse(cycles.msgs[n].detected)
+        self.assertIn("live change of backlash", cycles.msgs[n].reason)
+        self.assertTrue(wait_for(lambda: cycles.msgs[-1].detected, 120.0), cycles.msgs[-1])
+        cli2 = json.loads(run_cli("--config", config, "--backlash", "0.2", "--json"))
+        self.assertEqual(cycles.msgs[-1].verdict, "limit_cycle")
+        self.assertAlmostEqual(cycles.msgs[-1].error, cli2["limit_cycle_error"], delta=1e-6)
+        self.assertAlmostEqual(cycles.msgs[-1].period, cli2["period"], delta=1e-4)
+        self.assertEqual(cycles.msgs[-1].reason, "")
 
 
 if __name__ == "__main__":
