@@ -153,43 +153,59 @@ void LimitCycleDetector::update()
     }
   }
   // Quasi-periodic: the maxima wander inside a narrow band that no longer shrinks (sampled, quantised or stick–slip
-  // loops whose period is not a whole number of samples).
+  // loops whose period is not a whole number of samples). A pattern of k maxima per period (k bands: stick–slip
+  // hunting that slips in several steps) is k such bands, one per phase, each read from every k-th maximum; the
+  // period is then that of the whole pattern (the time between same-phase maxima).
   const int b = BAND_WINDOW;
-  if (bands_ && n >= 2 * b)
+  for (int k = 1; bands_ && k <= MAX_MULTIPLICITY && n >= 2 * b * k; ++k)
   {
-    auto window = [&](int first, double* lo, double* hi, double* mean, int* turns) {
-      *lo = x(first);
-      *hi = x(first);
+    // Window of b same-phase maxima: the j-th is maxima_[last − (b − 1 − j)·k], oldest first.
+    auto window = [&](int last, double* lo, double* hi, double* mean, int* turns) {
+      auto at = [&](int j) { return x(last - (b - 1 - j) * k); };
+      *lo = at(0);
+      *hi = at(0);
       *mean = 0.0;
       *turns = 0;
-      for (int i = first; i < first + b; ++i)
+      for (int j = 0; j < b; ++j)
       {
-        *lo = std::min(*lo, x(i));
-        *hi = std::max(*hi, x(i));
-        *mean += x(i) / b;
-        if (i >= first + 2 && (x(i) - x(i - 1)) * (x(i - 1) - x(i - 2)) < 0.0)
+        *lo = std::min(*lo, at(j));
+        *hi = std::max(*hi, at(j));
+        *mean += at(j) / b;
+        if (j >= 2 && (at(j) - at(j - 1)) * (at(j - 1) - at(j - 2)) < 0.0)
         {
           ++*turns;
         }
       }
     };
-    double lo_a, hi_a, mean_a, lo_b, hi_b, mean_b;
-    int turns_a, turns_b;
-    window(n - 2 * b, &lo_a, &hi_a, &mean_a, &turns_a);
-    window(n - b, &lo_b, &hi_b, &mean_b, &turns_b);
-    const bool narrow = mean_b > 10.0 * ZERO_FRACTION * scale_ && hi_a - lo_a <= BAND_FRACTION * mean_a &&
-                        hi_b - lo_b <= BAND_FRACTION * mean_b;
-    const bool settled_band =
-        hi_b - lo_b >= 0.5 * (hi_a - lo_a) && std::fabs(mean_b - mean_a) <= hi_a - lo_a && turns_b >= 2 && turns_a >= 2;
-    if (narrow && settled_band)
+    bool all = true;
+    double top = 0.0, top_low = 0.0;
+    for (int phase = 0; phase < k && all; ++phase)
+    {
+      const int last = n - 1 - phase;
+      double lo_a, hi_a, mean_a, lo_b, hi_b, mean_b;
+      int turns_a, turns_b;
+      window(last - b * k, &lo_a, &hi_a, &mean_a, &turns_a);
+      window(last, &lo_b, &hi_b, &mean_b, &turns_b);
+      const bool narrow = mean_b > 10.0 * ZERO_FRACTION * scale_ && hi_a - lo_a <= BAND_FRACTION * mean_a &&
+                          hi_b - lo_b <= BAND_FRACTION * mean_b;
+      const bool settled_band = hi_b - lo_b >= 0.5 * (hi_a - lo_a) && std::fabs(mean_b - mean_a) <= hi_a - lo_a &&
+                                turns_b >= 2 && turns_a >= 2;
+      all = narrow && settled_band;
+      if (phase == 0 || hi_b > top)
+      {
+        top = hi_b;
+        top_low = lo_b;
+      }
+    }
+    if (all)
     {
       status_.verdict = Verdict::LimitCycle;
       status_.quasi_periodic = true;
-      status_.error = hi_b + offset;
-      status_.band_low = lo_b + offset;
-      status_.band_high = hi_b + offset;
-      status_.period = (maxima_[n - 1].time - maxima_[n - b].time) / (b - 1);
-      status_.multiplicity = 1;
+      status_.error = top + offset;
+      status_.band_low = top_low + offset;
+      status_.band_high = top + offset;
+      status_.period = (maxima_[n - 1].time - maxima_[n - 1 - (b - 1) * k].time) / (b - 1);
+      status_.multiplicity = k;
       return;
     }
   }

@@ -176,3 +176,50 @@ TEST(Verdicts, AJointStuckByLoadStictionAfterOneMaximumConverges)
   }
 }
 }  // namespace
+
+namespace
+{
+TEST(Verdicts, AStickSlipHuntOfThreeMaximaPerPeriodReportsThePatternsPeriod)
+{
+  // A 1 kHz PID against load stiction (T_sL 0.12 N·m, Coulomb 0.05 N·m) and motor Coulomb friction 0.03 N·m
+  // hunts in a pattern of three slips of different sizes, each wandering in a narrow band: a quasi-periodic cycle
+  // with 3 maxima per period, whose period is the pattern's repetition time — not the mean spacing of maxima.
+  RunConfig c;
+  c.params.backlash = 0.05;
+  c.params.restitution = 0.5;
+  c.params.load_coulomb_friction = 0.05;
+  c.params.load_static_friction = 0.12;
+  c.params.motor_coulomb_friction = 0.03;
+  c.params.motor_static_friction = 0.03;
+  c.drive.control_law = "pid";
+  c.drive.controller_rate = 1000.0;
+  c.drive.integral_gain = 1.0;
+  c.drive.derivative_gain = 0.3;
+  c.max_duration = 3000.0;
+  const RunSummary r = runResponse(c);
+  ASSERT_EQ(r.status.verdict, Verdict::LimitCycle);
+  EXPECT_EQ(r.status.multiplicity, 3);
+  const double period = r.status.period;
+  // The long run's own repetition: every maximum recurs three maxima later, one period later, at the same height.
+  RunConfig longer = c;
+  longer.duration = 4000.0;
+  const RunSummary l = runResponse(longer);
+  const std::vector<Maximum>& m = l.maxima;
+  ASSERT_GE(m.size(), 60u);
+  for (std::size_t i = m.size() - 30; i + 3 < m.size(); ++i)
+  {
+    EXPECT_NEAR(m[i + 3].time - m[i].time, period, 0.01) << i;
+    EXPECT_NEAR(m[i + 3].position, m[i].position, 2e-5) << i;
+  }
+  // The mean spacing of maxima is a third of it: the three slips differ (not one band repeated).
+  EXPECT_NEAR((m.back().time - m[m.size() - 31].time) / 30.0, period / 3.0, 0.01);
+  EXPECT_GT(std::fabs(m[m.size() - 1].position - m[m.size() - 2].position), 1e-3);
+  // The error is the largest positive error of the pattern's bands.
+  double top = 0.0;
+  for (std::size_t i = m.size() - 30; i < m.size(); ++i)
+  {
+    top = std::max(top, m[i].position - c.command);
+  }
+  EXPECT_NEAR(r.status.error, top, 1e-5);
+}
+}  // namespace
