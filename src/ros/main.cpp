@@ -40,6 +40,5 @@ int main(int argc, char** argv)
     ROS_FATAL("backlash_servo_node: %s", e.what());
     return 1;
   }
-  node->run();
-  return 0;
+  return node->run() ? 0 : 1;  // 1: the recording asked for (record_bag) failed, as logged
 }

@@ -130,11 +130,11 @@ void NodeRecorder::writerLoop()
   }
 }
 
-void NodeRecorder::close()
+bool NodeRecorder::close()
 {
   if (!open_)
   {
-    return;
+    return true;
   }
   open_ = false;
   {
@@ -152,7 +152,7 @@ void NodeRecorder::close()
     (void)bag_.release();  // abandoned, never destroyed: its destructor would throw the same error again
     ROS_ERROR("backlash_servo_node: record_bag: closing %s.active failed: %s (left as is; try rosbag reindex)",
               path_.c_str(), e.what());
-    return;
+    return false;
   }
   try
   {
@@ -161,10 +161,11 @@ void NodeRecorder::close()
   catch (const std::exception& e)
   {
     ROS_ERROR("backlash_servo_node: %s", e.what());
-    return;
+    return false;
   }
   ROS_INFO("backlash_servo_node: wrote %s: %llu messages%s (backlash_bag_report %s)", path_.c_str(),
            static_cast<unsigned long long>(written_), failures_ > 0 ? ", SOME WRITES FAILED" : "", path_.c_str());
+  return failures_ == 0;
 }
 
 }  // namespace backlash_servo

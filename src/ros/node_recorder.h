@@ -74,7 +74,7 @@ class NodeRecorder
 
   /// Writes what is queued, stops the writer, closes the bag and renames PATH.active to PATH (idempotent); logs the
   /// path and the message count.
-  void close();
+  bool close();
   const std::string& path() const { return path_; }
 
  private:

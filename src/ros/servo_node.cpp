@@ -173,7 +173,7 @@ void ServoNode::restartMonitor(const std::string& reason)
   }
 }
 
-void ServoNode::run()
+bool ServoNode::run()
 {
   // Give recorders and monitors time to subscribe before sim time starts (callbacks are served meanwhile).
   const ros::WallTime start = ros::WallTime::now() + ros::WallDuration(config_.start_delay);
@@ -314,11 +314,10 @@ void ServoNode::run()
       break;
     }
   }
-  if (recorder_)
-  {
-    recorder_->close();  // every input served so far is in it (the drain above serves the last ones)
-  }
+  // Every input served so far is in the bag (the drain above serves the last ones).
+  const bool recorded = recorder_ == nullptr || recorder_->close();
   ros::shutdown();
+  return recorded;
 }
 
 void ServoNode::enterFault(const std::string& what, bool diverged)
@@ -901,10 +900,11 @@ void ServoNode::onReconfigure(BacklashServoConfig& c, uint32_t)
     boost::any now, before;
     d->getValue(c, now);
     d->getValue(last_good_, before);
-    const bool differs = d->type == "double"   ? boost::any_cast<double>(now) != boost::any_cast<double>(before)
-                         : d->type == "int"    ? boost::any_cast<int>(now) != boost::any_cast<int>(before)
-                         : d->type == "bool"   ? boost::any_cast<bool>(now) != boost::any_cast<bool>(before)
-                                               : boost::any_cast<std::string>(now) != boost::any_cast<std::string>(before);
+    const bool differs = d->type == "double" ? boost::any_cast<double>(now) != boost::any_cast<double>(before)
+                         : d->type == "int"  ? boost::any_cast<int>(now) != boost::any_cast<int>(before)
+                         : d->type == "bool"
+                             ? boost::any_cast<bool>(now) != boost::any_cast<bool>(before)
+                             : boost::any_cast<std::string>(now) != boost::any_cast<std::string>(before);
     if (differs)
     {
       changed += (changed.empty() ? "" : ", ") + d->name;

@@ -34,7 +34,8 @@ class ServoNode : public EventSink
  public:
   ServoNode(ros::NodeHandle& nh, ros::NodeHandle& pnh, const NodeConfig& config);
   /// Runs the sample loop until shutdown (or stop_after).
-  void run();
+  /// Runs until shutdown; false when the recording (record_bag) failed (a message, the close or the rename).
+  bool run();
 
   /// Core events (called during Simulator::advanceTo): impacts and maxima are published here.
   void onEvent(const Event& event) override;
@@ -132,7 +133,7 @@ class ServoNode : public EventSink
   std::unique_ptr<dynamic_reconfigure::Server<BacklashServoConfig>> reconfigure_;
   BacklashServoConfig last_good_;
   std::string verdict_reason_;  ///< /limit_cycle's reason while the verdict is undecided (or the fault)
-  bool mirror_stale_ = false;  ///< a topic changed a live value that last_good_ and dynamic_reconfigure do not show
+  bool mirror_stale_ = false;   ///< a topic changed a live value that last_good_ and dynamic_reconfigure do not show
   /// Brings last_good_ and the dynamic_reconfigure parameters up to date (called once per wall second).
   void refreshReconfigureMirror();
 

@@ -74,6 +74,37 @@ def write_bag(path, servo_ns="", arm=False, joints=("motor_joint", "load_joint")
                 bag.write("/joint_states", a, t)
 
 
+class NodeRecordingTargets(unittest.TestCase):
+    """record_bag checked like every output: a device is refused at start; a full disk is reported, the node exits
+    cleanly with status 1 and the partial bag is kept as FILE.active."""
+
+    def test_device_target_and_full_disk(self):
+        with tempfile.TemporaryDirectory() as d:
+            env = dict(os.environ, ROS_MASTER_URI="http://localhost:11427", ROS_HOME=d)
+            master = subprocess.Popen(["roscore", "-p", "11427"], env=env, stdout=subprocess.DEVNULL,
+                                      stderr=subprocess.DEVNULL)
+            try:
+                node = ["rosrun", "backlash_servo", "backlash_servo_node", "_publish_clock:=true",
+                        "_real_time_factor:=0", "_start_delay:=0", "_stop_after:=200"]
+                dev = subprocess.run(node + ["_record_bag:=/dev/null"], env=env, capture_output=True, text=True,
+                                     timeout=60)
+                self.assertEqual(dev.returncode, 1, dev.stderr)
+                self.assertIn("record_bag: '/dev/null' is a device", dev.stderr + dev.stdout)
+                bag = os.path.join(d, "x.bag")
+                # A 64 KiB file-size limit: writes fail as on a full disk (EFBIG instead of ENOSPC).
+                full = subprocess.run(["bash", "-c", "trap '' XFSZ; ulimit -f 64; exec \"$@\"", "bash"] + node +
+                                      ["_record_bag:=" + bag], env=env, capture_output=True, text=True, timeout=60)
+                out = full.stdout + full.stderr
+                self.assertEqual(full.returncode, 1, out[-2000:])  # not 134 (an exception out of a destructor)
+                self.assertIn("record_bag: could not write", out)
+                self.assertIn("closing %s.active failed" % bag, out)
+                self.assertTrue(os.path.exists(bag + ".active"))
+                self.assertFalse(os.path.exists(bag))
+            finally:
+                master.terminate()
+                master.wait(timeout=30)
+
+
 class BagReportInputs(unittest.TestCase):
     """Damaged, foreign and ambiguous bags: one line and exit 2, never a traceback; JSON is valid; PNG writes checked."""
 
@@ -152,5 +183,6 @@ class BagReportInputs(unittest.TestCase):
 
 
 if __name__ == "__main__":
-    ALL = unittest.TestSuite([unittest.TestLoader().loadTestsFromTestCase(c) for c in (BagReport, BagReportInputs)])
+    ALL = unittest.TestSuite([unittest.TestLoader().loadTestsFromTestCase(c)
+                              for c in (BagReport, BagReportInputs, NodeRecordingTargets)])
     rostest.rosrun("backlash_servo", "bag_report", "__main__.ALL")
