@@ -147,7 +147,7 @@ std::vector<ParamSpec> makeTable()
     // ---- length of a command-line run ----
     {"duration", "", "s", T::Real, S::Run, NON_NEGATIVE, "0",
      "simulate exactly this long (0 = until the verdict is settled)", false, {}, &RunConfig::duration},
-    {"max_duration", "", "s", T::Real, S::Run, NON_NEGATIVE, "0", "cap when running until settled (0 = 2000/ω_n)",
+    {"max_duration", "", "s", T::Real, S::Run, NON_NEGATIVE, "0", "cap when running until settled (0 = max(2000/ω_n, 100 × the longest interval between maxima))",
      false, {}, &RunConfig::max_duration},
     {"max_events", "", "-", T::Real, S::Run, ParamRange{1.0, 1e12, false, false}, "1e7",
      "event budget of a run: impacts, and apart rests and law switches; beyond it the run stops, unsettled (an "

@@ -70,8 +70,15 @@ RunSummary runResponse(const RunConfig& config, EventSink* sink, double sample_p
   // around an intermediate set-point is not the final limit cycle).
   double judge_from = config.profile && config.profile->endTime() > t0 ? config.profile->endTime() : -INFINITY;
   const bool until_settled = config.duration <= 0.0;
-  const double t_stop =
+  double t_stop =
       t0 + (until_settled ? (config.max_duration > 0.0 ? config.max_duration : 2000.0 / omega_n) : config.duration);
+  // Without a cap of the user's, a run until settled lasts at least REPETITIONS times the slowest oscillation seen
+  // (the longest interval between maxima): a stick–slip hunt or a slow drive loop whose cycle is long against
+  // 2π/ω_n (ω_n is the P law's; it means nothing for a PID or a cascade) is given the repetitions its verdict needs.
+  constexpr double REPETITIONS = 100.0;
+  const bool auto_cap = until_settled && config.max_duration <= 0.0;
+  double slowest = 0.0;  // longest interval between judged maxima so far [s]
+  std::size_t intervals = 0;
   const double chunk = sample_period > 0.0 ? sample_period : 2.0 * PI / omega_n;
   if (on_sample)
   {
@@ -125,6 +132,15 @@ RunSummary runResponse(const RunConfig& config, EventSink* sink, double sample_p
       on_sample(sim);
     }
     monitor.check(sim.state(), sim.drive().winding(), judge_from == -INFINITY && sim.atRestForever());
+    if (auto_cap)
+    {
+      const std::vector<Maximum>& m = monitor.judged();
+      for (; intervals + 1 < m.size(); ++intervals)
+      {
+        slowest = std::max(slowest, m[intervals + 1].time - m[intervals].time);
+      }
+      t_stop = std::max(t_stop, t0 + REPETITIONS * slowest);
+    }
     if (on_progress)
     {
       on_progress((t - t0) / (t_stop - t0));

@@ -223,3 +223,46 @@ TEST(Verdicts, AStickSlipHuntOfThreeMaximaPerPeriodReportsThePatternsPeriod)
   EXPECT_NEAR(r.status.error, top, 1e-5);
 }
 }  // namespace
+
+namespace
+{
+TEST(Verdicts, ASlowHuntIsGivenTheRepetitionsItsVerdictNeeds)
+{
+  // A 1 kHz PID hunting against load stiction every ~106 s: 2000/ω_n = 2000 s (ω_n of the P law's terms) holds only
+  // 19 of its cycles, too few for a band of maxima to settle. Running until settled, the run lasts as many
+  // repetitions of the slowest oscillation seen as its verdict needs.
+  RunConfig c;
+  c.params.backlash = 0.05;
+  c.params.restitution = 0.5;
+  c.params.load_coulomb_friction = 0.05;
+  c.params.load_static_friction = 0.06;
+  c.params.motor_coulomb_friction = 0.03;
+  c.params.motor_static_friction = 0.03;
+  c.drive.control_law = "pid";
+  c.drive.controller_rate = 1000.0;
+  c.drive.integral_gain = 0.5;
+  c.drive.derivative_gain = 0.3;
+  const RunSummary r = runResponse(c);
+  EXPECT_EQ(r.status.verdict, Verdict::LimitCycle);
+  EXPECT_EQ(r.stopped_by, "settled");
+  EXPECT_GT(r.simulated, 2000.0 / c.params.naturalFrequency());
+  // The period against a long run's own spacing of maxima (one per cycle).
+  RunConfig longer = c;
+  longer.duration = 4000.0;
+  const RunSummary l = runResponse(longer);
+  ASSERT_GE(l.maxima.size(), 30u);
+  for (std::size_t i = l.maxima.size() - 10; i + 1 < l.maxima.size(); ++i)
+  {
+    EXPECT_NEAR(l.maxima[i + 1].time - l.maxima[i].time, r.status.period, 0.05) << i;
+    // Within the settled band whose top is the reported error (quasi-periodic: the maxima wander by ~1e-6 rad).
+    EXPECT_LE(l.maxima[i].position - c.command, r.status.error + 1e-6) << i;
+    EXPECT_GE(l.maxima[i].position - c.command, r.status.error * (1.0 - 0.02)) << i;
+  }
+  // A cap of the user's is kept.
+  RunConfig capped = c;
+  capped.max_duration = 500.0;
+  const RunSummary k = runResponse(capped);
+  EXPECT_EQ(k.stopped_by, "max_duration");
+  EXPECT_EQ(k.simulated, 500.0);
+}
+}  // namespace
