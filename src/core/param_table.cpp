@@ -13,7 +13,6 @@ namespace backlash_servo
 namespace
 {
 constexpr double INF = std::numeric_limits<double>::infinity();
-const ParamRange POSITIVE{0.0, INF, true, false};
 const ParamRange NON_NEGATIVE{0.0, INF, false, false};
 const ParamRange UNIT{0.0, 1.0, false, false};
 const ParamRange FINITE{};
