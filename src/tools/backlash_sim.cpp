@@ -158,12 +158,18 @@ void writeSummary(std::ostream& out, const RunConfig& c, const RunSummary& r, do
 {
   const ServoParams& p = c.params;
   char buf[512];
+  // ζ and ω_n are those of the continuous P law (the thesis' chart form); for any other loop they describe the gain K
+  // alone, and are labelled so.
+  const bool continuous_p = !c.drive.sampled() && c.drive.compensation == "none";
+  const std::string chart =
+      continuous_p ? "chart" : "chart of the continuous P law with this K (not this " + c.drive.control_law + " loop)";
   std::snprintf(buf, sizeof buf,
                 "servo: J_m=%g J_L=%g kg·m², f_m=%g f_L=%g N·m·s/rad, K=%g N·m/rad, rho=%g, backlash=%g rad, e=%g\n"
-                "chart: zeta=%.4g  w_n=%.4g rad/s  rho²J_L/J_m=%.4g  rho²f_L/F_T=%.4g;  command %g -> %g rad%s\n",
+                "%s: zeta=%.4g  w_n=%.4g rad/s  rho²J_L/J_m=%.4g  rho²f_L/F_T=%.4g;  command %g -> %g rad%s\n",
                 p.motor_inertia, p.load_inertia, p.motor_friction, p.load_friction, p.gain, p.gear_ratio, p.backlash,
-                p.restitution, p.dampingRatio(), p.naturalFrequency(), p.inertiaRatio(), p.frictionRatio(),
-                c.initial.load_position, c.command, c.profile ? " (final value of the profile)" : "");
+                p.restitution, chart.c_str(), p.dampingRatio(), p.naturalFrequency(), p.inertiaRatio(),
+                p.frictionRatio(), c.initial.load_position, c.command,
+                c.profile ? " (final value of the profile)" : "");
   out << buf;
   if (r.status.verdict == Verdict::LimitCycle)
   {
