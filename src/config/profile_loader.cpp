@@ -101,18 +101,7 @@ std::vector<std::pair<double, double>> readPoints(const std::string& path, const
     {
       continue;
     }
-    std::vector<std::string> cells;
-    std::size_t c0 = 0;
-    for (;;)
-    {
-      const std::size_t comma = line.find(',', c0);
-      cells.push_back(line.substr(c0, comma == std::string::npos ? std::string::npos : comma - c0));
-      if (comma == std::string::npos)
-      {
-        break;
-      }
-      c0 = comma + 1;
-    }
+    const std::vector<std::string> cells = splitCsvCells(line);
     if (cells.size() != 2)
     {
       throw ConfigError(at + " has " + std::to_string(cells.size()) + " columns; each row is time,value");

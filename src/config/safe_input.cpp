@@ -64,4 +64,20 @@ std::string readRegularFile(const std::string& flag, const std::string& path, st
   return content;
 }
 
+std::vector<std::string> splitCsvCells(const std::string& line)
+{
+  std::vector<std::string> cells;
+  std::size_t start = 0;
+  for (;;)
+  {
+    const std::size_t comma = line.find(',', start);
+    cells.push_back(line.substr(start, comma == std::string::npos ? std::string::npos : comma - start));
+    if (comma == std::string::npos)
+    {
+      return cells;
+    }
+    start = comma + 1;
+  }
+}
+
 }  // namespace backlash_servo

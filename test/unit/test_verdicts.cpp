@@ -179,22 +179,30 @@ TEST(Verdicts, AJointStuckByLoadStictionAfterOneMaximumConverges)
 
 namespace
 {
+/// App. D1 with Δ = 0.05 rad, e = 0.5, load stiction T_sL [N·m] over a Coulomb level of 0.05 N·m, motor Coulomb
+/// friction 0.03 N·m, and a 1 kHz PID (K = 1 N·m/rad, K_i [N·m/(rad·s)], K_d = 0.3 N·m·s/rad): it hunts.
+RunConfig huntingJoint(double load_static_friction, double integral_gain)
+{
+  RunConfig c;
+  c.params.backlash = 0.05;
+  c.params.restitution = 0.5;
+  c.params.load_coulomb_friction = 0.05;
+  c.params.load_static_friction = load_static_friction;
+  c.params.motor_coulomb_friction = 0.03;
+  c.params.motor_static_friction = 0.03;
+  c.drive.control_law = "pid";
+  c.drive.controller_rate = 1000.0;
+  c.drive.integral_gain = integral_gain;
+  c.drive.derivative_gain = 0.3;
+  return c;
+}
+
 TEST(Verdicts, AStickSlipHuntOfThreeMaximaPerPeriodReportsThePatternsPeriod)
 {
   // A 1 kHz PID against load stiction (T_sL 0.12 N·m, Coulomb 0.05 N·m) and motor Coulomb friction 0.03 N·m
   // hunts in a pattern of three slips of different sizes, each wandering in a narrow band: a quasi-periodic cycle
   // with 3 maxima per period, whose period is the pattern's repetition time — not the mean spacing of maxima.
-  RunConfig c;
-  c.params.backlash = 0.05;
-  c.params.restitution = 0.5;
-  c.params.load_coulomb_friction = 0.05;
-  c.params.load_static_friction = 0.12;
-  c.params.motor_coulomb_friction = 0.03;
-  c.params.motor_static_friction = 0.03;
-  c.drive.control_law = "pid";
-  c.drive.controller_rate = 1000.0;
-  c.drive.integral_gain = 1.0;
-  c.drive.derivative_gain = 0.3;
+  RunConfig c = huntingJoint(0.12, 1.0);
   c.max_duration = 3000.0;
   const RunSummary r = runResponse(c);
   ASSERT_EQ(r.status.verdict, Verdict::LimitCycle);
@@ -231,17 +239,7 @@ TEST(Verdicts, ASlowHuntIsGivenTheRepetitionsItsVerdictNeeds)
   // A 1 kHz PID hunting against load stiction every ~106 s: 2000/ω_n = 2000 s (ω_n of the P law's terms) holds only
   // 19 of its cycles, too few for a band of maxima to settle. Running until settled, the run lasts as many
   // repetitions of the slowest oscillation seen as its verdict needs.
-  RunConfig c;
-  c.params.backlash = 0.05;
-  c.params.restitution = 0.5;
-  c.params.load_coulomb_friction = 0.05;
-  c.params.load_static_friction = 0.06;
-  c.params.motor_coulomb_friction = 0.03;
-  c.params.motor_static_friction = 0.03;
-  c.drive.control_law = "pid";
-  c.drive.controller_rate = 1000.0;
-  c.drive.integral_gain = 0.5;
-  c.drive.derivative_gain = 0.3;
+  const RunConfig c = huntingJoint(0.06, 0.5);
   const RunSummary r = runResponse(c);
   EXPECT_EQ(r.status.verdict, Verdict::LimitCycle);
   EXPECT_EQ(r.stopped_by, "settled");

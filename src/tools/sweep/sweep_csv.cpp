@@ -56,22 +56,6 @@ namespace
 /// Largest part or sweep file read back (a 1344-point sweep is ~150 kB).
 constexpr std::size_t kMaxSweepFileBytes = std::size_t(1) << 30;
 
-std::vector<std::string> splitCells(const std::string& line)
-{
-  std::vector<std::string> cells;
-  std::size_t start = 0;
-  for (;;)
-  {
-    const std::size_t comma = line.find(',', start);
-    cells.push_back(line.substr(start, comma == std::string::npos ? std::string::npos : comma - start));
-    if (comma == std::string::npos)
-    {
-      return cells;
-    }
-    start = comma + 1;
-  }
-}
-
 bool isNumber(const std::string& cell)
 {
   if (cell.empty() || cell.size() > 40)
@@ -87,7 +71,7 @@ bool isNumber(const std::string& cell)
 /// type: parameter values, a verdict name, 0/1 flags, numbers; steady_error empty unless converged).
 void checkRow(const std::string& line, const std::vector<std::string>& header, const std::string& where)
 {
-  const std::vector<std::string> cells = splitCells(line);
+  const std::vector<std::string> cells = splitCsvCells(line);
   auto bad = [&](const std::string& why) {
     throw ConfigError(where + ": " + why + " (" + line.substr(0, std::min<std::size_t>(line.size(), 80)) + ")");
   };
@@ -145,7 +129,7 @@ void checkGridOrder(const std::vector<const std::string*>& rows, std::size_t axe
   cells.reserve(rows.size());
   for (const std::string* row : rows)
   {
-    cells.push_back(splitCells(*row));
+    cells.push_back(splitCsvCells(*row));
     for (std::size_t a = 0; a < axes; ++a)
     {
       if (std::find(values[a].begin(), values[a].end(), cells.back()[a]) == values[a].end())
@@ -222,7 +206,7 @@ std::string mergeParts(const std::vector<std::string>& paths)
       throw ConfigError("--merge: '" + path + "' has no sweep CSV header, or another grid's");
     }
     header = line;
-    const std::vector<std::string> columns = splitCells(header);
+    const std::vector<std::string> columns = splitCsvCells(header);
     while (std::getline(ss, line))
     {
       const bool complete = ss.good() || (!content.empty() && content.back() == '\n');
@@ -288,7 +272,7 @@ std::string mergeParts(const std::vector<std::string>& paths)
       out += row + "\n";
     }
   }
-  checkGridOrder(rows, splitCells(header).size() - 8, ref.total);
+  checkGridOrder(rows, splitCsvCells(header).size() - 8, ref.total);
   return out;
 }
 
@@ -342,7 +326,7 @@ std::vector<std::string> resumableRows(const std::string& path, const SweepGrid&
                         std::to_string(index + 1) +
                         " of this grid: it was written for a different grid; refusing to resume");
     }
-    checkRow(line, splitCells(header), "--resume: '" + path + "' row " + std::to_string(index + 1));
+    checkRow(line, splitCsvCells(header), "--resume: '" + path + "' row " + std::to_string(index + 1));
     kept.push_back(line);
   }
   return kept;
