@@ -47,7 +47,10 @@ struct RunSummary
   double balance_error = 0.0;  ///< energy balance residual [J]
   State final_state;
   double simulated = 0.0;  ///< simulated time [s]
-  bool settled = false;    ///< the verdict was settled (not cut off by the duration or the cap)
+  /// Where the loop rests [rad] (loopEquilibrium: θ_R shifted by ρT_ext/K unless integral action removes the offset),
+  /// against which the verdict judged the maxima.
+  double equilibrium = 0.0;
+  bool settled = false;  ///< the verdict was settled (not cut off by the duration or the cap)
   /// Why the run ended: "settled", "duration" (the requested length), "max_duration" (the cap), "event_budget",
   /// "diverged" (the motion ran away: verdict Diverged).
   std::string stopped_by;

@@ -178,6 +178,7 @@ RunSummary runResponse(const RunConfig& config, EventSink* sink, double sample_p
   out.balance_error = sim.energyBalanceError();
   out.final_state = sim.state();
   out.simulated = sim.state().time - t0;
+  out.equilibrium = monitor.equilibrium();
   out.settled = monitor.settled();
   return out;
 }

@@ -112,6 +112,7 @@ void writeJson(std::ostream& out, const RunConfig& c, const RunSummary& r, doubl
     j.null("period");
   }
   j.field("maxima_per_period", static_cast<long long>(r.status.multiplicity));
+  j.field("equilibrium", r.equilibrium);  // where the loop rests [rad]; the verdict judges maxima against it
   if (r.status.verdict == Verdict::Converged)
   {
     j.field("steady_error", r.final_state.load_position - c.command);  // θ_c − θ_R at the end [rad]
@@ -185,7 +186,13 @@ void writeSummary(std::ostream& out, const RunConfig& c, const RunSummary& r, do
   }
   else if (r.status.verdict == Verdict::Converged)
   {
-    std::snprintf(buf, sizeof buf, "verdict: converges to the command (no limit cycle)\n");
+    std::snprintf(
+        buf, sizeof buf,
+        "verdict: converges (no limit cycle); at the end theta_c = %.9g rad, steady error %.3g rad%s\n",
+        r.final_state.load_position, r.final_state.load_position - c.command,
+        r.equilibrium != c.command
+            ? (" (the loop's equilibrium under the load torque: " + formatNumber(r.equilibrium) + " rad)").c_str()
+            : "");
   }
   else if (r.status.verdict == Verdict::Diverged)
   {
