@@ -13,6 +13,7 @@ sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 import dynamic_reconfigure.client  # noqa: E402
 import rospy  # noqa: E402
 import rostest  # noqa: E402
+from rosgraph_msgs.msg import Log  # noqa: E402
 from std_msgs.msg import Float64  # noqa: E402
 
 from backlash_servo.msg import BacklashState  # noqa: E402
@@ -27,6 +28,7 @@ class NodeSurvives(unittest.TestCase):
     def setUpClass(cls):
         rospy.init_node("test_node_survives")
         cls.states = Collector("/backlash_state", BacklashState)
+        cls.log = Collector("/rosout", Log)
         cls.command = rospy.Publisher("/command", Float64, queue_size=100)
         cls.effort = rospy.Publisher("/motor_effort", Float64, queue_size=100)
         assert cls.states.wait_connected()
@@ -100,10 +102,18 @@ class NodeSurvives(unittest.TestCase):
             if k > last_n:
                 silence = max(silence, t - last_t)
                 last_t, last_n = t, k
-        rate = len(seen) / (time.time() - start)
+        elapsed = time.time() - start
+        rate = len(seen) / elapsed
         print("flood: %s sent in 8 s; backlash_state %.0f msg/s, longest silence %.3f s" % (counts, rate, silence))
         self.assertGreater(len(seen), 100)
         self.assertLess(silence, 1.0)
+        # The "dropped command" warning is throttled in wall time: once per wall second, whatever the sim time does
+        # (at real_time_factor 5 a sim-time throttle printed it five times per wall second).
+        time.sleep(1.0)  # the last log messages on their way
+        dropped = [m for m in self.log.msgs if "dropped command" in m.msg and m.name == NODE]
+        print("flood: %d 'dropped command' warnings in %.1f s" % (len(dropped), elapsed))
+        self.assertGreater(len(dropped), 0)
+        self.assertLessEqual(len(dropped), elapsed + 2)
         for s in seen:
             for v in (s.gap, s.mesh_torque, s.motor_torque, s.command, s.energy_kinetic):
                 self.assertTrue(math.isfinite(v))

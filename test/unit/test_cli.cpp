@@ -188,6 +188,7 @@ TEST(Cli, BadInputIsOneClearLineAndExitCode2)
        "NUL byte"},
       {"--profile " + writeFile("backlash_sim_bigpoint.csv", "0,1\n1,1e300\n"), "point 2"},
       {"--profile /dev/zero", "not a regular file"},
+      {"--profile /nonexistent.yaml", "profile file: cannot read '/nonexistent.yaml'"},
       {"--config /tmp", "a directory"}};
   for (const Case& c : cases)
   {
