@@ -97,8 +97,8 @@ Row ours(const Case& c)
   return r;
 }
 
-/// The real joint (MODEL.md Part 2): digital drives, encoders, dry friction. Figures only (their accuracy is checked
-/// by the tests against ../shared/joint_cases_public.json and closed forms).
+/// The real joint (docs/model.md Part 2): digital drives, encoders, dry friction. Figures only (their accuracy is
+/// checked by the tests against test/joint_cases/reference_cases.json and closed forms).
 struct JointCase
 {
   std::string name;

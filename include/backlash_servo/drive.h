@@ -25,7 +25,7 @@
 
 namespace backlash_servo
 {
-/// Settings of the drive (MODEL.md Part 2, "Digital drive"); the P gain K is ServoParams::gain.
+/// Settings of the drive (docs/model.md Part 2, "Digital drive"); the P gain K is ServoParams::gain.
 struct DriveParams
 {
   std::string control_law = "proportional";  ///< proportional | pid | cascade

@@ -1,7 +1,7 @@
 /**
  * @file dry_friction.h
  * @brief Dry (Coulomb) friction and stiction of the motor and the load: the rest / stick / breakaway rule of
- *        ../shared/MODEL.md Part 2, and the folding of the kinetic friction of sliding bodies into the constant
+ *        docs/model.md Part 2, and the folding of the kinetic friction of sliding bodies into the constant
  *        inputs of the linear modes. No ROS dependency.
  *
  * A sliding body gets the constant torque \f$ -T_c\,\mathrm{sign}(\omega) \f$; between events its sign does not change
@@ -40,7 +40,7 @@ inline Slide slideOf(double v, Slide at_rest)
 }
 
 /**
- * The rest rule (MODEL.md Part 2, "Rest, stick and breakaway") at state s with motor torque T_m = motor_torque
+ * The rest rule (docs/model.md Part 2, "Rest, stick and breakaway") at state s with motor torque T_m = motor_torque
  * [N·m]; bodies with non-zero velocity keep sliding in the direction of their velocity.
  * 1. Apart (Q = 0): each body at rest on its own (motor under T_m, load under T_ext). If the teeth do not touch a
  *    wall (s.contact == Apart) or the resulting relative acceleration does not drive them into the wall they touch,

@@ -44,7 +44,7 @@ struct LimitCycleReport
   int multiplicity = 0;       ///< maxima per period of the cycle
   double extrapolated = 0.0;  ///< Aitken estimate of the fixed point x* [rad] (latest)
   /// LimitCycle of a sampled, quantised or stick–slip loop whose maxima wander in a narrow settled band instead of
-  /// repeating (MODEL.md Part 2): error = the band's top, period = mean time between maxima.
+  /// repeating (docs/model.md Part 2): error = the band's top, period = mean time between maxima.
   bool quasi_periodic = false;
   double band_low = 0.0;   ///< quasi-periodic: lowest error of the settled band [rad]
   double band_high = 0.0;  ///< quasi-periodic: highest error of the settled band [rad]
@@ -68,7 +68,7 @@ class LimitCycleDetector
   /// replacing any earlier verdict (maxima that looked periodic before it stuck were not a sustained oscillation).
   void markStuck();
   /// Whether a settled narrow band of maxima counts as a (quasi-periodic) limit cycle: on for sampled drives and dry
-  /// friction (MODEL.md Part 2), off for the continuous thesis servo, whose wandering maxima stay Irregular.
+  /// friction (docs/model.md Part 2), off for the continuous thesis servo, whose wandering maxima stay Irregular.
   void allowBands(bool on) { bands_ = on; }
   /// Maxima closer than this [s] to the previous one are one hump (a load settling against a flank or by stiction
   /// under micro-bounces makes maxima 1e-7 s apart); the higher is kept. 0 (default): every maximum counts.

@@ -2,7 +2,7 @@
  * @file params.h
  * @brief Physical parameters of the backlash servo (SI units) and their validation.
  *
- * No ROS dependency. See ../shared/MODEL.md for the model.
+ * No ROS dependency. See docs/model.md for the model.
  */
 #pragma once
 

@@ -111,7 +111,7 @@ struct EnergyLedger
  *
  * Contact: \f$ J\ddot\theta_c + F_T\dot\theta_c = \rho T_m \f$; apart: \f$ J_L\ddot\theta_c + f_L\dot\theta_c = 0,
  * \; J_m\ddot\theta_m + f_m\dot\theta_m = T_m \f$; impacts by impact.h; separation where the mesh torque changes
- * sign. See ../shared/MODEL.md and the README ("How it is exact").
+ * sign. See docs/model.md and the README ("How it is exact").
  */
 class Plant
 {

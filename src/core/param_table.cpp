@@ -91,7 +91,7 @@ std::vector<ParamSpec> makeTable()
      {}, &State::motor_velocity},
     {"contact", "", "-", T::Choice, S::Initial, FINITE, "forward", "teeth at the start: gap 0, gap Δ, or floating",
      false, {"forward", "backward", "none"}, {}},
-    // ---- the drive (MODEL.md Part 2, "Digital drive"); the P gain is `gain` ----
+    // ---- the drive (docs/model.md Part 2, "Digital drive"); the P gain is `gain` ----
     {"control_law", "", "-", T::Choice, S::Drive, FINITE, "proportional",
      "proportional (continuous or sampled), pid or cascade (sampled laws)", false, {"proportional", "pid", "cascade"},
      {}},

@@ -34,7 +34,7 @@ void ServoParams::validate() const
   {
     spec->check(this->*std::get<double ServoParams::*>(spec->field));
   }
-  // A body that sticks must need at least the sliding torque to break away (MODEL.md Part 2).
+  // A body that sticks must need at least the sliding torque to break away (docs/model.md Part 2).
   auto requireStaticAtLeastCoulomb = [](const char* key, double static_value, const char* coulomb_key, double coulomb) {
     if (static_value < coulomb)
     {

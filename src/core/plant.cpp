@@ -811,7 +811,7 @@ void Plant::handleRest(const Segment& seg, EventSink* sink)
   }
   if (load_stops && seg.load_slide > 0)
   {
-    emit(sink, EventType::Maximum);  // a maximum of θ_c where the load comes to rest (MODEL.md Part 2)
+    emit(sink, EventType::Maximum);  // a maximum of θ_c where the load comes to rest (docs/model.md Part 2)
   }
   emit(sink, EventType::Rest);
 }

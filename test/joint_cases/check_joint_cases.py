@@ -1,6 +1,6 @@
 #!/usr/bin/python3
-"""Runs the reference cases of ../shared/joint_cases_public.json (an independent exact implementation of MODEL.md
-Part 2) through backlash_sim and compares verdict, limit-cycle error, steady error and the first maxima (1e-6 rad,
+"""Runs the reference cases of reference_cases.json beside this script (an independent exact implementation of the
+model, docs/model.md Part 2) through backlash_sim and compares verdict, limit-cycle error, steady error and the first maxima (1e-6 rad,
 1e-6 s). Cases that use a Part-2 feature not implemented yet are listed as SKIPPED with the keys that need it.
 usage: check_joint_cases.py BACKLASH_SIM [CASES.json]   exit 1 if an implemented case disagrees."""
 import json
@@ -42,8 +42,7 @@ def ulp_spread(args, out):
 
 def main():
     sim = sys.argv[1]
-    path = sys.argv[2] if len(sys.argv) > 2 else os.path.join(os.path.dirname(__file__), "..", "..", "..", "shared",
-                                                               "joint_cases_public.json")
+    path = sys.argv[2] if len(sys.argv) > 2 else os.path.join(os.path.dirname(__file__), "reference_cases.json")
     cases = json.load(open(path))["cases"]
     failed = checked = 0
     for case in cases:

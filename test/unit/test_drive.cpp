@@ -1,6 +1,6 @@
-// The digital drive (MODEL.md Part 2; issue 10 items 3-5): sampling with a zero-order hold, delay, encoders,
+// The digital drive (docs/model.md Part 2; issue 10 items 3-5): sampling with a zero-order hold, delay, encoders,
 // P / PID / cascade, saturation — against closed forms and limits written here. The reference cases of
-// ../shared/joint_cases_public.json run in test_tools.cpp (JointCases).
+// test/joint_cases/reference_cases.json run in test_tools.cpp (JointCases).
 #include <gtest/gtest.h>
 
 #include <cmath>

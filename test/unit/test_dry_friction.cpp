@@ -1,4 +1,4 @@
-// Dry friction and stiction (MODEL.md Part 2) against closed forms written here, and the energy ledger.
+// Dry friction and stiction (docs/model.md Part 2) against closed forms written here, and the energy ledger.
 #include <gtest/gtest.h>
 
 #include "test_helpers.h"

@@ -1,5 +1,5 @@
-// External load torque T_ext (MODEL.md Part 2; issue 10 item 2): checked against closed forms written here, the
-// reference case of ../shared/joint_cases_public.json, conservation of energy, and T_ext = 0 reproducing the servo.
+// External load torque T_ext (docs/model.md Part 2; issue 10 item 2): checked against closed forms written here, the
+// reference case of test/joint_cases/reference_cases.json, conservation of energy, and T_ext = 0 reproducing the servo.
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -126,8 +126,8 @@ TEST(LoadTorque, ALoadTurnedRoundInFlightIsAMaximum)
 {
   // Apart, a load thrown up against a load torque T < 0 turns round in the air: ω = v∞ + (v0 − v∞) e^{−ατ},
   // v∞ = T/f_L, crosses zero at τ* = ln(1 − v0/v∞)/α, where θ_c = θ0 + v∞τ* + v0/α (without friction: τ* = v0 J_L/(−T),
-  // θ_c = θ0 + v0² J_L/(2(−T))). That is a maximum of θ_c (MODEL.md: ω_c from + to −) and must be reported — from a
-  // long flight in mid-gap (the closed form) and from a short one leaving the wall (the fast path), before the load
+  // θ_c = θ0 + v0² J_L/(2(−T))). That is a maximum of θ_c (docs/model.md: ω_c from + to −) and must be reported — from
+  // a long flight in mid-gap (the closed form) and from a short one leaving the wall (the fast path), before the load
   // falls back onto the motor tooth.
   for (double fl : {0.32, 0.0})
   {

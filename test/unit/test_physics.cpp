@@ -1,5 +1,5 @@
 // Physics against independent truth: the linear closed form, conservation laws at impacts, the energy balance,
-// the gap bounds and the scaling laws of MODEL.md.
+// the gap bounds and the scaling laws of docs/model.md.
 #include <gtest/gtest.h>
 
 #include <cmath>

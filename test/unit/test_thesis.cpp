@@ -1,4 +1,4 @@
-// Published reference results (MODEL.md "Reference results you may test against").
+// Published reference results (docs/model.md "Reference results you may test against").
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -12,7 +12,8 @@ TEST(Thesis, AppendixD1LimitCycle)
   RunConfig c;  // defaults are App. D1: J_m 0.1, J_L 0.9, f_m 0.48, f_L 0.32, K = ρ = 1, Δ 0.3, e 1
   const RunSummary r = runResponse(c);
   // Printed positive maxima; the thesis' fixed 0.01 s steps tested contact only at step ends, so an exact solution
-  // differs by up to ~2e-3 rad (MODEL.md) and its maxima times by up to ~0.1 s (impact instants shift by whole steps).
+  // differs by up to ~2e-3 rad (docs/model.md) and its maxima times by up to ~0.1 s (impact instants shift by whole
+  // steps).
   const double t_pub[] = {3.38, 11.23, 21.29, 32.50, 44.28};
   const double x_pub[] = {1.33970, 1.10535, 1.06971, 1.05835, 1.05429};
   ASSERT_GE(r.maxima.size(), 5u);
@@ -24,7 +25,7 @@ TEST(Thesis, AppendixD1LimitCycle)
   ASSERT_EQ(r.status.verdict, Verdict::LimitCycle);
   EXPECT_TRUE(r.settled);
   EXPECT_NEAR(r.status.error, 0.0515, 0.0005);
-  EXPECT_GT(r.status.error, 0.0501);  // above the thesis' still-settling average, as MODEL.md predicts
+  EXPECT_GT(r.status.error, 0.0501);  // above the thesis' still-settling average, as docs/model.md predicts
   EXPECT_GT(r.status.period, 10.0);
   EXPECT_LT(r.status.period, 14.0);
 }

@@ -539,7 +539,7 @@ namespace
 {
 TEST(JointCases, ImplementedReferenceCasesAgreeToOneMicro)
 {
-  // ../shared/joint_cases_public.json: cases whose Part-2 features are implemented must agree (maxima to 1e-6 rad
+  // test/joint_cases/reference_cases.json: cases whose Part-2 features are implemented must agree (maxima to 1e-6 rad
   // and 1e-6 s, verdict, limit-cycle and steady errors); the others are listed as skipped with what they need.
   int code = 0;
   const std::string out = runCapture("/usr/bin/python3 " + std::string(SOURCE_DIR) +
