@@ -388,6 +388,8 @@ TEST_F(SweepInputs, DamagedForgedOrForeignPartsAreRefusedWithOneLine)
       {"extra column", row1, row1 + ",7", "columns, the header has"},
       {"not a number", row1, withCell(row1, 0, "x"), "is not a number"},
       {"flag not 0/1", row1, withCell(row1, v + 1, "2"), "is not 0 or 1"},
+      {"short header, numeric row", header + "\n" + row1, "zeta,verdict,limit_cycle,x\n0.3,1,2,3",
+       "no sweep CSV header"},
   };
   for (const Case& c : cases)
   {

@@ -55,6 +55,19 @@ namespace
 {
 /// Largest part or sweep file read back (a 1344-point sweep is ~150 kB).
 constexpr std::size_t kMaxSweepFileBytes = std::size_t(1) << 30;
+/// How many result columns follow the axis columns.
+std::size_t resultColumnCount()
+{
+  static const std::size_t n = splitCsvCells(resultColumns()).size();
+  return n;
+}
+
+/// A sweep CSV header: axis names, then exactly the result columns.
+bool isSweepHeader(const std::string& line)
+{
+  const std::string& r = resultColumns();
+  return line == r || (line.size() > r.size() && line.compare(line.size() - r.size() - 1, r.size() + 1, "," + r) == 0);
+}
 
 bool isNumber(const std::string& cell)
 {
@@ -79,7 +92,7 @@ void checkRow(const std::string& line, const std::vector<std::string>& header, c
   {
     bad(std::to_string(cells.size()) + " columns, the header has " + std::to_string(header.size()));
   }
-  const std::size_t v = header.size() - 8;  // the verdict column: RESULT_COLUMNS are the last 8
+  const std::size_t v = header.size() - resultColumnCount();  // the verdict column
   for (std::size_t c = 0; c < v; ++c)
   {
     if (!isNumber(cells[c]))
@@ -201,7 +214,7 @@ std::string mergeParts(const std::vector<std::string>& paths)
     }
     p.k = k, p.n = n, p.first = first, p.last = last, p.total = total, p.grid = grid;
     std::getline(ss, line);
-    if (line.find("verdict,limit_cycle,") == std::string::npos || (!header.empty() && line != header))
+    if (!isSweepHeader(line) || (!header.empty() && line != header))
     {
       throw ConfigError("--merge: '" + path + "' has no sweep CSV header, or another grid's");
     }
@@ -272,7 +285,7 @@ std::string mergeParts(const std::vector<std::string>& paths)
       out += row + "\n";
     }
   }
-  checkGridOrder(rows, splitCsvCells(header).size() - 8, ref.total);
+  checkGridOrder(rows, splitCsvCells(header).size() - resultColumnCount(), ref.total);
   return out;
 }
 

@@ -15,9 +15,6 @@ namespace backlash_servo
 {
 namespace
 {
-/// Result columns after the axis columns.
-const char* const RESULT_COLUMNS =
-    "verdict,limit_cycle,limit_cycle_error,period,impacts,simulated_time,settled,steady_error";
 
 bool physicalOnly(const std::string& key)
 {
@@ -173,7 +170,7 @@ std::string SweepGrid::header() const
   {
     h += a.key + ",";
   }
-  return h + RESULT_COLUMNS;
+  return h + resultColumns();
 }
 
 std::size_t SweepGrid::size() const
@@ -245,6 +242,13 @@ std::string SweepGrid::fingerprint() const
   char buf[20];
   std::snprintf(buf, sizeof buf, "%016llx", static_cast<unsigned long long>(h));
   return buf;
+}
+
+const std::string& resultColumns()
+{
+  static const std::string columns =
+      "verdict,limit_cycle,limit_cycle_error,period,impacts,simulated_time,settled,steady_error";
+  return columns;
 }
 
 bool isAxisText(const std::string& text)

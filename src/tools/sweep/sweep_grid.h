@@ -65,8 +65,8 @@ class SweepGrid
   /// A fingerprint of the axes' keys and values, the fixed settings and the run signature (FNV-1a, hex): parts of
   /// one grid agree.
   std::string fingerprint() const;
-  /// What else changes a row besides the settings (the run-length cap, a profile file's content); part of the
-  /// fingerprint when not empty.
+  /// What else changes a row besides the settings (the run-length cap, a profile file's content), as text; hashed
+  /// into the fingerprint when not empty.
   void setRunSignature(const std::string& signature) { signature_ = signature; }
 
  private:
@@ -78,6 +78,9 @@ class SweepGrid
   KeyValues fixed_;
   std::string signature_;
 };
+
+/// The result columns of every sweep CSV, after the axis columns (the last columns of SweepGrid::header()).
+const std::string& resultColumns();
 
 /// Values of an axis flag: a list "0.1,0.2", a range "start:stop:count" or "log:start:stop:count". Throws
 /// ConfigError naming the flag.
