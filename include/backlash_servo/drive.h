@@ -82,9 +82,10 @@ class Drive
   /// Whether the drive's own state still moves its output with the plant standing still (an integrator whose input
   /// is beyond rounding of zero): a joint stuck by dry friction is not converged while this holds.
   virtual bool winding() const { return false; }
-  /// The output stays what it is for ever while the plant stands still: no integrator moving beyond rounding, no
-  /// derivative or delay still changing, no dither or profile ahead. Together with a plant held by stiction under that
-  /// output (Simulator::atRestForever) the joint can never move again. Default: a law with no events of its own.
+  /// The output stays what it is for ever while the plant stands still and the set-point does not change: no
+  /// integrator moving beyond rounding, no derivative or delay still changing, no dither ahead. Together with a plant
+  /// held by stiction under that output and no profile change ahead (Simulator::atRestForever) the joint can never
+  /// move again. Default: a law with no events of its own.
   virtual bool steady() const { return std::isinf(nextEventTime(-std::numeric_limits<double>::infinity())); }
   /// A digital drive (samples at known instants) rather than a continuous law.
   virtual bool sampled() const { return false; }
@@ -206,7 +207,7 @@ class SampledDrive : public Drive
   /// The integrator moved beyond rounding at the latest sample (pid, cascade).
   bool winding() const override { return winding_; }
   /// At the latest sample: the integrator frozen, the measurement unchanged (no derivative or velocity estimate),
-  /// the delayed output equal to the held one, no compensator and no profile change ahead.
+  /// the delayed output equal to the held one, no compensator. (A profile change ahead is the simulator's to see.)
   bool steady() const override { return steady_; }
   bool sampled() const override { return true; }
   long holdSamples(const State& state, double until, double lo, double hi, long max_count, double* last) override;

@@ -46,13 +46,12 @@ class ResponseMonitor : public EventSink
 
   /**
    * @param params the servo (ω_n [rad/s] sets the time scales, ρ the motor-velocity test)
-   * @param command θ_R [rad] the response is judged against
+   * @param command θ_R [rad]: errors are reported from it
+   * @param equilibrium where the loop rests [rad] (loopEquilibrium): maxima and the rest rules are judged against it
    * @param start the state the response starts from (its time starts the quiet clock, its θ_c sets the scale)
    * @param sampled_drive a digital drive runs the loop: with it (or with dry friction) sustained oscillations may
    *        be quasi-periodic bands (LimitCycleDetector::allowBands); the continuous thesis servo keeps its verdicts
    */
-  ResponseMonitor(const ServoParams& params, double command, const State& start, bool sampled_drive = false);
-  /// As above, with the loop's equilibrium given (loopEquilibrium): maxima and the rest rules are judged against it.
   ResponseMonitor(const ServoParams& params, double command, double equilibrium, const State& start,
                   bool sampled_drive);
 
@@ -62,7 +61,7 @@ class ResponseMonitor : public EventSink
   /// Maxima (EventType::Maximum) go to the detector; every other event is ignored.
   void onEvent(const Event& event) override;
   bool wantsImpacts() const override { return false; }
-  /// Where the loop comes to rest [rad] (loopEquilibrium; by default the P law's θ_R + ρ T_ext / K).
+  /// Where the loop comes to rest [rad] (loopEquilibrium).
   double equilibrium() const { return equilibrium_; }
   /// Applies the rest and quiet rules to the state at a check time. drive_winding: the drive's integrator still
   /// moves (Drive::winding()): a joint standing still is then not converged (stick–slip hunting), neither rule applies.
@@ -78,6 +77,8 @@ class ResponseMonitor : public EventSink
   bool settled() const { return detector_.settled(); }
   bool oscillating() const { return detector_.oscillating(); }
   double command() const { return command_; }
+  /// The longest interval between successive judged maxima seen by the checks so far [s] (0 before two).
+  double longestInterval() const { return longest_; }
   /// The scale max(Δ, |θ_R − θ_c(0)|) [rad] below which errors count as zero.
   double scale() const { return scale_; }
 

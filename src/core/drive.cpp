@@ -371,7 +371,7 @@ void SampledDrive::sample(const State& s)
   {
     held_ = u;
   }
-  steady_ = steady && held_ == u && (!profile_ || std::isinf(profile_->nextChange(t_k)));
+  steady_ = steady && held_ == u;
   ++next_;
 }
 

@@ -11,12 +11,6 @@ namespace
 {
 constexpr double PI = 3.14159265358979323846;
 
-/// Where the P law comes to rest: the command, shifted by a load torque (ρ T_ext / K) [rad].
-double equilibriumOf(const ServoParams& params, double command)
-{
-  return command + params.gear_ratio * params.load_torque / params.gain;
-}
-
 double scaleOf(const ServoParams& params, double command, double equilibrium, const State& start)
 {
   return std::max({params.backlash, std::fabs(command - start.load_position), std::fabs(equilibrium - command), 1e-12});
@@ -26,7 +20,7 @@ double scaleOf(const ServoParams& params, double command, double equilibrium, co
 double loopEquilibrium(const ServoParams& params, const DriveParams& drive, double command)
 {
   const double held = params.gear_ratio * params.load_torque;  // −T_m at rest [N·m]
-  const bool sampled = drive.controller_rate > 0.0;
+  const bool sampled = drive.sampled();
   if (sampled && drive.control_law == "pid" && drive.integral_gain > 0.0)
   {
     return command;
@@ -38,10 +32,6 @@ double loopEquilibrium(const ServoParams& params, const DriveParams& drive, doub
   }
   return command + held / params.gain;
 }
-
-ResponseMonitor::ResponseMonitor(const ServoParams& params, double command, const State& start, bool sampled_drive)
-    : ResponseMonitor(params, command, equilibriumOf(params, command), start, sampled_drive)
-{}
 
 ResponseMonitor::ResponseMonitor(const ServoParams& params, double command, double equilibrium, const State& start,
                                  bool sampled_drive)
@@ -78,6 +68,11 @@ void ResponseMonitor::onEvent(const Event& e)
 
 void ResponseMonitor::check(const State& s, bool drive_winding, bool at_rest_forever)
 {
+  const std::vector<Maximum>& m = detector_.judged();
+  for (; intervals_seen_ + 1 < m.size(); ++intervals_seen_)
+  {
+    longest_ = std::max(longest_, m[intervals_seen_ + 1].time - m[intervals_seen_].time);
+  }
   if (at_rest_forever)
   {
     detector_.markStuck();
@@ -92,11 +87,6 @@ void ResponseMonitor::check(const State& s, bool drive_winding, bool at_rest_for
       std::fabs(rho_ * s.motor_velocity) <= rest * omega_n_)
   {
     detector_.markAtRest();
-  }
-  const std::vector<Maximum>& m = detector_.judged();
-  for (; intervals_seen_ + 1 < m.size(); ++intervals_seen_)
-  {
-    longest_ = std::max(longest_, m[intervals_seen_ + 1].time - m[intervals_seen_].time);
   }
   const double last = m.empty() ? start_time_ : m.back().time;
   const double quiet_floor = QUIET_PERIODS * 2.0 * PI / omega_n_;

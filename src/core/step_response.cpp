@@ -77,8 +77,6 @@ RunSummary runResponse(const RunConfig& config, EventSink* sink, double sample_p
   // 2π/ω_n (ω_n is the P law's; it means nothing for a PID or a cascade) is given the repetitions its verdict needs.
   constexpr double REPETITIONS = 100.0;
   const bool auto_cap = until_settled && config.max_duration <= 0.0;
-  double slowest = 0.0;  // longest interval between judged maxima so far [s]
-  std::size_t intervals = 0;
   const double chunk = sample_period > 0.0 ? sample_period : 2.0 * PI / omega_n;
   if (on_sample)
   {
@@ -134,12 +132,7 @@ RunSummary runResponse(const RunConfig& config, EventSink* sink, double sample_p
     monitor.check(sim.state(), sim.drive().winding(), judge_from == -INFINITY && sim.atRestForever());
     if (auto_cap)
     {
-      const std::vector<Maximum>& m = monitor.judged();
-      for (; intervals + 1 < m.size(); ++intervals)
-      {
-        slowest = std::max(slowest, m[intervals + 1].time - m[intervals].time);
-      }
-      t_stop = std::max(t_stop, t0 + REPETITIONS * slowest);
+      t_stop = std::max(t_stop, t0 + REPETITIONS * monitor.longestInterval());
     }
     if (on_progress)
     {

@@ -7,10 +7,6 @@
 #include <ros/ros.h>
 #include <rosbag/bag.h>
 #include <topic_tools/shape_shifter.h>
-#include "wall_throttle.h"
-
-#include "safe_output.h"
-
 #include <unistd.h>
 
 #include <condition_variable>
@@ -24,6 +20,9 @@
 #include <string>
 #include <thread>
 #include <vector>
+
+#include "safe_output.h"
+#include "wall_throttle.h"
 
 namespace
 {

@@ -1,17 +1,16 @@
 #include "node_recorder.h"
 
-#include <unistd.h>
-
-#include "safe_output.h"
-
 #include <ros/console.h>
 #include <topic_tools/shape_shifter.h>
-#include "wall_throttle.h"
+#include <unistd.h>
 
 #include <chrono>
 #include <cstdio>
 #include <stdexcept>
 #include <utility>
+
+#include "safe_output.h"
+#include "wall_throttle.h"
 
 namespace backlash_servo
 {

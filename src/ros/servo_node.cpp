@@ -26,6 +26,41 @@ namespace
 /// recorder); 1e5 messages (~20 MB at most) lets recorders catch up without losing a sample.
 constexpr uint32_t SAMPLE_QUEUE = 100000;
 
+/// The generated config → key values, by the names of the parameter table.
+KeyValues keyValuesOf(const BacklashServoConfig& c)
+{
+  KeyValues kv;
+  kv.nameKeysAsFlags(false);
+  for (const auto& d : BacklashServoConfig::__getParamDescriptions__())
+  {
+    boost::any value;
+    d->getValue(c, value);
+    const ParamSpec* spec = findParam(d->name);
+    if (spec == nullptr)
+    {
+      continue;  // a .cfg entry the table does not know: the consistency test fails for it
+    }
+    if (d->type == "double")
+    {
+      kv.setNumber(d->name, boost::any_cast<double>(value));
+    }
+    else if (d->type == "int")
+    {
+      const int i = boost::any_cast<int>(value);
+      kv.set(d->name, i >= 0 && i < static_cast<int>(spec->choices.size()) ? spec->choices[i] : std::to_string(i));
+    }
+    else if (d->type == "bool")
+    {
+      kv.setBoolean(d->name, boost::any_cast<bool>(value));
+    }
+    else
+    {
+      kv.set(d->name, boost::any_cast<std::string>(value));
+    }
+  }
+  return kv;
+}
+
 uint8_t contactCode(Contact c)
 {
   switch (c)
@@ -326,7 +361,7 @@ void ServoNode::enterFault(const std::string& what, bool diverged)
   // /limit_cycle no longer shows the verdict of a motion that has ended: diverged (an unstable loop ran away) or
   // undecided with the fault as its reason.
   monitor_->restartAt(sim_.state());
-  announced_ = diverged ? Verdict::Diverged : Verdict::Undecided;
+  announced_ = Verdict::Undecided;
   verdict_reason_ = "simulation stopped at t = " + formatNumber(sim_.state().time) + " s: " + what;
   publishLimitCycle(sim_.state().time, false, diverged);
   const ServoParams& p = sim_.params();
@@ -836,36 +871,7 @@ void ServoNode::onReconfigure(BacklashServoConfig& c, uint32_t)
     c.load_torque = sim_.params().load_torque;
   }
   mirror_stale_ = false;
-  // The generated config → key values, by the names of the parameter table.
-  KeyValues kv;
-  kv.nameKeysAsFlags(false);
-  for (const auto& d : BacklashServoConfig::__getParamDescriptions__())
-  {
-    boost::any value;
-    d->getValue(c, value);
-    const ParamSpec* spec = findParam(d->name);
-    if (spec == nullptr)
-    {
-      continue;  // a .cfg entry the table does not know: the consistency test fails for it
-    }
-    if (d->type == "double")
-    {
-      kv.setNumber(d->name, boost::any_cast<double>(value));
-    }
-    else if (d->type == "int")
-    {
-      const int i = boost::any_cast<int>(value);
-      kv.set(d->name, i >= 0 && i < static_cast<int>(spec->choices.size()) ? spec->choices[i] : std::to_string(i));
-    }
-    else if (d->type == "bool")
-    {
-      kv.setBoolean(d->name, boost::any_cast<bool>(value));
-    }
-    else
-    {
-      kv.set(d->name, boost::any_cast<std::string>(value));
-    }
-  }
+  const KeyValues kv = keyValuesOf(c);
   NodeConfig next;
   ServoParams p = sim_.params();
   try
@@ -888,26 +894,14 @@ void ServoNode::onReconfigure(BacklashServoConfig& c, uint32_t)
     return;
   }
   // A live change of anything the joint's motion depends on (plant or drive, not the node's own settings) restarts
-  // the judgement: the maxima before it belong to another joint.
+  // the judgement: the maxima before it belong to another joint. (Values compared as the exact text of each key.)
+  const KeyValues before = keyValuesOf(last_good_);
   std::string changed;
-  for (const auto& d : BacklashServoConfig::__getParamDescriptions__())
+  for (const auto& [key, text] : kv.keys())
   {
-    const ParamSpec* spec = findParam(d->name);
-    if (spec == nullptr || spec->section == ParamSection::Node)
+    if (findParam(key)->section != ParamSection::Node && before.text(key, "") != text)
     {
-      continue;
-    }
-    boost::any now, before;
-    d->getValue(c, now);
-    d->getValue(last_good_, before);
-    const bool differs = d->type == "double" ? boost::any_cast<double>(now) != boost::any_cast<double>(before)
-                         : d->type == "int"  ? boost::any_cast<int>(now) != boost::any_cast<int>(before)
-                         : d->type == "bool"
-                             ? boost::any_cast<bool>(now) != boost::any_cast<bool>(before)
-                             : boost::any_cast<std::string>(now) != boost::any_cast<std::string>(before);
-    if (differs)
-    {
-      changed += (changed.empty() ? "" : ", ") + d->name;
+      changed += (changed.empty() ? "" : ", ") + key;
     }
   }
   if (next.control_mode != config_.control_mode)

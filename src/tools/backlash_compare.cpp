@@ -153,6 +153,8 @@ std::string csvText(const std::string& s)
 }
 }  // namespace
 
+namespace
+{
 /// Copies a finished file into a SafeOutput (checked writes, then commit).
 void copyInto(const std::string& from, SafeOutput& to)
 {
@@ -203,6 +205,7 @@ void drawCharts(const std::string& script, TemporaryDirectory& dir,
   copyInto(png_tmp, png);
   copyInto(svg_tmp, svg);
 }
+}  // namespace
 
 int main(int argc, char** argv)
 {

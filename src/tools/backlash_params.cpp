@@ -3,9 +3,9 @@
 // fails when a committed file differs from what this prints.
 #include <algorithm>
 #include <iostream>
-#include <iterator>
 #include <sstream>
 #include <string>
+#include <vector>
 
 #include "backlash_servo/config/flag_parser.h"
 #include "backlash_servo/param_table.h"
@@ -171,18 +171,24 @@ int main(int argc, char** argv)
       {
         throw ConfigError("--sections applies to --format markdown only");
       }
-      // Every name must be a section: a typo must not print an empty table with exit status 0.
+      // Every name must be a section of the table: a typo must not print an empty table with exit status 0.
+      std::vector<std::string> known;  // the table's sections, in table order
+      for (const ParamSpec& p : parameterTable())
+      {
+        if (std::find(known.begin(), known.end(), toString(p.section)) == known.end())
+        {
+          known.push_back(toString(p.section));
+        }
+      }
       std::stringstream ss(parser.option("sections"));
       for (std::string name; std::getline(ss, name, ',');)
       {
-        static const ParamSection all[] = {ParamSection::Servo, ParamSection::Chart, ParamSection::Initial,
-                                           ParamSection::Drive, ParamSection::Run,   ParamSection::Node};
-        if (std::none_of(std::begin(all), std::end(all), [&](ParamSection s) { return name == toString(s); }))
+        if (std::find(known.begin(), known.end(), name) == known.end())
         {
           std::string list;
-          for (ParamSection s : all)
+          for (const std::string& k : known)
           {
-            list += (list.empty() ? "" : ", ") + std::string(toString(s));
+            list += (list.empty() ? "" : ", ") + k;
           }
           throw ConfigError("--sections: unknown section '" + name + "' (" + list + ")");
         }

@@ -6,7 +6,6 @@
 #include <algorithm>
 #include <atomic>
 #include <csignal>
-#include <cstdint>
 #include <cstdio>
 #include <fstream>
 #include <iostream>
@@ -138,13 +137,7 @@ SweepOptions parse(int argc, char** argv)
   }
   if (kv.has("profile"))
   {
-    const std::string content = readRegularFile("--profile", kv.text("profile", ""), std::size_t(1) << 30);
-    std::uint64_t h = 1469598103934665603ull;
-    for (unsigned char c : content)
-    {
-      h = (h ^ c) * 1099511628211ull;
-    }
-    signature += "profile=" + std::to_string(h) + ";";
+    signature += "profile=" + readRegularFile("--profile", kv.text("profile", ""), std::size_t(1) << 30) + ";";
   }
   o.grid.setRunSignature(signature);
   if (o.resume && o.output == "-")
@@ -288,27 +281,28 @@ int main(int argc, char** argv)
   Progress progress(isatty(2) && o.output != "-");
   const std::size_t first = shard.whole() ? 0 : shard.first;
   const std::size_t last = shard.whole() ? total : shard.last;
-  const SweepRunResult run = write_failed
-                                 ? SweepRunResult()
-                                 : runSweepPoints(
-                                       first + kept.size(), last, o.jobs,
-                                       [&](std::size_t i) { return evaluate(o.grid.point(i), o.max_duration); },
-                                       [&](std::size_t i, const std::string& row) {
-                                         if (write_failed)
-                                         {
-                                           return;
-                                         }
-                                         csv.row(row);
-                                         if (!csv.flush())
-                                         {
-                                           write_failed = true;
-                                           g_stop = true;  // no point computing what cannot be written
-                                           return;
-                                         }
-                                         ++written;
-                                         progress.update(i + 1 - first, last - first);
-                                       },
-                                       g_stop);
+  SweepRunResult run;
+  if (!write_failed)
+  {
+    run = runSweepPoints(
+        first + kept.size(), last, o.jobs, [&](std::size_t i) { return evaluate(o.grid.point(i), o.max_duration); },
+        [&](std::size_t i, const std::string& row) {
+          if (write_failed)
+          {
+            return;  // rows computed before the pool saw the stop
+          }
+          csv.row(row);
+          if (!csv.flush())
+          {
+            write_failed = true;
+            g_stop = true;  // no point computing what cannot be written
+            return;
+          }
+          ++written;
+          progress.update(i + 1 - first, last - first);
+        },
+        g_stop);
+  }
   progress.finish();
   if (write_failed)
   {
