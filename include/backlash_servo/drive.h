@@ -193,6 +193,14 @@ class EffortDrive : public Drive
  * Anti-windup (conditional integration): with T_max > 0, when the unsaturated u_k lies beyond the limit on the side
  * of the integrated error's sign, I_k = I_{k−1}.
  */
+/// An incremental encoder's reading q(θ) = 2π/N floor(Nθ/2π) [rad] of the angle θ [rad] of its own shaft, for a
+/// resolution of N counts/rev; N ≤ 0: an ideal encoder (θ itself). Inline: most encoders in a run are ideal.
+double quantiseAngle(double angle, double resolution);
+inline double encoderReading(double angle, double resolution)
+{
+  return resolution <= 0.0 ? angle : quantiseAngle(angle, resolution);
+}
+
 class SampledDrive : public Drive
 {
  public:
@@ -230,13 +238,6 @@ class SampledDrive : public Drive
   double loadReading() const { return load_reading_; }
 
  private:
-  /// q(θ) = 2π/N floor(Nθ/2π) [rad] for N counts/rev; N ≤ 0: ideal (inline: most encoders in a run are ideal).
-  static double read(double angle, double resolution)
-  {
-    return resolution <= 0.0 ? angle : quantise(angle, resolution);
-  }
-  static double quantise(double angle, double resolution);
-
   DriveParams p_;
   enum class Law
   {

@@ -289,7 +289,7 @@ double SampledDrive::nextEventTime(double /*t*/) const
   return t0_ + static_cast<double>(next_) / p_.controller_rate;  // t_k from the integer k: no drift
 }
 
-double SampledDrive::quantise(double angle, double resolution)
+double quantiseAngle(double angle, double resolution)
 {
   constexpr double TWO_PI = 6.283185307179586476925;
   return TWO_PI / resolution * std::floor(resolution * angle / TWO_PI);
@@ -298,9 +298,9 @@ double SampledDrive::quantise(double angle, double resolution)
 void SampledDrive::sample(const State& s)
 {
   const double period = period_;
-  const double qm = read(s.motor_position, p_.motor_encoder_resolution);
+  const double qm = encoderReading(s.motor_position, p_.motor_encoder_resolution);
   motor_reading_ = rho_ * qm;
-  load_reading_ = read(s.load_position, p_.load_encoder_resolution);
+  load_reading_ = encoderReading(s.load_position, p_.load_encoder_resolution);
   const double y = motor_feedback_ ? motor_reading_ : load_reading_;
   const bool compensated = compensator_.active();
   const double t_k = profile_ || compensated ? t0_ + static_cast<double>(next_) * period : 0.0;  // (only they read it)

@@ -171,6 +171,13 @@ std::vector<ParamSpec> makeTable()
     {"paused", "", "-", T::Boolean, S::Node, FINITE, "false", "start paused (call ~resume)", false, {}, {}},
     {"stop_after", "", "s", T::Real, S::Node, NON_NEGATIVE, "0", "shut down after this much sim time (0 = never)",
      false, {}, {}},
+    {"stop_launch", "", "-", T::Boolean, S::Node, FINITE, "false",
+     "at stop_after, end the roslaunch that started the node as Ctrl-C would (every node stops, no REQUIRED banner); "
+     "set by the package's launch files", false, {}, {}},
+    {"start_time", "", "s", T::Real, S::Node, ParamRange{0.0, 4e9, false, false}, "0",
+     "ROS time of sim time 0 when the node publishes /clock: sim time starts at 0, as in Gazebo, so that a "
+     "controller's float time arithmetic is exact and reproducible (another epoch if a stack needs one)",
+     false, {}, {}},
     {"start_delay", "", "s", T::Real, S::Node, NON_NEGATIVE, "0",
      "wall time to wait before sim time starts (e.g. for rosbag)", false, {}, {}},
     {"record_bag", "", "file", T::Text, S::Node, FINITE, "",

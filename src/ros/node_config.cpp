@@ -95,6 +95,8 @@ NodeConfig nodeSettingsFrom(const KeyValues& kv, const NodeConfig& base)
   c.min_impact_speed = realValue(kv, "min_impact_speed", c.min_impact_speed);
   c.paused = kv.has("paused") ? kv.boolean("paused") : c.paused;
   c.stop_after = realValue(kv, "stop_after", c.stop_after);
+  c.stop_launch = kv.has("stop_launch") ? kv.boolean("stop_launch") : c.stop_launch;
+  c.start_time = realValue(kv, "start_time", c.start_time);
   c.start_delay = realValue(kv, "start_delay", c.start_delay);
   c.record_bag = textValue(kv, "record_bag", c.record_bag);
   c.sync = kv.has("sync") ? kv.boolean("sync") : c.sync;
@@ -129,7 +131,21 @@ NodeConfig loadNodeConfig(const ros::NodeHandle& pnh)
     }
   }
   NodeConfig c = nodeSettingsFrom(kv, NodeConfig());
-  c.run = runConfigFrom(kv);
+  if (c.control_mode == ControlMode::Effort)
+  {
+    // Effort mode has no drive of its own: the encoders are the plant's, read on encoder_states by an external
+    // controller at the publish rate, whatever controller_rate says.
+    KeyValues plant = kv;
+    plant.erase("motor_encoder_resolution");
+    plant.erase("load_encoder_resolution");
+    c.run = runConfigFrom(plant);
+    c.run.drive.motor_encoder_resolution = realValue(kv, "motor_encoder_resolution", 0.0);
+    c.run.drive.load_encoder_resolution = realValue(kv, "load_encoder_resolution", 0.0);
+  }
+  else
+  {
+    c.run = runConfigFrom(kv);
+  }
   return c;
 }
 

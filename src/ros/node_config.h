@@ -30,6 +30,8 @@ struct NodeConfig
   double min_impact_speed = 0.0;                     ///< publish only impacts at least this fast [rad/s]; 0 = all
   bool paused = false;                               ///< start paused (resume with ~resume)
   double stop_after = 0.0;                           ///< shut down after this much sim time [s]; 0 = never
+  bool stop_launch = false;                          ///< at stop_after, SIGINT to the parent roslaunch
+  double start_time = 0.0;                           ///< ROS time of sim time 0 when publishing /clock [s]
   double start_delay = 0.0;                          ///< wall time before sim time starts, e.g. for rosbag [s]
   std::string record_bag;       ///< the node records its outputs and inputs into this bag itself; empty = off
   bool sync = false;            ///< lockstep: one answer (effort or command) per published state before advancing

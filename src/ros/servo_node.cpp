@@ -15,6 +15,7 @@
 #include "backlash_servo/ImpactEvent.h"
 #include "backlash_servo/LimitCycleStatus.h"
 #include "backlash_servo/param_table.h"
+#include "launch_end.h"
 #include "wall_throttle.h"
 
 namespace backlash_servo
@@ -110,7 +111,9 @@ ServoNode::ServoNode(ros::NodeHandle& nh, ros::NodeHandle& pnh, const NodeConfig
     clock_pub_ = nh.advertise<rosgraph_msgs::Clock>("/clock", SAMPLE_QUEUE);
     if (!ros::Time::isSimTime())
     {
-      ROS_WARN("backlash_servo_node: publish_clock is true but use_sim_time is false: other nodes will not follow");
+      ROS_WARN(
+          "backlash_servo_node: publish_clock is true but /use_sim_time is false: other nodes will not follow "
+          "the simulator's clock (launch with publish_clock:=true, or set use_sim_time:=true)");
     }
   }
   diagnostics_.setHardwareID("backlash_servo");
@@ -148,8 +151,7 @@ ServoNode::ServoNode(ros::NodeHandle& nh, ros::NodeHandle& pnh, const NodeConfig
   }
   else if (clock_mode_ == ClockMode::Publisher)
   {
-    const ros::WallTime w = ros::WallTime::now();
-    origin_ = ros::Time(w.sec, w.nsec);
+    origin_ = ros::Time(config_.start_time);  // sim time 0 is ROS time start_time (default 0, as in Gazebo)
   }
   else
   {
@@ -220,13 +222,16 @@ bool ServoNode::run()
   if (config_.sync)
   {
     // Lockstep needs its controller connected before the first state goes out (a state nobody answers would stall
-    // the run until sync_timeout): a subscriber of joint_states and a publisher of the answer topic, plus a second
-    // for the controller's own subscription to finish connecting.
+    // the run until sync_timeout): a subscriber of joint_states or encoder_states and a publisher of the answer
+    // topic, plus a second for the controller's own subscription to finish connecting.
     const ros::Subscriber& answer = config_.control_mode == ControlMode::Effort ? effort_sub_ : command_sub_;
     ros::WallTime said = ros::WallTime::now();
-    ROS_INFO("backlash_servo_node: lockstep: waiting for a controller (subscribing joint_states, publishing %s)",
-             answer.getTopic().c_str());
-    while (ros::ok() && (joint_pub_.getNumSubscribers() == 0 || answer.getNumPublishers() == 0))
+    ROS_INFO(
+        "backlash_servo_node: lockstep: waiting for a controller (subscribing joint_states or encoder_states, "
+        "publishing %s)",
+        answer.getTopic().c_str());
+    while (ros::ok() && ((joint_pub_.getNumSubscribers() == 0 && encoder_pub_.getNumSubscribers() == 0) ||
+                         answer.getNumPublishers() == 0))
     {
       ros::spinOnce();
       ros::WallDuration(0.01).sleep();
@@ -250,6 +255,7 @@ bool ServoNode::run()
   publishSample();
   sample_index_ = 1;
   awaitAnswer();
+  bool reached_stop = false;
   while (ros::ok())
   {
     ros::spinOnce();  // commands, services and reconfigure act here, at a step boundary
@@ -346,11 +352,22 @@ bool ServoNode::run()
           "CPU %.3f s (%.1f %% of one core)",
           sample_index_, config_.publish_rate, wall, t / wall, cpu, 100.0 * cpu / wall);
       drainBeforeExit(wall);
+      reached_stop = true;
       break;
     }
   }
   // Every input served so far is in the bag (the drain above serves the last ones).
   const bool recorded = recorder_ == nullptr || recorder_->close();
+  if (reached_stop && config_.stop_launch && endParentLaunch())
+  {
+    // roslaunch stops every node of the launch, this one with SIGINT (SIGTERM after 15 s): exit then, so that the
+    // end is roslaunch's ordinary shutdown and not a required node's death.
+    const ros::WallTime asked = ros::WallTime::now();
+    while (ros::ok() && (ros::WallTime::now() - asked).toSec() < 20.0)
+    {
+      ros::WallDuration(0.01).sleep();
+    }
+  }
   ros::shutdown();
   return recorded;
 }
@@ -413,10 +430,14 @@ void ServoNode::diagnose(diagnostic_updater::DiagnosticStatusWrapper& status)
 void ServoNode::publishEncoders(const State& s, const Drive& drive)
 {
   double motor = 0.0, load = 0.0;
-  if (!drive.readings(&motor, &load))
+  if (drive.readings(&motor, &load))
   {
-    return;
+    publishEncoderReadings(s, motor, load);
   }
+}
+
+void ServoNode::publishEncoderReadings(const State& s, double motor, double load)
+{
   sensor_msgs::JointState& js = encoder_msg_;
   setJointNames(&js);
   js.header.stamp = stamp(s.time);
@@ -437,6 +458,13 @@ void ServoNode::setJointNames(sensor_msgs::JointState* js) const
 void ServoNode::publishSample()
 {
   const State& s = sim_.state();
+  if (sim_.controlMode() == ControlMode::Effort)
+  {
+    // The encoders are the plant's: an external controller reads them at its own period, the publish period.
+    const DriveParams& d = config_.run.drive;
+    publishEncoderReadings(s, encoderReading(s.motor_position, d.motor_encoder_resolution),
+                           encoderReading(s.load_position, d.load_encoder_resolution));
+  }
   const ros::Time now = stamp(s.time);
   sensor_msgs::JointState& js = joint_msg_;
   setJointNames(&js);

@@ -75,6 +75,8 @@ class ServoNode : public EventSink
   void drainBeforeExit(double wall);
   /// encoder_states: what a digital drive's controller read at its sample (quantised motor and load angles).
   void publishEncoders(const State& s, const Drive& drive);
+  /// encoder_states at the state's instant: motor reading on the motor shaft and load reading [rad].
+  void publishEncoderReadings(const State& s, double motor, double load);
   /// joint_states / encoder_states carry the configured motor and load joint names (set only when they differ).
   void setJointNames(sensor_msgs::JointState* js) const;
   /// /diagnostics through diagnostic_updater, every second of wall time (publishDiagnostics forces an update).

@@ -21,8 +21,8 @@ using namespace backlash_servo;
 namespace
 {
 const char* HEADER =
-    R"(usage: backlash_design --motor-inertia J_m --motor-friction f_m --load-inertia J_L --load-friction f_L
-                       --restitution e [--backlash D] [--gain K|LO:HI] [--gear-ratio rho|LO:HI]
+    R"(usage: backlash_design [--config FILE.yaml] --motor-inertia J_m --motor-friction f_m --load-inertia J_L
+                       --load-friction f_L --restitution e [--backlash D] [--gain K|LO:HI] [--gear-ratio rho|LO:HI]
                        [any servo or drive flag] [--tune KEY] [--find max-gain|gear-ratio] [--json]
 Computes zeta, w_n and the chart coordinates of a motor/gear/load choice and simulates whether it falls into a
 limit cycle (and how big). --find max-gain bisects the largest value of the tuned gain (--tune, default the servo
@@ -146,7 +146,10 @@ Design parse(int argc, char** argv)
   std::vector<std::string> keys = keysOfSections({ParamSection::Servo, ParamSection::Drive});
   keys.push_back("command");
   FlagParser parser("backlash_design", HEADER, keys,
-                    {{"find", "max-gain|gear-ratio", "what to search (see above)"},
+                    {{"config", "FILE.yaml",
+                      "the joint's keys in snake_case (the YAML backlash_sim and the node load; flags override it; "
+                      "a YAML value LO:HI is a range as on the command line)"},
+                     {"find", "max-gain|gear-ratio", "what to search (see above)"},
                      {"tune", "KEY",
                       "the gain --find max-gain searches: gain (default), integral_gain, "
                       "derivative_gain, position_loop_gain, velocity_loop_gain, "

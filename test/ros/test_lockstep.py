@@ -1,6 +1,7 @@
 #!/usr/bin/python3
 """Lockstep (sync: true): a closed loop through ROS is deterministic and equals the same law inside the drive."""
 import json
+import math
 import os
 import subprocess
 import sys
@@ -24,17 +25,16 @@ def run_loop(bag_dir, name, port, stop_after, extra=()):
 
 
 def contents(path):
-    """Every recorded message by topic; stamps relative to the first (the clock starts at the run's wall time)."""
+    """Every recorded message by topic, as recorded (sim time starts at 0: stamps compare as they are)."""
     out = {}
-    t0 = None
     with rosbag.Bag(path) as bag:
         for topic, msg, _ in bag.read_messages():
-            if hasattr(msg, "header"):
-                stamp = msg.header.stamp.to_nsec()
-                t0 = stamp if t0 is None else t0
-                msg.header.stamp.secs, msg.header.stamp.nsecs = divmod(stamp - t0, 10**9)
             out.setdefault(topic, []).append(msg)
     return out
+
+
+def quantise(angle, counts):
+    return 2.0 * math.pi / counts * math.floor(counts * angle / (2.0 * math.pi))
 
 
 class Lockstep(unittest.TestCase):
@@ -42,12 +42,43 @@ class Lockstep(unittest.TestCase):
         with tempfile.TemporaryDirectory() as d:
             a = contents(run_loop(d, "a", 11411, 60))
             b = contents(run_loop(d, "b", 11412, 60))
+        self.assertEqual(a["/joint_states"][0].header.stamp.to_nsec(), 0)  # sim time starts at 0
         self.assertEqual(len(a["/joint_states"]), 6001)  # every step of 10 ms over 60 s, none dropped
         self.assertEqual(len(a["/motor_effort"]), 6001)  # one answer per state
         for topic in ("/joint_states", "/motor_effort", "/backlash_state", "/limit_cycle"):
             self.assertEqual(len(a[topic]), len(b[topic]), topic)
             for m, n in zip(a[topic], b[topic]):
                 self.assertEqual(m, n, topic)
+
+    def test_python_template_on_quantised_encoders_is_deterministic(self):
+        # The rospy template (float time arithmetic included) reads encoder_states, which effort mode publishes
+        # at every sample with the plant's encoders; two runs give bit-identical bags.
+        with tempfile.TemporaryDirectory() as d:
+            config = os.path.join(d, "joint.yaml")
+            with open(os.path.join(os.path.dirname(__file__), "..", "..", "config", "external_controller.yaml")) as f:
+                text = f.read()
+            with open(config, "w") as f:
+                f.write(text + "\nbacklash: 0.05\nload_encoder_resolution: 4096\nmotor_encoder_resolution: 1000\n")
+            extra = ("controller:=python", "config:=" + config, "kp:=2.0", "kd:=0.5", "ki:=0.1")
+            a = contents(run_loop(d, "a", 11414, 20, extra))
+            b = contents(run_loop(d, "b", 11415, 20, extra))
+        self.assertEqual(len(a["/joint_states"]), 2001)
+        self.assertEqual(len(a["/encoder_states"]), 2001)  # one reading per state, in effort mode too
+        self.assertEqual(len(a["/motor_effort"]), 2001)  # one answer per state
+        for topic in ("/joint_states", "/encoder_states", "/motor_effort", "/backlash_state"):
+            self.assertEqual(a[topic], b[topic], topic)
+        n_load, n_motor = 4096, 1000
+        for js, enc in zip(a["/joint_states"], a["/encoder_states"]):
+            self.assertEqual(js.header.stamp, enc.header.stamp)
+            self.assertEqual(enc.position[0], quantise(js.position[0], n_motor))
+            self.assertEqual(enc.position[1], quantise(js.position[1], n_load))
+        # The template's law on the readings: u_0 = kp e_0 at the first state (no Δt yet), then the PID.
+        e0 = 1.0 - a["/encoder_states"][0].position[1]
+        self.assertAlmostEqual(a["/motor_effort"][0].data, 2.0 * e0, delta=1e-12)
+        y0, y1 = a["/encoder_states"][0].position[1], a["/encoder_states"][1].position[1]
+        e1 = 1.0 - y1
+        self.assertAlmostEqual(a["/motor_effort"][1].data, 2.0 * e1 + 0.1 * 0.01 * e1 - 0.5 * (y1 - y0) / 0.01,
+                               delta=1e-9)
 
     def test_external_loop_equals_the_sampled_drive(self):
         # The example PID with kp = K, ki = kd = 0 answers u_k = K (θ_R − θ_c(t_k)) for the state at t_k, applied on

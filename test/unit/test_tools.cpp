@@ -296,6 +296,35 @@ TEST(Design, SearchesTheIntegralGainOfASampledPid)
   EXPECT_NE(err.find("--tune"), std::string::npos) << err;
 }
 
+// --config: a YAML file of the joint's keys (a range LO:HI as on the command line) gives the same answer as the
+// flags, and flags override it.
+TEST(Design, ConfigFileEqualsTheFlags)
+{
+  const std::string yaml = testing::TempDir() + "backlash_design_joint.yaml";
+  std::ofstream(yaml) << "motor_inertia: 0.1\nmotor_friction: 0.48\nload_inertia: 0.9\nload_friction: 0.32\n"
+                         "restitution: 0.5\nbacklash: 0.05\ngain: 1\ncontrol_law: pid\ncontroller_rate: 100\n"
+                         "feedback: motor\nderivative_gain: 0.3\nintegral_gain: \"0.01:100\"\n";
+  const std::string flags =
+      " --motor-inertia 0.1 --motor-friction 0.48 --load-inertia 0.9 --load-friction 0.32 --restitution 0.5"
+      " --backlash 0.05 --gain 1 --control-law pid --controller-rate 100 --feedback motor --derivative-gain 0.3"
+      " --integral-gain 0.01:100";
+  int code = 0;
+  const std::string search = " --tune integral-gain --find max-gain --json";
+  const std::string by_flags = runCapture(DESIGN + flags + search, &code);
+  ASSERT_EQ(code, 0) << by_flags;
+  const std::string by_file = runCapture(DESIGN + " --config " + yaml + search, &code);
+  ASSERT_EQ(code, 0) << by_file;
+  EXPECT_EQ(by_file, by_flags);
+  const std::string overridden = runCapture(DESIGN + " --config " + yaml + " --json --integral-gain 0.5", &code);
+  ASSERT_EQ(code, 0) << overridden;
+  EXPECT_EQ(overridden, runCapture(DESIGN + flags + " --json --integral-gain 0.5", &code));
+  // An unknown key in the file is one line naming it and the file.
+  std::ofstream(yaml, std::ios::app) << "motor_inertai: 1\n";
+  const std::string err = runCapture(DESIGN + " --config " + yaml + " 2>&1", &code);
+  EXPECT_EQ(code, 2);
+  EXPECT_NE(err.find("motor_inertai"), std::string::npos) << err;
+}
+
 // A real single-node Slurm (slurmctld, slurmd, munge started and stopped by the script): scripts/slurm_sweep.sh's
 // array job and dependent merge job write exactly the CSV of an unsharded run.
 TEST(Slurm, ArrayJobPlusMergeEqualsTheUnshardedSweep)
@@ -449,6 +478,35 @@ TEST(Compare, VaryRerunsEveryStrategyOverTheRange)
 }
 
 // backlash_servo.launch: the YAML's keys win unless the launch arg is given; use_sim_time and ns are independent args.
+// /use_sim_time follows each launch file's clock args (roslaunch's arg() gives booleans, not text, in $(eval)).
+TEST(Launch, UseSimTimeFollowsTheClockArgsOfEveryLaunchFile)
+{
+  const auto dump = [](const std::string& args) {
+    int code = 0;
+    const std::string out =
+        runCapture("PATH=/usr/bin:$PATH roslaunch --dump-params backlash_servo " + args + " 2>&1", &code);
+    EXPECT_EQ(code, 0) << out;
+    const bool on = out.find("/use_sim_time: true") != std::string::npos;
+    EXPECT_TRUE(on || out.find("/use_sim_time: false") != std::string::npos) << out;
+    return on;
+  };
+  EXPECT_FALSE(dump("backlash_servo.launch"));
+  EXPECT_TRUE(dump("backlash_servo.launch publish_clock:=true"));
+  EXPECT_TRUE(dump("backlash_servo.launch publish_clock:=True"));
+  EXPECT_FALSE(dump("backlash_servo.launch publish_clock:=false"));
+  EXPECT_TRUE(dump("backlash_servo.launch use_sim_time:=true"));  // an external clock
+  EXPECT_FALSE(dump("backlash_servo.launch publish_clock:=true use_sim_time:=false"));
+  EXPECT_TRUE(dump("thesis_limit_cycle.launch"));
+  EXPECT_TRUE(dump("external_controller.launch"));
+  EXPECT_TRUE(dump("external_controller.launch controller:=python"));
+  EXPECT_TRUE(dump("external_controller.launch controller:=none"));
+  // An unknown controller stops the launch with a line naming the choices (--dump-params itself exits 0).
+  const std::string bad = runCapture(
+      "PATH=/usr/bin:$PATH roslaunch --dump-params backlash_servo external_controller.launch controller:=mine 2>&1");
+  EXPECT_EQ(bad.find("/use_sim_time"), std::string::npos) << bad;
+  EXPECT_NE(bad.find("controller_must_be_example_python_or_none"), std::string::npos) << bad;
+}
+
 TEST(Launch, YamlKeysWinUnlessArgsAreGiven)
 {
   const std::string yaml = "/tmp/backlash_launch_precedence.yaml";
