@@ -31,6 +31,9 @@ class Compensator
  public:
   Compensator() = default;
   explicit Compensator(const DriveParams& drive);
+  /// New settings of the same kind from the next sample on, the state kept (the inverse's offset and direction, the
+  /// dual loop's outer integrator x_k): a live change without a bump. False (nothing changed) for another kind.
+  bool retune(const DriveParams& drive);
 
   /// Whether a compensator is configured (the drive skips both calls otherwise).
   bool active() const { return kind_ != Kind::None; }

@@ -51,8 +51,9 @@ struct DriveParams
   std::string dither_shape = "square";  ///< dither: square | sine
 
   bool sampled() const { return controller_rate > 0.0; }
-  /// Throws InvalidParameterError for combinations the model does not define (pid without a rate, …).
-  void validate() const;
+  /// Throws InvalidParameterError for combinations the model does not define (pid without a rate, …). In effort
+  /// mode the encoders are the plant's (read by an external controller), so they need no controller_rate.
+  void validate(ControlMode mode = ControlMode::Position) const;
 };
 
 class Drive
@@ -211,6 +212,15 @@ class SampledDrive : public Drive
   double nextEventTime(double t) const override;
   void sample(const State& state) override;
   void configure(const ServoParams& params) override;
+  /**
+   * New drive settings from the next sample on, without a bump: the integrator's value I [N·m] is kept (a new K_i or
+   * K_vi changes only its later increments), so are the previous readings (derivative, velocity estimate) and the
+   * compensator's state. A new controller_rate keeps the next sample where it is due and spaces the later ones by
+   * the new period; a delay 0 → 1 holds the present output one more sample. Returns false, changing nothing, when
+   * the law, the feedback, the compensator's kind or a continuous (0 Hz) rate is asked for: those need a fresh
+   * controller (makePositionDrive). Throws InvalidParameterError for invalid settings.
+   */
+  bool retune(const DriveParams& drive);
   std::unique_ptr<Drive> clone() const override { return std::make_unique<SampledDrive>(*this); }
   /// The integrator moved beyond rounding at the latest sample (pid, cascade).
   bool winding() const override { return winding_; }
@@ -223,7 +233,7 @@ class SampledDrive : public Drive
   {
     *motor = qm_prev_;  // q(θ_m) of the latest sample (kept for the next velocity estimate)
     *load = load_reading_;
-    return next_ > 0;
+    return started_;
   }
 
   /// A new set-point θ_R [rad] from the next sample on (replaces a profile).
@@ -251,7 +261,8 @@ class SampledDrive : public Drive
   double reference_ = 0.0;  // θ_R,k of the latest sample [rad]
   double gain_, rho_, command_, t0_;
   double period_;          // 1/f_s [s]
-  long next_ = 0;          // index of the next sample
+  long next_ = 0;          // index of the next sample since t0_ (t0_ moves when the rate changes)
+  bool started_ = false;   // a sample was taken (readings, previous measurement and velocity estimate exist)
   double held_ = 0.0;      // torque held now [N·m]
   double pending_ = 0.0;   // computed, applied at the next sample (delay 1) [N·m]
   double integral_ = 0.0;  // I_{k−1} [N·m]

@@ -55,6 +55,9 @@ class Simulator
   void setMotorTorque(double torque, EventSink* sink = nullptr);
   /// Replaces the drive (its law applies from now on).
   void setDrive(std::unique_ptr<Drive> drive, EventSink* sink = nullptr);
+  /// New settings for the digital drive in place, without a bump (SampledDrive::retune); false when the drive is
+  /// not digital or the change needs a fresh one (then nothing changed: call setDrive).
+  bool retuneDrive(const DriveParams& drive, EventSink* sink = nullptr);
   /**
    * Replaces the parameters at the current time without a jump in positions or velocities. If the current gap lies
    * outside the new [0, Δ], the motor is carried along: the gap is clamped to the nearest wall by moving θ_m (the

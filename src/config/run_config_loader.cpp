@@ -23,10 +23,10 @@ bool anyPresent(const KeyValues& kv, bool chart_form)
   return false;
 }
 
-/// The value of a Real key, or its table default; range-checked.
-double realValue(const KeyValues& kv, const ParamSpec& spec)
+/// The value of a Real key, or `fallback` (default: its table default); range-checked.
+double realValue(const KeyValues& kv, const ParamSpec& spec, const double* fallback = nullptr)
 {
-  const double v = kv.has(spec.key) ? kv.number(spec.key) : spec.fallbackNumber();
+  const double v = kv.has(spec.key) ? kv.number(spec.key) : fallback ? *fallback : spec.fallbackNumber();
   spec.check(v);
   return v;
 }
@@ -45,9 +45,9 @@ void readServoKeys(const KeyValues& kv, bool chart_shared, ServoParams* p)
   }
 }
 
-std::string choiceValue(const KeyValues& kv, const ParamSpec& spec)
+std::string choiceValue(const KeyValues& kv, const ParamSpec& spec, const std::string* fallback = nullptr)
 {
-  const std::string v = kv.text(spec.key, spec.fallback);
+  const std::string v = kv.text(spec.key, fallback ? *fallback : std::string(spec.fallback));
   if (!spec.isChoice(v))
   {
     std::string list;
@@ -60,6 +60,49 @@ std::string choiceValue(const KeyValues& kv, const ParamSpec& spec)
   return v;
 }
 }  // namespace
+
+namespace
+{
+/// The drive's Choice keys and their fields (the Real keys name their fields in the table).
+constexpr std::pair<const char*, std::string DriveParams::*> DRIVE_CHOICES[] = {
+    {"control_law", &DriveParams::control_law},
+    {"feedback", &DriveParams::feedback},
+    {"compensation", &DriveParams::compensation},
+    {"dither_shape", &DriveParams::dither_shape}};
+}  // namespace
+
+KeyValues driveKeyValues(const DriveParams& d)
+{
+  KeyValues kv;
+  kv.nameKeysAsFlags(false);
+  for (const ParamSpec* spec : paramsIn(ParamSection::Drive))
+  {
+    if (const auto* f = std::get_if<double DriveParams::*>(&spec->field))
+    {
+      kv.setNumber(spec->key, d.*(*f));
+    }
+  }
+  for (const auto& [key, field] : DRIVE_CHOICES)
+  {
+    kv.set(key, d.*field);
+  }
+  return kv;
+}
+
+void readDriveKeys(const KeyValues& kv, bool keep_absent, DriveParams* d)
+{
+  for (const ParamSpec* spec : paramsIn(ParamSection::Drive))
+  {
+    if (const auto* f = std::get_if<double DriveParams::*>(&spec->field))
+    {
+      d->*(*f) = realValue(kv, *spec, keep_absent ? &(d->*(*f)) : nullptr);
+    }
+  }
+  for (const auto& [key, field] : DRIVE_CHOICES)
+  {
+    d->*field = choiceValue(kv, param(key), keep_absent ? &(d->*field) : nullptr);
+  }
+}
 
 void requireKnownKeys(const KeyValues& kv, const std::string& source)
 {
@@ -112,17 +155,7 @@ RunConfig runConfigFrom(const KeyValues& kv)
     readServoKeys(kv, false, &c.params);
     c.params.validate();
   }
-  for (const ParamSpec* spec : paramsIn(ParamSection::Drive))
-  {
-    if (const auto* f = std::get_if<double DriveParams::*>(&spec->field))
-    {
-      c.drive.*(*f) = realValue(kv, *spec);
-    }
-  }
-  c.drive.control_law = choiceValue(kv, param("control_law"));
-  c.drive.feedback = choiceValue(kv, param("feedback"));
-  c.drive.compensation = choiceValue(kv, param("compensation"));
-  c.drive.dither_shape = choiceValue(kv, param("dither_shape"));
+  readDriveKeys(kv, false, &c.drive);
   c.drive.validate();
   c.command = realValue(kv, param("command"));
   if (kv.has("profile"))

@@ -24,6 +24,21 @@ Compensator::Compensator(const DriveParams& d)
                                         : Kind::None;
 }
 
+bool Compensator::retune(const DriveParams& drive)
+{
+  Compensator next(drive);
+  if (next.kind_ != kind_)
+  {
+    return false;
+  }
+  next.started_ = started_;
+  next.direction_ = direction_;
+  next.last_reference_ = last_reference_;
+  next.offset_ = offset_;
+  *this = next;
+  return true;
+}
+
 double Compensator::reference(double reference, double load_reading, double period)
 {
   if (kind_ == Kind::DualLoop)

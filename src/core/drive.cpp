@@ -173,7 +173,7 @@ void EffortDrive::setTorque(double torque)
   torque_ = torque;
 }
 
-void DriveParams::validate() const
+void DriveParams::validate(ControlMode mode) const
 {
   if (control_law != "proportional" && control_law != "pid" && control_law != "cascade")
   {
@@ -196,7 +196,9 @@ void DriveParams::validate() const
                                   "the continuous law feeds back the load position (motor feedback needs "
                                   "controller_rate > 0 Hz)");
     }
-    if (motor_encoder_resolution > 0.0 || load_encoder_resolution > 0.0 || controller_delay > 0.0)
+    const bool drive_encoders =
+        mode == ControlMode::Position && (motor_encoder_resolution > 0.0 || load_encoder_resolution > 0.0);
+    if (drive_encoders || controller_delay > 0.0)
     {
       throw InvalidParameterError("controller_rate",
                                   "encoders and delay belong to a sampled drive: set controller_rate > 0 Hz");
@@ -278,6 +280,33 @@ void SampledDrive::configure(const ServoParams& params)
   rho_ = params.gear_ratio;
 }
 
+bool SampledDrive::retune(const DriveParams& drive)
+{
+  drive.validate();
+  if (!drive.sampled() || drive.control_law != p_.control_law || drive.feedback != p_.feedback)
+  {
+    return false;
+  }
+  Compensator compensator = compensator_;
+  if (!compensator.retune(drive))
+  {
+    return false;
+  }
+  compensator_ = compensator;
+  if (drive.controller_rate != p_.controller_rate)
+  {
+    t0_ = nextEventTime(0.0);  // the sample due stays due; the later ones follow the new period
+    next_ = 0;
+    period_ = 1.0 / drive.controller_rate;
+  }
+  if (drive.controller_delay > 0.0 && !(p_.controller_delay > 0.0))
+  {
+    pending_ = held_;  // delay 0 → 1: the present output is held one more sample
+  }
+  p_ = drive;
+  return true;
+}
+
 void SampledDrive::setCommand(double command)
 {
   requireFinite("command", command);
@@ -306,7 +335,7 @@ void SampledDrive::sample(const State& s)
   const double t_k = profile_ || compensated ? t0_ + static_cast<double>(next_) * period : 0.0;  // (only they read it)
   reference_ = profile_ ? profile_->at(t_k) : command_;
   const double e = (compensated ? compensator_.reference(reference_, load_reading_, period) : reference_) - y;
-  const bool first = next_ == 0;
+  const bool first = !started_;
   const double limit = p_.torque_limit;
   auto beyond = [&](double u, double sign) { return limit > 0.0 && std::fabs(u) > limit && u * sign > 0.0; };
   double u = 0.0;
@@ -373,6 +402,7 @@ void SampledDrive::sample(const State& s)
   }
   steady_ = steady && held_ == u;
   ++next_;
+  started_ = true;
 }
 
 long SampledDrive::holdSamples(const State& state, double until, double lo, double hi, long max_count, double* last)

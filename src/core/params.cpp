@@ -47,28 +47,37 @@ void ServoParams::validate() const
   requireStaticAtLeastCoulomb("load_static_friction", load_static_friction, "load_coulomb_friction",
                               load_coulomb_friction);
   // The derived quantities of the validated envelope (README): outside it the core's promises were not measured.
-  auto refuse = [&](const char* what, double value, const char* range) {
+  // The message names every key the quantity follows from, with its value (an absent key has its default, the
+  // thesis' App. D1 value for the mechanics: a robot joint that leaves out motor_friction gets 0.48 N·m·s/rad).
+  auto refuse = [&](const char* what, double value, const char* range, std::initializer_list<const char*> keys) {
+    std::string from;
+    for (const char* key : keys)
+    {
+      from += (from.empty() ? "" : ", ") + std::string(key) + " " +
+              formatNumber(this->*std::get<double ServoParams::*>(param(key).field));
+    }
     throw InvalidParameterError(what, formatNumber(value) + " lies outside the validated envelope " + range +
-                                          " (motor_inertia " + formatNumber(motor_inertia) + ", load_inertia " +
-                                          formatNumber(load_inertia) + ", gain " + formatNumber(gain) +
-                                          ", gear_ratio " + formatNumber(gear_ratio) + ")");
+                                          "; it follows from " + from +
+                                          " (a key not given has its default; see the parameter table)");
   };
   // Derived values get a rounding slack: the chart form's bounds must convert back inside.
   constexpr double SLACK = 1e-9;
   const double split = inertiaRatio();
   if (!(split >= INERTIA_SPLIT_MIN * (1.0 - SLACK) && split <= INERTIA_SPLIT_MAX * (1.0 + SLACK)))
   {
-    refuse("inertia split ρ²J_L/J_m", split, "[0.001, 1000]");
+    refuse("inertia split ρ²J_L/J_m", split, "[0.001, 1000]", {"load_inertia", "motor_inertia", "gear_ratio"});
   }
   const double omega_n = naturalFrequency();
   if (!(omega_n >= NATURAL_FREQUENCY_MIN * (1.0 - SLACK) && omega_n <= NATURAL_FREQUENCY_MAX * (1.0 + SLACK)))
   {
-    refuse("natural frequency ω_n = √(ρK/J) [rad/s]", omega_n, "[0.001, 10000] rad/s");
+    refuse("natural frequency ω_n = √(ρK/J) [rad/s]", omega_n, "[0.001, 10000] rad/s",
+           {"gain", "gear_ratio", "motor_inertia", "load_inertia"});
   }
   const double zeta = dampingRatio();
   if (!(zeta <= DAMPING_RATIO_MAX * (1.0 + SLACK)))
   {
-    refuse("damping ratio ζ", zeta, "[0, 100]");
+    refuse("damping ratio ζ = (f_m + ρ²f_L)/(2ω_n J)", zeta, "[0, 100]",
+           {"motor_friction", "load_friction", "gain", "gear_ratio", "motor_inertia", "load_inertia"});
   }
 }
 

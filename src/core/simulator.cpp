@@ -254,6 +254,22 @@ void Simulator::setDrive(std::unique_ptr<Drive> drive, EventSink* sink)
   plant_.emit(sink, EventType::InputChange);
 }
 
+bool Simulator::retuneDrive(const DriveParams& drive, EventSink* sink)
+{
+  auto* sampled = dynamic_cast<SampledDrive*>(drive_.get());
+  if (sampled == nullptr)
+  {
+    return false;
+  }
+  if (!sampled->retune(drive))  // (a digital drive never runs in a ramp's moving frame)
+  {
+    return false;
+  }
+  applyDriveLaw();
+  plant_.emit(sink, EventType::InputChange);
+  return true;
+}
+
 void Simulator::setCommand(double command, EventSink* sink)
 {
   requireFinite("command", command);

@@ -1,7 +1,9 @@
 // backlash_servo_node: loads ~params (exits with a message naming the key if they are bad) and runs the servo.
 #include "servo_node.h"
 
+#include <clocale>
 #include <csignal>
+#include <cstring>
 #include <memory>
 #include <stdexcept>
 
@@ -17,6 +19,14 @@ extern "C" void requestShutdown(int)
 
 int main(int argc, char** argv)
 {
+  // rosconsole passes messages through log4cxx, which converts them with the process locale: under the "C" locale of
+  // a service or a container every non-ASCII character (ζ, ω, ρ, Δ, ², ·) of a message became '?' on the console
+  // and in /rosout. The messages are UTF-8: read them as such whatever the environment says.
+  const char* ctype = std::setlocale(LC_CTYPE, "");
+  if (ctype == nullptr || (std::strstr(ctype, "UTF-8") == nullptr && std::strstr(ctype, "utf8") == nullptr))
+  {
+    std::setlocale(LC_CTYPE, "C.UTF-8");
+  }
   ros::init(argc, argv, "backlash_servo_node");
   std::signal(SIGTERM, requestShutdown);
   ros::NodeHandle nh, pnh("~");

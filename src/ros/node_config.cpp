@@ -139,8 +139,8 @@ NodeConfig loadNodeConfig(const ros::NodeHandle& pnh)
     plant.erase("motor_encoder_resolution");
     plant.erase("load_encoder_resolution");
     c.run = runConfigFrom(plant);
-    c.run.drive.motor_encoder_resolution = realValue(kv, "motor_encoder_resolution", 0.0);
-    c.run.drive.load_encoder_resolution = realValue(kv, "load_encoder_resolution", 0.0);
+    readDriveKeys(kv, true, &c.run.drive);
+    c.run.drive.validate(ControlMode::Effort);
   }
   else
   {

@@ -14,6 +14,7 @@
 #include "backlash_servo/BacklashState.h"
 #include "backlash_servo/ImpactEvent.h"
 #include "backlash_servo/LimitCycleStatus.h"
+#include "backlash_servo/config/run_config_loader.h"
 #include "backlash_servo/param_table.h"
 #include "launch_end.h"
 #include "wall_throttle.h"
@@ -172,6 +173,20 @@ BacklashServoConfig ServoNode::currentConfig() const
   for (const ParamSpec* spec : paramsIn(ParamSection::Servo))
   {
     dynamic_reconfigure::ConfigTools::appendParameter(msg, spec->key, p.*std::get<double ServoParams::*>(spec->field));
+  }
+  const KeyValues drive = driveKeyValues(config_.run.drive);
+  for (const ParamSpec* spec : paramsIn(ParamSection::Drive))
+  {
+    if (spec->type == ParamType::Choice)
+    {
+      const std::string value = drive.text(spec->key, spec->fallback);
+      const auto it = std::find(spec->choices.begin(), spec->choices.end(), value);
+      dynamic_reconfigure::ConfigTools::appendParameter(msg, spec->key, static_cast<int>(it - spec->choices.begin()));
+    }
+    else
+    {
+      dynamic_reconfigure::ConfigTools::appendParameter(msg, spec->key, drive.number(spec->key));
+    }
   }
   dynamic_reconfigure::ConfigTools::appendParameter(msg, "control_mode",
                                                     config_.control_mode == ControlMode::Effort ? 1 : 0);
@@ -401,6 +416,10 @@ void ServoNode::diagnose(diagnostic_updater::DiagnosticStatusWrapper& status)
 {
   status.summary(fault_.empty() ? diagnostic_msgs::DiagnosticStatus::OK : diagnostic_msgs::DiagnosticStatus::ERROR,
                  fault_.empty() ? (paused_ ? "paused" : "running") : fault_);
+  if (!refused_.empty() && fault_.empty())
+  {
+    status.mergeSummary(diagnostic_msgs::DiagnosticStatus::WARN, refused_);
+  }
   status.add("sim_time [s]", formatNumber(sim_.state().time));
   status.add("impacts", std::to_string(sim_.impactCount()));
   status.add("verdict", toString(monitor_->status().verdict));
@@ -719,15 +738,9 @@ void ServoNode::applyPositionDrive()
   const DriveParams& drive = config_.run.drive;
   const double now = sim_.state().time;
   const double start = profile_ ? profile_->at(now) : command_;  // a profile in progress goes on
-  if (drive.sampled() || drive.torque_limit > 0.0)
-  {
-    // The YAML's digital drive or saturated law, fresh from now on (integrators and sample clock restart).
-    sim_.setDrive(makePositionDrive(drive, sim_.params().gain, sim_.params().gear_ratio, start, now));
-  }
-  else
-  {
-    sim_.setCommand(start);
-  }
+  // The configured law (continuous P, saturated or compensated, or a digital drive), fresh from now on: integrators
+  // and the sample clock restart.
+  sim_.setDrive(makePositionDrive(drive, sim_.params().gain, sim_.params().gear_ratio, start, now));
   if (profile_)
   {
     sim_.setProfile(profile_);
@@ -913,14 +926,22 @@ void ServoNode::onReconfigure(BacklashServoConfig& c, uint32_t)
     }
     p.validate();
     next = nodeSettingsFrom(kv, config_);
+    readDriveKeys(kv, true, &next.run.drive);
+    next.run.drive.validate(next.control_mode);
     sim_.setParams(p);  // at this step boundary, no jump in θ_c or ω_c (see README for a shrinking backlash)
   }
   catch (const std::exception& e)
   {
-    ROS_ERROR("backlash_servo_node: reconfigure refused (%s); keeping the previous values", e.what());
+    // The reply holds the values in force (what rqt shows); /diagnostics says what was refused until the next
+    // accepted change.
+    refused_ = std::string("reconfigure refused: ") + e.what();
+    ROS_ERROR("backlash_servo_node: %s; keeping the previous values", refused_.c_str());
     c = last_good_;
+    publishDiagnostics();
     return;
   }
+  refused_.clear();
+  const bool drive_changed = driveKeyValues(next.run.drive).keys() != driveKeyValues(config_.run.drive).keys();
   // A live change of anything the joint's motion depends on (plant or drive, not the node's own settings) restarts
   // the judgement: the maxima before it belong to another joint. (Values compared as the exact text of each key.)
   const KeyValues before = keyValuesOf(last_good_);
@@ -944,9 +965,16 @@ void ServoNode::onReconfigure(BacklashServoConfig& c, uint32_t)
     }
     else
     {
+      config_.run.drive = next.run.drive;
       applyPositionDrive();
     }
     restartMonitor("control_mode changed");
+  }
+  else if (drive_changed && next.control_mode == ControlMode::Position &&
+           !sim_.retuneDrive(next.run.drive))  // gains, limit, rate, delay, encoders, compensator settings: no bump
+  {
+    config_.run.drive = next.run.drive;
+    applyPositionDrive();  // a new law, feedback, compensator or continuous ↔ digital: a fresh controller
   }
   else if (!changed.empty())
   {

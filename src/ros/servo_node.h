@@ -135,6 +135,7 @@ class ServoNode : public EventSink
   std::unique_ptr<dynamic_reconfigure::Server<BacklashServoConfig>> reconfigure_;
   BacklashServoConfig last_good_;
   std::string verdict_reason_;  ///< /limit_cycle's reason while the verdict is undecided (or the fault)
+  std::string refused_;         ///< the last refused reconfigure (key, value, reason) until the next accepted one
   bool mirror_stale_ = false;   ///< a topic changed a live value that last_good_ and dynamic_reconfigure do not show
   /// Brings last_good_ and the dynamic_reconfigure parameters up to date (called once per wall second).
   void refreshReconfigureMirror();

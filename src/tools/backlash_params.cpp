@@ -79,7 +79,7 @@ void printCfg(std::ostream& out)
          "from dynamic_reconfigure.parameter_generator_catkin import ParameterGenerator, double_t, int_t\n\n"
          "PACKAGE = \"backlash_servo\"\n"
          "gen = ParameterGenerator()\n";
-  for (ParamSection section : {ParamSection::Servo, ParamSection::Node})
+  for (ParamSection section : {ParamSection::Servo, ParamSection::Drive, ParamSection::Node})
   {
     const std::string group = toString(section);
     bool opened = false;

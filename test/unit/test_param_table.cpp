@@ -57,7 +57,10 @@ TEST(ParamTable, EntriesAreWellFormed)
     }
     if (p.live)
     {
-      EXPECT_TRUE(p.section == ParamSection::Servo || p.section == ParamSection::Node) << p.key;
+      // What the node can change mid-run: the plant, the drive and its own settings (not the initial state).
+      EXPECT_TRUE(p.section == ParamSection::Servo || p.section == ParamSection::Drive ||
+                  p.section == ParamSection::Node)
+          << p.key;
     }
   }
   // The table's defaults are the defaults of the structs the physics uses (the thesis' App. D1 case).

@@ -23,6 +23,15 @@ namespace backlash_servo
  */
 RunConfig runConfigFrom(const KeyValues& kv);
 
+/**
+ * The drive keys of kv into *drive, range-checked: absent keys at their table defaults, or, with keep_absent, as
+ * they are in *drive (a live change of some keys). The combination is not checked here (DriveParams::validate).
+ */
+void readDriveKeys(const KeyValues& kv, bool keep_absent, DriveParams* drive);
+
+/// Every drive key of *drive as key values (numbers, and the choices as their names): what readDriveKeys reads.
+KeyValues driveKeyValues(const DriveParams& drive);
+
 /// Throws ConfigError "<source>: unknown key 'x'" for a key that is not in the parameter table.
 void requireKnownKeys(const KeyValues& kv, const std::string& source);
 
