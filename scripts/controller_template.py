@@ -15,8 +15,9 @@ Lockstep (``sync: true``, external_controller.launch): the node publishes the st
   1. answer every state exactly once, from its callback — no timer, no ``rospy.Rate``, no wall time;
   2. compute with the state's stamp, never with ``rospy.Time.now()`` (which lags behind /clock by a message);
   3. keep all its state in the callback's variables (the callback runs on one thread, in order).
-Sim time starts at 0 (param ``start_time``), so ``stamp.to_sec()`` differences are exact enough; the integer form
-``(stamp - previous).to_sec()`` used here is exact for any epoch.
+Sim time starts at 0 (param ``start_time``), so the usual float idiom ``stamp.to_sec() - t_prev`` used here gives
+the same Δt on every run (with a wall-clock epoch of ~1.8e9 s it would round differently run to run); the integer
+form ``(stamp - previous).to_sec()`` is exact for any epoch.
 
 Params (private, SI): ~kp [N·m/rad], ~ki [N·m/(rad·s)], ~kd [N·m·s/rad], ~torque_limit [N·m] (0 = none),
 ~command [rad] (initial set-point θ_R; the ``command`` topic changes it), ~joint [load joint name, default
@@ -44,10 +45,10 @@ class PidController:
             if not math.isfinite(value) or (name == "torque_limit" and value < 0.0):
                 raise ValueError("~%s: must be finite%s (got %r)" % (name, ", >= 0" if name == "torque_limit" else "",
                                                                      value))
-        # The controller's state: integral [N·m], previous reading [rad] and its stamp (None before the first).
+        # The controller's state: integral [N·m], previous reading [rad] and its time [s] (None before the first).
         self.integral = 0.0
         self.y_prev = 0.0
-        self.stamp_prev = None
+        self.t_prev = None
         # Publisher first, then the subscriber: in lockstep the node waits until both are connected.
         self.effort_pub = rospy.Publisher("motor_effort", Float64, queue_size=100)
         rospy.Subscriber("command", Float64, self.on_command, queue_size=10)
@@ -63,8 +64,9 @@ class PidController:
         except (ValueError, IndexError):
             rospy.logwarn_throttle(5.0, "controller_template: no joint '%s' in the state" % self.joint)
             return
-        # Δt from the stamps as integers (exact); 0 at the first state.
-        dt = 0.0 if self.stamp_prev is None else (msg.header.stamp - self.stamp_prev).to_sec()
+        # Δt from the stamps [s]; 0 at the first state.
+        t = msg.header.stamp.to_sec()
+        dt = 0.0 if self.t_prev is None else t - self.t_prev
         e = self.command - y
         derivative = self.kd * (y - self.y_prev) / dt if dt > 0.0 else 0.0
         integral = self.integral + self.ki * dt * e
@@ -74,7 +76,7 @@ class PidController:
                 integral = self.integral  # conditional integration: hold the integral while saturated
                 u = self.kp * e + integral - derivative
             u = max(-self.limit, min(self.limit, u))
-        self.integral, self.y_prev, self.stamp_prev = integral, y, msg.header.stamp
+        self.integral, self.y_prev, self.t_prev = integral, y, t
         self.effort_pub.publish(Float64(u))  # exactly one answer per state
 
 

@@ -6,7 +6,8 @@
  * x_{n+k} \f$ (k = 1, or the cycle's multiplicity when a cycle has several maxima) either has a fixed point
  * \f$ x^* > 0 \f$ (a limit cycle) or drives \f$ x_n \f$ to 0 (convergence). Aitken's Δ² extrapolation of the last
  * four same-phase maxima estimates \f$ x^* \f$ and the contraction ratio \f$ r = d_n/d_{n-1} \f$; the verdict is
- * settled only when the estimate is self-consistent (see README, "How the verdict is made"). No ROS dependency.
+ * settled only when the estimate is self-consistent (see docs/validation.md, "How the limit-cycle verdict is made"). No
+ * ROS dependency.
  */
 #pragma once
 

@@ -16,7 +16,7 @@
 namespace backlash_servo
 {
 /// Overdamped or effort-mode contact: rates [1/s] below this fraction of the reference rate are treated as 0, and a
-/// root pair closer than this fraction as double (critically damped); see README, accuracy.
+/// root pair closer than this fraction as double (critically damped); see docs/validation.md.
 constexpr double RATE_MERGE_FRACTION = 1e-7;
 /// Apart mode: a decay rate λ [1/s] with 0 < λ·W ≤ SLOW_RATE_WINDOW_PRODUCT over the search window W is "slow", and
 /// so is a difference of two rates: its exponential is written as a Taylor polynomial (WideExpPoly) instead of

@@ -2,11 +2,11 @@
  * @file param_table.h
  * @brief The one parameter table: every parameter of the servo, its run and the node is declared here once (key,
  *        symbol, unit, allowed range, default, one-line doc, live-tunable or not). Validation, CLI flags and
- *        `--help`, YAML keys, ROS params, the dynamic_reconfigure .cfg, the JSON echo and the README tables all
+ *        `--help`, YAML keys, ROS params, the dynamic_reconfigure .cfg, the JSON echo and docs/parameters.md all
  *        derive from it (see `backlash_params`). No ROS dependency.
  *
  * Adding a parameter: one entry in param_table.cpp (with the struct field it binds to, if any) + the physics that
- * uses it; then `bash scripts/generate_params.sh` rewrites the .cfg and the README tables (a test fails until then).
+ * uses it; then `bash scripts/generate_params.sh` rewrites the .cfg and docs/parameters.md (a test fails until then).
  */
 #pragma once
 

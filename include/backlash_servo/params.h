@@ -25,7 +25,8 @@ class InvalidParameterError : public std::invalid_argument
   std::string field_;
 };
 
-/// The validated envelope's derived limits (README, "Validated envelope"); the plain ranges are in param_table.cpp.
+/// The validated envelope's derived limits (docs/validation.md, "Validated envelope"); the plain ranges are in
+/// param_table.cpp.
 constexpr double INERTIA_SPLIT_MIN = 1e-3;      ///< ρ²J_L/J_m [-]
 constexpr double INERTIA_SPLIT_MAX = 1e3;       ///< ρ²J_L/J_m [-]
 constexpr double NATURAL_FREQUENCY_MIN = 1e-3;  ///< ω_n [rad/s]

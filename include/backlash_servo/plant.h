@@ -83,8 +83,8 @@ class EventBudgetExceeded : public std::runtime_error
 
 /// The motion ran away (an unstable loop, e.g. a digital drive's gains beyond its stability limit): the state left
 /// the bounds within which the closed forms are meaningful (|θ_c|, |ρθ_m| ≤ 1e9 rad; |ω_c|, |ρω_m| ≤ 1e14 rad/s,
-/// 1000× the validated envelope of the README) or became non-finite. Stopped instead of computing with overflowing
-/// numbers.
+/// 1000× the validated envelope, docs/validation.md) or became non-finite. Stopped instead of computing with
+/// overflowing numbers.
 class MotionDiverged : public std::domain_error
 {
  public:
@@ -111,7 +111,7 @@ struct EnergyLedger
  *
  * Contact: \f$ J\ddot\theta_c + F_T\dot\theta_c = \rho T_m \f$; apart: \f$ J_L\ddot\theta_c + f_L\dot\theta_c = 0,
  * \; J_m\ddot\theta_m + f_m\dot\theta_m = T_m \f$; impacts by impact.h; separation where the mesh torque changes
- * sign. See docs/model.md and the README ("How it is exact").
+ * sign. See docs/model.md and docs/validation.md ("How it is exact").
  */
 class Plant
 {

@@ -14,7 +14,7 @@
  * \f$ \|y_{N+j}\|_D \le \|y_N\|_D M^j N!/(N+j)! \f$ and the series cut after order N errs on [0, T] by at most
  * \f[ R_N(T) = \|y_N\|_D\,T^N\,\frac{MT/(N+1)}{1 - MT/(N+2)} \f]
  * in every (weighted) component. N is chosen so that R_N is below 1 % of the rounding of the positions: the flight
- * is as exact as the closed form, to the same tolerance (README, "How it is exact").
+ * is as exact as the closed form, to the same tolerance (docs/validation.md, "How it is exact").
  *
  * A flight is taken only when it is certainly short and simple (M·T ≤ 0.1, longer than the clock resolves, the
  * teeth leaving the wall they are on), otherwise the caller uses the closed form. Two kinds (F = the gap relative to

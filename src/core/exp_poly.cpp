@@ -381,7 +381,7 @@ int BasicExpPoly<D>::signChangeRoots(double a, double b, double* out, double rel
         // A NaN never deflates away: refuse instead of recursing for ever.
         throw std::domain_error(
             "backlash_servo: the motion overflowed (non-finite closed form); the parameters or the "
-            "state lie outside the validated envelope (README)");
+            "state lie outside the validated envelope (docs/validation.md)");
       }
     }
   }

@@ -16,7 +16,7 @@ constexpr double INF = std::numeric_limits<double>::infinity();
 const ParamRange NON_NEGATIVE{0.0, INF, false, false};
 const ParamRange UNIT{0.0, 1.0, false, false};
 const ParamRange FINITE{};
-// The validated envelope (README, "Validated envelope"): measured with backlash_fuzz, refused beyond.
+// The validated envelope (docs/validation.md, "Validated envelope"): measured with backlash_fuzz, refused beyond.
 const ParamRange INERTIA{1e-9, 1e9, false, false};
 const ParamRange FRICTION{0.0, 1e9, false, false};
 const ParamRange GAIN{0.0, 1e12, true, false};
@@ -79,7 +79,7 @@ std::vector<ParamSpec> makeTable()
      &RunConfig::command},
     {"profile", "θ_R(t)", "file", T::Text, S::Initial, FINITE, "",
      "command profile instead of `command`: a YAML file of segments (step, ramp, sine, move, points) or a CSV of "
-     "time [s], value [rad] rows; in a YAML config also inline as a `profile:` list (see README, Command profiles)",
+     "time [s], value [rad] rows; in a YAML config also inline as a `profile:` list (see docs/cli.md, Command profiles)",
      false, {}, {}},
     {"load_position", "θ_c", "rad", T::Real, S::Initial, POSITION, "0", "initial load position", false, {},
      &State::load_position},
@@ -121,7 +121,7 @@ std::vector<ParamSpec> makeTable()
      "saturation of the motor torque, 0 = none (every law)", true, {}, &DriveParams::torque_limit},
     // ---- backlash compensation (compensator.h for digital drives; drive.h ProportionalDrive for the continuous law) --
     {"compensation", "", "-", T::Choice, S::Drive, FINITE, "none",
-     "backlash compensator (README, compensation workbench; the continuous law takes friction_feedforward with "
+     "backlash compensator (docs/workbench.md; the continuous law takes friction_feedforward with "
      "compensation_width > 0 and a square dither)",
      true,
      {"none", "inverse", "dual_loop", "friction_feedforward", "dither"}, {}},

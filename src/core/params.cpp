@@ -46,8 +46,8 @@ void ServoParams::validate() const
                               motor_coulomb_friction);
   requireStaticAtLeastCoulomb("load_static_friction", load_static_friction, "load_coulomb_friction",
                               load_coulomb_friction);
-  // The derived quantities of the validated envelope (README): outside it the core's promises were not measured.
-  // The message names every key the quantity follows from, with its value (an absent key has its default, the
+  // The derived quantities of the validated envelope (docs/validation.md): outside it the core's promises were not
+  // measured. The message names every key the quantity follows from, with its value (an absent key has its default, the
   // thesis' App. D1 value for the mechanics: a robot joint that leaves out motor_friction gets 0.48 N·m·s/rad).
   auto refuse = [&](const char* what, double value, const char* range, std::initializer_list<const char*> keys) {
     std::string from;

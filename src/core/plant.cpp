@@ -522,7 +522,7 @@ void Plant::throwDiverged() const
   char buf[256];
   std::snprintf(buf, sizeof buf,
                 "the motion diverged at t = %.9g s (load %.3g rad, %.3g rad/s): the loop is unstable, or the run "
-                "left the validated envelope (README)",
+                "left the validated envelope (docs/validation.md)",
                 s.time, s.load_position, s.load_velocity);
   throw MotionDiverged(buf);
 }

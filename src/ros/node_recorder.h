@@ -5,10 +5,10 @@
  *
  * Why inside the node: a recorder process (rosbag record, backlash_record) costs the node one socket write and one
  * wake-up of roscpp's poll thread per message — at 1 kHz in real time that, not the simulation, is most of the
- * node's CPU (README, "Node throughput"). Here a message is serialised into a pooled buffer on the publishing
- * thread (no allocation once the pool is warm) and queued; a writer thread wakes every WAKE_PERIOD or when BATCH
- * messages wait, and writes them into the bag (rosbag's own cost per message, a few µs, is then off the sample loop
- * and, as fast as possible, on the other core). Nothing is dropped: when MAX_PENDING messages wait, the publishing
+ * node's CPU (docs/benchmarks.md, "Node throughput"). Here a message is serialised into a pooled buffer on the
+ * publishing thread (no allocation once the pool is warm) and queued; a writer thread wakes every WAKE_PERIOD or when
+ * BATCH messages wait, and writes them into the bag (rosbag's own cost per message, a few µs, is then off the sample
+ * loop and, as fast as possible, on the other core). Nothing is dropped: when MAX_PENDING messages wait, the publishing
  * thread waits for the writer.
  *
  * The bag holds what backlash_record writes: absolute topic names, the node's outputs as published (joint_states,

@@ -928,7 +928,7 @@ void ServoNode::onReconfigure(BacklashServoConfig& c, uint32_t)
     next = nodeSettingsFrom(kv, config_);
     readDriveKeys(kv, true, &next.run.drive);
     next.run.drive.validate(next.control_mode);
-    sim_.setParams(p);  // at this step boundary, no jump in θ_c or ω_c (see README for a shrinking backlash)
+    sim_.setParams(p);  // at this step boundary, no jump in θ_c or ω_c (docs/ros_node.md: a shrinking backlash)
   }
   catch (const std::exception& e)
   {

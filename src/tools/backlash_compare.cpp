@@ -1,5 +1,5 @@
 // backlash_compare: the compensation workbench — one joint, one command profile, N strategies side by side.
-// See README, "Compensation workbench". The experiment file: include/backlash_servo/config/compare_config.h.
+// See docs/workbench.md. The experiment file: include/backlash_servo/config/compare_config.h.
 #include <unistd.h>
 
 #include <atomic>

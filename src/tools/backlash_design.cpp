@@ -1,5 +1,5 @@
 // backlash_design: the thesis' Section 6 design procedure, by simulation instead of chart reading.
-// See README, "backlash_design".
+// See docs/design.md.
 #include <algorithm>
 #include <cmath>
 #include <cstdio>

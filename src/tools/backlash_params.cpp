@@ -1,6 +1,6 @@
 // backlash_params: prints the parameter table (param_table.h) in the forms that derive from it — the
-// dynamic_reconfigure .cfg, the README's Markdown tables, JSON. scripts/generate_params.sh writes the files; a test
-// fails when a committed file differs from what this prints.
+// dynamic_reconfigure .cfg, the Markdown tables of docs/parameters.md, JSON. scripts/generate_params.sh writes the
+// files; a test fails when a committed file differs from what this prints.
 #include <algorithm>
 #include <iostream>
 #include <sstream>

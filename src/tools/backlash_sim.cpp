@@ -1,4 +1,4 @@
-// backlash_sim: one exact run of the backlash servo from the command line (see README, "backlash_sim").
+// backlash_sim: one exact run of the backlash servo from the command line (see docs/cli.md).
 #include <unistd.h>
 
 #include <algorithm>

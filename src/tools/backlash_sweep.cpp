@@ -1,5 +1,5 @@
 // backlash_sweep: the thesis' parameter study (and finer ones) in parallel, one CSV row per point, resumable.
-// See README, "backlash_sweep". The pieces: sweep/sweep_grid (points by index), sweep/sweep_runner (threads, rows
+// See docs/design.md. The pieces: sweep/sweep_grid (points by index), sweep/sweep_runner (threads, rows
 // in order), sweep/sweep_csv (rows, resume), sweep/progress.
 #include <unistd.h>
 
@@ -24,7 +24,8 @@ using namespace backlash_servo;
 
 namespace
 {
-const char* HEADER = R"(usage: backlash_sweep [axes] [--preset thesis] [--output FILE|-] [--jobs N] [--resume]
+const char* HEADER =
+    R"(usage: backlash_sweep [axes] [--config FILE.yaml] [--preset thesis] [--output FILE|-] [--jobs N] [--resume]
 Runs every combination of the axes (by default the chart form, w_n = 1 rad/s, J = 1 kg·m², rho = 1, unit step from
 rest in forward contact), each until its limit-cycle verdict is settled, and writes one CSV row per point in a fixed
 order. Any numeric parameter below is an axis when given a list "0.1,0.2,0.5", a range "start:stop:count" or
@@ -59,7 +60,9 @@ SweepOptions parse(int argc, char** argv)
   keys.push_back("max_events");
   FlagParser parser(
       "backlash_sweep", HEADER, keys,
-      {{"preset", "thesis",
+      {{"config", "FILE.yaml",
+        "the shared settings in snake_case (the YAML backlash_sim and the node load); flags override it"},
+       {"preset", "thesis",
         "the 1961 grid: zeta {.1,.2,.3,.4,.5,.6,.8,1}, friction {0,.2,.4,.6,.8,1}, inertia {0.04,0.1,1/9,0.25,1,4,9}, "
         "e {0,.6,.8,1}, backlash 0.3 (1344 points); axes given as flags replace its axes"},
        {"output", "FILE", "CSV file, '-' = stdout (default)"},

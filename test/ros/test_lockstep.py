@@ -51,7 +51,7 @@ class Lockstep(unittest.TestCase):
                 self.assertEqual(m, n, topic)
 
     def test_python_template_on_quantised_encoders_is_deterministic(self):
-        # The rospy template (float time arithmetic included) reads encoder_states, which effort mode publishes
+        # The rospy template (float time arithmetic: stamp.to_sec() differences) reads encoder_states, which effort mode publishes
         # at every sample with the plant's encoders; two runs give bit-identical bags.
         with tempfile.TemporaryDirectory() as d:
             config = os.path.join(d, "joint.yaml")

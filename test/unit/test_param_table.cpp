@@ -1,5 +1,6 @@
 // The one parameter table (param_table.h) and what derives from it: validation, the flag parser and --help, the
-// YAML loader, the generated .cfg and README tables (a committed file that differs from the table fails here).
+// YAML loader, the generated .cfg and the tables of docs/parameters.md (a committed file that differs from the table
+// fails here).
 #include <gtest/gtest.h>
 
 #include <dirent.h>
@@ -182,7 +183,7 @@ TEST(ParamTable, GeneratedFilesMatchTheTable)
   const std::string src = SOURCE_DIR;
   EXPECT_EQ(readFile(src + "/cfg/BacklashServo.cfg"), params("--format cfg"))
       << "cfg/BacklashServo.cfg differs from the parameter table: run bash scripts/generate_params.sh";
-  const std::string readme = readFile(src + "/README.md");
+  const std::string readme = readFile(src + "/docs/parameters.md");
   const std::string begin = "<!-- BEGIN GENERATED params: ";
   std::size_t pos = 0;
   int blocks = 0;
@@ -194,11 +195,12 @@ TEST(ParamTable, GeneratedFilesMatchTheTable)
     const std::size_t end = readme.find("<!-- END GENERATED params -->", body);
     ASSERT_NE(end, std::string::npos);
     EXPECT_EQ(readme.substr(body, end - body), params("--format markdown --sections " + sections))
-        << "README table " << sections << " differs from the parameter table: run bash scripts/generate_params.sh";
+        << "docs/parameters.md table " << sections
+        << " differs from the parameter table: run bash scripts/generate_params.sh";
     pos = end;
     ++blocks;
   }
-  EXPECT_GE(blocks, 2);
+  EXPECT_GE(blocks, 1);
 }
 
 TEST(ParamTable, ShippedYamlFilesUseOnlyTableKeys)

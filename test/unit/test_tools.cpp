@@ -507,6 +507,17 @@ TEST(Launch, UseSimTimeFollowsTheClockArgsOfEveryLaunchFile)
   EXPECT_NE(bad.find("controller_must_be_example_python_or_none"), std::string::npos) << bad;
 }
 
+// The user documentation cannot go stale: every ```sh block and every "$ " transcript of README.md and docs/*.md is
+// run (transcripts must print what they show) and every relative link must name a file (scripts/check_docs.py).
+TEST(Docs, EveryCommandInTheDocsRunsAndPrintsWhatItShows)
+{
+  int code = 0;
+  const std::string out = runCapture(
+      "PATH=/usr/bin:$PATH /usr/bin/python3 " + std::string(SOURCE_DIR) + "/scripts/check_docs.py 2>&1", &code);
+  EXPECT_EQ(code, 0) << out;
+  EXPECT_NE(out.find(" 0 failures"), std::string::npos) << out;
+}
+
 TEST(Launch, YamlKeysWinUnlessArgsAreGiven)
 {
   const std::string yaml = "/tmp/backlash_launch_precedence.yaml";

@@ -1,7 +1,7 @@
 /**
  * @file compare_config.h
  * @brief The compensation workbench's experiment file (backlash_compare --config FILE.yaml): one joint, one command
- *        profile, N strategies. See README, "Compensation workbench".
+ *        profile, N strategies. See docs/workbench.md.
  *
  * ```yaml
  * motor_inertia: 1.0e-4      # any parameter-table key: the joint and the settings every strategy shares

@@ -1,7 +1,7 @@
 /**
  * @file profile_loader.h
  * @brief Command profiles from files: the `profile` key of every tool's YAML (and `--profile FILE`), the compare
- *        file's `profile:` list and CSV set-points. No ROS dependency. See README, "Command profiles".
+ *        file's `profile:` list and CSV set-points. No ROS dependency. See docs/cli.md, "Command profiles".
  *
  * A profile file is either
  * - YAML: a list of segments, or a mapping whose `profile:` key holds that list (so a run's whole YAML can name
