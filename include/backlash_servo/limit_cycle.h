@@ -71,6 +71,10 @@ class LimitCycleDetector
   /// Whether a settled narrow band of maxima counts as a (quasi-periodic) limit cycle: on for sampled drives and dry
   /// friction (docs/model.md Part 2), off for the continuous thesis servo, whose wandering maxima stay Irregular.
   void allowBands(bool on) { bands_ = on; }
+  /// Whether a steady geometric decay of the maxima onto the equilibrium settles a Converged verdict (the Poincaré
+  /// map of a loop linear in each mode); off under dry friction, where a decay can stall into stick–slip hunting and
+  /// only the state (markAtRest, markStuck) settles convergence.
+  void extrapolateDecay(bool on) { extrapolate_decay_ = on; }
   /// Maxima closer than this [s] to the previous one are one hump (a load settling against a flank or by stiction
   /// under micro-bounces makes maxima 1e-7 s apart); the higher is kept. 0 (default): every maximum counts.
   void setMinimumSpacing(double seconds) { min_spacing_ = seconds; }
@@ -103,6 +107,7 @@ class LimitCycleDetector
  private:
   void update();
   bool bands_ = false;
+  bool extrapolate_decay_ = true;
   double min_spacing_ = 0.0;  // [s]
 
   double command_;

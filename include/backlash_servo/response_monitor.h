@@ -89,7 +89,8 @@ class ResponseMonitor : public EventSink
   double rho_;
   double scale_;
   double start_time_;
-  bool bands_;  // sampled drive or dry friction (LimitCycleDetector::allowBands)
+  bool bands_;         // sampled drive or dry friction (LimitCycleDetector::allowBands)
+  bool dry_friction_;  // no decay extrapolation (LimitCycleDetector::extrapolateDecay)
   LimitCycleDetector detector_;
   double longest_ = 0.0;  // longest interval between successive maxima so far [s]
   std::size_t intervals_seen_ = 0;

@@ -136,8 +136,11 @@ void LimitCycleDetector::update()
       return;
     }
   }
-  // Convergence: steady geometric decay whose extrapolated limit is (near) zero, twice in a row.
-  if (n >= 4)
+  // Convergence: steady geometric decay whose extrapolated limit is (near) zero, twice in a row. This extrapolates
+  // the Poincaré map of a loop that is linear in each mode, where a geometric decay goes on to the equilibrium. Under
+  // dry friction it is not (extrapolate_decay_ off): a decay can stall into stick–slip hunting, so there convergence
+  // needs the state itself (at rest, stuck for ever, or quiet), and the run goes on until it shows.
+  if (n >= 4 && extrapolate_decay_)
   {
     const double s0 = x(n - 1), s1 = x(n - 2), s2 = x(n - 3), s3 = x(n - 4);
     const double r1 = (s0 - s1) / (s1 - s2);

@@ -42,6 +42,7 @@ ResponseMonitor::ResponseMonitor(const ServoParams& params, double command, doub
       scale_(scaleOf(params, command, equilibrium, start)),
       start_time_(start.time),
       bands_(sampled_drive || params.hasDryFriction()),
+      dry_friction_(params.hasDryFriction()),
       detector_(command, scale_, equilibrium)
 {
   restartAt(start);
@@ -52,6 +53,7 @@ void ResponseMonitor::restartAt(const State& state)
   start_time_ = state.time;
   detector_ = LimitCycleDetector(command_, scale_, equilibrium_);
   detector_.allowBands(bands_);
+  detector_.extrapolateDecay(!dry_friction_);
   // A thousandth of the natural period: far below any cycle of the loop, far above micro-bounces.
   detector_.setMinimumSpacing(1e-3 * 2.0 * PI / omega_n_);
   longest_ = 0.0;
