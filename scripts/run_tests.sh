@@ -8,6 +8,11 @@ bash scripts/setup.sh || { echo "0 passed, 1 failed"; exit 1; }
 rm -rf build/test_results
 make -C build -j"$(nproc)" tests || { echo "0 passed, 1 failed"; exit 1; }
 make -C build run_tests -j1 2>&1 | tail -n 200
+# The Python API against the tools and the design-study notebook, executed (pytest, Debian's python3).
+mkdir -p build/test_results/backlash_servo
+(set +u; source build/devel/setup.bash; export PYDEVD_DISABLE_FILE_VALIDATION=1;
+ /usr/bin/python3 -m pytest -q -p no:cacheprovider test/python \
+   --junitxml=build/test_results/backlash_servo/pytest-python.xml 2>&1 | tail -n 30)
 # The core's unit tests and the fuzz sample again under AddressSanitizer + UndefinedBehaviorSanitizer.
 mkdir -p build/sanitize/devel/lib/python3/dist-packages build/test_results/backlash_servo
 if cmake -S . -B build/sanitize -DPYTHON_EXECUTABLE=/usr/bin/python3 -DBACKLASH_SANITIZE=ON >/dev/null &&

@@ -57,6 +57,11 @@ struct RunSummary
   std::string message;  ///< for "event_budget": what was exceeded, where; for "diverged": where the motion ran away
 };
 
+/// The simulator of a run at its start: the plant in its initial state under the configured law (the thesis' P law,
+/// or the drive: digital, saturated or compensated) following the command or the profile, with the run's energy
+/// tracking and event budget. Throws InvalidParameterError for a profile the law cannot take.
+Simulator makeSimulator(const RunConfig& config);
+
 /// Called at every sample time (sample_period > 0) with the simulator positioned there.
 using SampleCallback = std::function<void(const Simulator&)>;
 /// Called after every chunk with the fraction of the longest possible run done, in [0, 1].

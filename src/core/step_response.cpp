@@ -42,15 +42,15 @@ void checkProfile(const RunConfig& config)
   }
 }
 
-RunSummary runResponse(const RunConfig& config, EventSink* sink, double sample_period, const SampleCallback& on_sample,
-                       const ProgressCallback& on_progress)
+Simulator makeSimulator(const RunConfig& config)
 {
   checkProfile(config);
   const double command = config.profile ? config.profile->finalValue() : config.command;
   const double t0 = config.initial.time;
   // With a profile the law starts from θ_R(t₀) (a digital drive's first sample reads it there).
   Simulator sim(config.params, config.initial, config.profile ? config.profile->at(t0) : command);
-  if (config.drive.sampled() || config.drive.torque_limit > 0.0)
+  // The simulator's own law is the thesis' plain P law; any other (digital, saturated, compensated) is the drive's.
+  if (config.drive.sampled() || config.drive.torque_limit > 0.0 || config.drive.compensation != "none")
   {
     sim.setDrive(makePositionDrive(config.drive, config.params.gain, config.params.gear_ratio, sim.command(), t0));
   }
@@ -61,6 +61,15 @@ RunSummary runResponse(const RunConfig& config, EventSink* sink, double sample_p
   sim.setEnergyTracking(config.track_energy);
   sim.setShortFlights(config.short_flights);
   sim.setEventBudget(static_cast<std::uint64_t>(config.max_events));
+  return sim;
+}
+
+RunSummary runResponse(const RunConfig& config, EventSink* sink, double sample_period, const SampleCallback& on_sample,
+                       const ProgressCallback& on_progress)
+{
+  const double command = config.profile ? config.profile->finalValue() : config.command;
+  const double t0 = config.initial.time;
+  Simulator sim = makeSimulator(config);
   RunSummary out;
   const double omega_n = config.params.naturalFrequency();
   ResponseMonitor monitor(config.params, command, loopEquilibrium(config.params, config.drive, command), config.initial,

@@ -80,34 +80,8 @@ SweepOptions parse(int argc, char** argv)
     }
     o.grid = SweepGrid::thesis();
   }
-  // A numeric key given a list or a range (or a chart axis given one value) is an axis; everything else is a
-  // setting every point shares.
   const KeyValues& kv = parser.keys();
-  KeyValues fixed;
-  const auto& chart_axes = SweepGrid::chartAxes();
-  for (const ParamSpec& spec : parameterTable())  // table order: the order of the axis columns
-  {
-    const std::string key = spec.key;
-    if (!kv.has(key) || key == "max_duration")
-    {
-      continue;
-    }
-    const bool chart_axis = std::find(chart_axes.begin(), chart_axes.end(), key) != chart_axes.end();
-    if (spec.type == ParamType::Real && spec.section != ParamSection::Run &&
-        (chart_axis || isAxisText(kv.text(key, ""))))
-    {
-      o.grid.setAxis(key, parseAxis(key, kv.text(key, "")));
-    }
-    else if (spec.type == ParamType::Real)
-    {
-      fixed.setNumber(key, kv.number(key));
-    }
-    else
-    {
-      fixed.set(key, kv.text(key, ""));
-    }
-  }
-  o.grid.setFixed(fixed);
+  addSweepKeys(kv, &o.grid);
   o.output = parser.option("output", "-");
   o.inputs = {parser.option("config"), kv.text("profile", "")};
   o.jobs = static_cast<int>(parser.optionNumber("jobs", std::max(1u, std::thread::hardware_concurrency())));
@@ -156,16 +130,6 @@ SweepOptions parse(int argc, char** argv)
   return o;
 }
 
-std::string evaluate(const SweepPoint& p, double max_duration)
-{
-  RunConfig c = p.config();
-  if (max_duration > 0.0)
-  {
-    c.max_duration = max_duration;
-  }
-  c.track_energy = false;  // verdicts only
-  return sweepRow(p, runResponse(c), c.command);
-}
 }  // namespace
 
 /// `--merge PART... --output FILE`: the parts of a sharded sweep joined into the unsharded CSV.
@@ -288,7 +252,8 @@ int main(int argc, char** argv)
   if (!write_failed)
   {
     run = runSweepPoints(
-        first + kept.size(), last, o.jobs, [&](std::size_t i) { return evaluate(o.grid.point(i), o.max_duration); },
+        first + kept.size(), last, o.jobs,
+        [&](std::size_t i) { return evaluateSweepPoint(o.grid.point(i), o.max_duration); },
         [&](std::size_t i, const std::string& row) {
           if (write_failed)
           {

@@ -638,3 +638,29 @@ TEST(Compensation, ASlidingModeAtADeadBandEdgeStopsAtTheEventBudget)
   }
   EXPECT_NEAR(sim.state().load_position, command + d.compensation_width, 1e-9);  // held on the band's edge
 }
+
+namespace
+{
+// The run of a configuration (every tool's path: backlash_sim, sweeps, the workbench, the Python API) applies the
+// continuous law's compensator: the same motion as the compensated drive set by hand, not the plain P law.
+TEST(Compensation, ARunOfTheContinuousLawAppliesItsCompensator)
+{
+  using namespace backlash_servo;
+  RunConfig c;
+  c.params.load_coulomb_friction = 0.05;
+  c.params.load_static_friction = 0.05;
+  c.drive.compensation = "friction_feedforward";
+  c.drive.compensation_friction = 0.05;
+  c.drive.compensation_width = 0.01;
+  c.duration = 60.0;
+  const RunSummary r = runResponse(c);
+  Simulator by_hand(c.params, c.initial, c.command);
+  by_hand.setDrive(makePositionDrive(c.drive, c.params.gain, c.params.gear_ratio, c.command, 0.0));
+  by_hand.advanceTo(60.0);
+  EXPECT_EQ(r.final_state.load_position, by_hand.state().load_position);
+  EXPECT_EQ(r.final_state.motor_velocity, by_hand.state().motor_velocity);
+  RunConfig plain = c;
+  plain.drive.compensation = "none";
+  EXPECT_NE(runResponse(plain).final_state.load_position, r.final_state.load_position);
+}
+}  // namespace

@@ -1,5 +1,6 @@
 #include "sweep_grid.h"
 
+#include <algorithm>
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
@@ -313,4 +314,36 @@ std::vector<double> parseAxis(const std::string& flag, const std::string& text)
   return values;
 }
 
+}  // namespace backlash_servo
+
+namespace backlash_servo
+{
+void addSweepKeys(const KeyValues& keys, SweepGrid* grid)
+{
+  KeyValues fixed;
+  const auto& chart_axes = SweepGrid::chartAxes();
+  for (const ParamSpec& spec : parameterTable())  // table order: the order of the axis columns
+  {
+    const std::string key = spec.key;
+    if (!keys.has(key) || key == "max_duration")
+    {
+      continue;
+    }
+    const bool chart_axis = std::find(chart_axes.begin(), chart_axes.end(), key) != chart_axes.end();
+    if (spec.type == ParamType::Real && spec.section != ParamSection::Run &&
+        (chart_axis || isAxisText(keys.text(key, ""))))
+    {
+      grid->setAxis(key, parseAxis(key, keys.text(key, "")));
+    }
+    else if (spec.type == ParamType::Real)
+    {
+      fixed.setNumber(key, keys.number(key));
+    }
+    else
+    {
+      fixed.set(key, keys.text(key, ""));
+    }
+  }
+  grid->setFixed(fixed);
+}
 }  // namespace backlash_servo

@@ -85,6 +85,12 @@ const std::string& resultColumns();
 /// Values of an axis flag: a list "0.1,0.2", a range "start:stop:count" or "log:start:stop:count". Throws
 /// ConfigError naming the flag.
 std::vector<double> parseAxis(const std::string& flag, const std::string& text);
+/**
+ * The axes and shared settings of `keys` added to *grid (backlash_sweep's flags and --config, the Python API's
+ * dict): a numeric key given a list or a range (or a chart axis given one value) is an axis, in parameter-table
+ * order; every other key is a setting every point shares. `max_duration` is the caller's (a run option).
+ */
+void addSweepKeys(const KeyValues& keys, SweepGrid* grid);
 
 /// Whether `text` is an axis (a list or a range) rather than one value.
 bool isAxisText(const std::string& text);

@@ -6,6 +6,9 @@
 #include <thread>
 #include <vector>
 
+#include "sweep_csv.h"
+#include "sweep_grid.h"
+
 namespace backlash_servo
 {
 SweepRunResult runSweepPoints(std::size_t first, std::size_t last, int jobs,
@@ -66,4 +69,18 @@ SweepRunResult runSweepPoints(std::size_t first, std::size_t last, int jobs,
   return result;
 }
 
+}  // namespace backlash_servo
+
+namespace backlash_servo
+{
+std::string evaluateSweepPoint(const SweepPoint& point, double max_duration)
+{
+  RunConfig c = point.config();
+  if (max_duration > 0.0)
+  {
+    c.max_duration = max_duration;
+  }
+  c.track_energy = false;  // verdicts only
+  return sweepRow(point, runResponse(c), c.command);
+}
 }  // namespace backlash_servo

@@ -19,6 +19,10 @@ struct SweepRunResult
  * index order as soon as the prefix is complete, so an interrupted run leaves a valid prefix. Stops early when
  * `stop` becomes true or evaluate throws (the error is returned, not rethrown).
  */
+struct SweepPoint;
+/// One point's CSV row: its run until settled (capped at max_duration [s] when > 0), verdicts only.
+std::string evaluateSweepPoint(const SweepPoint& point, double max_duration);
+
 SweepRunResult runSweepPoints(std::size_t first, std::size_t last, int jobs,
                               const std::function<std::string(std::size_t)>& evaluate,
                               const std::function<void(std::size_t, const std::string&)>& on_row,

@@ -1,0 +1,411 @@
+// backlash_servo.core — the Python API: a thin adapter over the same library the command-line tools use (no physics
+// here). run() returns what `backlash_sim --json` prints, sweep() the rows of `backlash_sweep`, compare() the
+// metrics of `backlash_compare`, and Simulator steps a joint from Python. Configurations are the YAML keys (a dict,
+// or a path to a YAML file); errors are Python exceptions carrying the tools' one-line message. The GIL is released
+// while the core computes. See docs/python.md.
+#include <pybind11/numpy.h>
+#include <pybind11/pybind11.h>
+#include <pybind11/stl.h>
+
+#include <algorithm>
+#include <atomic>
+#include <chrono>
+#include <cmath>
+#include <mutex>
+#include <sstream>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "backlash_servo/config/compare_config.h"
+#include "backlash_servo/config/key_values.h"
+#include "backlash_servo/config/run_config_loader.h"
+#include "backlash_servo/config/safe_input.h"
+#include "backlash_servo/drive.h"
+#include "backlash_servo/gear_mesh.h"
+#include "backlash_servo/param_table.h"
+#include "backlash_servo/simulator.h"
+#include "backlash_servo/step_response.h"
+#include "compare/compare_metrics.h"
+#include "run_report.h"
+#include "sweep/sweep_csv.h"
+#include "sweep/sweep_grid.h"
+#include "sweep/sweep_runner.h"
+
+namespace py = pybind11;
+using namespace backlash_servo;
+
+namespace
+{
+/// A dict of YAML keys (numbers, booleans, text; a list of numbers for a sweep axis) or a YAML file path as the key
+/// values the tools read. Keys are checked against the parameter table as a config file's are.
+KeyValues keyValuesOf(const py::object& config)
+{
+  KeyValues kv;
+  kv.nameKeysAsFlags(false);
+  if (py::isinstance<py::str>(config))
+  {
+    kv.loadYaml(config.cast<std::string>());
+  }
+  else if (py::isinstance<py::dict>(config))
+  {
+    for (const auto& item : config.cast<py::dict>())
+    {
+      const std::string key = py::str(item.first);
+      const py::handle value = item.second;
+      if (py::isinstance<py::bool_>(value))
+      {
+        kv.setBoolean(key, value.cast<bool>());
+      }
+      else if (py::isinstance<py::int_>(value) || py::isinstance<py::float_>(value))
+      {
+        kv.setNumber(key, value.cast<double>());
+      }
+      else if (py::isinstance<py::str>(value))
+      {
+        kv.set(key, value.cast<std::string>());
+      }
+      else if (py::isinstance<py::list>(value) || py::isinstance<py::tuple>(value))
+      {
+        std::string text;  // an axis: "a,b,c" with every value exact
+        for (const auto& v : value)
+        {
+          text += (text.empty() ? "" : ",") + formatNumber(v.cast<double>());
+        }
+        kv.set(key, text);
+      }
+      else
+      {
+        throw ConfigError(key + ": expected a number, a boolean, text or a list of numbers");
+      }
+    }
+  }
+  else if (!config.is_none())
+  {
+    throw ConfigError("config: expected a dict of keys or the path of a YAML file");
+  }
+  requireKnownKeys(
+      kv, py::isinstance<py::str>(config) ? "config file '" + config.cast<std::string>() + "'" : std::string("config"));
+  return kv;
+}
+
+RunConfig runConfigOf(const py::object& config)
+{
+  return runConfigFrom(keyValuesOf(config));
+}
+
+/// JSON text → Python object (the json module parses what the tools print: bit for bit the same numbers).
+py::object parseJson(const std::string& text)
+{
+  return py::module_::import("json").attr("loads")(text);
+}
+
+py::object run(const py::object& config)
+{
+  const RunConfig c = runConfigOf(config);
+  std::ostringstream out;
+  {
+    py::gil_scoped_release release;
+    const auto start = std::chrono::steady_clock::now();
+    const RunSummary r = runResponse(c);
+    const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    writeRunJson(out, c, r, wall);
+  }
+  return parseJson(out.str());
+}
+
+/// The sweep's CSV as `backlash_sweep` writes it (header and rows, in grid order).
+std::string sweepCsv(const py::object& settings, bool thesis, int jobs, double max_duration)
+{
+  SweepGrid grid = thesis ? SweepGrid::thesis() : SweepGrid();
+  const KeyValues kv = keyValuesOf(settings);
+  addSweepKeys(kv, &grid);
+  if (kv.has("max_duration"))
+  {
+    max_duration = kv.number("max_duration");
+  }
+  param("max_duration").check(max_duration);
+  const std::size_t n = grid.size();
+  for (std::size_t i = 0; i < n; ++i)
+  {
+    grid.point(i).config();  // every point valid before any work (one clear message on the first bad one)
+  }
+  const int threads = jobs > 0 ? jobs : static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
+  std::string csv = grid.header() + "\n";
+  std::atomic<bool> stop{false};
+  SweepRunResult result;
+  {
+    py::gil_scoped_release release;
+    result = runSweepPoints(
+        0, n, threads, [&](std::size_t i) { return evaluateSweepPoint(grid.point(i), max_duration); },
+        [&](std::size_t, const std::string& row) { csv += row + "\n"; }, stop);
+  }
+  if (!result.failure.empty())
+  {
+    throw std::runtime_error("sweep: " + result.failure);
+  }
+  return csv;
+}
+
+/// The sweep as columns: numbers as float arrays, the verdict as a list of text.
+py::dict sweep(const py::object& settings, bool thesis, int jobs, double max_duration)
+{
+  const std::string csv = sweepCsv(settings, thesis, jobs, max_duration);
+  std::istringstream in(csv);
+  std::string line;
+  std::getline(in, line);
+  const std::vector<std::string> names = splitCsvCells(line);
+  std::vector<std::vector<std::string>> cells(names.size());
+  while (std::getline(in, line))
+  {
+    const std::vector<std::string> row = splitCsvCells(line);
+    for (std::size_t i = 0; i < names.size() && i < row.size(); ++i)
+    {
+      cells[i].push_back(row[i]);
+    }
+  }
+  py::dict out;
+  for (std::size_t i = 0; i < names.size(); ++i)
+  {
+    if (names[i] == "verdict")
+    {
+      out[py::str(names[i])] = cells[i];
+      continue;
+    }
+    py::array_t<double> column(static_cast<py::ssize_t>(cells[i].size()));
+    auto v = column.mutable_unchecked<1>();
+    for (std::size_t k = 0; k < cells[i].size(); ++k)
+    {
+      v(static_cast<py::ssize_t>(k)) = cells[i][k].empty() ? NAN : std::stod(cells[i][k]);
+    }
+    out[py::str(names[i])] = column;
+  }
+  return out;
+}
+
+/// The workbench: every strategy of the experiment file run with its metrics (as `backlash_compare --json`).
+py::list compare(const std::string& path, int jobs)
+{
+  const CompareConfig config = loadCompareConfig(path);
+  std::vector<CompareMetrics> metrics(config.strategies.size());
+  {
+    py::gil_scoped_release release;
+    std::atomic<std::size_t> next{0};
+    const int threads = jobs > 0 ? jobs : static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
+    std::vector<std::thread> pool;
+    std::string failure;
+    std::mutex failure_mutex;
+    for (int t = 0; t < threads; ++t)
+    {
+      pool.emplace_back([&] {
+        for (std::size_t i = next++; i < metrics.size(); i = next++)
+        {
+          try
+          {
+            const CompareStrategy& s = config.strategies[i];
+            metrics[i] = runStrategy(s.name, s.config, config.sample_rate, nullptr);
+          }
+          catch (const std::exception& e)
+          {
+            std::lock_guard<std::mutex> lock(failure_mutex);
+            failure = config.strategies[i].name + ": " + e.what();
+          }
+        }
+      });
+    }
+    for (std::thread& t : pool)
+    {
+      t.join();
+    }
+    if (!failure.empty())
+    {
+      throw std::runtime_error(failure);
+    }
+  }
+  py::list out;
+  for (const CompareMetrics& m : metrics)
+  {
+    py::dict d;
+    d["name"] = m.name;
+    d["verdict"] = m.verdict;
+    const std::vector<double> values = metricValues(m);
+    const std::vector<std::string>& names = metricNames();
+    for (std::size_t i = 0; i < values.size(); ++i)
+    {
+      d[py::str(names[names.size() - values.size() + i])] =
+          std::isnan(values[i]) ? py::object(py::none()) : py::object(py::float_(values[i]));
+    }
+    out.append(d);
+  }
+  return out;
+}
+
+py::dict stateDict(const State& s)
+{
+  py::dict d;
+  d["time"] = s.time;
+  d["load_position"] = s.load_position;
+  d["load_velocity"] = s.load_velocity;
+  d["motor_position"] = s.motor_position;
+  d["motor_velocity"] = s.motor_velocity;
+  d["contact"] = std::string(toString(s.contact));
+  return d;
+}
+
+/// A joint to step from Python: the configured drive (continuous P law or digital drive) on the configured plant.
+class PySimulator
+{
+ public:
+  explicit PySimulator(const py::object& config) : config_(runConfigOf(config)), sim_(makeSimulator(config_)) {}
+
+  void advance(double t_end)
+  {
+    py::gil_scoped_release release;
+    sim_.advanceTo(t_end);
+  }
+
+  /// Samples from now to t_end [s] at `rate` [Hz] (the first sample now): numpy arrays of the state, the gap and
+  /// the torques — the columns of `backlash_sim --csv` without its event rows.
+  py::dict sample(double t_end, double rate)
+  {
+    if (!(rate > 0.0 && rate <= 1e6) || !std::isfinite(t_end))
+    {
+      throw ConfigError("sample: rate must be in (0, 1e6] Hz and t_end finite");
+    }
+    // The sample times of `backlash_sim --csv`: t₀ + k·(1/rate), the last one at t_end.
+    const double t0 = sim_.state().time;
+    const double period = 1.0 / rate;
+    const long n = t_end >= t0 ? static_cast<long>(std::ceil((t_end - t0) / period - 1e-9)) + 1 : 0;
+    std::vector<double> cols[9];
+    {
+      py::gil_scoped_release release;
+      const GearMesh mesh(sim_.params().gear_ratio, sim_.params().backlash);
+      for (long k = 0; k < n; ++k)
+      {
+        sim_.advanceTo(std::min(t0 + static_cast<double>(k) * period, t_end));
+        const State& s = sim_.state();
+        const double values[9] = {s.time,
+                                  s.load_position,
+                                  s.load_velocity,
+                                  s.motor_position,
+                                  s.motor_velocity,
+                                  mesh.gap(s.load_position, s.motor_position),
+                                  sim_.meshTorque(),
+                                  sim_.motorTorque(),
+                                  static_cast<double>(s.contact == Contact::Forward    ? 1
+                                                      : s.contact == Contact::Backward ? -1
+                                                                                       : 0)};
+        for (int c = 0; c < 9; ++c)
+        {
+          cols[c].push_back(values[c]);
+        }
+      }
+    }
+    static const char* names[9] = {"time", "load_position", "load_velocity", "motor_position", "motor_velocity",
+                                   "gap",  "mesh_torque",   "motor_torque",  "contact"};
+    py::dict out;
+    for (int c = 0; c < 9; ++c)
+    {
+      out[names[c]] = py::array_t<double>(static_cast<py::ssize_t>(cols[c].size()), cols[c].data());
+    }
+    return out;
+  }
+
+  void setCommand(double command)
+  {
+    param("command").check(command);
+    sim_.setCommand(command);
+  }
+
+  /// Live changes, as the node applies them: plant keys at once; drive keys retune a digital drive without a bump
+  /// (or start a fresh drive for a new law). Other keys are refused.
+  void set(const py::dict& changes)
+  {
+    KeyValues kv = keyValuesOf(changes);
+    ServoParams p = sim_.params();
+    DriveParams d = config_.drive;
+    bool drive_changed = false;
+    for (const auto& [key, text] : kv.keys())
+    {
+      const ParamSpec& spec = param(key);
+      if (spec.section == ParamSection::Servo)
+      {
+        p.*std::get<double ServoParams::*>(spec.field) = kv.number(key);
+      }
+      else if (spec.section == ParamSection::Drive)
+      {
+        drive_changed = true;
+      }
+      else
+      {
+        throw ConfigError(key + ": not a plant or drive key (set it when building the Simulator)");
+      }
+    }
+    readDriveKeys(kv, true, &d);
+    p.validate();
+    d.validate();
+    sim_.setParams(p);
+    config_.params = p;
+    if (drive_changed && !sim_.retuneDrive(d))
+    {
+      sim_.setDrive(makePositionDrive(d, p.gain, p.gear_ratio, command(), sim_.state().time));
+    }
+    config_.drive = d;
+  }
+
+  double command() const
+  {
+    const auto* sampled = dynamic_cast<const SampledDrive*>(&sim_.drive());
+    return sampled ? sampled->command() : config_.command;
+  }
+
+  py::dict state() const { return stateDict(sim_.state()); }
+  double time() const { return sim_.state().time; }
+  double motorTorque() const { return sim_.motorTorque(); }
+  double meshTorque() const { return sim_.meshTorque(); }
+  double gap() const { return sim_.gap(); }
+  unsigned long long impacts() const { return sim_.impactCount(); }
+
+ private:
+  RunConfig config_;
+  Simulator sim_;
+};
+}  // namespace
+
+PYBIND11_MODULE(core, m)
+{
+  m.doc() =
+      "backlash_servo.core: the exact backlash servo simulator from Python. Configurations are the YAML keys of the "
+      "command-line tools and the node (a dict, or the path of a YAML file), in SI units; see docs/python.md.";
+  py::register_exception<ConfigError>(m, "ConfigError", PyExc_ValueError);
+  py::register_exception<InvalidParameterError>(m, "InvalidParameterError", PyExc_ValueError);
+  m.def("run", &run, py::arg("config") = py::none(),
+        "One run until its verdict is settled (or for `duration` [s]): the dict `backlash_sim --json` prints.");
+  m.def("sweep", &sweep, py::arg("settings") = py::none(), py::kw_only(), py::arg("thesis") = false,
+        py::arg("jobs") = 0, py::arg("max_duration") = 0.0,
+        "A parameter study as `backlash_sweep` runs it: keys given a list (or 'a:b:n', 'log:a:b:n') are axes, the "
+        "others shared settings; thesis=True starts from the 1961 grid. Returns the CSV's columns (numpy arrays; "
+        "`verdict` a list).");
+  m.def("sweep_csv", &sweepCsv, py::arg("settings") = py::none(), py::kw_only(), py::arg("thesis") = false,
+        py::arg("jobs") = 0, py::arg("max_duration") = 0.0, "The same sweep as `backlash_sweep`'s CSV text.");
+  m.def("compare", &compare, py::arg("path"), py::kw_only(), py::arg("jobs") = 0,
+        "The compensation workbench (`backlash_compare --config PATH`): one dict of metrics per strategy.");
+  py::class_<PySimulator>(m, "Simulator", "A joint stepped from Python (the configured plant and drive).")
+      .def(py::init<const py::object&>(), py::arg("config") = py::none())
+      .def("advance", &PySimulator::advance, py::arg("t_end"), "Advances exactly to t_end [s].")
+      .def("sample", &PySimulator::sample, py::arg("t_end"), py::arg("rate") = 100.0,
+           "Samples from now to t_end [s] at rate [Hz]: numpy arrays time, load_position, load_velocity, "
+           "motor_position, motor_velocity, gap [rad, rad/s], mesh_torque, motor_torque [N·m], contact (+1 forward, "
+           "−1 backward, 0 apart).")
+      .def("set_command", &PySimulator::setCommand, py::arg("command"), "A new set-point θ_R [rad] from now on.")
+      .def("set", &PySimulator::set, py::arg("changes"),
+           "Live changes of plant and drive keys (a dict), applied now as the node applies them.")
+      .def_property_readonly("state", &PySimulator::state,
+                             "The state: time [s], positions [rad], velocities "
+                             "[rad/s], contact.")
+      .def_property_readonly("time", &PySimulator::time, "Simulated time [s].")
+      .def_property_readonly("motor_torque", &PySimulator::motorTorque, "T_m [N·m].")
+      .def_property_readonly("mesh_torque", &PySimulator::meshTorque, "Mesh torque on the load [N·m].")
+      .def_property_readonly("gap", &PySimulator::gap, "g = θ_c − ρθ_m [rad].")
+      .def_property_readonly("impacts", &PySimulator::impacts, "Impacts so far.");
+}

@@ -1,0 +1,93 @@
+#include "run_report.h"
+
+#include "backlash_servo/param_table.h"
+#include "json_writer.h"
+
+namespace backlash_servo
+{
+void writeRunJson(std::ostream& out, const RunConfig& c, const RunSummary& r, double wall_seconds)
+{
+  const ServoParams& p = c.params;
+  JsonWriter j(out);
+  j.beginObject();
+  j.beginObject("params");
+  for (const ParamSpec* spec : paramsIn(ParamSection::Servo))
+  {
+    j.field(spec->key, p.*std::get<double ServoParams::*>(spec->field));
+  }
+  j.beginObject("drive");
+  for (const ParamSpec* spec : paramsIn(ParamSection::Drive))
+  {
+    if (const auto* f = std::get_if<double DriveParams::*>(&spec->field))
+    {
+      j.field(spec->key, c.drive.*(*f));
+    }
+  }
+  j.field("control_law", c.drive.control_law).field("feedback", c.drive.feedback);
+  j.field("compensation", c.drive.compensation).field("dither_shape", c.drive.dither_shape);
+  j.endObject();
+  j.field("command", c.command)
+      .field("zeta", p.dampingRatio())
+      .field("natural_frequency", p.naturalFrequency())
+      .field("inertia_ratio", p.inertiaRatio())
+      .field("friction_ratio", p.frictionRatio())
+      .endObject();
+  const bool lc = r.status.verdict == Verdict::LimitCycle || r.status.verdict == Verdict::Irregular;
+  j.field("verdict", std::string(toString(r.status.verdict)));
+  j.field("settled", r.settled);
+  j.field("stopped_by", r.stopped_by);
+  j.field("limit_cycle", lc);
+  j.field("limit_cycle_error", lc ? r.status.error : 0.0);
+  if (lc)
+  {
+    j.field("period", r.status.period);
+  }
+  else
+  {
+    j.null("period");
+  }
+  j.field("maxima_per_period", static_cast<long long>(r.status.multiplicity));
+  j.field("equilibrium", r.equilibrium);  // where the loop rests [rad]; the verdict judges maxima against it
+  if (r.status.verdict == Verdict::Converged)
+  {
+    j.field("steady_error", r.final_state.load_position - c.command);  // θ_c − θ_R at the end [rad]
+  }
+  else
+  {
+    j.null("steady_error");
+  }
+  j.beginArray("maxima");
+  for (const Maximum& m : r.maxima)
+  {
+    j.beginObject().field("time", m.time).field("position", m.position).field("velocity", m.velocity).endObject();
+  }
+  j.endArray();
+  j.field("impacts", static_cast<long long>(r.impacts));
+  j.beginObject("energy")
+      .field("input", r.energy.input)
+      .field("motor_friction", r.energy.motor_friction)
+      .field("load_friction", r.energy.load_friction)
+      .field("impact_loss", r.energy.impact_loss)
+      .field("load_work", r.energy.load_work)
+      .field("motor_dry_friction", r.energy.motor_dry_friction)
+      .field("load_dry_friction", r.energy.load_dry_friction)
+      .field("kinetic", r.kinetic)
+      .field("initial_kinetic", r.energy.initial_kinetic)
+      .field("balance_error", r.balance_error)
+      .endObject();
+  const State& s = r.final_state;
+  j.beginObject("final_state")
+      .field("time", s.time)
+      .field("load_position", s.load_position)
+      .field("load_velocity", s.load_velocity)
+      .field("motor_position", s.motor_position)
+      .field("motor_velocity", s.motor_velocity)
+      .field("contact", std::string(toString(s.contact)))
+      .endObject();
+  j.field("simulated_time", r.simulated);
+  j.field("wall_time", wall_seconds);
+  j.endObject();
+  out << "\n";
+}
+
+}  // namespace backlash_servo
