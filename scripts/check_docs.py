@@ -5,7 +5,8 @@
   scratch directory holding a copy of config/ and the quick start's joint.yaml; each must exit 0 within 300 s.
 * In any other fenced block, a line starting with "$ " is a transcript: its command is run the same way and every
   output line shown under it (up to the next "$ " or the block's end) must appear in what it prints.
-* A block marked ```yaml whose first line is "# NAME.yaml …" is written to NAME.yaml first (the quick start's joint).
+* A block marked ```LANG file=NAME, or ```yaml whose first line is "# NAME.yaml …" (the quick start's joint), is
+  written to NAME in the scratch directory first.
 * Blocks marked ```console are illustrations (long-running ROS graphs, covered by the rostests) and are not run.
 * Every relative link [text](path) must name a file of the repository.
 
@@ -20,7 +21,7 @@ import tempfile
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
-FENCE = re.compile(r"^(\s*)```(\w*)\s*$")
+FENCE = re.compile(r"^(\s*)```(\w*)(?:\s+file=(\S+))?\s*$")
 
 
 def documents():
@@ -28,14 +29,14 @@ def documents():
 
 
 def blocks(path):
-    """(language, [lines]) of every fenced block, indentation removed."""
-    out, lang, body, indent = [], None, [], ""
+    """(language, [lines], file name or None) of every fenced block, indentation removed."""
+    out, lang, body, indent, name = [], None, [], "", None
     for line in path.read_text().splitlines():
         m = FENCE.match(line)
         if lang is None and m:
-            lang, body, indent = m.group(2), [], m.group(1)
-        elif lang is not None and m and m.group(1) == indent:
-            out.append((lang, body))
+            lang, body, indent, name = m.group(2), [], m.group(1), m.group(3)
+        elif lang is not None and m and m.group(1) == indent and not m.group(3):
+            out.append((lang, body, name))
             lang = None
         elif lang is not None:
             body.append(line[len(indent):] if line.startswith(indent) else line.lstrip())
@@ -74,13 +75,14 @@ def main():
     with tempfile.TemporaryDirectory() as scratch:
         shutil.copytree(ROOT / "config", Path(scratch) / "config")
         for doc in documents():
-            for lang, body in blocks(doc):
-                if lang == "yaml" and body and re.match(r"#\s*[\w.-]+\.yaml\b", body[0]):
+            for lang, body, name in blocks(doc):
+                if not name and lang == "yaml" and body and re.match(r"#\s*[\w.-]+\.yaml\b", body[0]):
                     name = re.match(r"#\s*([\w.-]+\.yaml)", body[0]).group(1)
+                if name:
                     (Path(scratch) / name).write_text("\n".join(body) + "\n")
         for doc in documents():
             where = str(doc.relative_to(ROOT))
-            for lang, body in blocks(doc):
+            for lang, body, _ in blocks(doc):
                 if lang == "sh":
                     for command in commands(body):
                         count += 1
