@@ -21,14 +21,15 @@ namespace backlash_servo
 struct RunConfig
 {
   ServoParams params;
-  DriveParams drive;          ///< the control law (default: the thesis' continuous P law)
-  State initial;              ///< default: everything 0, forward contact
-  double command = 1.0;       ///< θ_R [rad], applied at the initial time
-  double duration = 0.0;      ///< simulate exactly this long [s]; 0 = until the verdict is settled
-  double max_duration = 0.0;  ///< cap when running until settled [s]; 0 = 2000/ω_n
-  bool track_energy = true;   ///< energy ledger (off: ~25 % faster, energy fields of the summary are zero)
-  double max_events = 1e7;    ///< impact budget of the run; exceeded → stopped, verdict unsettled (not a hang)
-  bool short_flights = true;  ///< the chatter fast path (short_flight.h); off only to compare (bench_core)
+  DriveParams drive;           ///< the control law (default: the thesis' continuous P law)
+  State initial;               ///< default: everything 0, forward contact
+  double command = 1.0;        ///< θ_R [rad], applied at the initial time
+  double duration = 0.0;       ///< simulate exactly this long [s]; 0 = until the verdict is settled
+  double max_duration = 0.0;   ///< cap when running until settled [s]; 0 = 2000/ω_n
+  bool track_energy = true;    ///< energy ledger (off: ~25 % faster, energy fields of the summary are zero)
+  double max_events = 1e7;     ///< impact budget of the run; exceeded → stopped, verdict unsettled (not a hang)
+  double settling_band = 0.0;  ///< error band of the settling figures [rad]; 0 = settlingBand()'s default
+  bool short_flights = true;   ///< the chatter fast path (short_flight.h); off only to compare (bench_core)
   /// Optional set-point profile θ_R(t); the verdict is judged from its end on, against its final value (a run until
   /// settled lasts at least to its end). A digital drive samples any profile; the continuous law takes steps, points
   /// and (without dry friction) ramps exactly (Simulator::setProfile) and refuses sines and moves
@@ -56,6 +57,14 @@ struct RunSummary
   std::string stopped_by;
   std::string message;  ///< for "event_budget": what was exceeded, where; for "diverged": where the motion ran away
 };
+
+/**
+ * The error band [rad] of a run's settling figures: `settling_band` when set, else the joint's own resolution — the
+ * larger of the backlash Δ (a load read through the motor cannot be placed better) and one count of the encoder the
+ * loop reads (2π/N_L on the load, ρ·2π/N_m through the motor) — and, with neither, 2 % of `excursion` [rad] (the
+ * command's travel), the classical band.
+ */
+double settlingBand(const RunConfig& config, double excursion);
 
 /// The simulator of a run at its start: the plant in its initial state under the configured law (the thesis' P law,
 /// or the drive: digital, saturated or compensated) following the command or the profile, with the run's energy

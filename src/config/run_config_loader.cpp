@@ -170,6 +170,7 @@ RunConfig runConfigFrom(const KeyValues& kv)
   c.duration = realValue(kv, param("duration"));
   c.max_duration = realValue(kv, param("max_duration"));
   c.max_events = realValue(kv, param("max_events"));
+  c.settling_band = realValue(kv, param("settling_band"));
   State& s = c.initial;
   s.contact = contactFromString(choiceValue(kv, param("contact")));
   s.load_position = realValue(kv, param("load_position"));

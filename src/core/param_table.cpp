@@ -148,6 +148,10 @@ std::vector<ParamSpec> makeTable()
      "simulate exactly this long (0 = until the verdict is settled)", false, {}, &RunConfig::duration},
     {"max_duration", "", "s", T::Real, S::Run, NON_NEGATIVE, "0", "cap when running until settled (0 = max(2000/ω_n, 100 × the longest interval between maxima))",
      false, {}, &RunConfig::max_duration},
+    {"settling_band", "", "rad", T::Real, S::Run, ParamRange{0.0, 1e3, false, false}, "0",
+     "settling time and steady-state figures: the load error band |θ_R − θ_c| ≤ band (0 = the joint's own: the "
+     "larger of Δ and one count of the encoder the loop reads; 2 % of the command's excursion without either)",
+     false, {}, &RunConfig::settling_band},
     {"max_events", "", "-", T::Real, S::Run, ParamRange{1.0, 1e12, false, false}, "1e7",
      "event budget of a run: impacts, and apart rests and law switches; beyond it the run stops, unsettled (an "
      "impact storm or a sliding mode is not a hang)",

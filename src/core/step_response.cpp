@@ -42,6 +42,27 @@ void checkProfile(const RunConfig& config)
   }
 }
 
+double settlingBand(const RunConfig& config, double excursion)
+{
+  if (config.settling_band > 0.0)
+  {
+    return config.settling_band;
+  }
+  constexpr double TWO_PI = 6.283185307179586476925;
+  const DriveParams& d = config.drive;
+  double count = 0.0;
+  if (d.sampled() && d.feedback == "motor" && d.motor_encoder_resolution > 0.0)
+  {
+    count = config.params.gear_ratio * TWO_PI / d.motor_encoder_resolution;
+  }
+  else if (d.sampled() && d.feedback != "motor" && d.load_encoder_resolution > 0.0)
+  {
+    count = TWO_PI / d.load_encoder_resolution;
+  }
+  const double own = std::max(config.params.backlash, count);
+  return own > 0.0 ? own : 0.02 * std::max(excursion, 1e-12);
+}
+
 Simulator makeSimulator(const RunConfig& config)
 {
   checkProfile(config);

@@ -441,20 +441,21 @@ int main(int argc, char** argv)
   {
     const bool varied = !vary_text.empty();
     char buf[400];
-    std::snprintf(buf, sizeof buf, "%-28s %-11s%-22s %9s %8s %9s %8s %9s %9s %9s %9s %9s %8s %8s\n", "strategy",
+    std::snprintf(buf, sizeof buf, "%-28s %-11s%-22s %9s %8s %9s %8s %9s %9s %9s %9s %9s %9s %8s %8s\n", "strategy",
                   varied ? vary.key.substr(0, 10).c_str() : "", "verdict", "lc err", "period", "steady", "settle",
-                  "rms err", "max err", "overshoot", "impacts/s", "E_imp/s", "peak T", "rms T");
+                  "rms err", "steady rms", "max err", "overshoot", "impacts/s", "E_imp/s", "peak T", "rms T");
     out << buf;
     out << "  (" << (varied ? "value in SI units; " : "")
-        << "rad, s, rad, s, rad, rad, rad, 1/s, W, N·m, N·m; '-': does not apply)\n";
+        << "rad, s, rad, s, rad, rad, rad, rad, 1/s, W, N·m, N·m; '-': does not apply; settling band "
+        << cell(metrics.empty() ? NAN : metrics.front().settling_band) << " rad)\n";
     for (std::size_t i = 0; i < n; ++i)
     {
       const CompareMetrics& m = metrics[i];
-      std::snprintf(buf, sizeof buf, "%-28s %-11s%-22s %9s %8s %9s %8s %9s %9s %9s %9s %9s %8s %8s\n",
+      std::snprintf(buf, sizeof buf, "%-28s %-11s%-22s %9s %8s %9s %8s %9s %9s %9s %9s %9s %9s %8s %8s\n",
                     m.name.substr(0, 28).c_str(), varied ? cell(run_values[i]).c_str() : "", m.verdict.c_str(),
                     cell(m.limit_cycle_error).c_str(), cell(m.period).c_str(), cell(m.steady_error).c_str(),
-                    cell(m.settling_time).c_str(), cell(m.rms_error).c_str(), cell(m.max_error).c_str(),
-                    cell(m.overshoot).c_str(), cell(m.impacts_per_second).c_str(),
+                    cell(m.settling_time).c_str(), cell(m.rms_error).c_str(), cell(m.steady_rms_error).c_str(),
+                    cell(m.max_error).c_str(), cell(m.overshoot).c_str(), cell(m.impacts_per_second).c_str(),
                     cell(m.impact_energy_per_second).c_str(), cell(m.peak_torque).c_str(), cell(m.rms_torque).c_str());
       out << buf;
     }

@@ -385,6 +385,7 @@ TEST(Compare, MetricsAgreeWithSingleRunsAndCsvSamples)
     runCapture(sim + " --csv " + csv + " --sample-rate 1000");
     double e2 = 0.0, t2 = 0.0;
     long n = 0;
+    std::vector<std::pair<double, double>> errors;  // (t, e)
     for (const auto& r : csvRows(readFile(csv)))
     {
       if (r.size() >= 9 && (r.size() == 9 || r[9].empty()))  // sample rows (t = 0 included), not event rows
@@ -393,11 +394,36 @@ TEST(Compare, MetricsAgreeWithSingleRunsAndCsvSamples)
         e2 += e * e;
         t2 += std::stod(r[8]) * std::stod(r[8]);
         ++n;
+        errors.emplace_back(std::stod(r[0]), e);
       }
     }
     EXPECT_EQ(n, 30001);
     EXPECT_NEAR(jsonNumber(entry, "rms_error"), std::sqrt(e2 / n), 1e-9) << flags[i];
     EXPECT_NEAR(jsonNumber(entry, "rms_torque"), std::sqrt(t2 / n), 1e-9) << flags[i];
+    // Settling into the joint's own band — here the backlash, 0.05 rad (ideal encoders) — and the RMS error after
+    // that transient, recomputed from the samples.
+    double last_outside = -1.0;
+    for (const auto& [t, e] : errors)
+    {
+      last_outside = std::fabs(e) > 0.05 ? t : last_outside;
+    }
+    const bool settled = last_outside < errors.back().first;
+    const double from = settled ? std::max(last_outside, 0.0) : 15.0;
+    double s2 = 0.0;
+    long k = 0;
+    for (const auto& [t, e] : errors)
+    {
+      if (t >= from)
+      {
+        s2 += e * e;
+        ++k;
+      }
+    }
+    if (settled)
+    {
+      EXPECT_NEAR(jsonNumber(entry, "settling_time"), std::max(last_outside, 0.0), 1e-9) << flags[i];
+    }
+    EXPECT_NEAR(jsonNumber(entry, "steady_rms_error"), std::sqrt(s2 / k), 1e-9) << flags[i];
   }
   // The chart and the CSV table are written.
   const std::string png = "/tmp/backlash_compare_test.png", table = "/tmp/backlash_compare_table.csv";

@@ -28,33 +28,18 @@ struct ImpactTally : EventSink
 
 const std::vector<std::string>& metricNames()
 {
-  static const std::vector<std::string> names = {"limit_cycle_error",
-                                                 "period",
-                                                 "steady_error",
-                                                 "settling_time",
-                                                 "rms_error",
-                                                 "max_error",
-                                                 "overshoot",
-                                                 "impacts_per_second",
-                                                 "impact_energy_per_second",
-                                                 "peak_torque",
-                                                 "rms_torque"};
+  static const std::vector<std::string> names = {
+      "limit_cycle_error", "period",    "steady_error", "settling_time",      "rms_error",
+      "steady_rms_error",  "max_error", "overshoot",    "impacts_per_second", "impact_energy_per_second",
+      "peak_torque",       "rms_torque"};
   return names;
 }
 
 std::vector<double> metricValues(const CompareMetrics& m)
 {
-  return {m.limit_cycle_error,
-          m.period,
-          m.steady_error,
-          m.settling_time,
-          m.rms_error,
-          m.max_error,
-          m.overshoot,
-          m.impacts_per_second,
-          m.impact_energy_per_second,
-          m.peak_torque,
-          m.rms_torque};
+  return {m.limit_cycle_error, m.period,    m.steady_error, m.settling_time,      m.rms_error,
+          m.steady_rms_error,  m.max_error, m.overshoot,    m.impacts_per_second, m.impact_energy_per_second,
+          m.peak_torque,       m.rms_torque};
 }
 
 CompareMetrics runStrategy(const std::string& name, const RunConfig& config, double sample_rate,
@@ -73,7 +58,7 @@ CompareMetrics runStrategy(const std::string& name, const RunConfig& config, dou
     lo = std::min(lo, r);
     hi = std::max(hi, r);
   }
-  const double band = 0.02 * std::max(hi - lo, 1e-12);
+  const double band = settlingBand(config, hi - lo);
   const double before_end = profile.at(std::max(0.0, profile_end - 1e-9));
   double direction = final_ref >= before_end ? 1.0 : -1.0;
   if (final_ref == before_end)
@@ -84,6 +69,7 @@ CompareMetrics runStrategy(const std::string& name, const RunConfig& config, dou
   const long chart_stride = std::max(1L, (n + kMaxChartSamples) / kMaxChartSamples);
   double sum_e2 = 0.0, sum_t2 = 0.0, peak = 0.0, max_after = 0.0, overshoot = 0.0, last_outside = NAN;
   long count = 0;
+  std::vector<std::pair<double, double>> after;  // (t, e) from the profile's end on: the steady-state window
   ImpactTally tally;
   const RunSummary r = runResponse(config, &tally, dt, [&](const Simulator& sim) {
     const State& s = sim.state();
@@ -96,6 +82,7 @@ CompareMetrics runStrategy(const std::string& name, const RunConfig& config, dou
     ++count;
     if (s.time >= profile_end)
     {
+      after.emplace_back(s.time, e);
       max_after = std::max(max_after, std::fabs(e));
       overshoot = std::max(overshoot, direction * (s.load_position - final_ref));
       if (std::fabs(e) > band)
@@ -138,6 +125,26 @@ CompareMetrics runStrategy(const std::string& name, const RunConfig& config, dou
   }
   m.impacts_per_second = tally.impacts / simulated;
   m.impact_energy_per_second = tally.energy / simulated;
+  // The steady state after the transient: from the settling time on; a run that never settles, over the second half
+  // of what follows the profile (a limit cycle's own error, not the step's).
+  if (!after.empty())
+  {
+    const double from = !std::isnan(m.settling_time)
+                            ? m.settling_time
+                            : after.front().first + 0.5 * (after.back().first - after.front().first);
+    double sum = 0.0;
+    long k = 0;
+    for (const auto& [t, e] : after)
+    {
+      if (t >= from)
+      {
+        sum += e * e;
+        ++k;
+      }
+    }
+    m.steady_rms_error = k > 0 ? std::sqrt(sum / k) : NAN;
+  }
+  m.settling_band = band;
   return m;
 }
 

@@ -17,14 +17,16 @@ struct CompareMetrics
   double limit_cycle_error = NAN;         ///< [rad] (sustained oscillations only)
   double period = NAN;                    ///< [s] (sustained oscillations only)
   double steady_error = NAN;              ///< θ_c − θ_R at the end [rad] (converged only)
-  double settling_time = NAN;             ///< last time |e| > 2 % of the reference's excursion, after the profile [s]
+  double settling_time = NAN;             ///< last time |e| > the settling band (settlingBand), after the profile [s]
   double rms_error = NAN;                 ///< √(mean e²) over the run [rad], e = θ_R − θ_c
+  double steady_rms_error = NAN;          ///< √(mean e²) after the transient: from the settling time on [rad]
   double max_error = NAN;                 ///< max |e| after the profile has ended [rad]
   double overshoot = NAN;                 ///< beyond the final reference, in the direction of the last move [rad]
   double impacts_per_second = NAN;        ///< tooth impacts [1/s]
   double impact_energy_per_second = NAN;  ///< kinetic energy lost in impacts [W]
   double peak_torque = NAN;               ///< max |T_m| [N·m]
   double rms_torque = NAN;                ///< √(mean T_m²) [N·m]
+  double settling_band = NAN;             ///< the band of settling_time and steady_rms_error [rad] (not a column)
 };
 
 /// One sampled trajectory point of a run (for charts).
