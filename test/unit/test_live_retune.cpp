@@ -49,12 +49,19 @@ DriveParams pid()
   return d;
 }
 
+/// The joint under drive `d` with the set-point 1 rad from t = 0.
+Simulator driven(const ServoParams& p, const DriveParams& d)
+{
+  Simulator sim(p, State(), 1.0);
+  sim.setDrive(std::make_unique<SampledDrive>(d, p.gain, p.gear_ratio, 1.0, 0.0));
+  return sim;
+}
+
 TEST(LiveRetune, AnIntegralGainChangeKeepsTheIntegratorAndFollowsThePidLaw)
 {
   const ServoParams p = joint();
   DriveParams d = pid();
-  Simulator sim(p, State(), 1.0);
-  sim.setDrive(std::make_unique<SampledDrive>(d, p.gain, p.gear_ratio, 1.0, 0.0));
+  Simulator sim = driven(p, d);
   Recorder rec;
   rec.attach(&sim);
   sim.advanceTo(5.005);
@@ -88,9 +95,7 @@ TEST(LiveRetune, TheSameSettingsChangeNothing)
 {
   const ServoParams p = joint();
   const DriveParams d = pid();
-  Simulator plain(p, State(), 1.0), retuned(p, State(), 1.0);
-  plain.setDrive(std::make_unique<SampledDrive>(d, p.gain, p.gear_ratio, 1.0, 0.0));
-  retuned.setDrive(std::make_unique<SampledDrive>(d, p.gain, p.gear_ratio, 1.0, 0.0));
+  Simulator plain = driven(p, d), retuned = driven(p, d);
   plain.advanceTo(3.0037);
   retuned.advanceTo(3.0037);
   ASSERT_TRUE(retuned.retuneDrive(d));
@@ -105,8 +110,7 @@ TEST(LiveRetune, ARateChangeKeepsTheDueSampleAndSpacesTheNextOnesByTheNewPeriod)
 {
   const ServoParams p = joint();
   DriveParams d = pid();
-  Simulator sim(p, State(), 1.0);
-  sim.setDrive(std::make_unique<SampledDrive>(d, p.gain, p.gear_ratio, 1.0, 0.0));
+  Simulator sim = driven(p, d);
   Recorder rec;
   rec.attach(&sim);
   sim.advanceTo(1.003);
@@ -127,8 +131,7 @@ TEST(LiveRetune, DelayZeroToOneHoldsThePresentOutputOneMoreSample)
   const ServoParams p = joint();
   DriveParams d;
   d.controller_rate = 100.0;  // the P law: u_k = K e_k
-  Simulator sim(p, State(), 1.0);
-  sim.setDrive(std::make_unique<SampledDrive>(d, p.gain, p.gear_ratio, 1.0, 0.0));
+  Simulator sim = driven(p, d);
   Recorder rec;
   rec.attach(&sim);
   sim.advanceTo(0.505);
@@ -150,8 +153,7 @@ TEST(LiveRetune, ANewLawOrAContinuousRateNeedsAFreshDriveAndBadValuesAreRefused)
 {
   const ServoParams p = joint();
   const DriveParams d = pid();
-  Simulator sim(p, State(), 1.0);
-  sim.setDrive(std::make_unique<SampledDrive>(d, p.gain, p.gear_ratio, 1.0, 0.0));
+  Simulator sim = driven(p, d);
   sim.advanceTo(1.003);
   const State at = sim.state();
   DriveParams other = d;
