@@ -182,7 +182,60 @@ class BagReportInputs(unittest.TestCase):
             self.assertEqual(sorted(os.listdir(d)), ["link.png", "nan.bag", "r.png"])  # no temporary left
 
 
+class BagReportStretches(unittest.TestCase):
+    """Each stretch between changes is reported on its own: a bag whose load oscillates about 1 rad with amplitude
+    0.05 rad and period 2 s until a live change at 10 s restarts the node's judgement, then about 0.5 rad with 0.02 rad
+    and 1 s. The report's stretches carry the node's verdict of each and estimates from each one's samples only."""
+
+    def test_two_stretches(self):
+        import math
+        import rospy
+        from backlash_servo.msg import BacklashState, LimitCycleStatus
+        from sensor_msgs.msg import JointState
+        with tempfile.TemporaryDirectory() as d:
+            path = os.path.join(d, "stretches.bag")
+            with rosbag.Bag(path, "w") as bag:
+                def lc(t, verdict, error, period, maxima, command, reason=""):
+                    m = LimitCycleStatus(sim_time=t, verdict=verdict, detected=verdict == "limit_cycle", error=error,
+                                         period=period, maxima_observed=maxima, command=command, reason=reason)
+                    m.header.stamp = rospy.Time(t + 1.0)
+                    bag.write("/limit_cycle", m, rospy.Time(t + 1.0))
+                for i in range(2001):
+                    t = i * 0.01
+                    command, amp, period = (1.0, 0.05, 2.0) if t < 10.0 else (0.5, 0.02, 1.0)
+                    x = command + amp * math.sin(2.0 * math.pi * t / period)
+                    stamp = rospy.Time(t + 1.0)
+                    js = JointState(name=["motor_joint", "load_joint"], position=[x, x], velocity=[0.0, 0.0])
+                    js.header.stamp = stamp
+                    bag.write("/joint_states", js, stamp)
+                    bag.write("/backlash_state", BacklashState(sim_time=t, command=command, gap=0.0), stamp)
+                    if i == 900:
+                        lc(t, "limit_cycle", 0.05, 2.0, 4, 1.0)
+                    if i == 1000:
+                        lc(t, "undecided", 0.0, 0.0, 0, 0.5, "live change of backlash at t = 10 s: judging afresh")
+                    if i == 1900:
+                        lc(t, "limit_cycle", 0.02, 1.0, 8, 0.5)
+            out = subprocess.run(["/usr/bin/python3", REPORT, path, "--json"], check=True, capture_output=True,
+                                 text=True).stdout
+            text = subprocess.run(["/usr/bin/python3", REPORT, path], check=True, capture_output=True,
+                                  text=True).stdout
+        report = json.loads(out)
+        s = report["stretches"]
+        self.assertEqual(len(s), 2, s)
+        self.assertEqual((s[0]["from"], s[0]["reason"], s[0]["command"]), (0.0, "start", 1.0))
+        self.assertAlmostEqual(s[1]["from"], 10.0, delta=1e-9)
+        self.assertIn("live change of backlash", s[1]["reason"])
+        self.assertEqual(s[1]["command"], 0.5)
+        self.assertEqual(s[0]["node"]["limit_cycle_error"], 0.05)
+        self.assertEqual(s[1]["node"]["limit_cycle_error"], 0.02)
+        for stretch, (amp, period) in zip(s, ((0.05, 2.0), (0.02, 1.0))):
+            self.assertAlmostEqual(stretch["from_samples"]["error"], amp, delta=1e-5)  # parabola through samples
+            self.assertAlmostEqual(stretch["from_samples"]["period"], period, delta=1e-3)
+            self.assertAlmostEqual(stretch["rms_error"], amp / math.sqrt(2.0), delta=1e-3)
+        self.assertIn("2 stretches between changes", text)
+
+
 if __name__ == "__main__":
     ALL = unittest.TestSuite([unittest.TestLoader().loadTestsFromTestCase(c)
-                              for c in (BagReport, BagReportInputs, NodeRecordingTargets)])
+                              for c in (BagReport, BagReportInputs, NodeRecordingTargets, BagReportStretches)])
     rostest.rosrun("backlash_servo", "bag_report", "__main__.ALL")
