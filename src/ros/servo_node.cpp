@@ -422,11 +422,19 @@ void ServoNode::diagnose(diagnostic_updater::DiagnosticStatusWrapper& status)
   }
   status.add("sim_time [s]", formatNumber(sim_.state().time));
   status.add("impacts", std::to_string(sim_.impactCount()));
-  status.add("verdict", toString(monitor_->status().verdict));
-  if (monitor_->status().verdict == Verdict::LimitCycle || monitor_->status().verdict == Verdict::Irregular)
+  // The figures backlash_sim reports, under the same names and units.
+  const LimitCycleReport& verdict = monitor_->status();
+  status.add("verdict", toString(verdict.verdict));
+  status.add("equilibrium [rad]", formatNumber(monitor_->equilibrium()));
+  if (verdict.verdict == Verdict::LimitCycle || verdict.verdict == Verdict::Irregular)
   {
-    status.add("limit_cycle_error [rad]", formatNumber(monitor_->status().error));
-    status.add("period [s]", formatNumber(monitor_->status().period));
+    status.add("limit_cycle_error [rad]", formatNumber(verdict.error));
+    status.add("period [s]", formatNumber(verdict.period));
+    status.add("maxima_per_period", std::to_string(verdict.multiplicity));
+  }
+  if (verdict.verdict == Verdict::Converged)
+  {
+    status.add("steady_error [rad]", formatNumber(sim_.state().load_position - command_));
   }
   // Rates over the last diagnostics interval: impacts per simulated second, simulated seconds per wall second.
   const ros::WallTime now = ros::WallTime::now();

@@ -10,6 +10,7 @@ import rospy  # noqa: E402
 import rostest  # noqa: E402
 
 from backlash_servo.msg import LimitCycleStatus  # noqa: E402
+from diagnostic_msgs.msg import DiagnosticArray  # noqa: E402
 from helpers import Collector, call_trigger, run_cli, wait_for  # noqa: E402
 
 NODE = "/backlash_servo"
@@ -25,7 +26,9 @@ class ConvergedVerdict(unittest.TestCase):
         self.assertLess(len(cli["maxima"]), 3)
 
         cycles = Collector("/limit_cycle", LimitCycleStatus)
+        diags = Collector("/diagnostics", DiagnosticArray)
         self.assertTrue(cycles.wait_connected())
+        self.assertTrue(diags.wait_connected())
         self.assertTrue(call_trigger(NODE + "/resume").success)
         self.assertTrue(wait_for(lambda: cycles.msgs and cycles.msgs[-1].verdict != "undecided", 60.0),
                         "no verdict on /limit_cycle: %s" % [m.verdict for m in cycles.msgs])
@@ -35,6 +38,22 @@ class ConvergedVerdict(unittest.TestCase):
         self.assertEqual(last.maxima_observed, len(cli["maxima"]))
         # Checked at every 50 ms sample instead of every natural period: reached no later than the CLI's check.
         self.assertLessEqual(last.sim_time, cli["simulated_time"] + 1e-9)
+        # /diagnostics carries the CLI's figures under its names: the equilibrium, and once converged the steady
+        # error θ_c − θ_R — here a quiet convergence (the motor creeping across the backlash under a vanishing torque),
+        # so within the quiet rule's 1 % of the command's scale (1 rad), read where each stops.
+
+        def figures():
+            for a in reversed(diags.msgs):
+                for s in a.status:
+                    values = {kv.key: kv.value for kv in s.values}
+                    if values.get("verdict") == "converged" and "steady_error [rad]" in values:
+                        return values
+            return None
+        self.assertTrue(wait_for(lambda: figures() is not None, 20.0))
+        values = figures()
+        self.assertEqual(float(values["equilibrium [rad]"]), cli["equilibrium"])
+        self.assertLessEqual(abs(float(values["steady_error [rad]"])), 0.01)
+        self.assertLessEqual(abs(cli["steady_error"]), 0.01)
 
 
 if __name__ == "__main__":
