@@ -49,7 +49,7 @@ printf '\x03--zeta 0.4 --inertia-ratio 9 --friction-ratio 0.4 --controller-rate 
 printf '\x02- ramp: {time: 0, target: 1, duration: 2}\n- sine: {time: 3, amplitude: 0.1, frequency: 2, duration: 1}' \
   >"$corpus/seed_profile"
 printf '\x04time,value\n0,0\n0.5,1\n1,-0.25\n2.5,0.1\n' >"$corpus/seed_profile_csv"
-printf '\x05# backlash_sweep part 1/1: points [0, 2) of 2, grid 0123456789abcdef\nzeta,inertia_ratio,friction_ratio,restitution,backlash,verdict,limit_cycle,limit_cycle_error,period,impacts,simulated_time,settled,steady_error\n0.3,9,0.4,1,0.3,limit_cycle,1,0.05,12.2,23,160.5,1,\n0.5,9,0.4,1,0.3,converged,0,0,0,4,80,1,1e-17\n' \
+printf '\x05# backlash_sweep part 1/1: points [0, 2) of 2, grid 0123456789abcdef\nzeta,inertia_ratio,friction_ratio,restitution,backlash,verdict,limit_cycle,limit_cycle_error,period,impacts,simulated_time,settled,steady_error,maxima_per_period\n0.3,9,0.4,1,0.3,limit_cycle,1,0.05,12.2,23,160.5,1,,1\n0.5,9,0.4,1,0.3,converged,0,0,0,4,80,1,1e-17,0\n' \
   >"$corpus/seed_sweep_part"
 log=$PWD/build/libfuzzer/fuzz.log
 rm -f "$log" "$log.regressions"

@@ -32,6 +32,7 @@ std::string sweepRow(const SweepPoint& p, const RunSummary& r, double command)
     std::snprintf(buf, sizeof buf, "%.17g", r.final_state.load_position - command);
     row += buf;
   }
+  row += "," + std::to_string(lc ? r.status.multiplicity : 0);  // maxima per period of the pattern
   return row;
 }
 
@@ -127,6 +128,10 @@ void checkRow(const std::string& line, const std::vector<std::string>& header, c
   if (converged ? !isNumber(cells[v + 7]) : !cells[v + 7].empty())
   {
     bad("'steady_error' must be a number for a converged point and empty otherwise");
+  }
+  if (cells[v + 8].empty() || cells[v + 8].find_first_not_of("0123456789") != std::string::npos)
+  {
+    bad("'maxima_per_period' is not a whole number");
   }
 }
 

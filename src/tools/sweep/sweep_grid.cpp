@@ -248,7 +248,7 @@ std::string SweepGrid::fingerprint() const
 const std::string& resultColumns()
 {
   static const std::string columns =
-      "verdict,limit_cycle,limit_cycle_error,period,impacts,simulated_time,settled,steady_error";
+      "verdict,limit_cycle,limit_cycle_error,period,impacts,simulated_time,settled,steady_error,maxima_per_period";
   return columns;
 }
 
