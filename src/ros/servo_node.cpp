@@ -978,15 +978,18 @@ void ServoNode::onReconfigure(BacklashServoConfig& c, uint32_t)
     }
     restartMonitor("control_mode changed");
   }
-  else if (drive_changed && next.control_mode == ControlMode::Position &&
-           !sim_.retuneDrive(next.run.drive))  // gains, limit, rate, delay, encoders, compensator settings: no bump
+  else
   {
-    config_.run.drive = next.run.drive;
-    applyPositionDrive();  // a new law, feedback, compensator or continuous ↔ digital: a fresh controller
-  }
-  else if (!changed.empty())
-  {
-    restartMonitor("live change of " + changed);
+    if (drive_changed && next.control_mode == ControlMode::Position &&
+        !sim_.retuneDrive(next.run.drive))  // gains, limit, rate, delay, encoders, compensator settings: no bump
+    {
+      config_.run.drive = next.run.drive;
+      applyPositionDrive();  // a new law, feedback, compensator or continuous ↔ digital: a fresh controller
+    }
+    if (!changed.empty())
+    {
+      restartMonitor("live change of " + changed);
+    }
   }
   if (next.publish_rate != config_.publish_rate)
   {

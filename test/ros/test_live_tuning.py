@@ -13,6 +13,7 @@ sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 import dynamic_reconfigure.client  # noqa: E402
 import rospy  # noqa: E402
 import rostest  # noqa: E402
+from backlash_servo.msg import LimitCycleStatus  # noqa: E402
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus  # noqa: E402
 from rosgraph_msgs.msg import Log  # noqa: E402
 from sensor_msgs.msg import JointState  # noqa: E402
@@ -36,6 +37,7 @@ class LiveTuning(unittest.TestCase):
         cls.js = Collector("/joint_states", JointState)
         cls.diag = Collector("/diagnostics", DiagnosticArray)
         cls.log = Collector("/rosout", Log)
+        cls.verdicts = Collector("/limit_cycle", LimitCycleStatus)
         assert cls.enc.wait_connected() and cls.js.wait_connected() and cls.diag.wait_connected()
         cls.client = dynamic_reconfigure.client.Client(NODE, timeout=10)
 
@@ -75,6 +77,14 @@ class LiveTuning(unittest.TestCase):
                 switched = True
             self.assertAlmostEqual(g, KI_NEW if switched else KI_OLD, delta=1e-6, msg="t = %d ns" % t)
         self.assertTrue(switched)
+        # Each live drive change restarted the judgement: /limit_cycle said undecided, naming the key — also a change
+        # that needs a fresh controller (the feedback: the load encoder → the motor encoder).
+        self.assertEqual(self.client.update_configuration({"feedback": 1})["feedback"], 1)
+        self.assertTrue(wait_for(lambda: any("live change of feedback" in m.reason for m in self.verdicts.msgs), 10.0))
+        self.client.update_configuration({"feedback": 0})
+        for key in ("integral_gain", "load_encoder_resolution"):
+            self.assertTrue(any(m.verdict == "undecided" and "live change of " + key in m.reason
+                                for m in self.verdicts.msgs), [m.reason for m in self.verdicts.msgs])
         # After the encoder change every load reading is a whole number of counts of 2π/4096.
         count = 2.0 * math.pi / 4096.0
         for m in self.enc.msgs[n_quantised + 5:]:
