@@ -7,10 +7,14 @@
 #include <pybind11/pybind11.h>
 #include <pybind11/stl.h>
 
+#include <unistd.h>
 #include <algorithm>
+
 #include <atomic>
 #include <chrono>
 #include <cmath>
+#include <cstdio>
+#include <cstdlib>
 #include <mutex>
 #include <sstream>
 #include <string>
@@ -37,13 +41,66 @@ using namespace backlash_servo;
 
 namespace
 {
-/// A dict of YAML keys (numbers, booleans, text; a list of numbers for a sweep axis) or a YAML file path as the key
-/// values the tools read. Keys are checked against the parameter table as a config file's are.
-KeyValues keyValuesOf(const py::object& config)
+/// A dict with an inline profile (`profile: [{step: …}, …]`) is written as the YAML file it stands for, which the
+/// profile loader reads as it reads a config file's `profile:` list; removed when this goes out of scope.
+struct InlineYaml
+{
+  std::string path;
+  InlineYaml() = default;
+  InlineYaml(const InlineYaml&) = delete;
+  InlineYaml& operator=(const InlineYaml&) = delete;
+  ~InlineYaml()
+  {
+    if (!path.empty())
+    {
+      std::remove(path.c_str());
+    }
+  }
+};
+
+/// A dict of YAML keys (numbers, booleans, text; a list of numbers for a sweep axis; a list of segments for an
+/// inline profile) or a YAML file path as the key values the tools read. Keys are checked against the parameter
+/// table as a config file's are. `inline_yaml` keeps the file of an inline profile while the values are in use.
+KeyValues keyValuesOf(const py::object& config, InlineYaml* inline_yaml = nullptr)
 {
   KeyValues kv;
   kv.nameKeysAsFlags(false);
-  if (py::isinstance<py::str>(config))
+  if (py::isinstance<py::dict>(config) && config.cast<py::dict>().contains("profile") &&
+      py::isinstance<py::list>(config.cast<py::dict>()["profile"]))
+  {
+    if (inline_yaml == nullptr)
+    {
+      throw ConfigError("profile: an inline profile is taken by run(), sweep() and Simulator(), not here");
+    }
+    char name[] = "/tmp/backlash_servo_profile_XXXXXX";
+    const int fd = mkstemp(name);
+    if (fd < 0)
+    {
+      throw std::runtime_error("profile: cannot create a temporary file for the inline profile");
+    }
+    close(fd);
+    inline_yaml->path = name;
+    py::dict copy;  // sweep axes as the flags' text ("a,b,c"); the profile as its list of segments
+    for (const auto& item : config.cast<py::dict>())
+    {
+      const bool axis = std::string(py::str(item.first)) != "profile" &&
+                        (py::isinstance<py::list>(item.second) || py::isinstance<py::tuple>(item.second));
+      std::string text;
+      for (const auto& v : axis ? item.second : py::tuple())
+      {
+        text += (text.empty() ? "" : ",") + formatNumber(v.cast<double>());
+      }
+      copy[item.first] = axis ? py::object(py::str(text)) : py::reinterpret_borrow<py::object>(item.second);
+    }
+    const std::string text = py::str(py::module_::import("json").attr("dumps")(copy));  // JSON is YAML
+    std::FILE* f = std::fopen(name, "w");
+    if (f == nullptr || std::fputs(text.c_str(), f) < 0 || std::fclose(f) != 0)
+    {
+      throw std::runtime_error("profile: cannot write the inline profile's temporary file");
+    }
+    kv.loadYaml(name);
+  }
+  else if (py::isinstance<py::str>(config))
   {
     kv.loadYaml(config.cast<std::string>());
   }
@@ -91,7 +148,8 @@ KeyValues keyValuesOf(const py::object& config)
 
 RunConfig runConfigOf(const py::object& config)
 {
-  return runConfigFrom(keyValuesOf(config));
+  InlineYaml inline_yaml;  // the profile is read into the RunConfig here
+  return runConfigFrom(keyValuesOf(config, &inline_yaml));
 }
 
 /// JSON text → Python object (the json module parses what the tools print: bit for bit the same numbers).
@@ -118,7 +176,8 @@ py::object run(const py::object& config)
 std::string sweepCsv(const py::object& settings, bool thesis, int jobs, double max_duration)
 {
   SweepGrid grid = thesis ? SweepGrid::thesis() : SweepGrid();
-  const KeyValues kv = keyValuesOf(settings);
+  InlineYaml inline_yaml;  // every point reads the profile: kept for the whole sweep
+  const KeyValues kv = keyValuesOf(settings, &inline_yaml);
   addSweepKeys(kv, &grid);
   if (kv.has("max_duration"))
   {

@@ -166,3 +166,18 @@ def test_the_gil_is_released_while_the_core_computes():
     # The counter ran alongside (~1 tick per ms): it could not, had the sweep held the GIL.
     assert elapsed > 0.05
     assert len(ticks) > 0.2 * elapsed / 0.001
+
+
+def test_an_inline_profile_equals_the_yaml_file(tmp_path):
+    # A dict holding `profile:` as a list of segments means what the same keys mean in a YAML file.
+    path = tmp_path / "profile.yaml"
+    path.write_text("controller_rate: 100.0\nprofile:\n  - ramp: {time: 0.0, target: 1.0, duration: 2.0}\n"
+                    "  - step: {time: 30.0, target: 0.5}\n")
+    config = {"controller_rate": 100.0, "profile": [{"ramp": {"time": 0.0, "target": 1.0, "duration": 2.0}},
+                                                    {"step": {"time": 30.0, "target": 0.5}}]}
+    code, out, err = tool("backlash_sim", "--config", str(path), "--json")
+    assert code == 0, err
+    assert without_wall_time(core.run(config)) == without_wall_time(json.loads(out))
+    code, out, err = tool("backlash_sweep", "--config", str(path), "--zeta", "0.2,0.4")
+    assert code == 0, err
+    assert core.sweep_csv(dict(config, zeta=[0.2, 0.4])) == out
