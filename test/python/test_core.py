@@ -163,9 +163,9 @@ def test_the_gil_is_released_while_the_core_computes():
     elapsed = time.time() - start
     stop.set()
     t.join()
-    # The counter ran alongside (~1 tick per ms): it could not, had the sweep held the GIL.
+    # The counter ran alongside (about a tick per ms): it could not, had the run held the GIL (then ~0 ticks).
     assert elapsed > 0.05
-    assert len(ticks) > 0.2 * elapsed / 0.001
+    assert len(ticks) >= 10
 
 
 def test_an_inline_profile_equals_the_yaml_file(tmp_path):

@@ -124,19 +124,21 @@ class LaunchFiles(unittest.TestCase):
             self.assertTrue(got["use_sim_time"], out)
             for now, stamp in got["pairs"]:
                 self.assertLess(stamp, 100.0)  # sim time from 0, not the wall clock's epoch
-                self.assertLessEqual(abs(now - stamp), 0.5, (launch, got))  # within a few samples of the clock
+                # rospy's clock is the node's, up to the callback's latency (5 s of sim time = 1 s of wall time at
+                # real_time_factor 5: generous for a loaded machine, tiny against a wall-clock epoch of 1.8e9 s).
+                self.assertLessEqual(abs(now - stamp), 5.0, (launch, got))
         # An external clock (rosbag play --clock, another simulator): the node and rospy both follow it.
         got, out = probe_with(11428, "backlash_servo.launch", "use_sim_time:=true", external_clock=True)
         self.assertTrue(got["use_sim_time"], out)
         for now, stamp in got["pairs"]:
             self.assertGreaterEqual(stamp, 1000.0, got)
-            self.assertLessEqual(abs(now - stamp), 0.5, got)
+            self.assertLessEqual(abs(now - stamp), 5.0, got)
         # Real time (no clock published, use_sim_time false): stamps and rospy time are the wall clock.
         got, out = probe_with(11427, "backlash_servo.launch")
         self.assertFalse(got["use_sim_time"], out)
         for now, stamp in got["pairs"]:
             self.assertLess(abs(now - time.time()), 60.0)
-            self.assertLess(abs(now - stamp), 0.5)
+            self.assertLess(abs(now - stamp), 5.0)
 
 
 if __name__ == "__main__":
