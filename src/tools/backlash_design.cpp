@@ -263,11 +263,16 @@ void describe(std::ostream& out, const char* title, const Evaluation& e, const s
     std::snprintf(buf, sizeof buf, ", %s = %.6g %s", tune.c_str(), e.tuned, param(tune).unit);
     tuned = buf;
   }
+  // ζ and ω_n are the continuous P law's; for any other loop they describe the gain K alone, and are labelled so.
+  const DriveParams& d = e.config.drive;
+  const bool continuous_p = !d.sampled() && d.torque_limit == 0.0 && d.compensation == "none";
+  const std::string chart = continuous_p ? "" : "chart of the continuous P law with this K (not this loop): ";
   std::snprintf(buf, sizeof buf,
-                "%s: K = %.6g N·m/rad%s, rho = %.6g\n  zeta = %.4g, w_n = %.4g rad/s, rho²J_L/J_m = %.4g, "
+                "%s: K = %.6g N·m/rad%s, rho = %.6g\n  %szeta = %.4g, w_n = %.4g rad/s, rho²J_L/J_m = %.4g, "
                 "rho²f_L/F_T = %.4g\n  simulated: %s",
-                title, p.gain, tuned.c_str(), p.gear_ratio, p.dampingRatio(), p.naturalFrequency(), p.inertiaRatio(),
-                p.frictionRatio(), e.diverged ? "diverged (unstable loop)" : toString(e.run.status.verdict));
+                title, p.gain, tuned.c_str(), p.gear_ratio, chart.c_str(), p.dampingRatio(), p.naturalFrequency(),
+                p.inertiaRatio(), p.frictionRatio(),
+                e.diverged ? "diverged (unstable loop)" : toString(e.run.status.verdict));
   out << buf;
   if (e.run.status.verdict == Verdict::LimitCycle || e.run.status.verdict == Verdict::Irregular)
   {
