@@ -59,6 +59,14 @@ struct RunSummary
 };
 
 /**
+ * The drive's slowest own time constant [s]: a PID's integral time K/K_i, a cascade's 1/K_p and K_v/K_vi, a dual
+ * loop's 1/K_o, a dither's period (0 for the P law). Before any oscillation shows, a run until settled lasts at most
+ * max(2000/ω_n, 100 × this) — the plant's scale under the gain K, or a hundred of the drive's own — and then at least
+ * 100 × the slowest oscillation seen.
+ */
+double driveTimeScale(const RunConfig& config);
+
+/**
  * The error band [rad] of a run's settling figures: `settling_band` when set, else the joint's own resolution — the
  * larger of the backlash Δ (a load read through the motor cannot be placed better) and one count of the encoder the
  * loop reads (2π/N_L on the load, ρ·2π/N_m through the motor) — and, with neither, 2 % of `excursion` [rad] (the

@@ -42,6 +42,36 @@ void checkProfile(const RunConfig& config)
   }
 }
 
+double driveTimeScale(const RunConfig& config)
+{
+  const DriveParams& d = config.drive;
+  double slowest = 0.0;
+  auto consider = [&](double numerator, double rate) {
+    if (rate > 0.0 && numerator > 0.0)
+    {
+      slowest = std::max(slowest, numerator / rate);
+    }
+  };
+  if (d.sampled() && d.control_law == "pid")
+  {
+    consider(config.params.gain, d.integral_gain);
+  }
+  if (d.sampled() && d.control_law == "cascade")
+  {
+    consider(1.0, d.position_loop_gain);
+    consider(d.velocity_loop_gain, d.velocity_loop_integral_gain);
+  }
+  if (d.compensation == "dual_loop")
+  {
+    consider(1.0, d.outer_loop_gain);
+  }
+  if (d.compensation == "dither")
+  {
+    consider(1.0, d.dither_frequency);
+  }
+  return slowest;
+}
+
 double settlingBand(const RunConfig& config, double excursion)
 {
   if (config.settling_band > 0.0)
@@ -101,7 +131,9 @@ RunSummary runResponse(const RunConfig& config, EventSink* sink, double sample_p
   double judge_from = config.profile && config.profile->endTime() > t0 ? config.profile->endTime() : -INFINITY;
   const bool until_settled = config.duration <= 0.0;
   double t_stop =
-      t0 + (until_settled ? (config.max_duration > 0.0 ? config.max_duration : 2000.0 / omega_n) : config.duration);
+      t0 + (until_settled ? (config.max_duration > 0.0 ? config.max_duration
+                                                       : std::max(2000.0 / omega_n, 100.0 * driveTimeScale(config)))
+                          : config.duration);
   // Without a cap of the user's, a run until settled lasts at least REPETITIONS times the slowest oscillation seen
   // (the longest interval between maxima): a stick–slip hunt or a slow drive loop whose cycle is long against
   // 2π/ω_n (ω_n is the P law's; it means nothing for a PID or a cascade) is given the repetitions its verdict needs.

@@ -312,3 +312,31 @@ TEST(Verdicts, AConvergedRealLoopEndsAtRestWithItsOwnSteadyError)
   }
   EXPECT_GE(converged, 1);
 }
+
+// Before any oscillation shows, a run until settled is given the drive's own time scale too: a PID whose integral
+// time K/K_i = 333 s is far slower than the plant (2000/ω_n = 2000 s is six integral times) keeps running for 100
+// integral times when nothing settles, instead of stopping at 2000/ω_n.
+TEST(Verdicts, ASlowIntegratorIsGivenAHundredOfItsIntegralTimes)
+{
+  RunConfig c;
+  c.params.backlash = 0.05;
+  c.params.restitution = 0.5;
+  c.params.load_coulomb_friction = 0.02;
+  c.params.load_static_friction = 0.03;
+  c.drive.control_law = "pid";
+  c.drive.controller_rate = 100.0;
+  c.drive.derivative_gain = 0.3;
+  c.drive.integral_gain = 0.003;
+  const double integral_time = c.params.gain / c.drive.integral_gain;
+  EXPECT_DOUBLE_EQ(driveTimeScale(c), integral_time);
+  const RunSummary r = runResponse(c);
+  EXPECT_GT(2000.0 / c.params.naturalFrequency(), 5.0 * integral_time);  // (the plant's scale alone is shorter)
+  if (!r.settled)
+  {
+    EXPECT_NEAR(r.simulated, 100.0 * integral_time, 1e-6 * integral_time);
+  }
+  else
+  {
+    EXPECT_GT(r.simulated, 2000.0 / c.params.naturalFrequency());  // settled only thanks to the longer budget
+  }
+}
