@@ -10,8 +10,10 @@ pairs = []
 
 
 def on_state(msg):
-    if len(pairs) < 20:
-        pairs.append((rospy.Time.now().to_sec(), msg.header.stamp.to_sec()))
+    now = rospy.Time.now()
+    # Time zero: rospy has not received a /clock message yet (its subscription may connect after joint_states').
+    if len(pairs) < 20 and not now.is_zero():
+        pairs.append((now.to_sec(), msg.header.stamp.to_sec()))
 
 
 rospy.init_node("sim_time_probe", anonymous=True)
