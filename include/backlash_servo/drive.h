@@ -51,6 +51,9 @@ struct DriveParams
   std::string dither_shape = "square";  ///< dither: square | sine
 
   bool sampled() const { return controller_rate > 0.0; }
+  /// The thesis' law: continuous P, unsaturated, uncompensated — the Simulator's own law, the one loop ζ and ω_n
+  /// describe.
+  bool thesisLaw() const { return !sampled() && torque_limit == 0.0 && compensation == "none"; }
   /// Throws InvalidParameterError for combinations the model does not define (pid without a rate, …). In effort
   /// mode the encoders are the plant's (read by an external controller), so they need no controller_rate.
   void validate(ControlMode mode = ControlMode::Position) const;

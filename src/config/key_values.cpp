@@ -158,15 +158,6 @@ void KeyValues::setBoolean(const std::string& key, bool boolean)
   values_[key] = v;
 }
 
-void KeyValues::erase(std::string_view key)
-{
-  const auto it = values_.find(key);
-  if (it != values_.end())
-  {
-    values_.erase(it);
-  }
-}
-
 void KeyValues::overrideWith(const KeyValues& other)
 {
   for (const auto& kv : other.values_)

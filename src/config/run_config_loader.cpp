@@ -89,6 +89,17 @@ KeyValues driveKeyValues(const DriveParams& d)
   return kv;
 }
 
+void updateServoKeys(const KeyValues& kv, ServoParams* p)
+{
+  for (const ParamSpec* spec : paramsIn(ParamSection::Servo))
+  {
+    if (kv.has(spec->key))
+    {
+      p->*std::get<double ServoParams::*>(spec->field) = kv.number(spec->key);
+    }
+  }
+}
+
 void readDriveKeys(const KeyValues& kv, bool keep_absent, DriveParams* d)
 {
   for (const ParamSpec* spec : paramsIn(ParamSection::Drive))
@@ -115,7 +126,7 @@ void requireKnownKeys(const KeyValues& kv, const std::string& source)
   }
 }
 
-RunConfig runConfigFrom(const KeyValues& kv)
+RunConfig runConfigFrom(const KeyValues& kv, ControlMode mode)
 {
   RunConfig c;
   const bool chart = anyPresent(kv, true);
@@ -156,7 +167,7 @@ RunConfig runConfigFrom(const KeyValues& kv)
     c.params.validate();
   }
   readDriveKeys(kv, false, &c.drive);
-  c.drive.validate();
+  c.drive.validate(mode);
   c.command = realValue(kv, param("command"));
   if (kv.has("profile"))
   {

@@ -101,7 +101,7 @@ Simulator makeSimulator(const RunConfig& config)
   // With a profile the law starts from θ_R(t₀) (a digital drive's first sample reads it there).
   Simulator sim(config.params, config.initial, config.profile ? config.profile->at(t0) : command);
   // The simulator's own law is the thesis' plain P law; any other (digital, saturated, compensated) is the drive's.
-  if (config.drive.sampled() || config.drive.torque_limit > 0.0 || config.drive.compensation != "none")
+  if (!config.drive.thesisLaw())
   {
     sim.setDrive(makePositionDrive(config.drive, config.params.gain, config.params.gear_ratio, sim.command(), t0));
   }

@@ -15,7 +15,6 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
-#include <mutex>
 #include <sstream>
 #include <string>
 #include <thread>
@@ -184,11 +183,8 @@ std::string sweepCsv(const py::object& settings, bool thesis, int jobs, double m
     max_duration = kv.number("max_duration");
   }
   param("max_duration").check(max_duration);
+  grid.requireValidPoints();  // before any work: one clear message on the first bad point
   const std::size_t n = grid.size();
-  for (std::size_t i = 0; i < n; ++i)
-  {
-    grid.point(i).config();  // every point valid before any work (one clear message on the first bad one)
-  }
   const int threads = jobs > 0 ? jobs : static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
   std::string csv = grid.header() + "\n";
   std::atomic<bool> stop{false};
@@ -246,41 +242,20 @@ py::dict sweep(const py::object& settings, bool thesis, int jobs, double max_dur
 py::list compare(const std::string& path, int jobs)
 {
   const CompareConfig config = loadCompareConfig(path);
-  std::vector<CompareMetrics> metrics(config.strategies.size());
+  StrategyRuns runs;
   {
     py::gil_scoped_release release;
-    std::atomic<std::size_t> next{0};
     const int threads = jobs > 0 ? jobs : static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
-    std::vector<std::thread> pool;
-    std::string failure;
-    std::mutex failure_mutex;
-    for (int t = 0; t < threads; ++t)
+    runs = runStrategies(config.strategies, config.sample_rate, threads, false, nullptr);
+  }
+  for (std::size_t i = 0; i < runs.errors.size(); ++i)
+  {
+    if (!runs.errors[i].empty())
     {
-      pool.emplace_back([&] {
-        for (std::size_t i = next++; i < metrics.size(); i = next++)
-        {
-          try
-          {
-            const CompareStrategy& s = config.strategies[i];
-            metrics[i] = runStrategy(s.name, s.config, config.sample_rate, nullptr);
-          }
-          catch (const std::exception& e)
-          {
-            std::lock_guard<std::mutex> lock(failure_mutex);
-            failure = config.strategies[i].name + ": " + e.what();
-          }
-        }
-      });
-    }
-    for (std::thread& t : pool)
-    {
-      t.join();
-    }
-    if (!failure.empty())
-    {
-      throw std::runtime_error(failure);
+      throw std::runtime_error(config.strategies[i].name + ": " + runs.errors[i]);
     }
   }
+  const std::vector<CompareMetrics>& metrics = runs.metrics;
   py::list out;
   for (const CompareMetrics& m : metrics)
   {
@@ -380,26 +355,20 @@ class PySimulator
   /// (or start a fresh drive for a new law). Other keys are refused.
   void set(const py::dict& changes)
   {
-    KeyValues kv = keyValuesOf(changes);
-    ServoParams p = sim_.params();
-    DriveParams d = config_.drive;
+    const KeyValues kv = keyValuesOf(changes);
     bool drive_changed = false;
     for (const auto& [key, text] : kv.keys())
     {
-      const ParamSpec& spec = param(key);
-      if (spec.section == ParamSection::Servo)
-      {
-        p.*std::get<double ServoParams::*>(spec.field) = kv.number(key);
-      }
-      else if (spec.section == ParamSection::Drive)
-      {
-        drive_changed = true;
-      }
-      else
+      const ParamSection section = param(key).section;
+      if (section != ParamSection::Servo && section != ParamSection::Drive)
       {
         throw ConfigError(key + ": not a plant or drive key (set it when building the Simulator)");
       }
+      drive_changed = drive_changed || section == ParamSection::Drive;
     }
+    ServoParams p = sim_.params();
+    updateServoKeys(kv, &p);
+    DriveParams d = config_.drive;
     readDriveKeys(kv, true, &d);
     p.validate();
     d.validate();

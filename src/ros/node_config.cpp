@@ -131,21 +131,7 @@ NodeConfig loadNodeConfig(const ros::NodeHandle& pnh)
     }
   }
   NodeConfig c = nodeSettingsFrom(kv, NodeConfig());
-  if (c.control_mode == ControlMode::Effort)
-  {
-    // Effort mode has no drive of its own: the encoders are the plant's, read on encoder_states by an external
-    // controller at the publish rate, whatever controller_rate says.
-    KeyValues plant = kv;
-    plant.erase("motor_encoder_resolution");
-    plant.erase("load_encoder_resolution");
-    c.run = runConfigFrom(plant);
-    readDriveKeys(kv, true, &c.run.drive);
-    c.run.drive.validate(ControlMode::Effort);
-  }
-  else
-  {
-    c.run = runConfigFrom(kv);
-  }
+  c.run = runConfigFrom(kv, c.control_mode);
   return c;
 }
 

@@ -925,13 +925,7 @@ void ServoNode::onReconfigure(BacklashServoConfig& c, uint32_t)
   ServoParams p = sim_.params();
   try
   {
-    for (const ParamSpec* spec : paramsIn(ParamSection::Servo))
-    {
-      if (kv.has(spec->key))
-      {
-        p.*std::get<double ServoParams::*>(spec->field) = kv.number(spec->key);
-      }
-    }
+    updateServoKeys(kv, &p);
     p.validate();
     next = nodeSettingsFrom(kv, config_);
     readDriveKeys(kv, true, &next.run.drive);
@@ -949,16 +943,18 @@ void ServoNode::onReconfigure(BacklashServoConfig& c, uint32_t)
     return;
   }
   refused_.clear();
-  const bool drive_changed = driveKeyValues(next.run.drive).keys() != driveKeyValues(config_.run.drive).keys();
   // A live change of anything the joint's motion depends on (plant or drive, not the node's own settings) restarts
   // the judgement: the maxima before it belong to another joint. (Values compared as the exact text of each key.)
   const KeyValues before = keyValuesOf(last_good_);
   std::string changed;
+  bool drive_changed = false;
   for (const auto& [key, text] : kv.keys())
   {
-    if (findParam(key)->section != ParamSection::Node && before.text(key, "") != text)
+    const ParamSection section = findParam(key)->section;
+    if (section != ParamSection::Node && before.text(key, "") != text)
     {
       changed += (changed.empty() ? "" : ", ") + key;
+      drive_changed = drive_changed || section == ParamSection::Drive;
     }
   }
   if (next.control_mode != config_.control_mode)

@@ -2,14 +2,12 @@
 // See docs/workbench.md. The experiment file: include/backlash_servo/config/compare_config.h.
 #include <unistd.h>
 
-#include <atomic>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <fstream>
 #include <iostream>
 #include <memory>
-#include <mutex>
 #include <sstream>
 #include <string>
 #include <thread>
@@ -330,39 +328,13 @@ int main(int argc, char** argv)
     return 2;
   }
   const std::size_t n = runs.size();
-  std::vector<CompareMetrics> metrics(n);
-  std::vector<std::vector<CompareSample>> trajectories(n);
-  std::vector<std::string> errors(n);
-  std::atomic<std::size_t> next{0}, done{0};
-  std::mutex progress_mutex;
   Progress progress(isatty(2) != 0, 0.5);
-  auto worker = [&]() {
-    for (std::size_t i = next++; i < n; i = next++)
-    {
-      const CompareStrategy& s = runs[i];
-      try
-      {
-        const bool chart = !png_path.empty() && vary_text.empty();
-        metrics[i] = runStrategy(s.name, s.config, config.sample_rate, chart ? &trajectories[i] : nullptr);
-      }
-      catch (const std::exception& e)
-      {
-        errors[i] = e.what();
-      }
-      std::lock_guard<std::mutex> lock(progress_mutex);
-      progress.update(++done, n);
-    }
-  };
-  std::vector<std::thread> pool;
-  for (int j = 0; j < std::min<int>(jobs, static_cast<int>(n)); ++j)
-  {
-    pool.emplace_back(worker);
-  }
-  for (std::thread& t : pool)
-  {
-    t.join();
-  }
+  StrategyRuns done = runStrategies(runs, config.sample_rate, jobs, !png_path.empty() && vary_text.empty(),
+                                    [&](std::size_t k, std::size_t total) { progress.update(k, total); });
   progress.finish();
+  const std::vector<CompareMetrics>& metrics = done.metrics;
+  const std::vector<std::vector<CompareSample>>& trajectories = done.trajectories;
+  const std::vector<std::string>& errors = done.errors;
   for (std::size_t i = 0; i < n; ++i)
   {
     if (!errors[i].empty())

@@ -265,8 +265,7 @@ void describe(std::ostream& out, const char* title, const Evaluation& e, const s
   }
   // ζ and ω_n are the continuous P law's; for any other loop they describe the gain K alone, and are labelled so.
   const DriveParams& d = e.config.drive;
-  const bool continuous_p = !d.sampled() && d.torque_limit == 0.0 && d.compensation == "none";
-  const std::string chart = continuous_p ? "" : "chart of the continuous P law with this K (not this loop): ";
+  const std::string chart = d.thesisLaw() ? "" : "chart of the continuous P law with this K (not this loop): ";
   std::snprintf(buf, sizeof buf,
                 "%s: K = %.6g N·m/rad%s, rho = %.6g\n  %szeta = %.4g, w_n = %.4g rad/s, rho²J_L/J_m = %.4g, "
                 "rho²f_L/F_T = %.4g\n  simulated: %s",

@@ -121,12 +121,7 @@ SweepOptions parse(int argc, char** argv)
   {
     throw ConfigError("--resume needs --output FILE");
   }
-  // Validate every point before any output (one clear line on the first bad one).
-  const std::size_t n = o.grid.size();
-  for (std::size_t i = 0; i < n; ++i)
-  {
-    o.grid.point(i).config();
-  }
+  o.grid.requireValidPoints();  // before any output: one clear line on the first bad point
   return o;
 }
 

@@ -33,8 +33,7 @@ void writeRunJson(std::ostream& out, const RunConfig& c, const RunSummary& r, do
       .field("friction_ratio", p.frictionRatio())
       // ζ and ω_n describe the continuous P law (the thesis' chart); for a digital, saturated or compensated loop
       // they are those of its gain K alone, and this says so.
-      .field("zeta_describes_the_loop",
-             !c.drive.sampled() && c.drive.torque_limit == 0.0 && c.drive.compensation == "none")
+      .field("zeta_describes_the_loop", c.drive.thesisLaw())
       .endObject();
   const bool lc = r.status.verdict == Verdict::LimitCycle || r.status.verdict == Verdict::Irregular;
   j.field("verdict", std::string(toString(r.status.verdict)));

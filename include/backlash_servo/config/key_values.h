@@ -57,8 +57,6 @@ class KeyValues
   void setBoolean(const std::string& key, bool value);
   /// (A view: the parameter table's keys are looked up for every run's configuration without a string built.)
   bool has(std::string_view key) const { return values_.count(key) != 0; }
-  /// Removes a key (nothing when absent).
-  void erase(std::string_view key);
   /// Later sources override earlier ones: copies every value of other over this.
   void overrideWith(const KeyValues& other);
 

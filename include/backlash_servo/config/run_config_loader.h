@@ -19,9 +19,14 @@ namespace backlash_servo
 /**
  * Builds a RunConfig from key values. Throws ConfigError for mixed forms, missing chart keys, bad numbers or
  * choices, InvalidParameterError (naming key, value and range) for out-of-range values or a state that does not
- * fit the mesh.
+ * fit the mesh. `mode` is how the joint is driven: in effort mode the encoders are the plant's (read by an external
+ * controller), so they need no controller_rate (DriveParams::validate).
  */
-RunConfig runConfigFrom(const KeyValues& kv);
+RunConfig runConfigFrom(const KeyValues& kv, ControlMode mode = ControlMode::Position);
+
+/// The Servo keys present in kv into *p, absent ones left as they are (a live change); not validated here
+/// (ServoParams::validate).
+void updateServoKeys(const KeyValues& kv, ServoParams* p);
 
 /**
  * The drive keys of kv into *drive, range-checked: absent keys at their table defaults, or, with keep_absent, as

@@ -1,7 +1,10 @@
 #include "compare_metrics.h"
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
+#include <mutex>
+#include <thread>
 
 #include "backlash_servo/plant.h"
 #include "backlash_servo/simulator.h"
@@ -146,6 +149,48 @@ CompareMetrics runStrategy(const std::string& name, const RunConfig& config, dou
   }
   m.settling_band = band;
   return m;
+}
+
+StrategyRuns runStrategies(const std::vector<CompareStrategy>& strategies, double sample_rate, int jobs,
+                           bool trajectories, const std::function<void(std::size_t, std::size_t)>& on_done)
+{
+  const std::size_t n = strategies.size();
+  StrategyRuns out;
+  out.metrics.resize(n);
+  out.trajectories.resize(n);
+  out.errors.resize(n);
+  std::atomic<std::size_t> next{0};
+  std::size_t done = 0;
+  std::mutex done_mutex;
+  auto worker = [&]() {
+    for (std::size_t i = next++; i < n; i = next++)
+    {
+      const CompareStrategy& s = strategies[i];
+      try
+      {
+        out.metrics[i] = runStrategy(s.name, s.config, sample_rate, trajectories ? &out.trajectories[i] : nullptr);
+      }
+      catch (const std::exception& e)
+      {
+        out.errors[i] = e.what();
+      }
+      std::lock_guard<std::mutex> lock(done_mutex);
+      if (on_done)
+      {
+        on_done(++done, n);
+      }
+    }
+  };
+  std::vector<std::thread> pool;
+  for (int j = 0; j < std::min<int>(jobs, static_cast<int>(n)); ++j)
+  {
+    pool.emplace_back(worker);
+  }
+  for (std::thread& t : pool)
+  {
+    t.join();
+  }
+  return out;
 }
 
 }  // namespace backlash_servo

@@ -2,9 +2,12 @@
 #pragma once
 
 #include <cmath>
+#include <cstddef>
+#include <functional>
 #include <string>
 #include <vector>
 
+#include "backlash_servo/config/compare_config.h"
 #include "backlash_servo/step_response.h"
 
 namespace backlash_servo
@@ -42,6 +45,19 @@ constexpr long kMaxChartSamples = 20000;
 /// trajectory (if asked for) holds at most kMaxChartSamples + 1 of the samples, evenly strided.
 CompareMetrics runStrategy(const std::string& name, const RunConfig& config, double sample_rate,
                            std::vector<CompareSample>* trajectory);
+
+/// Every strategy's run, in the strategies' order: its metrics, its chart trajectory (when asked for) and its error
+/// message (empty when it ran).
+struct StrategyRuns
+{
+  std::vector<CompareMetrics> metrics;
+  std::vector<std::vector<CompareSample>> trajectories;
+  std::vector<std::string> errors;
+};
+
+/// Runs the strategies on `jobs` threads (runStrategy each); on_done(done, total) after each, under a lock.
+StrategyRuns runStrategies(const std::vector<CompareStrategy>& strategies, double sample_rate, int jobs,
+                           bool trajectories, const std::function<void(std::size_t, std::size_t)>& on_done);
 
 /// Column names of the metrics, in the order of CompareMetrics (the CSV header and the JSON keys).
 const std::vector<std::string>& metricNames();

@@ -204,6 +204,15 @@ SweepPoint SweepGrid::point(std::size_t index) const
   return p;
 }
 
+void SweepGrid::requireValidPoints() const
+{
+  const std::size_t n = size();
+  for (std::size_t i = 0; i < n; ++i)
+  {
+    point(i).config();
+  }
+}
+
 std::string SweepGrid::fingerprint() const
 {
   std::uint64_t h = 1469598103934665603ull;

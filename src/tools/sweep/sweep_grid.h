@@ -62,6 +62,8 @@ class SweepGrid
   std::size_t size() const;
   /// Point `index` in [0, size()): nested loops over the axes in column order, the last axis fastest.
   SweepPoint point(std::size_t index) const;
+  /// Builds every point's run before any work: throws (one clear message) on the first that is not valid.
+  void requireValidPoints() const;
   /// A fingerprint of the axes' keys and values, the fixed settings and the run signature (FNV-1a, hex): parts of
   /// one grid agree.
   std::string fingerprint() const;
