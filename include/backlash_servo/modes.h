@@ -68,6 +68,8 @@ class ContactMotion
   double restTime(double sign, double horizon) const;
   /// Times in (0, horizon] where the load velocity goes from + to − (positive maxima of θ_c), ascending.
   int velocityMaxima(double horizon, double* out, int max_out) const;
+  /// Times in (0, horizon] where the load velocity goes from − to + (minima of θ_c), ascending.
+  int velocityMinima(double horizon, double* out, int max_out) const;
   /// Energy flows over [0, tau].
   EnergyFlows energy(double tau) const;
   /// θ_c(τ) − θ_c(0) [rad], from the closed form (no difference of large positions).
@@ -85,6 +87,8 @@ class ContactMotion
   /// Down-crossings (from + to −) of signal × sign.
   int downCrossings(Signal signal, double sign, double horizon, bool require_positive_first, double* out,
                     int max_out) const;
+  /// Turning points of θ_c where sign·ω_c goes from + to − (sign = +1: maxima, −1: minima), ascending.
+  int velocityTurns(double sign, double horizon, double* out, int max_out) const;
 
   /// Separation where the mesh torque has a constant part (load torque): a damped sinusoid crossing a level.
   double levelSeparationTime(double side, double horizon) const;

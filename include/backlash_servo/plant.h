@@ -31,6 +31,8 @@ enum class EventType
   Separation,      ///< mesh torque reached zero and changed sign: teeth came apart (Δ = 0: pushing side flipped)
   Maximum,         ///< load velocity went from + to − (smoothly or at an impact): a maximum of θ_c (kinematic event
                    ///< located exactly by the plant; the response monitor decides what it means)
+  Minimum,         ///< load velocity went from − to +: a minimum of θ_c (located like Maximum; the monitor reads the
+                   ///< cycle's peak-to-peak amplitude and centre from both)
   Rest,            ///< a body with dry friction came to rest: it sticks or breaks away again (rest rule,
                    ///< dry_friction.h); also a stuck motor pulled free by the continuous law
   InputChange,     ///< command θ_R or motor torque changed
@@ -212,7 +214,7 @@ class Plant
     Segment() {}
     enum class End
     {
-      Restart,     ///< window end (or maxima buffer full): a new segment continues the same mode
+      Restart,     ///< window end (or extrema buffer full): a new segment continues the same mode
       Separation,  ///< the mesh torque changes sign: the teeth separate
       Impact,      ///< the gap reaches a wall
       Watch,       ///< θ_c leaves the watch interval: the drive switches its law
@@ -235,9 +237,15 @@ class Plant
     double end_tau = 0.0;  ///< local time of the end [s]
     End end = End::Restart;
     Contact wall = Contact::Forward;  ///< wall hit (Impact)
-    std::array<double, 16> maxima;    ///< local times of θ_c maxima in (0, end_tau] (set up to maxima_count)
-    int maxima_count = 0;
-    int maxima_emitted = 0;
+    /// A turning point of θ_c inside the segment: local time [s] and kind.
+    struct Extremum
+    {
+      double tau;
+      bool maximum;  ///< a maximum (ω_c from + to −), else a minimum
+    };
+    std::array<Extremum, 32> extrema;  ///< turning points of θ_c in (0, end_tau], ascending (up to extrema_count)
+    int extrema_count = 0;
+    int extrema_emitted = 0;
   };
 
   void addFlows(const EnergyFlows& flows);
@@ -283,7 +291,8 @@ class Plant
   static void visitMotion(const Segment& seg, F&& f);
   /// Places state_ (and, with_energy, the ledger) at local time tau of the current segment.
   void placeInSegment(double tau, bool with_energy = true);
-  void emitMaximaUpTo(double tau, EventSink* sink);
+  /// Sends the segment's maxima and minima at local times ≤ tau [s] not yet sent.
+  void emitExtremaUpTo(double tau, EventSink* sink);
   /// The event search window [s] of a segment beginning now: `window`, cut at the search horizon.
   double searchWindow(double window) const
   {
@@ -292,14 +301,14 @@ class Plant
   }
   /// Ends the segment early where θ_c leaves the watch interval.
   void applyWatch(Segment& seg) const;
-  /// Apart with the load free of dry friction: a maximum of θ_c where a load torque turns the load round inside the
-  /// segment (its velocity crosses zero from + to −) goes into the segment's maxima.
+  /// Apart with the load free of dry friction: a turning point of θ_c where a load torque turns the load round inside
+  /// the segment (a maximum when its velocity crosses zero from + to −, a minimum from − to +) goes into its extrema.
   void markLoadTurnaround(Segment& seg) const;
   /// After a short flight's impact, with the teeth apart: the following short flights ending before t_end [s]
   /// (elastic chatter, up to ~10⁵ impacts per second) taken one after another, each exactly as advanceTo's loop
   /// takes a flight segment, without building segments; returns at the first one it does not take.
   void chatter(double t_end, EventSink* sink, bool report);
-  /// `report`: send the Impact event (the sink wants it); a maximum at the impact goes to sink either way.
+  /// `report`: send the Impact event (the sink wants it); a maximum or minimum at the impact goes to sink either way.
   void handleImpact(Contact wall, EventSink* sink, bool report);
   /// handleImpact()'s error when the impacts exceed the event budget (out of line, off the chatter's path).
   [[noreturn]] void throwImpactBudget() const;

@@ -18,7 +18,9 @@
  */
 #pragma once
 
+#include <cmath>
 #include <cstddef>
+#include <deque>
 #include <vector>
 
 #include "backlash_servo/limit_cycle.h"
@@ -35,6 +37,15 @@ struct DriveParams;
  * K_v K_p (θ_R − θ_c) = −ρ T_ext, so θ_R + ρ T_ext / (K_v K_p).
  */
 double loopEquilibrium(const ServoParams& params, const DriveParams& drive, double command);
+
+/// The shape of a sustained oscillation of the load, read from its turning points over the last pattern period.
+struct CycleShape
+{
+  double peak_to_peak = NAN;  ///< highest minus lowest load position in the cycle [rad]; NaN: no sustained oscillation
+  double centre = NAN;        ///< midpoint of the two [rad] (an offset from θ_R shows a one-sided cycle)
+  double top = NAN;           ///< highest load position [rad]
+  double bottom = NAN;        ///< lowest load position [rad]
+};
 
 class ResponseMonitor : public EventSink
 {
@@ -58,9 +69,20 @@ class ResponseMonitor : public EventSink
   /// Judges afresh from `state` on (a profile has ended): maxima and verdict forgotten, the same command, scale and
   /// rules; the quiet clock starts at state.time.
   void restartAt(const State& state);
-  /// Maxima (EventType::Maximum) go to the detector; every other event is ignored.
+  /// Turning points of the load kept for cycleShape().
+  static constexpr std::size_t TURNS_KEPT = 4096;
+
+  /// Maxima (EventType::Maximum) go to the detector; maxima and minima are kept for cycleShape(); every other event
+  /// is ignored.
   void onEvent(const Event& event) override;
   bool wantsImpacts() const override { return false; }
+  /**
+   * The cycle's peak-to-peak amplitude and centre once the verdict is a sustained oscillation (NaN fields otherwise).
+   * Between two turning points θ_c is monotone, so its extremes over a window are the extreme turning points in it;
+   * the window is the last pattern period (a limit cycle), or the span of the last LimitCycleDetector::BAND_WINDOW
+   * (quasi-periodic) or IRREGULAR_WINDOW (irregular) maxima when that is longer, ending at the latest turning point.
+   */
+  CycleShape cycleShape() const;
   /// Where the loop comes to rest [rad] (loopEquilibrium).
   double equilibrium() const { return equilibrium_; }
   /// Applies the rest and quiet rules to the state at a check time. drive_winding: the drive's integrator still
@@ -92,7 +114,13 @@ class ResponseMonitor : public EventSink
   bool bands_;         // sampled drive or dry friction (LimitCycleDetector::allowBands)
   bool dry_friction_;  // no decay extrapolation (LimitCycleDetector::extrapolateDecay)
   LimitCycleDetector detector_;
-  double longest_ = 0.0;  // longest interval between successive maxima so far [s]
+  struct Turn
+  {
+    double time;      // [s]
+    double position;  // θ_c [rad]
+  };
+  std::deque<Turn> turns_;  // the latest TURNS_KEPT maxima and minima of θ_c, in time order
+  double longest_ = 0.0;    // longest interval between successive maxima so far [s]
   std::size_t intervals_seen_ = 0;
 };
 

@@ -42,6 +42,8 @@ struct RunSummary
 {
   LimitCycleReport status;
   std::vector<Maximum> maxima;  ///< positive maxima above the command, in time order (a profile: from its end on)
+  CycleShape
+      cycle;  ///< a sustained oscillation's peak-to-peak amplitude and centre [rad] (ResponseMonitor::cycleShape)
   std::uint64_t impacts = 0;
   EnergyLedger energy;
   double kinetic = 0.0;        ///< kinetic energy at the end [J]

@@ -458,15 +458,15 @@ double ContactMotion::restTime(double sign, double horizon) const
   return downCrossings(Signal::LoadVelocity, sign, horizon, true, &t, 1) == 1 ? t : INF;
 }
 
-int ContactMotion::velocityMaxima(double horizon, double* out, int max_out) const
+int ContactMotion::velocityTurns(double sign, double horizon, double* out, int max_out) const
 {
   if (slow_effort_)
   {
-    // ω is monotone: a maximum of θ_c needs ω going from clearly + to clearly −.
+    // ω is monotone: a turning point of θ_c needs sign·ω going from clearly + to clearly −.
     double x, v_end;
     at(horizon, &x, &v_end);
     const double bound = 64.0 * EPS * (std::fabs(v0_) + std::fabs(r_) * horizon);
-    if (max_out < 1 || !(v0_ > bound) || !(v_end < -bound))
+    if (max_out < 1 || !(sign * v0_ > bound) || !(sign * v_end < -bound))
     {
       return 0;
     }
@@ -474,7 +474,17 @@ int ContactMotion::velocityMaxima(double horizon, double* out, int max_out) cons
     out[0] = t < INF ? t : horizon;
     return 1;
   }
-  return downCrossings(Signal::LoadVelocity, 1.0, horizon, true, out, max_out);
+  return downCrossings(Signal::LoadVelocity, sign, horizon, true, out, max_out);
+}
+
+int ContactMotion::velocityMaxima(double horizon, double* out, int max_out) const
+{
+  return velocityTurns(1.0, horizon, out, max_out);
+}
+
+int ContactMotion::velocityMinima(double horizon, double* out, int max_out) const
+{
+  return velocityTurns(-1.0, horizon, out, max_out);
 }
 
 double ContactMotion::exitTime(double lo, double hi, double horizon) const

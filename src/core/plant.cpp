@@ -33,12 +33,12 @@ constexpr double PI = 3.14159265358979323846;
 double loadTurnaround(const ServoParams& p, double v0, double horizon)
 {
   const double t = p.load_torque;
-  if (!(v0 > 0.0) || !(t < 0.0))
+  if (!((v0 > 0.0 && t < 0.0) || (v0 < 0.0 && t > 0.0)))
   {
     return INFINITY;
   }
-  const double x = v0 * p.load_friction / -t;
-  const double tau = v0 * p.load_inertia / -t * (x > 0.0 ? std::log1p(x) / x : 1.0);
+  const double x = std::fabs(v0) * p.load_friction / std::fabs(t);
+  const double tau = std::fabs(v0) * p.load_inertia / std::fabs(t) * (x > 0.0 ? std::log1p(x) / x : 1.0);
   return tau > 0.0 && tau <= horizon ? tau : INFINITY;
 }
 
@@ -96,6 +96,8 @@ const char* toString(EventType t)
       return "separation";
     case EventType::Maximum:
       return "maximum";
+    case EventType::Minimum:
+      return "minimum";
     case EventType::Rest:
       return "rest";
     case EventType::InputChange:
@@ -376,14 +378,14 @@ bool Plant::advanceTo(double t_end, EventSink* sink)
     {
       // t_end falls inside the segment: evaluate there, keep the segment anchored where it began.
       const double tau = t_end - seg.start.time;
-      emitMaximaUpTo(tau, sink);
+      emitExtremaUpTo(tau, sink);
       placeInSegment(tau);
       state_.time = t_end;
       return false;
     }
     const double before = state_.time;
     const double ended_after = seg.end_tau;
-    emitMaximaUpTo(seg.end_tau, sink);
+    emitExtremaUpTo(seg.end_tau, sink);
     placeInSegment(seg.end_tau);
     state_.time = end_time;
     const Segment::End end = seg.end;
@@ -564,11 +566,24 @@ void Plant::beginSegment()
     const double separation = m.separationTime(GearMesh::pressingSign(wall), window);
     double end = std::min(separation, window);
     seg.end = separation <= window ? Segment::End::Separation : Segment::End::Restart;
-    seg.maxima_count = m.velocityMaxima(end, seg.maxima.data(), static_cast<int>(seg.maxima.size()));
-    if (seg.maxima_count == static_cast<int>(seg.maxima.size()) && seg.maxima[seg.maxima_count - 1] < end)
+    constexpr int room = static_cast<int>(std::tuple_size<decltype(seg.extrema)>::value / 2);
+    double maxima[room], minima[room];
+    const int n_max = m.velocityMaxima(end, maxima, room);
+    const int n_min = m.velocityMinima(end, minima, room);
+    for (const auto& [times, n] : {std::pair<const double*, int>{maxima, n_max}, {minima, n_min}})
     {
-      end = seg.maxima[seg.maxima_count - 1];  // restart there; later maxima are found by the next segment
-      seg.end = Segment::End::Restart;
+      if (n == room && times[n - 1] < end)
+      {
+        end = times[n - 1];  // restart there; later turning points are found by the next segment
+        seg.end = Segment::End::Restart;
+      }
+    }
+    int i = 0, j = 0;
+    while ((i < n_max && maxima[i] <= end) || (j < n_min && minima[j] <= end))
+    {
+      const bool take_max = j >= n_min || minima[j] > end || (i < n_max && maxima[i] <= end && maxima[i] < minima[j]);
+      seg.extrema[seg.extrema_count++] =
+          take_max ? Segment::Extremum{maxima[i++], true} : Segment::Extremum{minima[j++], false};
     }
     seg.end_tau = end;
     applyWatch(seg);
@@ -809,9 +824,10 @@ void Plant::handleRest(const Segment& seg, EventSink* sink)
   {
     state_.load_velocity = 0.0;
   }
-  if (load_stops && seg.load_slide > 0)
+  if (load_stops && seg.load_slide != 0)
   {
-    emit(sink, EventType::Maximum);  // a maximum of θ_c where the load comes to rest (docs/model.md Part 2)
+    // a turning point of θ_c where the load comes to rest (docs/model.md Part 2)
+    emit(sink, seg.load_slide > 0 ? EventType::Maximum : EventType::Minimum);
   }
   emit(sink, EventType::Rest);
 }
@@ -821,8 +837,8 @@ void Plant::markLoadTurnaround(Segment& seg) const
   const double tau = loadTurnaround(params_, seg.start.load_velocity, seg.end_tau);
   if (tau <= seg.end_tau)
   {
-    seg.maxima[0] = tau;
-    seg.maxima_count = 1;
+    seg.extrema[0] = {tau, seg.start.load_velocity > 0.0};
+    seg.extrema_count = 1;
   }
 }
 
@@ -890,20 +906,21 @@ void Plant::placeInSegment(double tau, bool with_energy)
   state_.time = t;
 }
 
-void Plant::emitMaximaUpTo(double tau, EventSink* sink)
+void Plant::emitExtremaUpTo(double tau, EventSink* sink)
 {
   Segment& seg = *segment_;
-  while (seg.maxima_emitted < seg.maxima_count && seg.maxima[seg.maxima_emitted] <= tau)
+  while (seg.extrema_emitted < seg.extrema_count && seg.extrema[seg.extrema_emitted].tau <= tau)
   {
     if (sink != nullptr)
     {
+      const Segment::Extremum& x = seg.extrema[seg.extrema_emitted];
       const State keep = state_;
-      placeInSegment(seg.maxima[seg.maxima_emitted], false);  // an event carries the state, not the ledger
-      state_.time = seg.start.time + seg.maxima[seg.maxima_emitted];
-      emit(sink, EventType::Maximum);
+      placeInSegment(x.tau, false);  // an event carries the state, not the ledger
+      state_.time = seg.start.time + x.tau;
+      emit(sink, x.maximum ? EventType::Maximum : EventType::Minimum);
       state_ = keep;
     }
-    ++seg.maxima_emitted;
+    ++seg.extrema_emitted;
   }
 }
 
@@ -1008,6 +1025,10 @@ void Plant::handleImpact(Contact wall, EventSink* sink, bool report)
   if (v > 0.0 && o.load_velocity <= 0.0)
   {
     emit(sink, EventType::Maximum);
+  }
+  else if (v < 0.0 && o.load_velocity >= 0.0)
+  {
+    emit(sink, EventType::Minimum);
   }
 }
 

@@ -11,6 +11,19 @@ namespace
 {
 constexpr double PI = 3.14159265358979323846;
 
+/// Aitken's Δ² limit of three successive values approaching it geometrically (contraction ratio in (−1, 1)); the
+/// latest value otherwise.
+double aitken(const double x[3])
+{
+  const double d1 = x[1] - x[0], d2 = x[2] - x[1];
+  const double den = d2 - d1;
+  if (den == 0.0 || d1 == 0.0 || !(std::fabs(d2 / d1) < 1.0))
+  {
+    return x[2];
+  }
+  return x[2] - d2 * d2 / den;
+}
+
 double scaleOf(const ServoParams& params, double command, double equilibrium, const State& start)
 {
   return std::max({params.backlash, std::fabs(command - start.load_position), std::fabs(equilibrium - command), 1e-12});
@@ -58,14 +71,93 @@ void ResponseMonitor::restartAt(const State& state)
   detector_.setMinimumSpacing(1e-3 * 2.0 * PI / omega_n_);
   longest_ = 0.0;
   intervals_seen_ = 0;
+  turns_.clear();
 }
 
 void ResponseMonitor::onEvent(const Event& e)
 {
+  if (e.type != EventType::Maximum && e.type != EventType::Minimum)
+  {
+    return;
+  }
   if (e.type == EventType::Maximum)
   {
     detector_.addMaximum({e.state.time, e.state.load_position, e.state.load_velocity});
   }
+  if (turns_.size() == TURNS_KEPT)
+  {
+    turns_.pop_front();
+  }
+  turns_.push_back({e.state.time, e.state.load_position});
+}
+
+CycleShape ResponseMonitor::cycleShape() const
+{
+  CycleShape shape;
+  const LimitCycleReport& r = detector_.status();
+  if (!detector_.oscillating() || turns_.empty())
+  {
+    return shape;
+  }
+  double window = r.period;
+  const std::vector<Maximum>& m = detector_.judged();
+  if ((r.quasi_periodic || r.verdict == Verdict::Irregular) && !m.empty())
+  {
+    const std::size_t span =
+        std::min<std::size_t>(m.size() - 1, r.verdict == Verdict::Irregular ? LimitCycleDetector::IRREGULAR_WINDOW
+                                                                            : LimitCycleDetector::BAND_WINDOW);
+    window = std::max(window, m.back().time - m[m.size() - 1 - span].time);
+  }
+  // The windows' edges fall half the shortest spacing of the last period's turning points after a turning point, so
+  // that a window of one period holds each turning point of the pattern exactly once.
+  const double last = turns_.back().time;
+  double shortest = window;
+  for (std::size_t i = turns_.size() - 1; i > 0 && turns_[i].time > last - window; --i)
+  {
+    shortest = std::min(shortest, turns_[i].time - turns_[i - 1].time);
+  }
+  const double edge = last + 0.5 * shortest;
+  // Highest and lowest turning point over the window of one `window` ending `back` windows before `edge`; false when
+  // the window reaches beyond the turning points kept.
+  auto extremes = [&](int back, double* top, double* bottom) {
+    const double to = edge - back * window;
+    const double from = to - window;
+    *top = -INFINITY;
+    *bottom = INFINITY;
+    bool complete = false;
+    for (auto it = turns_.rbegin(); it != turns_.rend(); ++it)
+    {
+      if (it->time <= from)
+      {
+        complete = true;
+        break;
+      }
+      if (it->time <= to)
+      {
+        *top = std::max(*top, it->position);
+        *bottom = std::min(*bottom, it->position);
+      }
+    }
+    return complete && *top >= *bottom;
+  };
+  double top, bottom;
+  extremes(0, &top, &bottom);
+  double tops[3], bottoms[3];
+  if (!r.quasi_periodic && r.verdict == Verdict::LimitCycle && extremes(1, &tops[1], &bottoms[1]) &&
+      extremes(2, &tops[0], &bottoms[0]))
+  {
+    // A limit cycle's figures are its fixed point (as limit_cycle_error is): the last three periods' extremes
+    // extrapolated by Aitken's Δ² where they still approach it geometrically.
+    tops[2] = top;
+    bottoms[2] = bottom;
+    top = aitken(tops);
+    bottom = aitken(bottoms);
+  }
+  shape.top = top;
+  shape.bottom = bottom;
+  shape.peak_to_peak = top - bottom;
+  shape.centre = 0.5 * (top + bottom);
+  return shape;
 }
 
 void ResponseMonitor::check(const State& s, bool drive_winding, bool at_rest_forever)

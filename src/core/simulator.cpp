@@ -76,9 +76,9 @@ class FrameSink : public EventSink
   {}
   void onEvent(const Event& e) override
   {
-    if (e.type == EventType::Maximum)
+    if (e.type == EventType::Maximum || e.type == EventType::Minimum)
     {
-      return;  // ẏ_c = 0 is not a maximum of θ_c
+      return;  // ẏ_c = 0 is not a turning point of θ_c
     }
     Event c = e;
     const double tau = c.state.time - t_a_;

@@ -217,6 +217,7 @@ RunSummary runResponse(const RunConfig& config, EventSink* sink, double sample_p
     out.status.verdict = Verdict::Diverged;
   }
   out.maxima = monitor.maxima();
+  out.cycle = monitor.cycleShape();
   out.impacts = sim.impactCount();
   out.energy = sim.energy();
   if (!sim.energyValid())

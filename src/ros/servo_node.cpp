@@ -431,6 +431,9 @@ void ServoNode::diagnose(diagnostic_updater::DiagnosticStatusWrapper& status)
     status.add("limit_cycle_error [rad]", formatNumber(verdict.error));
     status.add("period [s]", formatNumber(verdict.period));
     status.add("maxima_per_period", std::to_string(verdict.multiplicity));
+    const CycleShape cycle = monitor_->cycleShape();
+    status.add("peak_to_peak [rad]", formatNumber(cycle.peak_to_peak));
+    status.add("cycle_centre [rad]", formatNumber(cycle.centre));
   }
   if (verdict.verdict == Verdict::Converged)
   {
@@ -568,6 +571,10 @@ void ServoNode::onEvent(const Event& e)
     }
     publishLimitCycle(e.state.time, true);
   }
+  else if (e.type == EventType::Minimum)
+  {
+    monitor_->onEvent(e);  // the cycle's lowest points (peak to peak, centre)
+  }
 }
 
 void ServoNode::publishLimitCycle(double sim_time, bool maximum, bool diverged)
@@ -580,6 +587,11 @@ void ServoNode::publishLimitCycle(double sim_time, bool maximum, bool diverged)
   m.detected = monitor_->oscillating();
   m.error = m.detected ? st.error : 0.0;
   m.period = m.detected ? st.period : 0.0;
+  m.maxima_per_period = m.detected ? static_cast<uint32_t>(st.multiplicity) : 0;
+  const CycleShape cycle = monitor_->cycleShape();
+  m.peak_to_peak = m.detected ? cycle.peak_to_peak : 0.0;
+  m.cycle_centre = m.detected ? cycle.centre : 0.0;
+  m.equilibrium = monitor_->equilibrium();
   m.maxima_observed = static_cast<uint32_t>(monitor_->maxima().size());
   if (!monitor_->maxima().empty())
   {
@@ -605,8 +617,9 @@ void ServoNode::publishLimitCycle(double sim_time, bool maximum, bool diverged)
     announced_ = st.verdict;
     if (m.detected)
     {
-      ROS_INFO("%s detected: error %.6f rad, period %.4f s",
-               st.verdict == Verdict::LimitCycle ? "LIMIT CYCLE" : "IRREGULAR OSCILLATION", st.error, st.period);
+      ROS_INFO("%s detected: error %.6f rad, period %.4f s; load %.6f rad peak to peak about %.6f rad",
+               st.verdict == Verdict::LimitCycle ? "LIMIT CYCLE" : "IRREGULAR OSCILLATION", st.error, st.period,
+               m.peak_to_peak, m.cycle_centre);
     }
     else if (st.verdict == Verdict::Converged)
     {

@@ -29,9 +29,11 @@ namespace
 const char* USAGE = R"(usage: backlash_compare --config FILE.yaml [--vary KEY=START:STOP:COUNT [--absolute]] [--json]
                         [--csv FILE] [--png FILE] [--jobs N]
 Runs every strategy of the experiment file (one joint, one command profile, a list of control laws and
-compensators) and prints a table of metrics (SI units): verdict, limit-cycle error [rad] and period [s], steady
-error [rad], settling time [s] (2 % band), RMS and max tracking error [rad], overshoot [rad], impacts per second,
-impact energy per second [W], peak and RMS motor torque [N·m].
+compensators) and prints a table of metrics (SI units): verdict, limit-cycle error [rad], period [s] of the whole
+pattern and the load's peak-to-peak amplitude [rad] in the cycle (the JSON and CSV also its centre), steady error
+[rad], settling time [s] into the settling band (`settling_band`, default the joint's resolution), RMS tracking error
+over the run and after the transient, max tracking error [rad], overshoot [rad], impacts per second, impact energy
+per second [W], peak and RMS motor torque [N·m].
   --json       print {"strategies": [{...}, ...]} instead of the table (null where a metric does not apply)
   --csv FILE   also write the table as CSV
   --png FILE   also draw trajectories, tracking errors and one bar chart per metric (matplotlib)
@@ -413,22 +415,23 @@ int main(int argc, char** argv)
   {
     const bool varied = !vary_text.empty();
     char buf[400];
-    std::snprintf(buf, sizeof buf, "%-28s %-11s%-22s %9s %8s %9s %8s %9s %9s %9s %9s %9s %9s %8s %8s\n", "strategy",
-                  varied ? vary.key.substr(0, 10).c_str() : "", "verdict", "lc err", "period", "steady", "settle",
-                  "rms err", "steady rms", "max err", "overshoot", "impacts/s", "E_imp/s", "peak T", "rms T");
+    std::snprintf(buf, sizeof buf, "%-28s %-11s%-22s %9s %8s %9s %9s %8s %9s %9s %9s %9s %9s %9s %8s %8s\n", "strategy",
+                  varied ? vary.key.substr(0, 10).c_str() : "", "verdict", "lc err", "period", "p-p", "steady",
+                  "settle", "rms err", "steady rms", "max err", "overshoot", "impacts/s", "E_imp/s", "peak T", "rms T");
     out << buf;
     out << "  (" << (varied ? "value in SI units; " : "")
-        << "rad, s, rad, s, rad, rad, rad, rad, 1/s, W, N·m, N·m; '-': does not apply; settling band "
+        << "rad, s, rad, rad, s, rad, rad, rad, rad, 1/s, W, N·m, N·m; '-': does not apply; settling band "
         << cell(metrics.empty() ? NAN : metrics.front().settling_band) << " rad)\n";
     for (std::size_t i = 0; i < n; ++i)
     {
       const CompareMetrics& m = metrics[i];
-      std::snprintf(buf, sizeof buf, "%-28s %-11s%-22s %9s %8s %9s %8s %9s %9s %9s %9s %9s %9s %8s %8s\n",
+      std::snprintf(buf, sizeof buf, "%-28s %-11s%-22s %9s %8s %9s %9s %8s %9s %9s %9s %9s %9s %9s %8s %8s\n",
                     m.name.substr(0, 28).c_str(), varied ? cell(run_values[i]).c_str() : "", m.verdict.c_str(),
-                    cell(m.limit_cycle_error).c_str(), cell(m.period).c_str(), cell(m.steady_error).c_str(),
-                    cell(m.settling_time).c_str(), cell(m.rms_error).c_str(), cell(m.steady_rms_error).c_str(),
-                    cell(m.max_error).c_str(), cell(m.overshoot).c_str(), cell(m.impacts_per_second).c_str(),
-                    cell(m.impact_energy_per_second).c_str(), cell(m.peak_torque).c_str(), cell(m.rms_torque).c_str());
+                    cell(m.limit_cycle_error).c_str(), cell(m.period).c_str(), cell(m.peak_to_peak).c_str(),
+                    cell(m.steady_error).c_str(), cell(m.settling_time).c_str(), cell(m.rms_error).c_str(),
+                    cell(m.steady_rms_error).c_str(), cell(m.max_error).c_str(), cell(m.overshoot).c_str(),
+                    cell(m.impacts_per_second).c_str(), cell(m.impact_energy_per_second).c_str(),
+                    cell(m.peak_torque).c_str(), cell(m.rms_torque).c_str());
       out << buf;
     }
   }

@@ -275,8 +275,11 @@ void describe(std::ostream& out, const char* title, const Evaluation& e, const s
   out << buf;
   if (e.run.status.verdict == Verdict::LimitCycle || e.run.status.verdict == Verdict::Irregular)
   {
-    std::snprintf(buf, sizeof buf, ", error %.6g rad (%.3g × backlash), period %.6g s", e.run.status.error,
-                  e.run.status.error / p.backlash, e.run.status.period);
+    std::snprintf(buf, sizeof buf,
+                  ", error %.6g rad (%.3g × backlash), period %.6g s (%d maxima per period); load %.6g rad peak to "
+                  "peak about %.9g rad",
+                  e.run.status.error, e.run.status.error / p.backlash, e.run.status.period, e.run.status.multiplicity,
+                  e.run.cycle.peak_to_peak, e.run.cycle.centre);
     out << buf;
   }
   out << "\n";
@@ -300,7 +303,16 @@ void evaluationJson(JsonWriter& j, const char* key, const Evaluation& e, const s
       .field("limit_cycle", lc)
       .field("limit_cycle_error", lc ? e.run.status.error : 0.0)
       .field("period", lc ? e.run.status.period : 0.0)
-      .endObject();
+      .field("maxima_per_period", static_cast<long long>(lc ? e.run.status.multiplicity : 0));
+  if (lc)
+  {
+    j.field("peak_to_peak", e.run.cycle.peak_to_peak).field("cycle_centre", e.run.cycle.centre);
+  }
+  else
+  {
+    j.null("peak_to_peak").null("cycle_centre");
+  }
+  j.endObject();
 }
 }  // namespace
 

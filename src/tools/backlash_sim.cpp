@@ -77,9 +77,9 @@ void writeSummary(std::ostream& out, const RunConfig& c, const RunSummary& r, do
   char buf[512];
   // ζ and ω_n are those of the continuous P law (the thesis' chart form); for any other loop they describe the gain K
   // alone, and are labelled so.
-  const bool continuous_p = !c.drive.sampled() && c.drive.compensation == "none";
   const std::string chart =
-      continuous_p ? "chart" : "chart of the continuous P law with this K (not this " + c.drive.control_law + " loop)";
+      c.drive.thesisLaw() ? "chart"
+                          : "chart of the continuous P law with this K (not this " + c.drive.control_law + " loop)";
   std::snprintf(buf, sizeof buf,
                 "servo: J_m=%g J_L=%g kg·m², f_m=%g f_L=%g N·m·s/rad, K=%g N·m/rad, rho=%g, backlash=%g rad, e=%g\n"
                 "%s: zeta=%.4g  w_n=%.4g rad/s  rho²J_L/J_m=%.4g  rho²f_L/F_T=%.4g;  command %g -> %g rad%s\n",
@@ -90,15 +90,17 @@ void writeSummary(std::ostream& out, const RunConfig& c, const RunSummary& r, do
   out << buf;
   if (r.status.verdict == Verdict::LimitCycle)
   {
-    std::snprintf(buf, sizeof buf, "verdict: LIMIT CYCLE, error %.6g rad, period %.6g s (%d maxima per period)\n",
-                  r.status.error, r.status.period, r.status.multiplicity);
+    std::snprintf(buf, sizeof buf,
+                  "verdict: LIMIT CYCLE, error %.6g rad, period %.6g s (%d maxima per period); load %.6g rad peak to "
+                  "peak about %.9g rad\n",
+                  r.status.error, r.status.period, r.status.multiplicity, r.cycle.peak_to_peak, r.cycle.centre);
   }
   else if (r.status.verdict == Verdict::Irregular)
   {
     std::snprintf(buf, sizeof buf,
                   "verdict: IRREGULAR sustained oscillation (maxima never settle), largest error %.6g rad, "
-                  "mean time between maxima %.6g s\n",
-                  r.status.error, r.status.period);
+                  "mean time between maxima %.6g s; load %.6g rad peak to peak about %.9g rad\n",
+                  r.status.error, r.status.period, r.cycle.peak_to_peak, r.cycle.centre);
   }
   else if (r.status.verdict == Verdict::Converged)
   {

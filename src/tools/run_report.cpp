@@ -50,6 +50,15 @@ void writeRunJson(std::ostream& out, const RunConfig& c, const RunSummary& r, do
     j.null("period");
   }
   j.field("maxima_per_period", static_cast<long long>(r.status.multiplicity));
+  // The load's peak-to-peak amplitude in the cycle and the cycle's centre [rad] (sustained oscillations only).
+  if (lc)
+  {
+    j.field("peak_to_peak", r.cycle.peak_to_peak).field("cycle_centre", r.cycle.centre);
+  }
+  else
+  {
+    j.null("peak_to_peak").null("cycle_centre");
+  }
   j.field("equilibrium", r.equilibrium);  // where the loop rests [rad]; the verdict judges maxima against it
   if (r.status.verdict == Verdict::Converged)
   {

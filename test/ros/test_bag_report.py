@@ -46,6 +46,14 @@ class BagReport(unittest.TestCase):
         # Estimated from the 100 Hz samples alone (parabola through the samples around each maximum).
         self.assertAlmostEqual(report["from_samples"]["error"], cli["limit_cycle_error"], delta=2e-4)
         self.assertAlmostEqual(report["from_samples"]["period"], cli["period"], delta=0.05)
+        # The cycle's shape: the node's (exact turning points) is the CLI's; the samples' agrees to the sampling.
+        self.assertEqual(node["peak_to_peak"], last.peak_to_peak)
+        self.assertEqual(node["maxima_per_period"], 1)
+        self.assertAlmostEqual(node["peak_to_peak"], cli["peak_to_peak"], delta=1e-6)
+        self.assertAlmostEqual(node["cycle_centre"], cli["cycle_centre"], delta=1e-6)
+        self.assertEqual(report["from_samples"]["maxima_per_period"], 1)
+        self.assertAlmostEqual(report["from_samples"]["peak_to_peak"], cli["peak_to_peak"], delta=1e-3)
+        self.assertAlmostEqual(report["from_samples"]["cycle_centre"], cli["cycle_centre"], delta=1e-3)
         self.assertNotEqual(torn.returncode, 0)
 
 
@@ -233,6 +241,36 @@ class BagReportStretches(unittest.TestCase):
             self.assertAlmostEqual(stretch["from_samples"]["period"], period, delta=1e-3)
             self.assertAlmostEqual(stretch["rms_error"], amp / math.sqrt(2.0), delta=1e-3)
         self.assertIn("2 stretches between changes", text)
+
+    def test_a_pattern_of_two_maxima(self):
+        """x = 0.04 cos(2πt/P) + 0.03 cos(4πt/P + 1): two unequal maxima per period P = 1.6 s. The report finds the
+        pattern (2 maxima per period, its period P, not the spacing of maxima) and its peak to peak, checked against
+        the curve's own extremes over a period evaluated on a fine grid here."""
+        import math
+        import rospy
+        from backlash_servo.msg import BacklashState
+        from sensor_msgs.msg import JointState
+        P = 1.6
+        x = lambda t: 0.04 * math.cos(2 * math.pi * t / P) + 0.03 * math.cos(4 * math.pi * t / P + 1.0)
+        fine = [x(i * P / 100000) for i in range(100000)]
+        with tempfile.TemporaryDirectory() as d:
+            path = os.path.join(d, "pattern.bag")
+            with rosbag.Bag(path, "w") as bag:
+                for i in range(1601):
+                    t = i * 0.01
+                    stamp = rospy.Time(t + 1.0)
+                    js = JointState(name=["motor_joint", "load_joint"], position=[x(t), x(t)], velocity=[0.0, 0.0])
+                    js.header.stamp = stamp
+                    bag.write("/joint_states", js, stamp)
+                    bag.write("/backlash_state", BacklashState(sim_time=t, command=-0.2, gap=0.0), stamp)
+            out = subprocess.run(["/usr/bin/python3", REPORT, path, "--json"], check=True, capture_output=True,
+                                 text=True).stdout
+        est = json.loads(out)["from_samples"]
+        self.assertEqual(est["maxima_per_period"], 2)
+        self.assertAlmostEqual(est["period"], P, delta=2e-3)
+        self.assertAlmostEqual(est["peak_to_peak"], max(fine) - min(fine), delta=1e-4)
+        self.assertAlmostEqual(est["cycle_centre"], 0.5 * (max(fine) + min(fine)), delta=1e-4)
+        self.assertAlmostEqual(est["error"], max(fine) + 0.2, delta=1e-5)
 
 
 if __name__ == "__main__":

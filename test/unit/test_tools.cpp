@@ -39,6 +39,10 @@ std::vector<std::vector<std::string>> csvRows(const std::string& text)
     {
       cells.push_back(cell);
     }
+    if (!line.empty() && line.back() == ',')
+    {
+      cells.emplace_back();  // a trailing empty cell
+    }
     rows.push_back(cells);
   }
   return rows;
@@ -82,13 +86,23 @@ TEST(Sweep, EveryRowEqualsASingleBacklashSimRun)
   int cycles = 0;
   for (const auto& r : rows)
   {
-    ASSERT_EQ(r.size(), 14u);  // (steady_error: empty unless converged; then maxima_per_period)
+    ASSERT_EQ(r.size(), 16u);  // (steady_error: empty unless converged; maxima_per_period; the cycle's shape)
     const std::string json = runCapture(SIM + " --json --zeta " + r[0] + " --inertia-ratio " + r[1] +
                                         " --friction-ratio " + r[2] + " --restitution " + r[3] + " --backlash " + r[4]);
     EXPECT_EQ(r[5], jsonText(json, "verdict")) << r[0] << " " << r[1] << " " << r[3];
     EXPECT_EQ(std::stod(r[7]), jsonNumber(json, "limit_cycle_error"));
     EXPECT_EQ(std::stoull(r[9]), static_cast<unsigned long long>(jsonNumber(json, "impacts")));
     EXPECT_EQ(std::stoi(r[13]), r[6] == "1" ? static_cast<int>(jsonNumber(json, "maxima_per_period")) : 0);
+    if (r[6] == "1")
+    {
+      EXPECT_EQ(std::stod(r[14]), jsonNumber(json, "peak_to_peak"));
+      EXPECT_EQ(std::stod(r[15]), jsonNumber(json, "cycle_centre"));
+    }
+    else
+    {
+      EXPECT_EQ(r[14], "");
+      EXPECT_EQ(r[15], "");
+    }
     cycles += r[6] == "1";
   }
   EXPECT_GT(cycles, 0);

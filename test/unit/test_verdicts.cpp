@@ -1,12 +1,14 @@
 // Verdicts of real joints against independent truth: a decay onto an offset equilibrium (closed-form ratio and
 // limit), a joint held by stiction under a frozen integrator (a continued run that does not move), and an error at
-// the rounding level of the positions that is not a winding integrator.
+// the rounding level of the positions that is not a winding integrator; the exact minima of the load, and a cycle's
+// peak to peak and centre against a dense sampling of it.
 #include <gtest/gtest.h>
 
 #include <cmath>
 
 #include "backlash_servo/simulator.h"
 #include "backlash_servo/step_response.h"
+#include "test_helpers.h"
 
 namespace
 {
@@ -340,3 +342,85 @@ TEST(Verdicts, ASlowIntegratorIsGivenAHundredOfItsIntegralTimes)
     EXPECT_GT(r.simulated, 2000.0 / c.params.naturalFrequency());  // settled only thanks to the longer budget
   }
 }
+
+namespace
+{
+using test_helpers::chart;
+
+// A rigid mesh (Δ = 0) is the linear second-order loop: θ_c = 1 − e^{−ζω_n t}(cos ω_d t + ζ/√(1−ζ²) sin ω_d t), whose
+// velocity ∝ e^{−ζω_n t} sin ω_d t turns at t = kπ/ω_d — maxima for odd k, minima for even k. The plant's Minimum
+// events are those times, alternating with the maxima.
+TEST(Verdicts, MinimaOfTheLoadAreLocatedExactly)
+{
+  const double zeta = 0.2;
+  Simulator sim(chart(zeta, 9.0, 0.4, 1.0, 0.0), State{}, 1.0);
+  test_helpers::Recorder rec;
+  sim.advanceTo(30.0, &rec);
+  const double wd = std::sqrt(1.0 - zeta * zeta);
+  const std::vector<double> minima = rec.times(EventType::Minimum);
+  const std::vector<double> maxima = rec.times(EventType::Maximum);
+  ASSERT_EQ(minima.size(), 4u);  // 2π/ω_d · (1 … 4) = 6.41 … 25.65 s
+  for (std::size_t j = 0; j < minima.size(); ++j)
+  {
+    EXPECT_NEAR(minima[j], 2.0 * M_PI * (j + 1) / wd, 1e-12 * minima[j]) << j;
+    EXPECT_LT(maxima[j], minima[j]);  // they alternate
+  }
+  for (const Event& e : rec.of(EventType::Minimum))
+  {
+    const double t = e.state.time;
+    EXPECT_NEAR(e.state.load_position, 1.0 - std::exp(-zeta * t) * (std::cos(wd * t) + zeta / wd * std::sin(wd * t)),
+                1e-12);
+  }
+}
+
+/// The highest and lowest load position over the last `period` [s] before `until`, sampled every `dt` [s] by a
+/// simulator that runs the config plainly (no verdict, no turning points).
+std::pair<double, double> sampledExtremes(const RunConfig& c, double until, double period, double dt)
+{
+  Simulator sim = makeSimulator(c);
+  sim.advanceTo(until - period);
+  double hi = -INFINITY, lo = INFINITY;
+  for (double t = until - period; t <= until; t += dt)
+  {
+    sim.advanceTo(t);
+    hi = std::max(hi, sim.state().load_position);
+    lo = std::min(lo, sim.state().load_position);
+  }
+  return {hi, lo};
+}
+
+// The cycle's peak to peak and centre are its extremes: checked against a dense sampling of one period of a long run
+// (the cycle converged to rounding there), on the thesis' D1 — symmetric about θ_R, so also 2 × limit_cycle_error
+// about θ_R — and on a one-sided cycle (ζ 0.1, ρ²J_L/J_m 0.25, no load friction, e 0.8) whose centre is 0.052 rad
+// below the command. Sampling every 1e-4 s misses an extreme by at most |ω_c| × 1e-4 s at an impact.
+TEST(Verdicts, ACyclesPeakToPeakAndCentreAreItsExtremes)
+{
+  struct Case
+  {
+    double zeta, inertia_ratio, friction_ratio, e;
+  };
+  for (const Case k : {Case{0.4, 9.0, 0.4, 1.0}, Case{0.1, 0.25, 0.0, 0.8}})
+  {
+    RunConfig c;
+    c.params = chart(k.zeta, k.inertia_ratio, k.friction_ratio, k.e);
+    const RunSummary r = runResponse(c);
+    ASSERT_EQ(r.status.verdict, Verdict::LimitCycle) << k.zeta;
+    ASSERT_EQ(r.status.multiplicity, 1);
+    const auto [hi, lo] = sampledExtremes(c, 600.0, r.status.period, 1e-4);
+    EXPECT_NEAR(r.cycle.top, hi, 5e-5) << k.zeta;
+    EXPECT_NEAR(r.cycle.bottom, lo, 5e-5) << k.zeta;
+    EXPECT_NEAR(r.cycle.peak_to_peak, hi - lo, 1e-4) << k.zeta;
+    EXPECT_NEAR(r.cycle.centre, 0.5 * (hi + lo), 5e-5) << k.zeta;
+    EXPECT_NEAR(r.cycle.top, 1.0 + r.status.error, 1e-6) << k.zeta;  // the same fixed point as the thesis' error
+    if (k.zeta == 0.4)
+    {
+      EXPECT_NEAR(r.cycle.peak_to_peak, 2.0 * r.status.error, 1e-6);
+      EXPECT_NEAR(r.cycle.centre, 1.0, 1e-6);
+    }
+    else
+    {
+      EXPECT_LT(r.cycle.centre, 0.96);  // one-sided: the load swings further below the command than above
+    }
+  }
+}
+}  // namespace

@@ -32,16 +32,18 @@ struct ImpactTally : EventSink
 const std::vector<std::string>& metricNames()
 {
   static const std::vector<std::string> names = {
-      "limit_cycle_error", "period",    "steady_error", "settling_time",      "rms_error",
-      "steady_rms_error",  "max_error", "overshoot",    "impacts_per_second", "impact_energy_per_second",
+      "limit_cycle_error", "period",        "peak_to_peak",       "cycle_centre",
+      "steady_error",      "settling_time", "rms_error",          "steady_rms_error",
+      "max_error",         "overshoot",     "impacts_per_second", "impact_energy_per_second",
       "peak_torque",       "rms_torque"};
   return names;
 }
 
 std::vector<double> metricValues(const CompareMetrics& m)
 {
-  return {m.limit_cycle_error, m.period,    m.steady_error, m.settling_time,      m.rms_error,
-          m.steady_rms_error,  m.max_error, m.overshoot,    m.impacts_per_second, m.impact_energy_per_second,
+  return {m.limit_cycle_error, m.period,        m.peak_to_peak,       m.cycle_centre,
+          m.steady_error,      m.settling_time, m.rms_error,          m.steady_rms_error,
+          m.max_error,         m.overshoot,     m.impacts_per_second, m.impact_energy_per_second,
           m.peak_torque,       m.rms_torque};
 }
 
@@ -106,6 +108,8 @@ CompareMetrics runStrategy(const std::string& name, const RunConfig& config, dou
   {
     m.limit_cycle_error = r.status.error;
     m.period = r.status.period;
+    m.peak_to_peak = r.cycle.peak_to_peak;
+    m.cycle_centre = r.cycle.centre;
   }
   if (r.status.verdict == Verdict::Converged)
   {

@@ -18,7 +18,9 @@ struct CompareMetrics
   std::string name;
   std::string verdict;
   double limit_cycle_error = NAN;         ///< [rad] (sustained oscillations only)
-  double period = NAN;                    ///< [s] (sustained oscillations only)
+  double period = NAN;                    ///< [s] of the whole pattern (sustained oscillations only)
+  double peak_to_peak = NAN;              ///< the load's peak-to-peak amplitude in the cycle [rad] (idem)
+  double cycle_centre = NAN;              ///< midpoint of the cycle's highest and lowest load position [rad] (idem)
   double steady_error = NAN;              ///< θ_c − θ_R at the end [rad] (converged only)
   double settling_time = NAN;             ///< last time |e| > the settling band (settlingBand), after the profile [s]
   double rms_error = NAN;                 ///< √(mean e²) over the run [rad], e = θ_R − θ_c

@@ -33,6 +33,15 @@ std::string sweepRow(const SweepPoint& p, const RunSummary& r, double command)
     row += buf;
   }
   row += "," + std::to_string(lc ? r.status.multiplicity : 0);  // maxima per period of the pattern
+  if (lc)
+  {
+    std::snprintf(buf, sizeof buf, ",%.17g,%.17g", r.cycle.peak_to_peak, r.cycle.centre);
+    row += buf;
+  }
+  else
+  {
+    row += ",,";
+  }
   return row;
 }
 
@@ -82,7 +91,8 @@ bool isNumber(const std::string& cell)
 }
 
 /// Throws ConfigError unless `line` is a well-formed result row under `header` (column count and every cell's
-/// type: parameter values, a verdict name, 0/1 flags, numbers; steady_error empty unless converged).
+/// type: parameter values, a verdict name, 0/1 flags, numbers; steady_error empty unless converged, the cycle's
+/// peak_to_peak and cycle_centre empty unless oscillating).
 void checkRow(const std::string& line, const std::vector<std::string>& header, const std::string& where)
 {
   const std::vector<std::string> cells = splitCsvCells(line);
@@ -132,6 +142,14 @@ void checkRow(const std::string& line, const std::vector<std::string>& header, c
   if (cells[v + 8].empty() || cells[v + 8].find_first_not_of("0123456789") != std::string::npos)
   {
     bad("'maxima_per_period' is not a whole number");
+  }
+  const bool oscillating = cells[v + 1] == "1";
+  for (std::size_t c : {v + 9, v + 10})
+  {
+    if (oscillating ? !isNumber(cells[c]) : !cells[c].empty())
+    {
+      bad("'" + header[c] + "' must be a number for an oscillating point and empty otherwise");
+    }
   }
 }
 

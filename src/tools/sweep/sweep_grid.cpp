@@ -257,7 +257,8 @@ std::string SweepGrid::fingerprint() const
 const std::string& resultColumns()
 {
   static const std::string columns =
-      "verdict,limit_cycle,limit_cycle_error,period,impacts,simulated_time,settled,steady_error,maxima_per_period";
+      "verdict,limit_cycle,limit_cycle_error,period,impacts,simulated_time,settled,steady_error,maxima_per_period,"
+      "peak_to_peak,cycle_centre";
   return columns;
 }
 
