@@ -91,6 +91,11 @@ class ResponseMonitor : public EventSink
   /// the maxima said before.
   void check(const State& state, bool drive_winding = false, bool at_rest_forever = false);
 
+  /// Converged and the joint there: a rest rule settled it, or the load is within QUIET_ERROR_FRACTION of the scale
+  /// of θ_eq now and at its latest maximum. A decay recognised on the maxima alone while the load still swings wide
+  /// (a loop just inside its stability limit) is sure, but its steady error is not yet readable: a run until settled
+  /// goes on until this holds (or its cap).
+  bool convergedNear(const State& state) const;
   const LimitCycleReport& status() const { return detector_.status(); }
   /// The positive maxima above θ_R (reported).
   const std::vector<Maximum>& maxima() const { return detector_.maxima(); }
@@ -122,6 +127,7 @@ class ResponseMonitor : public EventSink
   std::deque<Turn> turns_;  // the latest TURNS_KEPT maxima and minima of θ_c, in time order
   double longest_ = 0.0;    // longest interval between successive maxima so far [s]
   std::size_t intervals_seen_ = 0;
+  bool rested_ = false;  // a rest rule (rest, held for ever, quiet) marked the convergence
 };
 
 }  // namespace backlash_servo

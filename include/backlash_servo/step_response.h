@@ -15,6 +15,7 @@
 
 #include "backlash_servo/response_monitor.h"
 #include "backlash_servo/simulator.h"
+#include "backlash_servo/tracking_metrics.h"
 
 namespace backlash_servo
 {
@@ -75,6 +76,23 @@ double driveTimeScale(const RunConfig& config);
  * command's travel), the classical band.
  */
 double settlingBand(const RunConfig& config, double excursion);
+
+/**
+ * The tracking figures' accumulator of a run sampled every dt [s] up to t_end [s] (may be +inf): its reference stops
+ * moving at the profile's end (the initial time for a step), its band is settlingBand() of the reference's excursion
+ * (the profile's range over the samples, or the step |θ_R − θ_c(0)|), its overshoot is measured in the direction of
+ * the last move.
+ */
+TrackingMetrics trackingOf(const RunConfig& config, double dt, double t_end);
+
+/**
+ * The tracking figures of a finished run (settling time, RMS errors, overshoot, torque), from a replay of the same
+ * motion for the same simulated time sampled at `*sample_rate` [Hz]: the digital drive's rate, else 100 samples per
+ * natural period 2π/ω_n, lowered to keep the replay within 1e6 samples (the rate used is written back). The run
+ * itself stays exact and untouched (its stop and events do not depend on the sampling); the figures are a data
+ * logger's view of it.
+ */
+TrackingFigures replayTracking(const RunConfig& config, const RunSummary& run, double* sample_rate);
 
 /// The simulator of a run at its start: the plant in its initial state under the configured law (the thesis' P law,
 /// or the drive: digital, saturated or compensated) following the command or the profile, with the run's energy

@@ -71,6 +71,7 @@ void ResponseMonitor::restartAt(const State& state)
   detector_.setMinimumSpacing(1e-3 * 2.0 * PI / omega_n_);
   longest_ = 0.0;
   intervals_seen_ = 0;
+  rested_ = false;
   turns_.clear();
 }
 
@@ -170,6 +171,7 @@ void ResponseMonitor::check(const State& s, bool drive_winding, bool at_rest_for
   if (at_rest_forever)
   {
     detector_.markStuck();
+    rested_ = true;
     return;
   }
   if (drive_winding)
@@ -181,6 +183,7 @@ void ResponseMonitor::check(const State& s, bool drive_winding, bool at_rest_for
       std::fabs(rho_ * s.motor_velocity) <= rest * omega_n_)
   {
     detector_.markAtRest();
+    rested_ = true;
   }
   const double last = m.empty() ? start_time_ : m.back().time;
   const double quiet_floor = QUIET_PERIODS * 2.0 * PI / omega_n_;
@@ -188,7 +191,23 @@ void ResponseMonitor::check(const State& s, bool drive_winding, bool at_rest_for
       std::fabs(s.load_position - equilibrium_) <= QUIET_ERROR_FRACTION * scale_)
   {
     detector_.markAtRest();
+    rested_ = true;
   }
+}
+
+bool ResponseMonitor::convergedNear(const State& s) const
+{
+  if (detector_.status().verdict != Verdict::Converged)
+  {
+    return false;
+  }
+  if (rested_)
+  {
+    return true;
+  }
+  const double near = QUIET_ERROR_FRACTION * scale_;
+  const std::vector<Maximum>& m = detector_.judged();
+  return std::fabs(s.load_position - equilibrium_) <= near && (m.empty() || m.back().position - equilibrium_ <= near);
 }
 
 }  // namespace backlash_servo

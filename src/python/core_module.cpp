@@ -166,7 +166,9 @@ py::object run(const py::object& config)
     const auto start = std::chrono::steady_clock::now();
     const RunSummary r = runResponse(c);
     const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-    writeRunJson(out, c, r, wall);
+    double rate = 0.0;
+    const TrackingFigures tracking = replayTracking(c, r, &rate);
+    writeRunJson(out, c, r, tracking, rate, wall);
   }
   return parseJson(out.str());
 }

@@ -97,23 +97,23 @@ Evaluation evaluate(const Design& d, double tuned, double rho)
 struct Transient
 {
   double overshoot = 0.0;      // first maximum above the command minus the command [rad]
-  double settling_time = 0.0;  // last time outside ±2 % of the step [s]; inf if never settled in the run
+  double settling_time = 0.0;  // last time outside the settling band (settlingBand) [s]; inf if never settled
+  double band = 0.0;           // that band [rad]
 };
 
 Transient transient(const RunConfig& config)
 {
   Transient t;
-  double last_outside = 0.0;
-  const double step = std::fabs(config.command - config.initial.load_position);
+  // Sampled finely (2000 samples per natural period): the figures of the tracking replay at a finer rate.
   const double dt = 2.0 * 3.14159265358979 / config.params.naturalFrequency() / 2000.0;
+  TrackingMetrics tracking = trackingOf(config, dt, INFINITY);
   const RunSummary r = runResponse(config, nullptr, dt, [&](const Simulator& sim) {
-    if (std::fabs(sim.state().load_position - config.command) > 0.02 * step)
-    {
-      last_outside = sim.state().time;
-    }
+    tracking.add(sim.state().time, config.command, sim.state().load_position, sim.motorTorque());
   });
+  const TrackingFigures f = tracking.figures(config.initial.time + r.simulated, dt);
   t.overshoot = r.maxima.empty() ? 0.0 : r.maxima.front().position - config.command;
-  t.settling_time = r.status.verdict == Verdict::Converged ? last_outside : INFINITY;
+  t.settling_time = r.status.verdict == Verdict::Converged && !std::isnan(f.settling_time) ? f.settling_time : INFINITY;
+  t.band = f.band;
   return t;
 }
 
@@ -358,13 +358,13 @@ void design(const Design& d, std::ostringstream& text, std::ostringstream& json_
       describe(text, "  check just below (0.999 of it)", below, d.tune);
       describe(text, "  check just above (1.001 of it)", above, d.tune);
       std::snprintf(buf, sizeof buf,
-                    "chosen design (0.999 of it): overshoot %.4g rad (%.3g %%), 2%% settling time %.4g s\n",
-                    t.overshoot, 100.0 * t.overshoot, t.settling_time);
+                    "chosen design (0.999 of it): overshoot %.4g rad (%.3g %%), settling time %.4g s into ±%.4g rad\n",
+                    t.overshoot, 100.0 * t.overshoot, t.settling_time, t.band);
       text << buf;
       j.field("gain", k).field("tuned", d.tune);
       evaluationJson(j, "check_below", below, d.tune);
       evaluationJson(j, "check_above", above, d.tune);
-      j.field("overshoot", t.overshoot).field("settling_time", t.settling_time);
+      j.field("overshoot", t.overshoot).field("settling_time", t.settling_time).field("settling_band", t.band);
     }
     j.endObject();
   }
@@ -429,10 +429,11 @@ void design(const Design& d, std::ostringstream& text, std::ostringstream& json_
       describe(text, "closest such ratio", chosen, d.tune);
       const Transient t = transient(chosen.config);
       char buf[200];
-      std::snprintf(buf, sizeof buf, "  overshoot %.4g rad, 2%% settling time %.4g s\n", t.overshoot, t.settling_time);
+      std::snprintf(buf, sizeof buf, "  overshoot %.4g rad, settling time %.4g s into ±%.4g rad\n", t.overshoot,
+                    t.settling_time, t.band);
       text << buf;
       evaluationJson(j, "chosen", chosen, d.tune);
-      j.field("overshoot", t.overshoot).field("settling_time", t.settling_time);
+      j.field("overshoot", t.overshoot).field("settling_time", t.settling_time).field("settling_band", t.band);
     }
   }
   j.endObject();

@@ -71,6 +71,22 @@ class CsvWriter : public EventSink
   GearMesh mesh_;
 };
 
+/// The tracking figures' line (replayTracking).
+void writeTracking(std::ostream& out, const TrackingFigures& t, double rate)
+{
+  char settle[64] = "- (still outside at the end)";
+  if (!std::isnan(t.settling_time))
+  {
+    std::snprintf(settle, sizeof settle, "%.6g s", t.settling_time);
+  }
+  char buf[400];
+  std::snprintf(buf, sizeof buf,
+                "tracking (sampled at %.4g Hz): settling time %s into ±%.4g rad, steady-state RMS error %.4g rad, "
+                "RMS error %.4g rad, overshoot %.4g rad\n",
+                rate, settle, t.band, t.steady_rms_error, t.rms_error, t.overshoot);
+  out << buf;
+}
+
 void writeSummary(std::ostream& out, const RunConfig& c, const RunSummary& r, double wall_seconds)
 {
   const ServoParams& p = c.params;
@@ -203,13 +219,16 @@ int main(int argc, char** argv)
     {
       std::cerr << "backlash_sim: stopped: " << result.message << "\n";
     }
+    double tracking_rate = 0.0;
+    const TrackingFigures tracking = replayTracking(config, result, &tracking_rate);
     if (options.given("json"))
     {
-      writeRunJson(std::cout, config, result, wall);
+      writeRunJson(std::cout, config, result, tracking, tracking_rate, wall);
     }
     else
     {
       writeSummary(std::cout, config, result, wall);
+      writeTracking(std::cout, tracking, tracking_rate);
     }
     flushStdout();
   }

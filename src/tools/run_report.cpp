@@ -5,7 +5,8 @@
 
 namespace backlash_servo
 {
-void writeRunJson(std::ostream& out, const RunConfig& c, const RunSummary& r, double wall_seconds)
+void writeRunJson(std::ostream& out, const RunConfig& c, const RunSummary& r, const TrackingFigures& tracking,
+                  double tracking_rate, double wall_seconds)
 {
   const ServoParams& p = c.params;
   JsonWriter j(out);
@@ -68,6 +69,14 @@ void writeRunJson(std::ostream& out, const RunConfig& c, const RunSummary& r, do
   {
     j.null("steady_error");
   }
+  // Tracking figures from a sampled replay of the run (null where they do not apply).
+  j.field("settling_band", tracking.band)
+      .field("settling_time", tracking.settling_time)
+      .field("rms_error", tracking.rms_error)
+      .field("steady_rms_error", tracking.steady_rms_error)
+      .field("max_error", tracking.max_error)
+      .field("overshoot", tracking.overshoot)
+      .field("tracking_sample_rate", tracking_rate);
   j.beginArray("maxima");
   for (const Maximum& m : r.maxima)
   {

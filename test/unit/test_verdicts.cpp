@@ -424,3 +424,49 @@ TEST(Verdicts, ACyclesPeakToPeakAndCentreAreItsExtremes)
   }
 }
 }  // namespace
+
+namespace
+{
+// The tracking figures of a rigid loop (Δ = 0, the linear second-order servo) against its closed form
+// θ_c = 1 − e^{−ζt}(cos ω_d t + ζ/ω_d sin ω_d t), ω_n = 1, sampled on the replay's own grid here: the last sample
+// outside the 2 % band (the band of a joint without backlash or encoder), the RMS error from there on, the overshoot.
+TEST(Tracking, ARigidLoopsFiguresAreItsClosedForm)
+{
+  const double zeta = 0.3, wd = std::sqrt(1.0 - zeta * zeta);
+  RunConfig c;
+  c.params = test_helpers::chart(zeta, 9.0, 0.4, 1.0, 0.0);
+  const RunSummary r = runResponse(c);
+  ASSERT_EQ(r.status.verdict, Verdict::Converged);
+  double rate = 0.0;
+  const TrackingFigures f = replayTracking(c, r, &rate);
+  EXPECT_NEAR(rate, 100.0 / (2.0 * M_PI), 1e-12);
+  const double dt = 1.0 / rate;
+  auto error = [&](double t) { return std::exp(-zeta * t) * (std::cos(wd * t) + zeta / wd * std::sin(wd * t)); };
+  double last_outside = 0.0, overshoot = 0.0, sum_all = 0.0;
+  long n_all = 0;
+  for (long k = 0; k * dt <= r.simulated + 1e-9; ++k)  // the replay samples from t = 0 on
+  {
+    const double e = error(k * dt);
+    last_outside = std::fabs(e) > 0.02 ? k * dt : last_outside;
+    overshoot = std::max(overshoot, -e);
+    sum_all += e * e;
+    ++n_all;
+  }
+  double sum = 0.0;
+  long n = 0;
+  for (long k = 1; k * dt <= r.simulated + 1e-9; ++k)
+  {
+    if (k * dt >= last_outside)
+    {
+      sum += error(k * dt) * error(k * dt);
+      ++n;
+    }
+  }
+  EXPECT_EQ(f.band, 0.02);
+  EXPECT_NEAR(f.settling_time, last_outside, 1e-9);
+  EXPECT_NEAR(f.overshoot, overshoot, 1e-9);
+  EXPECT_NEAR(f.steady_rms_error, std::sqrt(sum / n), 1e-9);
+  EXPECT_NEAR(f.rms_error, std::sqrt(sum_all / n_all), 1e-9);
+  EXPECT_NEAR(f.settling_time, 11.0, 1.5);  // ≈ 4/ζω_n, the textbook figure
+}
+}  // namespace

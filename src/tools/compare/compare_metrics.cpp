@@ -8,6 +8,7 @@
 
 #include "backlash_servo/plant.h"
 #include "backlash_servo/simulator.h"
+#include "backlash_servo/tracking_metrics.h"
 
 namespace backlash_servo
 {
@@ -52,53 +53,24 @@ CompareMetrics runStrategy(const std::string& name, const RunConfig& config, dou
 {
   const CommandProfile& profile = *config.profile;
   const double final_ref = profile.finalValue();
-  const double profile_end = profile.endTime();
-  // Excursion of the reference (for the 2 % band) and the direction of its last move (for the overshoot).
-  double lo = profile.at(0.0), hi = lo;
   const double dt = 1.0 / sample_rate;
   const long n = static_cast<long>(std::floor(config.duration * sample_rate + 1e-9));
-  for (long k = 0; k <= n; ++k)
-  {
-    const double r = profile.at(config.initial.time + k * dt);
-    lo = std::min(lo, r);
-    hi = std::max(hi, r);
-  }
-  const double band = settlingBand(config, hi - lo);
-  const double before_end = profile.at(std::max(0.0, profile_end - 1e-9));
-  double direction = final_ref >= before_end ? 1.0 : -1.0;
-  if (final_ref == before_end)
-  {
-    direction = final_ref >= profile.at(0.0) ? 1.0 : -1.0;
-  }
+  TrackingMetrics tracking = trackingOf(config, dt, config.initial.time + config.duration);
+  const double band = tracking.band();
   // The chart keeps every stride-th sample: at most kMaxChartSamples per strategy whatever the sample rate.
   const long chart_stride = std::max(1L, (n + kMaxChartSamples) / kMaxChartSamples);
-  double sum_e2 = 0.0, sum_t2 = 0.0, peak = 0.0, max_after = 0.0, overshoot = 0.0, last_outside = NAN;
   long count = 0;
-  std::vector<std::pair<double, double>> after;  // (t, e) from the profile's end on: the steady-state window
   ImpactTally tally;
   const RunSummary r = runResponse(config, &tally, dt, [&](const Simulator& sim) {
     const State& s = sim.state();
     const double ref = profile.at(s.time);
-    const double e = ref - s.load_position;
     const double tm = sim.motorTorque();
-    sum_e2 += e * e;
-    sum_t2 += tm * tm;
-    peak = std::max(peak, std::fabs(tm));
-    ++count;
-    if (s.time >= profile_end)
-    {
-      after.emplace_back(s.time, e);
-      max_after = std::max(max_after, std::fabs(e));
-      overshoot = std::max(overshoot, direction * (s.load_position - final_ref));
-      if (std::fabs(e) > band)
-      {
-        last_outside = s.time;
-      }
-    }
-    if (trajectory != nullptr && (count - 1) % chart_stride == 0)
+    tracking.add(s.time, ref, s.load_position, tm);
+    if (trajectory != nullptr && count % chart_stride == 0)
     {
       trajectory->push_back({s.time, ref, s.load_position, s.motor_position, tm});
     }
+    ++count;
   });
   CompareMetrics m;
   m.name = name;
@@ -116,41 +88,16 @@ CompareMetrics runStrategy(const std::string& name, const RunConfig& config, dou
     m.steady_error = r.final_state.load_position - final_ref;
   }
   const double simulated = std::max(r.simulated, 1e-300);
-  if (count > 0)
-  {
-    m.rms_error = std::sqrt(sum_e2 / count);
-    m.rms_torque = std::sqrt(sum_t2 / count);
-    m.peak_torque = peak;
-    m.max_error = max_after;
-    m.overshoot = overshoot;
-  }
-  // Settled: inside the band from some time on (never left it at the end of the run).
-  m.settling_time = std::isnan(last_outside) ? profile_end : last_outside;
-  if (!std::isnan(last_outside) && last_outside >= config.initial.time + r.simulated - 1.5 * dt)
-  {
-    m.settling_time = NAN;  // still outside at the end
-  }
+  const TrackingFigures f = tracking.figures(config.initial.time + r.simulated, dt);
+  m.settling_time = f.settling_time;
+  m.rms_error = f.rms_error;
+  m.steady_rms_error = f.steady_rms_error;
+  m.max_error = f.max_error;
+  m.overshoot = f.overshoot;
+  m.peak_torque = f.peak_torque;
+  m.rms_torque = f.rms_torque;
   m.impacts_per_second = tally.impacts / simulated;
   m.impact_energy_per_second = tally.energy / simulated;
-  // The steady state after the transient: from the settling time on; a run that never settles, over the second half
-  // of what follows the profile (a limit cycle's own error, not the step's).
-  if (!after.empty())
-  {
-    const double from = !std::isnan(m.settling_time)
-                            ? m.settling_time
-                            : after.front().first + 0.5 * (after.back().first - after.front().first);
-    double sum = 0.0;
-    long k = 0;
-    for (const auto& [t, e] : after)
-    {
-      if (t >= from)
-      {
-        sum += e * e;
-        ++k;
-      }
-    }
-    m.steady_rms_error = k > 0 ? std::sqrt(sum / k) : NAN;
-  }
   m.settling_band = band;
   return m;
 }

@@ -1,0 +1,64 @@
+/**
+ * @file tracking_metrics.h
+ * @brief How well a sampled response tracks its reference: the settling time into a band, the RMS error over the run
+ *        and after the transient, the largest error, the overshoot and the motor torque. Analysis only, from samples
+ *        of the exact run (a data logger's view of it): shared by backlash_sim, backlash_design, backlash_compare
+ *        and the Python module so that they report the same figures. No ROS dependency.
+ *
+ * With e = θ_R − θ_c at each sample and t_f the time the reference stops moving (the end of a profile, the time of a
+ * step):
+ * - settling time = the last sample time after t_f with |e| > band (t_f when never outside); none (NaN) when the
+ *   last sample outside lies within 1.5 sample periods of the end — still outside;
+ * - steady-state RMS error = √(mean e²) from the settling time on; for a response that never settles, over the second
+ *   half of what follows t_f (a limit cycle's own error, not the transient's);
+ * - overshoot = the largest excursion beyond the final reference in the direction of the reference's last move.
+ */
+#pragma once
+
+#include <cmath>
+#include <utility>
+#include <vector>
+
+namespace backlash_servo
+{
+/// Tracking figures of one run; NaN = does not apply.
+struct TrackingFigures
+{
+  double settling_time = NAN;     ///< [s] (see the file comment)
+  double rms_error = NAN;         ///< √(mean e²) over every sample [rad]
+  double steady_rms_error = NAN;  ///< √(mean e²) after the transient [rad]
+  double max_error = NAN;         ///< max |e| after the reference stopped moving [rad]
+  double overshoot = NAN;         ///< beyond the final reference, in the direction of its last move [rad]
+  double peak_torque = NAN;       ///< max |T_m| [N·m]
+  double rms_torque = NAN;        ///< √(mean T_m²) [N·m]
+  double band = NAN;              ///< the settling band [rad]
+};
+
+/// Accumulates samples of a response and gives its TrackingFigures.
+class TrackingMetrics
+{
+ public:
+  /**
+   * @param band the settling band [rad] (settlingBand())
+   * @param reference_end t_f [s]: when the reference stops moving
+   * @param final_reference θ_R from t_f on [rad]
+   * @param direction +1 or −1: the sign of the reference's last move (for the overshoot)
+   */
+  TrackingMetrics(double band, double reference_end, double final_reference, double direction);
+
+  /// One sample at `time` [s]: reference θ_R [rad], load position θ_c [rad], motor torque T_m [N·m].
+  void add(double time, double reference, double load_position, double motor_torque);
+  /// The figures of the samples so far; end_time [s] is the run's last time, dt [s] the sample period.
+  TrackingFigures figures(double end_time, double dt) const;
+  /// The settling band [rad].
+  double band() const { return band_; }
+
+ private:
+  double band_, reference_end_, final_reference_, direction_;
+  double sum_e2_ = 0.0, sum_t2_ = 0.0, peak_torque_ = 0.0, max_after_ = 0.0, overshoot_ = 0.0;
+  double last_outside_ = NAN;
+  long count_ = 0;
+  std::vector<std::pair<double, double>> after_;  // (t, e) from t_f on: the steady-state window
+};
+
+}  // namespace backlash_servo
