@@ -64,10 +64,18 @@ struct RunSummary
 /**
  * The drive's slowest own time constant [s]: a PID's integral time K/K_i, a cascade's 1/K_p and K_v/K_vi, a dual
  * loop's 1/K_o, a dither's period (0 for the P law). Before any oscillation shows, a run until settled lasts at most
- * max(2000/ω_n, 100 × this) — the plant's scale under the gain K, or a hundred of the drive's own — and then at least
- * 100 × the slowest oscillation seen.
+ * max(2000/ω_n, 100 × the slower of this and plantTimeScale()) — the loop's scale under the gain K, or a hundred
+ * of the drive's or the plant's own — and then at least 100 × the slowest oscillation seen.
  */
 double driveTimeScale(const RunConfig& config);
+
+/**
+ * The plant's slowest own time constant [s]: the larger of the bodies' viscous decay times J_m/f_m and J_L/f_L (a
+ * body without viscous friction has none) — how long a load coasting in the backlash, or a motor left without torque,
+ * takes to slow down. Before any oscillation shows, a run until settled lasts at most max(2000/ω_n, 100 × the slower
+ * of this and driveTimeScale()).
+ */
+double plantTimeScale(const ServoParams& params);
 
 /**
  * The error band [rad] of a run's settling figures: `settling_band` when set, else the joint's own resolution — the

@@ -146,8 +146,8 @@ std::vector<ParamSpec> makeTable()
     // ---- length of a command-line run ----
     {"duration", "", "s", T::Real, S::Run, NON_NEGATIVE, "0",
      "simulate exactly this long (0 = until the verdict is settled)", false, {}, &RunConfig::duration},
-    {"max_duration", "", "s", T::Real, S::Run, NON_NEGATIVE, "0", "cap when running until settled (0 = max(2000/ω_n, 100 × the drive's slowest time constant, 100 × the "
-     "longest interval between maxima))",
+    {"max_duration", "", "s", T::Real, S::Run, NON_NEGATIVE, "0", "cap when running until settled (0 = max(2000/ω_n, 100 × the drive's or the plant's slowest time constant, "
+     "100 × the longest interval between maxima))",
      false, {}, &RunConfig::max_duration},
     {"settling_band", "", "rad", T::Real, S::Run, ParamRange{0.0, 1e3, false, false}, "0",
      "settling time and steady-state figures: the load error band |θ_R − θ_c| ≤ band (0 = the joint's own: the "

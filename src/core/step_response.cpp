@@ -72,6 +72,20 @@ double driveTimeScale(const RunConfig& config)
   return slowest;
 }
 
+double plantTimeScale(const ServoParams& p)
+{
+  double slowest = 0.0;
+  for (const auto& [inertia, friction] :
+       {std::pair{p.motor_inertia, p.motor_friction}, std::pair{p.load_inertia, p.load_friction}})
+  {
+    if (friction > 0.0)
+    {
+      slowest = std::max(slowest, inertia / friction);
+    }
+  }
+  return slowest;
+}
+
 double settlingBand(const RunConfig& config, double excursion)
 {
   if (config.settling_band > 0.0)
@@ -189,9 +203,12 @@ RunSummary runResponse(const RunConfig& config, EventSink* sink, double sample_p
   double judge_from = config.profile && config.profile->endTime() > t0 ? config.profile->endTime() : -INFINITY;
   const bool until_settled = config.duration <= 0.0;
   double t_stop =
-      t0 + (until_settled ? (config.max_duration > 0.0 ? config.max_duration
-                                                       : std::max(2000.0 / omega_n, 100.0 * driveTimeScale(config)))
-                          : config.duration);
+      t0 +
+      (until_settled
+           ? (config.max_duration > 0.0
+                  ? config.max_duration
+                  : std::max(2000.0 / omega_n, 100.0 * std::max(driveTimeScale(config), plantTimeScale(config.params))))
+           : config.duration);
   // Without a cap of the user's, a run until settled lasts at least REPETITIONS times the slowest oscillation seen
   // (the longest interval between maxima): a stick–slip hunt or a slow drive loop whose cycle is long against
   // 2π/ω_n (ω_n is the P law's; it means nothing for a PID or a cascade) is given the repetitions its verdict needs.
