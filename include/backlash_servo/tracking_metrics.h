@@ -8,7 +8,8 @@
  * With e = θ_R − θ_c at each sample and t_f the time the reference stops moving (the end of a profile, the time of a
  * step):
  * - settling time = the last sample time after t_f with |e| > band (t_f when never outside); none (NaN) when the
- *   last sample outside lies within 1.5 sample periods of the end — still outside;
+ *   last sample outside lies within 1.5 sample periods of the end — still outside — or when the run's verdict is a
+ *   sustained oscillation reaching beyond the band (the samples may end inside a swing that leaves it again);
  * - steady-state RMS error = √(mean e²) from the settling time on; for a response that never settles, over the second
  *   half of what follows t_f (a limit cycle's own error, not the transient's);
  * - overshoot = the largest excursion beyond the final reference in the direction of the reference's last move.
@@ -16,7 +17,7 @@
 #pragma once
 
 #include <cmath>
-#include <utility>
+#include <cstddef>
 #include <vector>
 
 namespace backlash_servo
@@ -48,8 +49,10 @@ class TrackingMetrics
 
   /// One sample at `time` [s]: reference θ_R [rad], load position θ_c [rad], motor torque T_m [N·m].
   void add(double time, double reference, double load_position, double motor_torque);
-  /// The figures of the samples so far; end_time [s] is the run's last time, dt [s] the sample period.
-  TrackingFigures figures(double end_time, double dt) const;
+  /// The figures of the samples so far; end_time [s] is the run's last time, dt [s] the sample period. `leaves_band`:
+  /// the caller knows the response keeps leaving the band (a sustained oscillation reaching beyond it): never settled,
+  /// whatever the last samples show (samples can end inside a swing that will leave again).
+  TrackingFigures figures(double end_time, double dt, bool leaves_band = false) const;
   /// The settling band [rad].
   double band() const { return band_; }
 
@@ -58,7 +61,20 @@ class TrackingMetrics
   double sum_e2_ = 0.0, sum_t2_ = 0.0, peak_torque_ = 0.0, max_after_ = 0.0, overshoot_ = 0.0;
   double last_outside_ = NAN;
   long count_ = 0;
-  std::vector<std::pair<double, double>> after_;  // (t, e) from t_f on: the steady-state window
+  double since_sum_ = 0.0;  // Σ e² from the last sample outside the band on (from t_f when none) [rad²]
+  long since_count_ = 0;
+  /// Samples from t_f on for the second-half window of a response that never settles: (time of the first [s],
+  /// Σ e² [rad²], count). One entry per sample up to MAX_ENTRIES; beyond, neighbours are merged in pairs, so memory
+  /// stays bounded on an endless run (the node) and the window's start is resolved to one entry.
+  struct Entry
+  {
+    double time, sum;
+    long count;
+  };
+  static constexpr std::size_t MAX_ENTRIES = std::size_t(1) << 18;
+  std::vector<Entry> after_;
+  long entry_size_ = 1;  // samples per entry now
+  double first_after_ = NAN, last_time_ = NAN;
 };
 
 }  // namespace backlash_servo

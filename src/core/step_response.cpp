@@ -162,7 +162,14 @@ TrackingFigures replayTracking(const RunConfig& config, const RunSummary& run, d
     const State& s = sim.state();
     tracking.add(s.time, profile ? profile->at(s.time) : config.command, s.load_position, sim.motorTorque());
   });
-  return tracking.figures(t_end, dt);
+  const double command = profile ? profile->finalValue() : config.command;
+  return tracking.figures(t_end, dt, cycleLeavesBand(run, command, tracking.band()));
+}
+
+bool cycleLeavesBand(const RunSummary& run, double command, double band)
+{
+  const bool sustained = run.status.verdict == Verdict::LimitCycle || run.status.verdict == Verdict::Irregular;
+  return sustained && std::max(std::fabs(run.cycle.top - command), std::fabs(run.cycle.bottom - command)) > band;
 }
 
 Simulator makeSimulator(const RunConfig& config)

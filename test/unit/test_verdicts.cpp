@@ -470,3 +470,25 @@ TEST(Tracking, ARigidLoopsFiguresAreItsClosedForm)
   EXPECT_NEAR(f.settling_time, 11.0, 1.5);  // ≈ 4/ζω_n, the textbook figure
 }
 }  // namespace
+
+namespace
+{
+// A stream of samples far longer than the figures keep one by one (the node runs for ever): a sine of amplitude
+// 0.05 rad about the reference never settles into a 0.01 rad band, and its steady-state RMS error over the second
+// half — read from merged entries past 2^18 samples — is the sine's own a/√2.
+TEST(Tracking, AnEndlessStreamKeepsTheCyclesRms)
+{
+  const double a = 0.05, dt = 1e-3;
+  const long n = 3000000;  // 3000 s at 1 kHz, 3000 whole periods
+  TrackingMetrics m(0.01, 0.0, 0.0, 1.0);
+  for (long k = 0; k < n; ++k)
+  {
+    m.add(k * dt, 0.0, a * std::sin(2.0 * M_PI * k * dt), 0.0);
+  }
+  const TrackingFigures f = m.figures((n - 1) * dt, dt, true);  // (the caller's verdict: a cycle beyond the band)
+  EXPECT_TRUE(std::isnan(f.settling_time));
+  EXPECT_NEAR(f.steady_rms_error, a / std::sqrt(2.0), 1e-6 * a);
+  EXPECT_NEAR(f.rms_error, a / std::sqrt(2.0), 1e-6 * a);
+  EXPECT_NEAR(f.max_error, a, 1e-9);
+}
+}  // namespace

@@ -88,7 +88,8 @@ CompareMetrics runStrategy(const std::string& name, const RunConfig& config, dou
     m.steady_error = r.final_state.load_position - final_ref;
   }
   const double simulated = std::max(r.simulated, 1e-300);
-  const TrackingFigures f = tracking.figures(config.initial.time + r.simulated, dt);
+  const TrackingFigures f =
+      tracking.figures(config.initial.time + r.simulated, dt, cycleLeavesBand(r, final_ref, band));
   m.settling_time = f.settling_time;
   m.rms_error = f.rms_error;
   m.steady_rms_error = f.steady_rms_error;
