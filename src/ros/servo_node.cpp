@@ -217,6 +217,13 @@ void ServoNode::restartMonitor(const std::string& reason)
                                  : loopEquilibrium(sim_.params(), config_.run.drive, command_);
   monitor_ = std::make_unique<ResponseMonitor>(sim_.params(), command_, equilibrium, sim_.state(),
                                                sim_.drive().sampled() || sim_.controlMode() == ControlMode::Effort);
+  // The tracking figures start afresh with the judgement: the reference's last move is this step or the profile.
+  RunConfig tracked = config_.run;
+  tracked.params = sim_.params();
+  tracked.initial = sim_.state();
+  tracked.command = command_;
+  tracked.profile = sim_.controlMode() == ControlMode::Position ? profile_ : nullptr;
+  tracking_ = std::make_unique<TrackingMetrics>(trackingOf(tracked, 1.0 / config_.publish_rate, INFINITY));
   announced_ = Verdict::Undecided;
   if (running && !reason.empty())
   {
@@ -334,6 +341,12 @@ bool ServoNode::run()
       judge_from_ = -1.0;
     }
     monitor_->check(sim_.state(), sim_.drive().winding(), judge_from_ < 0.0 && sim_.atRestForever());
+    {
+      const State& s = sim_.state();
+      const double reference =
+          profile_ && sim_.controlMode() == ControlMode::Position ? profile_->at(s.time) : command_;
+      tracking_->add(s.time, reference, s.load_position, sim_.motorTorque());
+    }
     if (monitor_->status().verdict != announced_)
     {
       publishLimitCycle(t, false);
@@ -439,6 +452,11 @@ void ServoNode::diagnose(diagnostic_updater::DiagnosticStatusWrapper& status)
   {
     status.add("steady_error [rad]", formatNumber(sim_.state().load_position - command_));
   }
+  const TrackingFigures tracking = trackingNow();
+  status.add("settling_band [rad]", formatNumber(tracking.band));
+  status.add("settling_time [s]",
+             std::isnan(tracking.settling_time) ? "- (outside the band)" : formatNumber(tracking.settling_time));
+  status.add("steady_rms_error [rad]", formatNumber(tracking.steady_rms_error));
   // Rates over the last diagnostics interval: impacts per simulated second, simulated seconds per wall second.
   const ros::WallTime now = ros::WallTime::now();
   const double wall = (now - diag_wall_).toSec();
@@ -577,6 +595,19 @@ void ServoNode::onEvent(const Event& e)
   }
 }
 
+TrackingFigures ServoNode::trackingNow() const
+{
+  if (!tracking_)
+  {
+    return TrackingFigures();
+  }
+  RunSummary judged;  // what cycleLeavesBand reads: the verdict and the cycle's shape so far
+  judged.status = monitor_->status();
+  judged.cycle = monitor_->cycleShape();
+  const double dt = 1.0 / config_.publish_rate;
+  return tracking_->figures(sim_.state().time, dt, cycleLeavesBand(judged, command_, tracking_->band()));
+}
+
 void ServoNode::publishLimitCycle(double sim_time, bool maximum, bool diverged)
 {
   const auto& st = monitor_->status();
@@ -592,6 +623,10 @@ void ServoNode::publishLimitCycle(double sim_time, bool maximum, bool diverged)
   m.peak_to_peak = m.detected ? cycle.peak_to_peak : 0.0;
   m.cycle_centre = m.detected ? cycle.centre : 0.0;
   m.equilibrium = monitor_->equilibrium();
+  const TrackingFigures tracking = trackingNow();
+  m.settling_band = tracking.band;
+  m.settling_time = tracking.settling_time;
+  m.steady_rms_error = tracking.steady_rms_error;
   m.maxima_observed = static_cast<uint32_t>(monitor_->maxima().size());
   if (!monitor_->maxima().empty())
   {

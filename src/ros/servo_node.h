@@ -24,6 +24,8 @@
 #include "backlash_servo/BacklashServoConfig.h"
 #include "backlash_servo/response_monitor.h"
 #include "backlash_servo/simulator.h"
+#include "backlash_servo/step_response.h"
+#include "backlash_servo/tracking_metrics.h"
 #include "node_config.h"
 #include "node_recorder.h"
 
@@ -120,7 +122,10 @@ class ServoNode : public EventSink
   std::shared_ptr<const CommandProfile> profile_;  // θ_R(t) in sim time (YAML `profile`, command_trajectory) or null
   double judge_from_ = -1.0;  // the profile's end [s sim]: the verdict starts afresh there (-1: none pending)
   double effort_;             // effort-mode torque [N·m]
-  std::unique_ptr<ResponseMonitor> monitor_;  // the same judge as backlash_sim (rest and quiet rules included)
+  std::unique_ptr<ResponseMonitor> monitor_;   // the same judge as backlash_sim (rest and quiet rules included)
+  std::unique_ptr<TrackingMetrics> tracking_;  // the tracking figures since the judgement began (every sample)
+  /// The tracking figures now (settling into the band, steady-state RMS error), as backlash_sim defines them.
+  TrackingFigures trackingNow() const;
   Verdict announced_ = Verdict::Undecided;
 
   std::unique_ptr<NodeRecorder> recorder_;  // the node's own bag (record_bag), or null

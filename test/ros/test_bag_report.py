@@ -54,6 +54,14 @@ class BagReport(unittest.TestCase):
         self.assertEqual(report["from_samples"]["maxima_per_period"], 1)
         self.assertAlmostEqual(report["from_samples"]["peak_to_peak"], cli["peak_to_peak"], delta=1e-3)
         self.assertAlmostEqual(report["from_samples"]["cycle_centre"], cli["cycle_centre"], delta=1e-3)
+        # Tracking: the band is Δ; the cycle (±0.05 rad) settles inside it after the first overshoot. The node (100 Hz
+        # samples), the report (the same samples) and backlash_sim (its replay at 100 per natural period, 15.9 Hz)
+        # agree to their sampling.
+        self.assertEqual(node["settling_band"], 0.3)
+        self.assertEqual(report["from_samples"]["settling_band"], 0.3)
+        self.assertAlmostEqual(report["from_samples"]["settling_time"], node["settling_time"], delta=0.011)
+        self.assertAlmostEqual(node["settling_time"], cli["settling_time"], delta=1.0 / 15.9 + 0.011)
+        self.assertAlmostEqual(report["from_samples"]["steady_rms_error"], node["steady_rms_error"], delta=1e-3)
         self.assertNotEqual(torn.returncode, 0)
 
 

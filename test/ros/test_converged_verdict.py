@@ -54,6 +54,12 @@ class ConvergedVerdict(unittest.TestCase):
         self.assertEqual(float(values["equilibrium [rad]"]), cli["equilibrium"])
         self.assertLessEqual(abs(float(values["steady_error [rad]"])), 0.01)
         self.assertLessEqual(abs(cli["steady_error"]), 0.01)
+        # The tracking figures under the CLI's names: the same band (Δ), a settling time and a steady RMS error inside
+        # it (the node samples every 50 ms, the CLI's replay at 100 per natural period).
+        self.assertEqual(float(values["settling_band [rad]"]), cli["settling_band"])
+        self.assertAlmostEqual(float(values["settling_time [s]"]), cli["settling_time"], delta=0.1)
+        self.assertLessEqual(float(values["steady_rms_error [rad]"]), cli["settling_band"])
+        self.assertEqual(last.settling_band, cli["settling_band"])
 
 
 if __name__ == "__main__":
