@@ -174,9 +174,10 @@ py::object run(const py::object& config)
 }
 
 /// The sweep's CSV as `backlash_sweep` writes it (header and rows, in grid order).
-std::string sweepCsv(const py::object& settings, bool thesis, int jobs, double max_duration)
+std::string sweepCsv(const py::object& settings, bool thesis, int jobs, double max_duration, bool tracking)
 {
   SweepGrid grid = thesis ? SweepGrid::thesis() : SweepGrid();
+  grid.setTracking(tracking);
   InlineYaml inline_yaml;  // every point reads the profile: kept for the whole sweep
   const KeyValues kv = keyValuesOf(settings, &inline_yaml);
   addSweepKeys(kv, &grid);
@@ -194,7 +195,7 @@ std::string sweepCsv(const py::object& settings, bool thesis, int jobs, double m
   {
     py::gil_scoped_release release;
     result = runSweepPoints(
-        0, n, threads, [&](std::size_t i) { return evaluateSweepPoint(grid.point(i), max_duration); },
+        0, n, threads, [&](std::size_t i) { return evaluateSweepPoint(grid.point(i), max_duration, tracking); },
         [&](std::size_t, const std::string& row) { csv += row + "\n"; }, stop);
   }
   if (!result.failure.empty())
@@ -205,9 +206,9 @@ std::string sweepCsv(const py::object& settings, bool thesis, int jobs, double m
 }
 
 /// The sweep as columns: numbers as float arrays, the verdict as a list of text.
-py::dict sweep(const py::object& settings, bool thesis, int jobs, double max_duration)
+py::dict sweep(const py::object& settings, bool thesis, int jobs, double max_duration, bool tracking)
 {
-  const std::string csv = sweepCsv(settings, thesis, jobs, max_duration);
+  const std::string csv = sweepCsv(settings, thesis, jobs, max_duration, tracking);
   std::istringstream in(csv);
   std::string line;
   std::getline(in, line);
@@ -412,12 +413,13 @@ PYBIND11_MODULE(core, m)
   m.def("run", &run, py::arg("config") = py::none(),
         "One run until its verdict is settled (or for `duration` [s]): the dict `backlash_sim --json` prints.");
   m.def("sweep", &sweep, py::arg("settings") = py::none(), py::kw_only(), py::arg("thesis") = false,
-        py::arg("jobs") = 0, py::arg("max_duration") = 0.0,
+        py::arg("jobs") = 0, py::arg("max_duration") = 0.0, py::arg("tracking") = false,
         "A parameter study as `backlash_sweep` runs it: keys given a list (or 'a:b:n', 'log:a:b:n') are axes, the "
-        "others shared settings; thesis=True starts from the 1961 grid. Returns the CSV's columns (numpy arrays; "
-        "`verdict` a list).");
+        "others shared settings; thesis=True starts from the 1961 grid; tracking=True adds the tracking figures "
+        "(--tracking). Returns the CSV's columns (numpy arrays; `verdict` a list).");
   m.def("sweep_csv", &sweepCsv, py::arg("settings") = py::none(), py::kw_only(), py::arg("thesis") = false,
-        py::arg("jobs") = 0, py::arg("max_duration") = 0.0, "The same sweep as `backlash_sweep`'s CSV text.");
+        py::arg("jobs") = 0, py::arg("max_duration") = 0.0, py::arg("tracking") = false,
+        "The same sweep as `backlash_sweep`'s CSV text.");
   m.def("compare", &compare, py::arg("path"), py::kw_only(), py::arg("jobs") = 0,
         "The compensation workbench (`backlash_compare --config PATH`): one dict of metrics per strategy.");
   py::class_<PySimulator>(m, "Simulator", "A joint stepped from Python (the configured plant and drive).")

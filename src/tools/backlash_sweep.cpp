@@ -58,6 +58,7 @@ SweepOptions parse(int argc, char** argv)
       keysOfSections({ParamSection::Servo, ParamSection::Chart, ParamSection::Drive, ParamSection::Initial});
   keys.push_back("max_duration");
   keys.push_back("max_events");
+  keys.push_back("settling_band");
   FlagParser parser(
       "backlash_sweep", HEADER, keys,
       {{"config", "FILE.yaml",
@@ -68,6 +69,9 @@ SweepOptions parse(int argc, char** argv)
        {"output", "FILE", "CSV file, '-' = stdout (default)"},
        {"jobs", "N", "worker threads (default: all cores)"},
        {"resume", "", "keep the rows already in FILE (same grid only) and compute the missing points"},
+       {"tracking", "",
+        "also the tracking figures of every point: settling_band, settling_time, steady_rms_error (a sampled replay "
+        "of each run, as backlash_sim reports them; about twice the time)"},
        {"shard", "K/N", "compute only part K of N (contiguous points by grid index) into a part file for --merge"},
        {"merge", "PART...", "join part files (any order) into --output: exactly the CSV of an unsharded run"}});
   parser.parse(argc, argv);
@@ -90,6 +94,7 @@ SweepOptions parse(int argc, char** argv)
     throw ConfigError("--jobs must be in [1, 4096]");
   }
   o.resume = parser.given("resume");
+  o.grid.setTracking(parser.given("tracking"));
   if (parser.given("shard"))
   {
     unsigned long long k = 0, n = 0;
@@ -115,6 +120,10 @@ SweepOptions parse(int argc, char** argv)
   if (kv.has("profile"))
   {
     signature += "profile=" + readRegularFile("--profile", kv.text("profile", ""), std::size_t(1) << 30) + ";";
+  }
+  if (o.grid.tracking())
+  {
+    signature += "tracking;";
   }
   o.grid.setRunSignature(signature);
   if (o.resume && o.output == "-")
@@ -248,7 +257,7 @@ int main(int argc, char** argv)
   {
     run = runSweepPoints(
         first + kept.size(), last, o.jobs,
-        [&](std::size_t i) { return evaluateSweepPoint(o.grid.point(i), o.max_duration); },
+        [&](std::size_t i) { return evaluateSweepPoint(o.grid.point(i), o.max_duration, o.grid.tracking()); },
         [&](std::size_t i, const std::string& row) {
           if (write_failed)
           {

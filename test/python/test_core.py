@@ -132,6 +132,12 @@ def test_sweep_equals_backlash_sweep(tmp_path):
     code, out, err = tool("backlash_sweep", "--config", path, "--restitution", "0,0.6", "--backlash", "0.001,0.004")
     assert code == 0, err
     assert core.sweep_csv(dict(ROBOT, restitution=[0.0, 0.6], backlash=[0.001, 0.004])) == out
+    # With the tracking figures (--tracking).
+    code, out, err = tool("backlash_sweep", "--zeta", "0.2,0.5", "--restitution", "0,0.8", "--controller-rate", 100,
+                          "--tracking")
+    assert code == 0, err
+    assert core.sweep_csv(settings, tracking=True) == out
+    assert "steady_rms_error" in core.sweep(settings, tracking=True)
 
 
 def test_compare_equals_backlash_compare():

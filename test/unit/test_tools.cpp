@@ -109,6 +109,55 @@ TEST(Sweep, EveryRowEqualsASingleBacklashSimRun)
   EXPECT_LT(cycles, 12);
 }
 
+// --tracking adds the tracking figures: each equals backlash_sim's (the same replay) — a number, or empty where the
+// JSON has null — and the sharded parts of such a sweep merge into exactly the unsharded CSV.
+TEST(Sweep, TrackingColumnsEqualBacklashSimsFigures)
+{
+  const std::string grid = " --zeta 0.3,0.6 --inertia-ratio 1,9 --friction-ratio 0.4 --restitution 0,1 --tracking";
+  int code = 0;
+  const std::string csv = runCapture(SWEEP + grid + " --jobs 2 2>/dev/null", &code);
+  ASSERT_EQ(code, 0);
+  EXPECT_NE(csv.find("cycle_centre,settling_band,settling_time,steady_rms_error\n"), std::string::npos);
+  const auto rows = csvRows(csv);
+  ASSERT_EQ(rows.size(), 8u);
+  int settled = 0;
+  for (const auto& r : rows)
+  {
+    ASSERT_EQ(r.size(), 19u);
+    const std::string json = runCapture(SIM + " --json --zeta " + r[0] + " --inertia-ratio " + r[1] +
+                                        " --friction-ratio " + r[2] + " --restitution " + r[3]);
+    EXPECT_EQ(std::stod(r[16]), jsonNumber(json, "settling_band"));
+    if (json.find("\"settling_time\":null") != std::string::npos)
+    {
+      EXPECT_EQ(r[17], "");
+    }
+    else
+    {
+      EXPECT_EQ(std::stod(r[17]), jsonNumber(json, "settling_time"));
+      ++settled;
+    }
+    EXPECT_EQ(std::stod(r[18]), jsonNumber(json, "steady_rms_error"));
+  }
+  EXPECT_GT(settled, 0);
+  // Shards of the tracking sweep merge into the same bytes.
+  char tmpl[] = "/tmp/backlash_tracking_XXXXXX";
+  ASSERT_NE(mkdtemp(tmpl), nullptr);
+  const std::string dir = tmpl;
+  for (int k = 1; k <= 3; ++k)
+  {
+    ASSERT_EQ(std::system((SWEEP + grid + " --shard " + std::to_string(k) + "/3 --output " + dir + "/p" +
+                           std::to_string(k) + ".csv 2>/dev/null")
+                              .c_str()),
+              0);
+  }
+  ASSERT_EQ(std::system((SWEEP + " --merge " + dir + "/p2.csv " + dir + "/p1.csv " + dir + "/p3.csv --output " + dir +
+                         "/m.csv 2>/dev/null")
+                            .c_str()),
+            0);
+  EXPECT_EQ(readFile(dir + "/m.csv"), csv);
+  std::system(("rm -rf " + dir).c_str());
+}
+
 // A command profile is a setting every point shares: each row equals backlash_sim with the same profile (a digital
 // drive sampling a ramp and a reversal), and differs from the plain step.
 TEST(Sweep, AProfileIsSharedByEveryPoint)

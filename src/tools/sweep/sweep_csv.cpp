@@ -18,7 +18,7 @@
 namespace backlash_servo
 {
 
-std::string sweepRow(const SweepPoint& p, const RunSummary& r, double command)
+std::string sweepRow(const SweepPoint& p, const RunSummary& r, double command, const TrackingFigures* tracking)
 {
   const bool lc = r.status.verdict == Verdict::LimitCycle || r.status.verdict == Verdict::Irregular;
   char buf[400];
@@ -41,6 +41,22 @@ std::string sweepRow(const SweepPoint& p, const RunSummary& r, double command)
   else
   {
     row += ",,";
+  }
+  if (tracking != nullptr)
+  {
+    std::snprintf(buf, sizeof buf, ",%.17g,", tracking->band);
+    row += buf;
+    if (!std::isnan(tracking->settling_time))
+    {
+      std::snprintf(buf, sizeof buf, "%.17g", tracking->settling_time);
+      row += buf;
+    }
+    row += ",";
+    if (!std::isnan(tracking->steady_rms_error))
+    {
+      std::snprintf(buf, sizeof buf, "%.17g", tracking->steady_rms_error);
+      row += buf;
+    }
   }
   return row;
 }
@@ -65,18 +81,30 @@ namespace
 {
 /// Largest part or sweep file read back (a 1344-point sweep is ~150 kB).
 constexpr std::size_t kMaxSweepFileBytes = std::size_t(1) << 30;
-/// How many result columns follow the axis columns.
-std::size_t resultColumnCount()
+bool endsWith(const std::string& line, const std::string& tail)
 {
-  static const std::size_t n = splitCsvCells(resultColumns()).size();
-  return n;
+  return line == tail ||
+         (line.size() > tail.size() && line.compare(line.size() - tail.size() - 1, tail.size() + 1, "," + tail) == 0);
 }
 
-/// A sweep CSV header: axis names, then exactly the result columns.
+/// Whether a sweep CSV header carries the tracking columns.
+bool hasTracking(const std::string& header)
+{
+  return endsWith(header, resultColumns() + "," + trackingColumns());
+}
+
+/// How many result columns (tracking ones included) follow the axis columns under `header`.
+std::size_t resultColumnCount(const std::string& header)
+{
+  static const std::size_t n = splitCsvCells(resultColumns()).size();
+  static const std::size_t t = splitCsvCells(trackingColumns()).size();
+  return n + (hasTracking(header) ? t : 0);
+}
+
+/// A sweep CSV header: axis names, then exactly the result columns (and the tracking columns).
 bool isSweepHeader(const std::string& line)
 {
-  const std::string& r = resultColumns();
-  return line == r || (line.size() > r.size() && line.compare(line.size() - r.size() - 1, r.size() + 1, "," + r) == 0);
+  return endsWith(line, resultColumns()) || hasTracking(line);
 }
 
 bool isNumber(const std::string& cell)
@@ -103,7 +131,13 @@ void checkRow(const std::string& line, const std::vector<std::string>& header, c
   {
     bad(std::to_string(cells.size()) + " columns, the header has " + std::to_string(header.size()));
   }
-  const std::size_t v = header.size() - resultColumnCount();  // the verdict column
+  std::string joined;
+  for (const std::string& h : header)
+  {
+    joined += (joined.empty() ? "" : ",") + h;
+  }
+  const bool tracking = hasTracking(joined);
+  const std::size_t v = header.size() - resultColumnCount(joined);  // the verdict column
   for (std::size_t c = 0; c < v; ++c)
   {
     if (!isNumber(cells[c]))
@@ -149,6 +183,20 @@ void checkRow(const std::string& line, const std::vector<std::string>& header, c
     if (oscillating ? !isNumber(cells[c]) : !cells[c].empty())
     {
       bad("'" + header[c] + "' must be a number for an oscillating point and empty otherwise");
+    }
+  }
+  if (tracking)
+  {
+    if (!isNumber(cells[v + 11]))
+    {
+      bad("'settling_band' is not a number");
+    }
+    for (std::size_t c : {v + 12, v + 13})
+    {
+      if (!cells[c].empty() && !isNumber(cells[c]))
+      {
+        bad("'" + header[c] + "' is neither a number nor empty");
+      }
     }
   }
 }
@@ -308,7 +356,7 @@ std::string mergeParts(const std::vector<std::string>& paths)
       out += row + "\n";
     }
   }
-  checkGridOrder(rows, splitCsvCells(header).size() - resultColumnCount(), ref.total);
+  checkGridOrder(rows, splitCsvCells(header).size() - resultColumnCount(header), ref.total);
   return out;
 }
 

@@ -13,7 +13,10 @@ namespace backlash_servo
 {
 /// The row of one point: its parameter columns, verdict, limit-cycle error [rad], period [s], impacts, simulated
 /// time [s], settled, steady error [rad] (converged runs; empty otherwise).
-std::string sweepRow(const SweepPoint& point, const RunSummary& run, double command);
+/// With `tracking`: then its settling band [rad], settling time [s] (empty when never settled) and steady-state RMS
+/// error [rad].
+std::string sweepRow(const SweepPoint& point, const RunSummary& run, double command,
+                     const TrackingFigures* tracking = nullptr);
 
 /// Points first … last−1 of part K of N (1-based K): contiguous blocks by grid index.
 struct SweepShard

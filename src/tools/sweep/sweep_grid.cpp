@@ -171,7 +171,7 @@ std::string SweepGrid::header() const
   {
     h += a.key + ",";
   }
-  return h + resultColumns();
+  return h + resultColumns() + (tracking_ ? "," + trackingColumns() : "");
 }
 
 std::size_t SweepGrid::size() const
@@ -259,6 +259,12 @@ const std::string& resultColumns()
   static const std::string columns =
       "verdict,limit_cycle,limit_cycle_error,period,impacts,simulated_time,settled,steady_error,maxima_per_period,"
       "peak_to_peak,cycle_centre";
+  return columns;
+}
+
+const std::string& trackingColumns()
+{
+  static const std::string columns = "settling_band,settling_time,steady_rms_error";
   return columns;
 }
 

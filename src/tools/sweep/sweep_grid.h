@@ -70,6 +70,9 @@ class SweepGrid
   /// What else changes a row besides the settings (the run-length cap, a profile file's content), as text; hashed
   /// into the fingerprint when not empty.
   void setRunSignature(const std::string& signature) { signature_ = signature; }
+  /// Rows also carry the tracking figures (trackingColumns(); a sampled replay of each run, replayTracking).
+  void setTracking(bool on) { tracking_ = on; }
+  bool tracking() const { return tracking_; }
 
  private:
   /// Refuses a mix of the two forms; the physical form drops the chart axes left at their defaults.
@@ -79,10 +82,14 @@ class SweepGrid
   std::vector<bool> given_;  // axis set explicitly (a chart axis left at its default is dropped by the physical form)
   KeyValues fixed_;
   std::string signature_;
+  bool tracking_ = false;
 };
 
 /// The result columns of every sweep CSV, after the axis columns (the last columns of SweepGrid::header()).
 const std::string& resultColumns();
+/// The tracking columns that follow them with --tracking: settling_band [rad], settling_time [s] (empty when the run
+/// never settles into the band), steady_rms_error [rad] (TrackingFigures).
+const std::string& trackingColumns();
 
 /// Values of an axis flag: a list "0.1,0.2", a range "start:stop:count" or "log:start:stop:count". Throws
 /// ConfigError naming the flag.

@@ -73,7 +73,7 @@ SweepRunResult runSweepPoints(std::size_t first, std::size_t last, int jobs,
 
 namespace backlash_servo
 {
-std::string evaluateSweepPoint(const SweepPoint& point, double max_duration)
+std::string evaluateSweepPoint(const SweepPoint& point, double max_duration, bool tracking)
 {
   RunConfig c = point.config();
   if (max_duration > 0.0)
@@ -81,6 +81,13 @@ std::string evaluateSweepPoint(const SweepPoint& point, double max_duration)
     c.max_duration = max_duration;
   }
   c.track_energy = false;  // verdicts only
-  return sweepRow(point, runResponse(c), c.command);
+  const RunSummary r = runResponse(c);
+  if (!tracking)
+  {
+    return sweepRow(point, r, c.command);
+  }
+  double rate = 0.0;
+  const TrackingFigures f = replayTracking(c, r, &rate);
+  return sweepRow(point, r, c.command, &f);
 }
 }  // namespace backlash_servo

@@ -20,8 +20,9 @@ struct SweepRunResult
  * `stop` becomes true or evaluate throws (the error is returned, not rethrown).
  */
 struct SweepPoint;
-/// One point's CSV row: its run until settled (capped at max_duration [s] when > 0), verdicts only.
-std::string evaluateSweepPoint(const SweepPoint& point, double max_duration);
+/// One point's CSV row: its run until settled (capped at max_duration [s] when > 0), verdicts only; with `tracking`
+/// also its tracking figures (a sampled replay of the run, replayTracking).
+std::string evaluateSweepPoint(const SweepPoint& point, double max_duration, bool tracking = false);
 
 SweepRunResult runSweepPoints(std::size_t first, std::size_t last, int jobs,
                               const std::function<std::string(std::size_t)>& evaluate,
