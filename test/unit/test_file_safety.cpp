@@ -375,7 +375,7 @@ TEST_F(SweepInputs, DamagedForgedOrForeignPartsAreRefusedWithOneLine)
   const std::string row1 =
       good1.substr(p1_line.size() + header.size() + 2,
                    good1.find('\n', p1_line.size() + header.size() + 2) - p1_line.size() - header.size() - 2);
-  const std::size_t v = static_cast<std::size_t>(std::count(header.begin(), header.end(), ',')) + 1 - 9;  // verdict
+  const std::size_t v = static_cast<std::size_t>(std::count(header.begin(), header.end(), ',')) + 1 - 11;  // verdict
   struct Case
   {
     std::string name, from, to, says;
