@@ -1,0 +1,165 @@
+#include "backlash_servo/linear_mode.h"
+
+#include <unsupported/Eigen/MatrixFunctions>
+
+#include <cmath>
+#include <limits>
+#include <stdexcept>
+
+namespace backlash_servo
+{
+namespace
+{
+constexpr double INF = std::numeric_limits<double>::infinity();
+}  // namespace
+
+LinearMode::LinearMode(const Eigen::MatrixXd& a, const Eigen::VectorXd& u, const Eigen::VectorXd& x0)
+    : a_(a), u_(u), x0_(x0)
+{
+  const Eigen::Index n = x0.size();
+  if (n < 1 || a.rows() != n || a.cols() != n || u.size() != n)
+  {
+    throw std::invalid_argument("LinearMode: A must be n × n and u, x0 of size n");
+  }
+  if (!a.allFinite() || !u.allFinite() || !x0.allFinite())
+  {
+    throw std::invalid_argument("LinearMode: A, u and x0 must be finite");
+  }
+  aug_ = Eigen::MatrixXd::Zero(n + 1, n + 1);
+  aug_.topLeftCorner(n, n) = a;
+  aug_.topRightCorner(n, 1) = u;
+  norm_a_ = a.operatorNorm();
+  Eigen::ComplexEigenSolver<Eigen::MatrixXcd> solver(aug_.cast<std::complex<double>>());
+  if (solver.info() == Eigen::Success)
+  {
+    const Eigen::JacobiSVD<Eigen::MatrixXcd> svd(solver.eigenvectors());
+    const auto& sv = svd.singularValues();
+    if (sv(sv.size() - 1) > 0.0 && sv(0) / sv(sv.size() - 1) <= MAX_EIGENBASIS_CONDITION)
+    {
+      v_ = solver.eigenvectors();
+      lambda_ = solver.eigenvalues();
+      Eigen::VectorXcd z0(n + 1);
+      z0.head(n) = x0.cast<std::complex<double>>();
+      z0(n) = 1.0;
+      c_ = v_.partialPivLu().solve(z0);
+      modal_ = true;
+    }
+  }
+}
+
+Eigen::VectorXd LinearMode::state(double tau) const
+{
+  const Eigen::Index n = x0_.size();
+  if (tau == 0.0)
+  {
+    return x0_;
+  }
+  if (modal_)
+  {
+    Eigen::VectorXcd e(lambda_.size());
+    for (Eigen::Index k = 0; k < lambda_.size(); ++k)
+    {
+      e(k) = std::exp(lambda_(k) * tau) * c_(k);
+    }
+    return (v_ * e).head(n).real();
+  }
+  Eigen::VectorXd z0(n + 1);
+  z0.head(n) = x0_;
+  z0(n) = 1.0;
+  const Eigen::MatrixXd e = (aug_ * tau).exp();
+  return (e * z0).head(n);
+}
+
+Eigen::VectorXd LinearMode::rate(double tau) const
+{
+  return a_ * state(tau) + u_;
+}
+
+double LinearMode::output(const Eigen::VectorXd& w, double w0, double tau) const
+{
+  return w.dot(state(tau)) + w0;
+}
+
+Eigen::VectorXcd LinearMode::eigenvalues() const
+{
+  return Eigen::EigenSolver<Eigen::MatrixXd>(a_).eigenvalues();
+}
+
+double LinearMode::firstCrossing(const Eigen::VectorXd& w, double w0, int direction, double horizon) const
+{
+  if (!(horizon > 0.0) || (direction != 1 && direction != -1))
+  {
+    return INF;
+  }
+  const Eigen::RowVectorXd wa = w.transpose() * a_;
+  const double scale = norm_a_ > 0.0 ? 1.0 / norm_a_ : horizon;  // the fastest time scale [s]
+  const double floor = FLOOR_FRACTION * scale;
+  double t = 0.0;
+  while (t < horizon)
+  {
+    // A window the exclusion test is likely to pass: where the remainder bound reaches about |s|.
+    const Eigen::VectorXd x = state(t);
+    const double s = w.dot(x) + w0;
+    const double m = wa.norm() * (a_ * x + u_).norm() * std::exp(1.0);
+    double h = m > 0.0 ? std::sqrt(std::fabs(s) / m) : horizon;
+    h = std::min({std::max(h, floor), scale, horizon - t});
+    const double hit = searchWindow(w, w0, direction, t, t + h, wa, floor);
+    if (hit < INF)
+    {
+      return hit;
+    }
+    t += h;
+  }
+  return INF;
+}
+
+double LinearMode::searchWindow(const Eigen::VectorXd& w, double w0, int direction, double lo, double hi,
+                                const Eigen::RowVectorXd& wa, double floor) const
+{
+  const Eigen::VectorXd x = state(lo);
+  const Eigen::VectorXd xd = a_ * x + u_;
+  const double s = w.dot(x) + w0;
+  const double s1 = w.dot(xd);
+  const double h = hi - lo;
+  const double m = wa.norm() * xd.norm() * std::exp(norm_a_ * h);  // ≥ max |s''| on the window
+  // What rounding can do to an evaluated output (the closed form's error, relative to the terms it sums).
+  const double noise = (modal_ ? 64.0 : 4096.0) * std::numeric_limits<double>::epsilon() *
+                       (w.cwiseAbs().dot(x.cwiseAbs()) + std::fabs(w0));
+  const double margin = 0.5 * m * h * h + noise;
+  const double end = s + s1 * h;
+  if ((s > margin && end > margin) || (s < -margin && end < -margin))
+  {
+    return INF;  // the linear part keeps one sign beyond the remainder: no zero here
+  }
+  const double s_hi = output(w, w0, hi);
+  const bool changes = direction * s <= 0.0 && direction * s_hi > 0.0;
+  if (std::fabs(s1) > m * h)
+  {
+    // s' keeps its sign on the window (|s'(τ) − s'(lo)| ≤ M h): s is monotone, one zero at most.
+    return changes ? bisect(w, w0, direction, lo, hi) : INF;
+  }
+  if (h <= floor)
+  {
+    // Within the floor of a turning point: a sign change is the crossing; none is a grazing (see the file comment).
+    return changes ? bisect(w, w0, direction, lo, hi) : INF;
+  }
+  const double mid = lo + 0.5 * h;
+  const double first = searchWindow(w, w0, direction, lo, mid, wa, floor);
+  return first < INF ? first : searchWindow(w, w0, direction, mid, hi, wa, floor);
+}
+
+double LinearMode::bisect(const Eigen::VectorXd& w, double w0, int direction, double lo, double hi) const
+{
+  for (int i = 0; i < 200; ++i)
+  {
+    const double mid = lo + 0.5 * (hi - lo);
+    if (!(mid > lo && mid < hi))
+    {
+      break;
+    }
+    (direction * output(w, w0, mid) > 0.0 ? hi : lo) = mid;
+  }
+  return hi;
+}
+
+}  // namespace backlash_servo

@@ -1,0 +1,208 @@
+// Linear modes of any order (linear_mode.h) against independent truth: the second-order step response in closed
+// form, a two-mass drive (momentum, energy, its antiresonance), crossings of a two-frequency signal against a dense
+// scan of its closed form, grazing, and Modelica's Rotational.Examples.Backlash events (an inertia bouncing between
+// the flanks of a compliant backlash: ElastoBacklash2's Kelvin–Voigt contact that never pulls, ElastoBacklash's).
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <limits>
+#include <vector>
+
+#include "backlash_servo/linear_mode.h"
+
+namespace
+{
+using backlash_servo::LinearMode;
+using Eigen::MatrixXd;
+using Eigen::VectorXd;
+constexpr double INF = std::numeric_limits<double>::infinity();
+
+VectorXd vec(std::initializer_list<double> v)
+{
+  VectorXd x(static_cast<Eigen::Index>(v.size()));
+  Eigen::Index i = 0;
+  for (double d : v)
+  {
+    x(i++) = d;
+  }
+  return x;
+}
+
+// ẍ = −2ζẋ − (x − 1) from rest: x = 1 − e^{−ζt}(cos ω_d t + ζ/ω_d sin ω_d t) — the thesis' rigid contact mode.
+TEST(LinearMode, TheSecondOrderStepIsItsClosedForm)
+{
+  const double zeta = 0.4, wd = std::sqrt(1.0 - zeta * zeta);
+  MatrixXd a(2, 2);
+  a << 0.0, 1.0, -1.0, -2.0 * zeta;
+  const LinearMode m(a, vec({0.0, 1.0}), vec({0.0, 0.0}));
+  EXPECT_TRUE(m.modal());
+  for (double t : {0.1, 1.0, 3.3, 10.0, 40.0})
+  {
+    const double x = 1.0 - std::exp(-zeta * t) * (std::cos(wd * t) + zeta / wd * std::sin(wd * t));
+    const double v = std::exp(-zeta * t) * (1.0 + zeta * zeta / (wd * wd)) * wd * std::sin(wd * t);
+    EXPECT_NEAR(m.state(t)(0), x, 1e-14) << t;
+    EXPECT_NEAR(m.state(t)(1), v, 1e-14) << t;
+  }
+  // The first maximum (velocity from + to −) at π/ω_d, to the last bits.
+  EXPECT_NEAR(m.firstCrossing(vec({0.0, 1.0}), 0.0, -1, 10.0), M_PI / wd, 1e-14 * M_PI / wd);
+}
+
+// Two inertias joined by a spring c, nothing else (a free–free two-mass drive, A singular: the Padé path): the relative
+// angle rings at ω² = c(1/J₁ + 1/J₂) as r₀ cos ωt, momentum is zero and the energy constant.
+TEST(LinearMode, ATwoMassDriveRingsAtItsAntiresonance)
+{
+  const double j1 = 0.2, j2 = 1.5, c = 3.0e4, r0 = 1e-3;
+  MatrixXd a = MatrixXd::Zero(4, 4);  // (θ₁, ω₁, θ₂, ω₂)
+  a(0, 1) = 1.0;
+  a(2, 3) = 1.0;
+  a(1, 0) = -c / j1;
+  a(1, 2) = c / j1;
+  a(3, 0) = c / j2;
+  a(3, 2) = -c / j2;
+  const LinearMode m(a, VectorXd::Zero(4), vec({r0, 0.0, 0.0, 0.0}));
+  EXPECT_FALSE(m.modal());
+  const double w = std::sqrt(c * (1.0 / j1 + 1.0 / j2));
+  const double e0 = 0.5 * c * r0 * r0;
+  for (double t : {1e-4, 3e-3, 0.05, 1.0})
+  {
+    const VectorXd x = m.state(t);
+    EXPECT_NEAR(x(0) - x(2), r0 * std::cos(w * t), 1e-10 * r0) << t;  // (Padé over up to 8000 rad of phase)
+    EXPECT_NEAR(j1 * x(1) + j2 * x(3), 0.0, 1e-12 * j1 * r0 * w) << t;
+    const double e = 0.5 * j1 * x(1) * x(1) + 0.5 * j2 * x(3) * x(3) + 0.5 * c * (x(0) - x(2)) * (x(0) - x(2));
+    EXPECT_NEAR(e, e0, 1e-10 * e0) << t;
+  }
+  const VectorXd rel = vec({1.0, 0.0, -1.0, 0.0});
+  EXPECT_NEAR(m.firstCrossing(rel, 0.0, -1, 1.0), 0.5 * M_PI / w, 1e-13);
+  EXPECT_NEAR(m.firstCrossing(rel, 0.0, +1, 1.0), 1.5 * M_PI / w, 1e-13);
+}
+
+// Two independent damped oscillators, 1 rad/s and 37 rad/s, and s = x₁ + 0.3 x₃ − 0.05: the crossings in both
+// directions, found one after the other from each crossing's state, against a dense scan of the closed form written
+// here (sign changes every 1e-5 s, refined by bisection). Then a grazing: s = x₁ − (its first maximum) touches 0 there
+// without crossing — no crossing; lowered by 1e-9 it crosses twice, and both are found.
+TEST(LinearMode, CrossingsOfTwoFrequenciesAgainstADenseScan)
+{
+  const double z1 = 0.05, w1 = 1.0, z2 = 0.02, w2 = 37.0;
+  MatrixXd a = MatrixXd::Zero(4, 4);
+  a << 0.0, 1.0, 0.0, 0.0, -w1 * w1, -2.0 * z1 * w1, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, -w2 * w2, -2.0 * z2 * w2;
+  const VectorXd x0 = vec({0.4, 0.0, 0.2, 0.0});
+  auto osc = [](double z, double w, double x, double t) {
+    const double wd = w * std::sqrt(1.0 - z * z);
+    return x * std::exp(-z * w * t) * (std::cos(wd * t) + z * w / wd * std::sin(wd * t));
+  };
+  auto s = [&](double t) { return osc(z1, w1, 0.4, t) + 0.3 * osc(z2, w2, 0.2, t) - 0.05; };
+  std::vector<double> truth;
+  const double horizon = 30.0, step = 1e-5;
+  for (double t = step; t <= horizon; t += step)
+  {
+    if ((s(t - step) > 0.0) != (s(t) > 0.0))
+    {
+      double lo = t - step, hi = t;
+      for (int i = 0; i < 80; ++i)
+      {
+        const double mid = 0.5 * (lo + hi);
+        ((s(mid) > 0.0) == (s(lo) > 0.0) ? lo : hi) = mid;
+      }
+      truth.push_back(hi);
+    }
+  }
+  ASSERT_GT(truth.size(), 10u);
+  const VectorXd w = vec({1.0, 0.0, 0.3, 0.0});
+  std::vector<double> found;
+  double t0 = 0.0;
+  VectorXd x = x0;
+  for (;;)
+  {
+    const LinearMode m(a, VectorXd::Zero(4), x);
+    const double up = m.firstCrossing(w, -0.05, +1, horizon - t0);
+    const double down = m.firstCrossing(w, -0.05, -1, horizon - t0);
+    const double next = std::min(up, down);
+    if (next == INF)
+    {
+      break;
+    }
+    t0 += next;
+    found.push_back(t0);
+    x = m.state(next);
+  }
+  ASSERT_EQ(found.size(), truth.size());
+  for (std::size_t i = 0; i < truth.size(); ++i)
+  {
+    EXPECT_NEAR(found[i], truth[i], 1e-9) << i;
+  }
+  // Grazing at the first maximum of x₁ alone (an undamped 1 rad/s oscillator from x = 0, v = 1: max 1 at π/2).
+  MatrixXd b(2, 2);
+  b << 0.0, 1.0, -1.0, 0.0;
+  const LinearMode g(b, VectorXd::Zero(2), vec({0.0, 1.0}));
+  EXPECT_EQ(g.firstCrossing(vec({1.0, 0.0}), -1.0, +1, 3.0), INF);
+  const double below = g.firstCrossing(vec({1.0, 0.0}), -(1.0 - 1e-9), +1, 3.0);
+  const double above = g.firstCrossing(vec({1.0, 0.0}), -(1.0 - 1e-9), -1, 3.0);
+  // (Crossings at a slope of only 4.5e-5: a rounding of the output moves them by ~1e-12 s.)
+  EXPECT_NEAR(below, std::asin(1.0 - 1e-9), 1e-10);
+  EXPECT_NEAR(above, M_PI - std::asin(1.0 - 1e-9), 1e-10);
+}
+
+/// Modelica.Mechanics.Rotational.Examples.Backlash: an inertia J = 5 kg·m² on a fixed flange through a compliant
+/// backlash of total play b = π/4 rad (free for |φ| ≤ b/2), c = 2e4 N·m/rad, d = 50 N·m·s/rad, from φ = π/2 at rest
+/// (deep in the positive flank). Contact on the flank of sign σ: penetration y = σφ − b/2, P = c y + d ẏ, torque −σQ
+/// on the inertia. ElastoBacklash2 (Q = max(0, P), Kelvin–Voigt that never pulls); ElastoBacklash (Q = c y + min(cy,
+/// dẏ) while positive: 2cy while dẏ > cy, then cy + dẏ). The reference results (modelica/MAP-LIB_ReferenceResults,
+/// Rotational/Examples/Backlash): first release at t = 0.0236592 s with w = −66.19662 rad/s, next contact at
+/// t = 0.0380238 s (both laws); ElastoBacklash2 releases from that contact at t = 0.0853423 s with w = 52.24986 rad/s
+/// (restitution 0.789313 = exp(−ζ/√(1−ζ²)(π − atan2(2ζ√(1−ζ²), 1 − 2ζ²))), ζ = d/(2√(cJ))).
+struct Bounce
+{
+  double j = 5.0, c = 2e4, d = 50.0, b = M_PI / 4.0;
+  /// Contact mode on flank σ with torque c y + k_d ẏ (k_d = d, or 0 with stiffness 2c in ElastoBacklash's K2).
+  LinearMode contact(double sigma, double stiffness, double damping, const VectorXd& x) const
+  {
+    MatrixXd a(2, 2);
+    a << 0.0, 1.0, -stiffness / j, -damping / j;
+    // J φ̈ = −σ(k (σφ − b/2) + k_d σ φ̇) = −k φ + σ k b/2 − k_d φ̇
+    return LinearMode(a, vec({0.0, sigma * stiffness * 0.5 * b / j}), x);
+  }
+  LinearMode flight(const VectorXd& x) const
+  {
+    MatrixXd a(2, 2);
+    a << 0.0, 1.0, 0.0, 0.0;
+    return LinearMode(a, VectorXd::Zero(2), x);
+  }
+};
+
+TEST(LinearMode, ModelicasBacklashExampleEvents)
+{
+  const Bounce k;
+  // Both laws: from rest in the positive flank, ẏ < 0 at once, so ElastoBacklash's min(cy, dẏ) = dẏ: the same contact.
+  const LinearMode first = k.contact(+1.0, k.c, k.d, vec({M_PI / 2.0, 0.0}));
+  const double t1 = first.firstCrossing(vec({k.c, k.d}), -k.c * 0.5 * k.b, -1, 1.0);  // P = c(φ − b/2) + dφ̇ ↓ 0
+  const VectorXd x1 = first.state(t1);
+  EXPECT_NEAR(t1, 0.0236592, 5e-7);
+  EXPECT_NEAR(x1(1), -66.19662, 5e-5);
+  EXPECT_GT(x1(0), 0.5 * k.b);  // released while still penetrating: y = −dẏ/c > 0
+  // Free flight to the negative flank: y₋ = −φ − b/2 ↑ 0.
+  const LinearMode fly = k.flight(x1);
+  const double t2 = fly.firstCrossing(vec({-1.0, 0.0}), -0.5 * k.b, +1, 1.0);
+  EXPECT_NEAR(t1 + t2, 0.0380238, 5e-7);
+  const VectorXd x2 = fly.state(t2);
+  // ElastoBacklash2 on the negative flank: P = c(−φ − b/2) − dφ̇ ↓ 0.
+  const LinearMode second = k.contact(-1.0, k.c, k.d, x2);
+  const double t3 = second.firstCrossing(vec({-k.c, -k.d}), -k.c * 0.5 * k.b, -1, 1.0);
+  const VectorXd x3 = second.state(t3);
+  EXPECT_NEAR(t1 + t2 + t3, 0.0853423, 5e-7);
+  EXPECT_NEAR(x3(1), 52.24986, 5e-5);
+  const double zeta = k.d / (2.0 * std::sqrt(k.c * k.j)), r = std::sqrt(1.0 - zeta * zeta);
+  const double e = std::exp(-zeta / r * (M_PI - std::atan2(2.0 * zeta * r, 1.0 - 2.0 * zeta * zeta)));
+  EXPECT_NEAR(e, 0.7893131, 1e-7);
+  EXPECT_NEAR(x3(1) / -x2(1), e, 1e-12);  // the contact's exact restitution, entering at y = 0
+  // ElastoBacklash on the negative flank: enters in K2 (dẏ > cy = 0: torque 2cy, undamped) until cy = dẏ, then KD.
+  const LinearMode k2 = k.contact(-1.0, 2.0 * k.c, 0.0, x2);
+  const double ts = k2.firstCrossing(vec({-k.c, k.d}), -k.c * 0.5 * k.b, +1, 1.0);  // cy − dẏ ↑ 0
+  const VectorXd xs = k2.state(ts);
+  const double y = -xs(0) - 0.5 * k.b, ydot = -xs(1);
+  EXPECT_NEAR(k.c * y, k.d * ydot, 1e-9 * k.c * y);
+  EXPECT_GT(y, 0.0);
+  // The K2 phase is an undamped spring 2c from y = 0 at speed ẏ₀: y = ẏ₀/Ω sin Ωt, and cy = dẏ at tan Ωt = dΩ/c.
+  const double omega = std::sqrt(2.0 * k.c / k.j);
+  EXPECT_NEAR(ts, std::atan(k.d * omega / k.c) / omega, 1e-14);
+}
+}  // namespace
