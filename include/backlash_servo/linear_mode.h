@@ -53,10 +53,10 @@ class LinearMode
   /// s(τ) = w·x(τ) + w₀.
   double output(const Eigen::VectorXd& w, double w0, double tau) const;
   /**
-   * The first τ in (0, horizon] where s = w·x + w₀ crosses zero in `direction` (+1: from ≤ 0 to > 0, −1: from ≥ 0 to
-   * < 0), located to the last bit; +inf if none (a grazing within the floor is none, see the file comment).
+   * The first τ in (from, horizon] where s = w·x + w₀ crosses zero in `direction` (+1: from ≤ 0 to > 0, −1: from ≥ 0
+   * to < 0), located to the last bit; +inf if none (a grazing within the floor is none, see the file comment).
    */
-  double firstCrossing(const Eigen::VectorXd& w, double w0, int direction, double horizon) const;
+  double firstCrossing(const Eigen::VectorXd& w, double w0, int direction, double horizon, double from = 0.0) const;
 
   /// Whether the closed form is the modal one (else the Padé exponential).
   bool modal() const { return modal_; }

@@ -85,7 +85,7 @@ Eigen::VectorXcd LinearMode::eigenvalues() const
   return Eigen::EigenSolver<Eigen::MatrixXd>(a_).eigenvalues();
 }
 
-double LinearMode::firstCrossing(const Eigen::VectorXd& w, double w0, int direction, double horizon) const
+double LinearMode::firstCrossing(const Eigen::VectorXd& w, double w0, int direction, double horizon, double from) const
 {
   if (!(horizon > 0.0) || (direction != 1 && direction != -1))
   {
@@ -94,7 +94,24 @@ double LinearMode::firstCrossing(const Eigen::VectorXd& w, double w0, int direct
   const Eigen::RowVectorXd wa = w.transpose() * a_;
   const double scale = norm_a_ > 0.0 ? 1.0 / norm_a_ : horizon;  // the fastest time scale [s]
   const double floor = FLOOR_FRACTION * scale;
-  double t = 0.0;
+  {
+    // An output that is zero with all its derivatives at the start (wᵀAᵏẋ = 0, k < n: the output does not see the
+    // motion at all, e.g. the velocity of a body at rest on which nothing acts) stays zero: it never crosses.
+    const Eigen::VectorXd x = state(from);
+    Eigen::VectorXd v = a_ * x + u_;
+    const double eps = 64.0 * std::numeric_limits<double>::epsilon();
+    bool flat = std::fabs(w.dot(x) + w0) <= eps * (w.cwiseAbs().dot(x.cwiseAbs()) + std::fabs(w0));
+    for (int k = 0; flat && k < order(); ++k)
+    {
+      flat = std::fabs(w.dot(v)) <= eps * w.cwiseAbs().dot(v.cwiseAbs());
+      v = a_ * v;
+    }
+    if (flat)
+    {
+      return INF;
+    }
+  }
+  double t = from;
   while (t < horizon)
   {
     // A window the exclusion test is likely to pass: where the remainder bound reaches about |s|.
@@ -102,7 +119,9 @@ double LinearMode::firstCrossing(const Eigen::VectorXd& w, double w0, int direct
     const double s = w.dot(x) + w0;
     const double m = wa.norm() * (a_ * x + u_).norm() * std::exp(1.0);
     double h = m > 0.0 ? std::sqrt(std::fabs(s) / m) : horizon;
-    h = std::min({std::max(h, floor), scale, horizon - t});
+    // (At least a thousandth of the fastest time scale: an output hovering near zero is searched by halving the
+    // window, not by crawling.)
+    h = std::min({std::max(h, 1e-3 * scale), scale, horizon - t});
     const double hit = searchWindow(w, w0, direction, t, t + h, wa, floor);
     if (hit < INF)
     {

@@ -33,6 +33,13 @@ def contents(path):
     return out
 
 
+def serialized(msg):
+    import io
+    buf = io.BytesIO()
+    msg.serialize(buf)
+    return buf.getvalue()
+
+
 def quantise(angle, counts):
     return 2.0 * math.pi / counts * math.floor(counts * angle / (2.0 * math.pi))
 
@@ -48,7 +55,7 @@ class Lockstep(unittest.TestCase):
         for topic in ("/joint_states", "/motor_effort", "/backlash_state", "/limit_cycle"):
             self.assertEqual(len(a[topic]), len(b[topic]), topic)
             for m, n in zip(a[topic], b[topic]):
-                self.assertEqual(m, n, topic)
+                self.assertEqual(serialized(m), serialized(n), topic)  # bit for bit (NaN fields included)
 
     def test_python_template_on_quantised_encoders_is_deterministic(self):
         # The rospy template (float time arithmetic: stamp.to_sec() differences) reads encoder_states, which effort mode publishes
