@@ -12,14 +12,15 @@
  * polynomial terms) it is evaluated by Padé scaling and squaring (Eigen's MatrixFunctions), to rounding.
  *
  * **Zero crossings, rigorously.** ẋ obeys the homogeneous equation (ẍ = A ẋ), so on a window [a, a + h]
- *   s(a + t) = s(a) + s'(a) t + R(t),  |R(t)| ≤ ½ M t²,  M = ‖wᵀA‖₂ ‖ẋ(a)‖₂ e^{‖A‖₂ h}
- * (s'' = wᵀ A exp(A t) ẋ(a), ‖exp(A t)‖₂ ≤ e^{‖A‖₂ t}). A window on which the linear part keeps one sign farther
- * from 0 than ½ M h² plus the rounding of an evaluated output holds no zero. A window where |s'(a)| > M h has a
- * derivative of one sign, so s is monotone there: one zero at most, bracketed by the signs at its ends and refined by
- * bisection to the last representable bit. Any other window is halved, earliest half first. Windows start as long as
- * the exclusion is likely to pass (h = √(|s(a)|/M), at most 1/‖A‖₂); halving stops at the floor
- * h_min = FLOOR_FRACTION / ‖A‖₂ — only near a turning point of s that lies within h_min·|s'| of zero — where a sign
- * change in the asked direction is the crossing and none is a **grazing**, reported as no crossing. That is the
+ *   s(a + t) = s(a) + s'(a) t + R(t),  |R(t)| ≤ ½ M t²,  M = ‖(Dw)ᵀÂ‖₂ ‖D⁻¹ẋ(a)‖₂ e^{‖Â‖₂ h}
+ * (s'' = wᵀ A exp(A t) ẋ(a), written in the balanced basis x = D x̂, Â = D⁻¹AD with D a diagonal of powers of 2
+ * (Parlett–Reinsch) so that ‖Â‖₂ is near the mode's fastest frequency; ‖exp(Â t)‖₂ ≤ e^{‖Â‖₂ t}). A window on which the
+ * linear part keeps one sign farther from 0 than ½ M h² plus the rounding of an evaluated output holds no zero. A
+ * window where |s'(a)| > M h has a derivative of one sign, so s is monotone there: one zero at most, bracketed by the
+ * signs at its ends and refined by bisection to the last representable bit. Any other window is halved, earliest half
+ * first. Windows start as long as the exclusion is likely to pass (h = √(|s(a)|/M), at most 1/‖Â‖₂); halving stops at
+ * the floor h_min = FLOOR_FRACTION / ‖Â‖₂ — only near a turning point of s that lies within h_min·|s'| of zero — where
+ * a sign change in the asked direction is the crossing and none is a **grazing**, reported as no crossing. That is the
  * documented tolerance: two crossings closer together than h_min (1e-9 of the mode's fastest time scale) cancel.
  */
 #pragma once
@@ -34,7 +35,7 @@ class LinearMode
  public:
   /// Eigenbases worse conditioned than this are not used: the Padé exponential instead.
   static constexpr double MAX_EIGENBASIS_CONDITION = 1e8;
-  /// The search's floor h_min as a fraction of the fastest time scale 1/‖A‖₂ (the grazing tolerance).
+  /// The search's floor h_min as a fraction of the fastest time scale 1/‖Â‖₂ (the grazing tolerance).
   static constexpr double FLOOR_FRACTION = 1e-9;
 
   /**
@@ -62,13 +63,13 @@ class LinearMode
   bool modal() const { return modal_; }
   /// The eigenvalues of A [1/s] (those of Ã less the input's zero).
   Eigen::VectorXcd eigenvalues() const;
-  /// ‖A‖₂ [1/s]: the mode's fastest time scale is its inverse.
+  /// ‖Â‖₂ [1/s] of the balanced matrix Â = D⁻¹AD: the mode's fastest time scale is its inverse.
   double norm() const { return norm_a_; }
 
  private:
   /// The first crossing in [lo, hi] (the window's state known at lo), +inf if none.
-  double searchWindow(const Eigen::VectorXd& w, double w0, int direction, double lo, double hi,
-                      const Eigen::RowVectorXd& wa, double floor) const;
+  double searchWindow(const Eigen::VectorXd& w, double w0, int direction, double lo, double hi, double wa,
+                      double floor) const;
   /// The bracketed crossing in (lo, hi] refined by bisection: direction·s(lo) ≤ 0 < direction·s(hi).
   double bisect(const Eigen::VectorXd& w, double w0, int direction, double lo, double hi) const;
 
@@ -76,10 +77,12 @@ class LinearMode
   Eigen::VectorXd u_, x0_;
   Eigen::MatrixXd aug_;  // Ã
   bool modal_ = false;
-  Eigen::MatrixXcd v_;       // eigenvectors of Ã (modal)
-  Eigen::VectorXcd lambda_;  // eigenvalues of Ã (modal)
-  Eigen::VectorXcd c_;       // V⁻¹ z₀ (modal)
-  double norm_a_ = 0.0;      // ‖A‖₂
+  Eigen::MatrixXcd v_;        // eigenvectors of Ã (modal)
+  Eigen::VectorXcd lambda_;   // eigenvalues of Ã (modal)
+  Eigen::VectorXcd c_;        // V⁻¹ z₀ (modal)
+  Eigen::VectorXd bal_;       // the balancing D (diagonal)
+  Eigen::MatrixXd balanced_;  // Â = D⁻¹AD
+  double norm_a_ = 0.0;       // ‖Â‖₂
 };
 
 }  // namespace backlash_servo

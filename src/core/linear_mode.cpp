@@ -28,7 +28,53 @@ LinearMode::LinearMode(const Eigen::MatrixXd& a, const Eigen::VectorXd& u, const
   aug_ = Eigen::MatrixXd::Zero(n + 1, n + 1);
   aug_.topLeftCorner(n, n) = a;
   aug_.topRightCorner(n, 1) = u;
-  norm_a_ = a.operatorNorm();
+  // Diagonal balancing D (Parlett–Reinsch, powers of 2): Â = D⁻¹AD has the mode's frequencies without the spread of
+  // units between positions and speeds (c/J against 1), so the search's windows are as long as the motion allows.
+  bal_ = Eigen::VectorXd::Ones(n);
+  Eigen::MatrixXd b = a;
+  for (bool changed = true; changed;)
+  {
+    changed = false;
+    for (Eigen::Index i = 0; i < n; ++i)
+    {
+      double c = 0.0, r = 0.0;
+      for (Eigen::Index j = 0; j < n; ++j)
+      {
+        if (j != i)
+        {
+          c += std::fabs(b(j, i));
+          r += std::fabs(b(i, j));
+        }
+      }
+      if (c == 0.0 || r == 0.0)
+      {
+        continue;
+      }
+      const double sum = c + r;
+      double f = 1.0;
+      while (c < 0.5 * r)
+      {
+        c *= 2.0;
+        r *= 0.5;
+        f *= 2.0;
+      }
+      while (c >= 2.0 * r)
+      {
+        c *= 0.5;
+        r *= 2.0;
+        f *= 0.5;
+      }
+      if (c + r < 0.95 * sum)
+      {
+        bal_(i) *= f;
+        b.row(i) /= f;
+        b.col(i) *= f;
+        changed = true;
+      }
+    }
+  }
+  balanced_ = b;
+  norm_a_ = b.operatorNorm();
   Eigen::ComplexEigenSolver<Eigen::MatrixXcd> solver(aug_.cast<std::complex<double>>());
   if (solver.info() == Eigen::Success)
   {
@@ -91,7 +137,8 @@ double LinearMode::firstCrossing(const Eigen::VectorXd& w, double w0, int direct
   {
     return INF;
   }
-  const Eigen::RowVectorXd wa = w.transpose() * a_;
+  // In the balanced basis x = D x̂: s = (Dw)·x̂ + w₀, s'' = (Dw)ᵀ Â exp(Ât) (D⁻¹ẋ).
+  const double wa = (w.cwiseProduct(bal_).transpose() * balanced_).norm();
   const double scale = norm_a_ > 0.0 ? 1.0 / norm_a_ : horizon;  // the fastest time scale [s]
   const double floor = FLOOR_FRACTION * scale;
   {
@@ -117,7 +164,7 @@ double LinearMode::firstCrossing(const Eigen::VectorXd& w, double w0, int direct
     // A window the exclusion test is likely to pass: where the remainder bound reaches about |s|.
     const Eigen::VectorXd x = state(t);
     const double s = w.dot(x) + w0;
-    const double m = wa.norm() * (a_ * x + u_).norm() * std::exp(1.0);
+    const double m = wa * (a_ * x + u_).cwiseQuotient(bal_).norm() * std::exp(1.0);
     double h = m > 0.0 ? std::sqrt(std::fabs(s) / m) : horizon;
     // (At least a thousandth of the fastest time scale: an output hovering near zero is searched by halving the
     // window, not by crawling.)
@@ -132,15 +179,15 @@ double LinearMode::firstCrossing(const Eigen::VectorXd& w, double w0, int direct
   return INF;
 }
 
-double LinearMode::searchWindow(const Eigen::VectorXd& w, double w0, int direction, double lo, double hi,
-                                const Eigen::RowVectorXd& wa, double floor) const
+double LinearMode::searchWindow(const Eigen::VectorXd& w, double w0, int direction, double lo, double hi, double wa,
+                                double floor) const
 {
   const Eigen::VectorXd x = state(lo);
   const Eigen::VectorXd xd = a_ * x + u_;
   const double s = w.dot(x) + w0;
   const double s1 = w.dot(xd);
   const double h = hi - lo;
-  const double m = wa.norm() * xd.norm() * std::exp(norm_a_ * h);  // ≥ max |s''| on the window
+  const double m = wa * xd.cwiseQuotient(bal_).norm() * std::exp(norm_a_ * h);  // ≥ max |s''| on the window
   // What rounding can do to an evaluated output (the closed form's error, relative to the terms it sums).
   const double noise = (modal_ ? 64.0 : 4096.0) * std::numeric_limits<double>::epsilon() *
                        (w.cwiseAbs().dot(x.cwiseAbs()) + std::fabs(w0));
