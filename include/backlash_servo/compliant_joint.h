@@ -76,7 +76,7 @@ class CompliantJoint
 
  private:
   int n() const { return torsional_ ? 6 : 4; }
-  int out() const { return torsional_ ? 2 : 2; }  // index of θ_o (the mesh's output-side angle)
+  int out() const { return 2; }  // index of θ_o, the mesh's output-side angle (θ_c itself with a rigid shaft)
   int load() const { return torsional_ ? 4 : 2; }
   /// A and u of the current mode.
   void modeMatrices(MeshMode m, Eigen::MatrixXd* a, Eigen::VectorXd* u) const;

@@ -102,9 +102,9 @@ TrackingMetrics trackingOf(const RunConfig& config, double dt, double t_end);
  */
 TrackingFigures replayTracking(const RunConfig& config, const RunSummary& run, double* sample_rate);
 
-/// Whether run's verdict is a sustained oscillation whose cycle reaches beyond `band` [rad] from its final command:
-/// it never settles into that band (TrackingMetrics::figures' `leaves_band`).
-bool cycleLeavesBand(const RunSummary& run, double command, double band);
+/// Whether the verdict is a sustained oscillation whose cycle reaches beyond `band` [rad] from the final command
+/// [rad]: it never settles into that band (TrackingMetrics::figures' `leaves_band`).
+bool cycleLeavesBand(const LimitCycleReport& status, const CycleShape& cycle, double command, double band);
 
 /// The simulator of a run at its start: the plant in its initial state under the configured law (the thesis' P law,
 /// or the drive: digital, saturated or compensated) following the command or the profile, with the run's energy

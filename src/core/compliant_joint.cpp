@@ -85,9 +85,7 @@ CompliantJoint::CompliantJoint(const ServoParams& servo, const CompliantParams& 
 {
   s_.validate();
   c_.validate();
-  x_ = Eigen::VectorXd::Zero(n());
-  mode_ = chooseMode(false, false);
-  contacts_ = mode_ == MeshMode::Free ? 0 : 1;
+  setState(Eigen::VectorXd::Zero(n()));
 }
 
 void CompliantJoint::setState(const Eigen::VectorXd& x)
@@ -327,12 +325,9 @@ void CompliantJoint::advanceTo(double t_end)
         break;
       case Kind::Engage:
         ++contacts_;
-        mode_ = msl_ ? (hit->sigma > 0 ? MeshMode::ForwardK2 : MeshMode::BackwardK2)
-                     : (hit->sigma > 0 ? MeshMode::Forward : MeshMode::Backward);
-        if (msl_ && !(d > 0.0))
-        {
-          mode_ = hit->sigma > 0 ? MeshMode::Forward : MeshMode::Backward;
-        }
+        // msl_elastobacklash enters in K2 (dẏ > cy = 0) unless the teeth are undamped.
+        mode_ = msl_ && d > 0.0 ? (hit->sigma > 0 ? MeshMode::ForwardK2 : MeshMode::BackwardK2)
+                                : (hit->sigma > 0 ? MeshMode::Forward : MeshMode::Backward);
         break;
       case Kind::Reengage:
         ++contacts_;

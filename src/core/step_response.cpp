@@ -163,13 +163,13 @@ TrackingFigures replayTracking(const RunConfig& config, const RunSummary& run, d
     tracking.add(s.time, profile ? profile->at(s.time) : config.command, s.load_position, sim.motorTorque());
   });
   const double command = profile ? profile->finalValue() : config.command;
-  return tracking.figures(t_end, dt, cycleLeavesBand(run, command, tracking.band()));
+  return tracking.figures(t_end, dt, cycleLeavesBand(run.status, run.cycle, command, tracking.band()));
 }
 
-bool cycleLeavesBand(const RunSummary& run, double command, double band)
+bool cycleLeavesBand(const LimitCycleReport& status, const CycleShape& cycle, double command, double band)
 {
-  const bool sustained = run.status.verdict == Verdict::LimitCycle || run.status.verdict == Verdict::Irregular;
-  return sustained && std::max(std::fabs(run.cycle.top - command), std::fabs(run.cycle.bottom - command)) > band;
+  const bool sustained = status.verdict == Verdict::LimitCycle || status.verdict == Verdict::Irregular;
+  return sustained && std::max(std::fabs(cycle.top - command), std::fabs(cycle.bottom - command)) > band;
 }
 
 Simulator makeSimulator(const RunConfig& config)

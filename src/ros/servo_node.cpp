@@ -601,11 +601,9 @@ TrackingFigures ServoNode::trackingNow() const
   {
     return TrackingFigures();
   }
-  RunSummary judged;  // what cycleLeavesBand reads: the verdict and the cycle's shape so far
-  judged.status = monitor_->status();
-  judged.cycle = monitor_->cycleShape();
   const double dt = 1.0 / config_.publish_rate;
-  return tracking_->figures(sim_.state().time, dt, cycleLeavesBand(judged, command_, tracking_->band()));
+  return tracking_->figures(sim_.state().time, dt,
+                            cycleLeavesBand(monitor_->status(), monitor_->cycleShape(), command_, tracking_->band()));
 }
 
 void ServoNode::publishLimitCycle(double sim_time, bool maximum, bool diverged)

@@ -89,7 +89,7 @@ CompareMetrics runStrategy(const std::string& name, const RunConfig& config, dou
   }
   const double simulated = std::max(r.simulated, 1e-300);
   const TrackingFigures f =
-      tracking.figures(config.initial.time + r.simulated, dt, cycleLeavesBand(r, final_ref, band));
+      tracking.figures(config.initial.time + r.simulated, dt, cycleLeavesBand(r.status, r.cycle, final_ref, band));
   m.settling_time = f.settling_time;
   m.rms_error = f.rms_error;
   m.steady_rms_error = f.steady_rms_error;
