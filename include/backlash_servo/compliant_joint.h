@@ -1,46 +1,41 @@
 /**
  * @file compliant_joint.h
  * @brief The compliant joint: resilient teeth (a mesh spring–damper that never pulls) and an optional torsional shaft,
- *        under the continuous P law, advanced exactly — every mode is linear with constant input (order 4, or 6 with
- *        the shaft), solved by LinearMode, and every event is a located zero crossing. The second way the gear
- *        transmits torque beside the rigid teeth with impacts (plant.h). No ROS dependency.
+ *        under a motor-torque law T_m = a − kθ_c, advanced exactly — every mode is linear with constant input (order
+ *        4, or 6 with the shaft), solved by LinearMode, and every event is a located zero crossing. The second way the
+ *        gear transmits torque beside the rigid teeth with impacts; the Plant (plant.h) delegates to it when
+ *        mesh_stiffness > 0. No ROS dependency.
  *
  * Model (docs/model.md, "The compliant joint"): mesh coordinate g = θ_o − ρθ_m (θ_o = θ_c with a rigid shaft);
  * penetration y = −g on the forward flank (g < 0), y = g − Δ on the backward flank (g > Δ); P = c y + d ẏ.
  * spring_damper: Q = ±max(0, P). msl_elastobacklash: Q = ±(c y + min(c y, d ẏ)) while positive (2cy while
  * dẏ > cy — the K2 sub-mode —, else cy + dẏ — KD). A contact starts where y becomes positive, is released where P
  * would pull, and a released flank re-engages where P becomes positive again, even while y > 0.
- *   motor:  J_m ω̇_m = K(θ_R − θ_c) − f_m ω_m − ρ Q
+ *   motor:  J_m ω̇_m = T_m − f_m ω_m − ρ Q,  T_m = a − kθ_c (the drive's law in force; K(θ_R − θ_c) for the P law)
  *   rigid shaft: (J_L + J_g) ω̇_c = Q − f_L ω_c + T_ext
  *   torsional shaft: J_g ω̇_o = Q − S, J_L ω̇_c = S − f_L ω_c + T_ext, S = k_s(θ_o − θ_c) + d_s(ω_o − ω_c).
- * Dry friction and digital drives are not part of this model yet.
+ * Dry friction is not part of this model yet (ServoParams::validate refuses it).
+ *
+ * Exactness and chunk-independence: a segment's closed form is anchored where the segment began (at an event), and
+ * its events are searched in windows of fixed length from that anchor, so how a run is cut into advanceTo() calls
+ * does not change a bit of it — as in the rigid plant.
  */
 #pragma once
 
 #include <Eigen/Dense>
+#include <cmath>
 #include <cstdint>
+#include <functional>
+#include <optional>
 #include <string>
 #include <vector>
 
-#include "backlash_servo/limit_cycle.h"
+#include "backlash_servo/linear_mode.h"
 #include "backlash_servo/params.h"
+#include "backlash_servo/state.h"
 
 namespace backlash_servo
 {
-/// The compliant mesh and shaft (MODEL Part 3 keys), SI units.
-struct CompliantParams
-{
-  std::string mesh_law = "spring_damper";  ///< spring_damper | msl_elastobacklash
-  double mesh_stiffness = 0.0;             ///< c [N·m/rad] at the output shaft (> 0)
-  double mesh_damping = 0.0;               ///< d [N·m·s/rad] at the output shaft
-  double gear_inertia = 0.0;               ///< J_g [kg·m²] of the output gear
-  double shaft_stiffness = 0.0;            ///< k_s [N·m/rad]; 0 = rigid shaft
-  double shaft_damping = 0.0;              ///< d_s [N·m·s/rad]
-  /// Throws InvalidParameterError naming the key: c > 0 finite, d ≥ 0, J_g ≥ 0, k_s ≥ 0, d_s ≥ 0, d_s > 0 needs
-  /// k_s > 0, k_s > 0 needs J_g > 0, the law one of the two.
-  void validate() const;
-};
-
 /// A contact phase's mode of the mesh.
 enum class MeshMode
 {
@@ -51,53 +46,107 @@ enum class MeshMode
   BackwardK2  ///< the same on the backward flank
 };
 
+/// What a located event of the compliant joint is.
+enum class MeshEvent
+{
+  Engage,            ///< a flank's penetration rose through 0: a contact phase begins
+  Reengage,          ///< a released, still penetrating flank's torque rose through 0: a contact phase begins again
+  LeavePenetration,  ///< a released flank's penetration fell through 0 (into the free play, or onto the other flank)
+  Release,           ///< the mesh torque fell through 0 (it would pull): the contact phase ends
+  SubMode,           ///< msl_elastobacklash switched between K2 and KD
+  Maximum,           ///< ω_c fell through 0: a maximum of θ_c
+  Minimum,           ///< ω_c rose through 0: a minimum of θ_c
+  WatchExit          ///< θ_c left the watched interval (a drive's switch)
+};
+
 class CompliantJoint
 {
  public:
-  /// Everything at rest at 0 with the teeth touching the forward flank without deflection (MODEL Part 3's start),
-  /// command θ_R [rad] applied at t = 0.
-  CompliantJoint(const ServoParams& servo, const CompliantParams& mesh, double command);
+  /// Throws InvalidParameterError unless params.compliant() and valid. The state starts at rest at 0 with the teeth
+  /// touching the forward flank without deflection; law: T_m = a − kθ_c [N·m].
+  CompliantJoint(const ServoParams& params, const MotorInput& law);
 
-  /// Replaces the state (the order of state()); the mesh takes the mode the state implies (pressing flank or free).
-  /// Throws std::invalid_argument on a wrong size or non-finite entries.
-  void setState(const Eigen::VectorXd& x);
-  /// Advances exactly to t_end [s] (≥ time()); maxima of θ_c are recorded on the way.
-  void advanceTo(double t_end);
+  /// The state's size: 4 with a rigid shaft, 6 with a torsional one.
+  int size() const { return torsional_ ? 6 : 4; }
+  /// Replaces the state (the order of state()) at time t [s]; the mesh takes the mode the state implies (pressing
+  /// flank or free). Throws std::invalid_argument on a wrong size or non-finite entries.
+  void setState(const Eigen::VectorXd& x, double t = 0.0);
+  /// New parameters (same shaft model: a torsional shaft cannot appear or vanish) from now on, state kept.
+  void setParams(const ServoParams& params);
+  /// A new motor-torque law from now on.
+  void setLaw(const MotorInput& law);
+  /// advanceTo() stops where θ_c leaves [lo, hi] [rad]; ±inf: none.
+  void setWatch(double lo, double hi);
+  /// Events need not be searched beyond time t [s] (a digital drive's next sample, where the law changes anyway):
+  /// the first search window of a segment beginning before t ends there. Depends only on drive times, so
+  /// chunk-independence holds. +inf: no limit.
+  void setSearchHorizon(double t) { horizon_ = t; }
+  /// Receives each event with the flank it concerns (+1 forward, −1 backward, 0 none), the state just after it.
+  using Observer = std::function<void(MeshEvent, int)>;
+  /**
+   * Advances exactly to t_end [s] (≥ time()), reporting events in order to `observer` (may be empty). Returns true
+   * when it stopped early, at a WatchExit (time() is then that instant).
+   */
+  bool advanceTo(double t_end, const Observer& observer = {});
   double time() const { return time_; }
   /// The state: (θ_m, ω_m, θ_c, ω_c) with a rigid shaft, (θ_m, ω_m, θ_o, ω_o, θ_c, ω_c) with a torsional one.
   const Eigen::VectorXd& state() const { return x_; }
+  /// Index of θ_c (and ω_c after it) in state().
+  int loadIndex() const { return torsional_ ? 4 : 2; }
   MeshMode mode() const { return mode_; }
-  /// The positive maxima of θ_c so far (time [s], position [rad], velocity after [rad/s]), in time order.
-  const std::vector<Maximum>& maxima() const { return maxima_; }
+  /// The mesh torque Q on the output gear [N·m] (on the motor: −ρQ), ≥ 0 forward, ≤ 0 backward, 0 free.
+  double meshTorque() const;
   /// Contact phases begun so far (each engagement of a flank, re-engagements included).
   std::uint64_t contacts() const { return contacts_; }
   /// Re-engagements of a released flank while still penetrating.
   std::uint64_t reengagements() const { return reengagements_; }
 
  private:
-  int n() const { return torsional_ ? 6 : 4; }
+  struct Watch
+  {
+    Eigen::VectorXd w;
+    double w0;
+    int direction;
+    MeshEvent kind;
+    int sigma;  // the flank (+1 forward, −1 backward), 0 for a maximum/minimum, ±1 upper/lower for the watch
+  };
+  /// The closed form of the current mode anchored at its start, and how far its events were searched.
+  struct Segment
+  {
+    LinearMode motion;
+    double start;             // [s]
+    double window;            // search window [s]
+    double searched = 0;      // events searched over (0, searched] of local time
+    double event = INFINITY;  // local time of the first event found, or +inf
+    int hit = -1;             // its index in watches
+    std::vector<Watch> watches;
+  };
   int out() const { return 2; }  // index of θ_o, the mesh's output-side angle (θ_c itself with a rigid shaft)
-  int load() const { return torsional_ ? 4 : 2; }
   /// A and u of the current mode.
   void modeMatrices(MeshMode m, Eigen::MatrixXd* a, Eigen::VectorXd* u) const;
   /// The penetration y = w·x + w0 of a flank (σ = +1 forward, −1 backward) as a linear output.
   void penetration(int sigma, Eigen::VectorXd* w, double* w0) const;
-  /// P = c y + d ẏ (k_y y + k_v ẏ for the given gains) of a flank as a linear output.
+  /// P = k_y y + k_v ẏ of a flank as a linear output.
   void flankTorque(int sigma, double ky, double kv, Eigen::VectorXd* w, double* w0) const;
   /// The mode the mesh takes from the current state (after an event).
   MeshMode chooseMode(bool released_forward, bool released_backward) const;
+  void beginSegment();
+  void searchNextWindow();
+  /// Applies the segment's event at the current state; true for a WatchExit.
+  bool handle(const Watch& watch, const Observer& observer);
 
   ServoParams s_;
-  CompliantParams c_;
-  double command_;
+  MotorInput law_;
   bool torsional_;
   bool msl_;
+  double watch_lo_ = -INFINITY, watch_hi_ = INFINITY;
+  double horizon_ = INFINITY;
   double time_ = 0.0;
   Eigen::VectorXd x_;
   MeshMode mode_ = MeshMode::Forward;
-  std::vector<Maximum> maxima_;
+  std::optional<Segment> segment_;
   std::uint64_t contacts_ = 0, reengagements_ = 0;
-  int last_kind_ = -1, last_sigma_ = 0;  // the event that ended the previous segment
+  int last_kind_ = -1, last_sigma_ = 0;  // the event that began the current segment
 };
 
 }  // namespace backlash_servo

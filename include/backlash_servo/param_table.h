@@ -57,7 +57,7 @@ struct ParamRange
 
 /// Struct field a parameter is stored in (the node's own settings are bound in the node's adapter).
 using ParamField = std::variant<std::monostate, double ServoParams::*, double ChartParams::*, double State::*,
-                                double RunConfig::*, double DriveParams::*>;
+                                double RunConfig::*, double DriveParams::*, std::string ServoParams::*>;
 
 struct ParamSpec
 {

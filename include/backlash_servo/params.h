@@ -54,12 +54,24 @@ struct ServoParams
   double motor_static_friction = 0.0;   ///< T_sm, breakaway torque of the motor at rest [N·m], >= T_cm
   double load_coulomb_friction = 0.0;   ///< T_cL, kinetic dry friction of the sliding load [N·m], >= 0
   double load_static_friction = 0.0;    ///< T_sL, breakaway torque of the load at rest [N·m], >= T_cL
+  // The compliant joint (docs/model.md, "The compliant joint"): mesh_stiffness > 0 replaces the rigid teeth and their
+  // impacts by a spring–damper mesh; shaft_stiffness > 0 adds a torsional shaft between the output gear and the load.
+  std::string mesh_law = "spring_damper";  ///< spring_damper | msl_elastobacklash: how the mesh torque is formed
+  double mesh_stiffness = 0.0;             ///< c, mesh stiffness at the load shaft [N·m/rad], >= 0 (0 = rigid teeth)
+  double mesh_damping = 0.0;               ///< d, mesh damping at the load shaft [N·m·s/rad], >= 0
+  double gear_inertia = 0.0;               ///< J_g, output gear inertia on the load shaft [kg·m²], >= 0
+  double shaft_stiffness = 0.0;            ///< k_s, torsional shaft stiffness [N·m/rad], >= 0 (0 = rigid shaft)
+  double shaft_damping = 0.0;              ///< d_s, torsional shaft damping [N·m·s/rad], >= 0
 
   /// Throws InvalidParameterError naming the first bad field, its value and its allowed range (param_table.h).
   void validate() const;
 
-  /// J = J_m + ρ² J_L, inertia of the meshed pair referred to the load shaft [kg·m²].
-  double totalInertia() const { return motor_inertia + gear_ratio * gear_ratio * load_inertia; }
+  /// A compliant mesh (mesh_stiffness > 0) instead of rigid teeth with impacts.
+  bool compliant() const { return mesh_stiffness > 0.0; }
+  /// A torsional shaft between the output gear and the load (shaft_stiffness > 0).
+  bool torsionalShaft() const { return shaft_stiffness > 0.0; }
+  /// J = J_m + ρ² (J_L + J_g), inertia of the meshed pair referred to the load shaft [kg·m²].
+  double totalInertia() const { return motor_inertia + gear_ratio * gear_ratio * (load_inertia + gear_inertia); }
   /// F_T = f_m + ρ² f_L, total friction referred to the load shaft [N·m·s/rad].
   double totalFriction() const { return motor_friction + gear_ratio * gear_ratio * load_friction; }
   /// ω_n = sqrt(ρK/J), natural frequency of the meshed servo [rad/s].

@@ -25,16 +25,20 @@
 
 namespace backlash_servo
 {
+class CompliantJoint;
+
 enum class EventType
 {
   Impact,          ///< teeth collided (see ImpactInfo)
-  Separation,      ///< mesh torque reached zero and changed sign: teeth came apart (Δ = 0: pushing side flipped)
+  Separation,      ///< mesh torque reached zero and changed sign: teeth came apart (Δ = 0: pushing side flipped);
+                   ///< for a compliant mesh: a contact phase ended (the torque would pull)
   Maximum,         ///< load velocity went from + to − (smoothly or at an impact): a maximum of θ_c (kinematic event
                    ///< located exactly by the plant; the response monitor decides what it means)
   Minimum,         ///< load velocity went from − to +: a minimum of θ_c (located like Maximum; the monitor reads the
                    ///< cycle's peak-to-peak amplitude and centre from both)
   Rest,            ///< a body with dry friction came to rest: it sticks or breaks away again (rest rule,
                    ///< dry_friction.h); also a stuck motor pulled free by the continuous law
+  Engagement,      ///< a compliant mesh's flank began to transmit torque: a contact phase began (state.contact)
   InputChange,     ///< command θ_R or motor torque changed
   ParameterChange  ///< parameters replaced
 };
@@ -62,6 +66,9 @@ struct Event
   State state;
   MotorInput law;     ///< motor-torque law in force just after the event: T_m = law.torque(θ_c) [N·m]
   ImpactInfo impact;  ///< filled for EventType::Impact
+  /// With a compliant mesh: its torque on the output gear just after the event [N·m]. NaN with rigid teeth, whose
+  /// mesh torque follows from the law and the state (modes.h, meshTorque()).
+  double mesh_torque = std::numeric_limits<double>::quiet_NaN();
 };
 
 /// Receives events in time order while the simulator advances.
@@ -114,6 +121,10 @@ struct EnergyLedger
  * Contact: \f$ J\ddot\theta_c + F_T\dot\theta_c = \rho T_m \f$; apart: \f$ J_L\ddot\theta_c + f_L\dot\theta_c = 0,
  * \; J_m\ddot\theta_m + f_m\dot\theta_m = T_m \f$; impacts by impact.h; separation where the mesh torque changes
  * sign. See docs/model.md and docs/validation.md ("How it is exact").
+ *
+ * With a compliant mesh (params.compliant()) the plant delegates the motion to a CompliantJoint (compliant_joint.h):
+ * the second way the gear transmits torque, with contact phases instead of impacts; the Plant's own interface, law,
+ * watch and events stay the same (plant_compliant.cpp).
  */
 class Plant
 {
@@ -139,12 +150,23 @@ class Plant
     watch_lo_ = lo;
     watch_hi_ = hi;
     segment_.reset();
+    if (compliant_.joint)
+    {
+      watchCompliant();
+    }
   }
 
   /// Events need not be searched beyond time t [s] (a drive's next sample, where the law changes anyway): shortens
   /// the event searches of the segments that begin before it. Depends only on drive times, so chunk-independence
   /// holds. +inf: no limit.
-  void setSearchHorizon(double t) { search_horizon_ = t; }
+  void setSearchHorizon(double t)
+  {
+    search_horizon_ = t;
+    if (compliant_.joint)
+    {
+      horizonCompliant();
+    }
+  }
   /// Fully held by stiction past time t [s] (dry friction; the segment's rest rule holds both bodies and lasts
   /// beyond t): advancing to t would only move the clock, which holdTo(t) does — the digital drive's fast path
   /// through the samples of a stick phase (exactly what advanceTo(t) does there, without its dispatch).
@@ -170,6 +192,10 @@ class Plant
     state_.motor_position += dx_motor;
     state_.motor_velocity += dv_motor;
     segment_.reset();
+    if (compliant_.joint)
+    {
+      stateToCompliant();
+    }
   }
 
   /// See Simulator::setParams. Throws InvalidParameterError, keeping the old ones. `frame`: the parameters of a
@@ -203,6 +229,8 @@ class Plant
   /// Flights taken by the fast path since construction.
   std::uint64_t shortFlightCount() const { return short_flight_count_; }
 
+  /// The compliant mesh's joint (null with rigid teeth).
+  const CompliantJoint* compliantJoint() const { return compliant_.joint.get(); }
   /// Sends an event of the given type with the current state to sink (may be null).
   void emit(EventSink* sink, EventType type, const ImpactInfo* impact = nullptr) const;
 
@@ -315,6 +343,29 @@ class Plant
   /// Puts teeth at relative rest on `wall` into contact if the mesh torque presses, else leaves them apart.
   void settleOnWall(Contact wall);
 
+  // ---- the compliant mesh (plant_compliant.cpp) ----
+  /// The joint, owned by value: copied with the plant.
+  struct CompliantHolder
+  {
+    std::unique_ptr<CompliantJoint> joint;
+    CompliantHolder();
+    CompliantHolder(const CompliantHolder& other);
+    CompliantHolder& operator=(const CompliantHolder& other);
+    ~CompliantHolder();
+  };
+  /// Builds the joint for params_ at state_ (state.h's fields; contact is derived from the positions).
+  void beginCompliant();
+  /// state_ into the joint / the joint's state into state_.
+  void stateToCompliant();
+  void stateFromCompliant();
+  void watchCompliant();
+  void horizonCompliant();
+  bool advanceCompliant(double t_end, EventSink* sink);
+  void setCompliantParams(const ServoParams& params, EventSink* sink);
+  double compliantMeshTorque() const;
+  double compliantKineticEnergy() const;
+
+  CompliantHolder compliant_;
   ServoParams params_;
   GearMesh mesh_;
   State state_;

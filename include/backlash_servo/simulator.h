@@ -85,15 +85,18 @@ class Simulator
   /// ½ J_m ω_m² + ½ J_L ω_c² [J].
   double kineticEnergy() const;
   /// False once a ramp of the continuous law ran in its moving frame (until setState): energy() is then the
-  /// frame's, not the joint's (report it as unknown; energyBalanceError() is NaN).
-  bool energyValid() const { return energy_valid_; }
+  /// frame's, not the joint's (report it as unknown; energyBalanceError() is NaN). Always false with a compliant
+  /// mesh: it keeps no energy ledger yet.
+  bool energyValid() const { return energy_valid_ && !params().compliant(); }
   const EnergyLedger& energy() const { return plant_.energy(); }
   /// Energy accounting costs ~25 % of the run time; sweeps that only need verdicts may switch it off (the ledger
   /// then stays at its last values and energyBalanceError() is meaningless).
   void setEnergyTracking(bool on) { plant_.setEnergyTracking(on); }
   /// input − friction − impact losses − (kinetic − initial kinetic) [J]; zero up to rounding.
-  double energyBalanceError() const { return energy_valid_ ? plant_.energyBalanceError() : NAN; }
+  double energyBalanceError() const { return energyValid() ? plant_.energyBalanceError() : NAN; }
   std::uint64_t impactCount() const { return plant_.impactCount(); }
+  /// Contact phases of a compliant mesh begun since the last setState (0 with rigid teeth: see impactCount()).
+  std::uint64_t contactPhases() const;
   /**
    * The joint is at a state the dynamics can never leave: dry friction holds both bodies (and the contact) under the
    * motor torque in force, the hold has no end of its own, and the drive's output stays that torque for ever

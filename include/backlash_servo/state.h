@@ -29,7 +29,11 @@ struct State
   double load_velocity = 0.0;   ///< ω_c [rad/s]
   double motor_position = 0.0;  ///< θ_m [rad]
   double motor_velocity = 0.0;  ///< ω_m [rad/s]
+  /// Teeth side: for rigid teeth as the gap says; for a compliant mesh (mesh_stiffness > 0) the flank that presses
+  /// (Forward: the penetration θ_o − ρθ_m ≤ 0 transmits torque, Backward: θ_o − ρθ_m ≥ Δ), Apart when none does.
   Contact contact = Contact::Forward;
+  double shaft_twist = 0.0;       ///< θ_o − θ_c: output gear angle less load angle, torsional shaft only [rad]
+  double shaft_twist_rate = 0.0;  ///< ω_o − ω_c, torsional shaft only [rad/s]
 };
 
 /// How the motor torque is produced.

@@ -46,6 +46,7 @@ struct RunSummary
   CycleShape
       cycle;  ///< a sustained oscillation's peak-to-peak amplitude and centre [rad] (ResponseMonitor::cycleShape)
   std::uint64_t impacts = 0;
+  std::uint64_t contact_phases = 0;  ///< contact phases of a compliant mesh (0 with rigid teeth)
   EnergyLedger energy;
   double kinetic = 0.0;        ///< kinetic energy at the end [J]
   double balance_error = 0.0;  ///< energy balance residual [J]

@@ -31,20 +31,6 @@ double realValue(const KeyValues& kv, const ParamSpec& spec, const double* fallb
   return v;
 }
 
-/// The Servo keys (only those shared with the chart form if chart_shared) into p: given, or their default.
-void readServoKeys(const KeyValues& kv, bool chart_shared, ServoParams* p)
-{
-  auto value_of = [&](const char* key) { return p->*std::get<double ServoParams::*>(param(key).field); };
-  for (const ParamSpec* spec : paramsIn(ParamSection::Servo))
-  {
-    if (!chart_shared || inChartForm(*spec))
-    {
-      p->*std::get<double ServoParams::*>(spec->field) =
-          kv.has(spec->key) ? kv.number(spec->key) : spec->defaultValue(value_of);
-    }
-  }
-}
-
 std::string choiceValue(const KeyValues& kv, const ParamSpec& spec, const std::string* fallback = nullptr)
 {
   const std::string v = kv.text(spec.key, fallback ? *fallback : std::string(spec.fallback));
@@ -59,6 +45,29 @@ std::string choiceValue(const KeyValues& kv, const ParamSpec& spec, const std::s
   }
   return v;
 }
+
+/// The Servo keys (only those shared with the chart form if chart_shared) into p: given, or their default.
+void readServoKeys(const KeyValues& kv, bool chart_shared, ServoParams* p)
+{
+  auto value_of = [&](const char* key) { return p->*std::get<double ServoParams::*>(param(key).field); };
+  for (const ParamSpec* spec : paramsIn(ParamSection::Servo))
+  {
+    if (chart_shared && !inChartForm(*spec))
+    {
+      continue;
+    }
+    if (const auto* text = std::get_if<std::string ServoParams::*>(&spec->field))
+    {
+      p->*(*text) = choiceValue(kv, *spec);
+    }
+    else
+    {
+      p->*std::get<double ServoParams::*>(spec->field) =
+          kv.has(spec->key) ? kv.number(spec->key) : spec->defaultValue(value_of);
+    }
+  }
+}
+
 }  // namespace
 
 namespace
@@ -93,7 +102,15 @@ void updateServoKeys(const KeyValues& kv, ServoParams* p)
 {
   for (const ParamSpec* spec : paramsIn(ParamSection::Servo))
   {
-    if (kv.has(spec->key))
+    if (!kv.has(spec->key))
+    {
+      continue;
+    }
+    if (const auto* text = std::get_if<std::string ServoParams::*>(&spec->field))
+    {
+      p->*(*text) = choiceValue(kv, *spec);
+    }
+    else
     {
       p->*std::get<double ServoParams::*>(spec->field) = kv.number(spec->key);
     }

@@ -12,16 +12,8 @@ namespace backlash_servo
 namespace
 {
 constexpr double INF = std::numeric_limits<double>::infinity();
-
-void requireKey(bool ok, const char* key, double value, const char* why)
-{
-  if (!ok)
-  {
-    char text[64];
-    std::snprintf(text, sizeof text, "%.17g", value);
-    throw InvalidParameterError(key, std::string(text) + " " + why);
-  }
-}
+// A segment's event search windows, in units of its fastest time scale 1/‖Â‖₂.
+constexpr double WINDOW_SCALE = 256.0;
 
 bool isForward(MeshMode m)
 {
@@ -32,78 +24,83 @@ bool isK2(MeshMode m)
   return m == MeshMode::ForwardK2 || m == MeshMode::BackwardK2;
 }
 
-/// What ends a segment.
-enum class Kind
-{
-  Engage,            // y of a flank rises through 0 (free play → contact)
-  Reengage,          // P of a released, still penetrating flank rises through 0
-  LeavePenetration,  // y of a released flank falls through 0 (back into the free play, still free)
-  Release,           // P falls through 0: the torque would pull
-  ToKD,              // msl: c y − d ẏ rises through 0 (K2 → KD)
-  ToK2,              // msl: d ẏ − c y rises through 0 (KD → K2)
-  Maximum            // ω_c falls through 0
-};
-
-struct Watch
-{
-  Eigen::VectorXd w;
-  double w0;
-  int direction;
-  Kind kind;
-  int sigma;  // the flank (+1 forward, −1 backward), 0 for a maximum
-};
 }  // namespace
 
-void CompliantParams::validate() const
-{
-  if (mesh_law != "spring_damper" && mesh_law != "msl_elastobacklash")
-  {
-    throw InvalidParameterError("mesh_law", "'" + mesh_law + "' must be spring_damper or msl_elastobacklash");
-  }
-  requireKey(std::isfinite(mesh_stiffness) && mesh_stiffness > 0.0, "mesh_stiffness", mesh_stiffness,
-             "must be > 0 and finite [N·m/rad]");
-  requireKey(std::isfinite(mesh_damping) && mesh_damping >= 0.0, "mesh_damping", mesh_damping,
-             "must be >= 0 and finite [N·m·s/rad]");
-  requireKey(std::isfinite(gear_inertia) && gear_inertia >= 0.0, "gear_inertia", gear_inertia,
-             "must be >= 0 and finite [kg·m²]");
-  requireKey(std::isfinite(shaft_stiffness) && shaft_stiffness >= 0.0, "shaft_stiffness", shaft_stiffness,
-             "must be >= 0 and finite [N·m/rad]");
-  requireKey(std::isfinite(shaft_damping) && shaft_damping >= 0.0, "shaft_damping", shaft_damping,
-             "must be >= 0 and finite [N·m·s/rad]");
-  requireKey(!(shaft_damping > 0.0 && shaft_stiffness == 0.0), "shaft_damping", shaft_damping,
-             "needs shaft_stiffness > 0 (a rigid shaft has no twist to damp)");
-  requireKey(!(shaft_stiffness > 0.0 && gear_inertia == 0.0), "shaft_stiffness", shaft_stiffness,
-             "needs gear_inertia > 0 (the output gear between mesh and shaft)");
-}
-
-CompliantJoint::CompliantJoint(const ServoParams& servo, const CompliantParams& mesh, double command)
-    : s_(servo),
-      c_(mesh),
-      command_(command),
-      torsional_(mesh.shaft_stiffness > 0.0),
-      msl_(mesh.mesh_law == "msl_elastobacklash")
+CompliantJoint::CompliantJoint(const ServoParams& params, const MotorInput& law)
+    : s_(params), law_(law), torsional_(params.torsionalShaft()), msl_(params.mesh_law == "msl_elastobacklash")
 {
   s_.validate();
-  c_.validate();
-  setState(Eigen::VectorXd::Zero(n()));
+  if (!s_.compliant())
+  {
+    throw InvalidParameterError("mesh_stiffness", "must be > 0 for a compliant joint (got 0)");
+  }
+  setState(Eigen::VectorXd::Zero(size()));
 }
 
-void CompliantJoint::setState(const Eigen::VectorXd& x)
+void CompliantJoint::setParams(const ServoParams& params)
 {
-  if (x.size() != n() || !x.allFinite())
+  params.validate();
+  if (!params.compliant() || params.torsionalShaft() != torsional_)
   {
-    throw std::invalid_argument("CompliantJoint::setState: expected " + std::to_string(n()) + " finite entries");
+    throw InvalidParameterError(params.compliant() ? "shaft_stiffness" : "mesh_stiffness",
+                                "cannot switch between a rigid and a compliant " +
+                                    std::string(params.compliant() ? "shaft" : "mesh") + " during a run");
+  }
+  s_ = params;
+  msl_ = params.mesh_law == "msl_elastobacklash";
+  setState(x_, time_);
+}
+
+void CompliantJoint::setLaw(const MotorInput& law)
+{
+  law_ = law;
+  segment_.reset();
+}
+
+void CompliantJoint::setWatch(double lo, double hi)
+{
+  if (lo == watch_lo_ && hi == watch_hi_)
+  {
+    return;
+  }
+  watch_lo_ = lo;
+  watch_hi_ = hi;
+  segment_.reset();
+}
+
+void CompliantJoint::setState(const Eigen::VectorXd& x, double t)
+{
+  if (x.size() != size() || !x.allFinite() || !std::isfinite(t))
+  {
+    throw std::invalid_argument("CompliantJoint::setState: expected " + std::to_string(size()) + " finite entries");
   }
   x_ = x;
+  time_ = t;
   mode_ = chooseMode(false, false);
   contacts_ = mode_ == MeshMode::Free ? 0 : 1;
+  reengagements_ = 0;
   last_kind_ = -1;
+  segment_.reset();
+}
+
+double CompliantJoint::meshTorque() const
+{
+  if (mode_ == MeshMode::Free)
+  {
+    return 0.0;
+  }
+  const int sigma = isForward(mode_) ? 1 : -1;
+  const bool k2 = isK2(mode_);
+  Eigen::VectorXd w;
+  double w0;
+  flankTorque(sigma, (k2 ? 2.0 : 1.0) * s_.mesh_stiffness, k2 ? 0.0 : s_.mesh_damping, &w, &w0);
+  return sigma * std::max(0.0, w.dot(x_) + w0);
 }
 
 void CompliantJoint::penetration(int sigma, Eigen::VectorXd* w, double* w0) const
 {
   // y = σ(ρθ_m − θ_o) − δ, δ = 0 forward, Δ backward.
-  *w = Eigen::VectorXd::Zero(n());
+  *w = Eigen::VectorXd::Zero(size());
   (*w)(0) = sigma * s_.gear_ratio;
   (*w)(out()) = -sigma;
   *w0 = sigma > 0 ? 0.0 : -s_.backlash;
@@ -112,7 +109,7 @@ void CompliantJoint::penetration(int sigma, Eigen::VectorXd* w, double* w0) cons
 void CompliantJoint::flankTorque(int sigma, double ky, double kv, Eigen::VectorXd* w, double* w0) const
 {
   // ky y + kv ẏ with ẏ = σ(ρω_m − ω_o).
-  *w = Eigen::VectorXd::Zero(n());
+  *w = Eigen::VectorXd::Zero(size());
   (*w)(0) = sigma * ky * s_.gear_ratio;
   (*w)(out()) = -sigma * ky;
   (*w)(1) = sigma * kv * s_.gear_ratio;
@@ -122,25 +119,25 @@ void CompliantJoint::flankTorque(int sigma, double ky, double kv, Eigen::VectorX
 
 void CompliantJoint::modeMatrices(MeshMode m, Eigen::MatrixXd* a, Eigen::VectorXd* u) const
 {
-  const int k = n(), o = out(), l = load();
+  const int k = size(), o = out(), l = loadIndex();
   *a = Eigen::MatrixXd::Zero(k, k);
   *u = Eigen::VectorXd::Zero(k);
   const double rho = s_.gear_ratio, jm = s_.motor_inertia;
-  const double j_out = torsional_ ? c_.gear_inertia : s_.load_inertia + c_.gear_inertia;
+  const double j_out = torsional_ ? s_.gear_inertia : s_.load_inertia + s_.gear_inertia;
   Eigen::MatrixXd& A = *a;
   Eigen::VectorXd& U = *u;
   A(0, 1) = 1.0;
   A(o, o + 1) = 1.0;
-  // Motor: J_m ω̇_m = K(θ_R − θ_c) − f_m ω_m − ρQ.
+  // Motor: J_m ω̇_m = a − kθ_c − f_m ω_m − ρQ.
   A(1, 1) = -s_.motor_friction / jm;
-  A(1, l) = -s_.gain / jm;
-  U(1) = s_.gain * command_ / jm;
+  A(1, l) = -law_.stiffness / jm;
+  U(1) = law_.offset / jm;
   if (m != MeshMode::Free)
   {
     // Q = k(ρθ_m − θ_o) + k_d(ρω_m − ω_o) − σ k δ_σ (δ = 0 forward, Δ backward).
     const int sigma = isForward(m) ? 1 : -1;
-    const double kq = isK2(m) ? 2.0 * c_.mesh_stiffness : c_.mesh_stiffness;
-    const double kd = isK2(m) ? 0.0 : c_.mesh_damping;
+    const double kq = isK2(m) ? 2.0 * s_.mesh_stiffness : s_.mesh_stiffness;
+    const double kd = isK2(m) ? 0.0 : s_.mesh_damping;
     const double q0 = sigma > 0 ? 0.0 : kq * s_.backlash;
     const double qx[4] = {kq * rho, kd * rho, -kq, -kd};  // coefficients of θ_m, ω_m, θ_o, ω_o
     const int qi[4] = {0, 1, o, o + 1};
@@ -155,7 +152,7 @@ void CompliantJoint::modeMatrices(MeshMode m, Eigen::MatrixXd* a, Eigen::VectorX
   if (torsional_)
   {
     // S = k_s(θ_o − θ_c) + d_s(ω_o − ω_c): −S on the gear, +S on the load.
-    const double ks = c_.shaft_stiffness, ds = c_.shaft_damping, jl = s_.load_inertia;
+    const double ks = s_.shaft_stiffness, ds = s_.shaft_damping, jl = s_.load_inertia;
     A(o + 1, o) += -ks / j_out;
     A(o + 1, l) += ks / j_out;
     A(o + 1, o + 1) += -ds / j_out;
@@ -195,7 +192,7 @@ MeshMode CompliantJoint::chooseMode(bool released_forward, bool released_backwar
     }
     flankTorque(sigma, 0.0, 1.0, &w, &w0);
     const double ydot = w.dot(x_) + w0;
-    const double tc = c_.mesh_stiffness * y, td = c_.mesh_damping * ydot;
+    const double tc = s_.mesh_stiffness * y, td = s_.mesh_damping * ydot;
     if (y == 0.0 && ydot == 0.0)
     {
       // Touching at relative rest (the start): engaged when the free motion would push the teeth together.
@@ -225,136 +222,189 @@ MeshMode CompliantJoint::chooseMode(bool released_forward, bool released_backwar
   return MeshMode::Free;
 }
 
-void CompliantJoint::advanceTo(double t_end)
+void CompliantJoint::beginSegment()
 {
-  const double c = c_.mesh_stiffness, d = c_.mesh_damping;
-  const int l = load();
-  int guard = 0;
-  while (time_ < t_end)
+  const double c = s_.mesh_stiffness, d = s_.mesh_damping;
+  const int l = loadIndex();
+  Eigen::MatrixXd a;
+  Eigen::VectorXd u;
+  modeMatrices(mode_, &a, &u);
+  LinearMode motion(a, u, x_);
+  std::vector<Watch> watches;
+  Eigen::VectorXd w;
+  double w0;
+  if (mode_ == MeshMode::Free)
   {
-    Eigen::MatrixXd a;
-    Eigen::VectorXd u;
-    modeMatrices(mode_, &a, &u);
-    const LinearMode m(a, u, x_);
-    std::vector<Watch> watches;
-    Eigen::VectorXd w;
-    double w0;
-    if (mode_ == MeshMode::Free)
+    for (int sigma : {1, -1})
     {
-      for (int sigma : {1, -1})
+      penetration(sigma, &w, &w0);
+      if (w.dot(x_) + w0 > 0.0)
       {
-        penetration(sigma, &w, &w0);
-        const double y = w.dot(x_) + w0;
-        if (y > 0.0)
-        {
-          watches.push_back({w, w0, -1, Kind::LeavePenetration, sigma});
-          flankTorque(sigma, c, d, &w, &w0);  // P = cy + dẏ (msl: τc + τd, KD on re-engaging)
-          watches.push_back({w, w0, +1, Kind::Reengage, sigma});
-        }
-        else
-        {
-          watches.push_back({w, w0, +1, Kind::Engage, sigma});
-        }
-      }
-    }
-    else
-    {
-      const int sigma = isForward(mode_) ? 1 : -1;
-      if (isK2(mode_))
-      {
-        flankTorque(sigma, c, -d, &w, &w0);  // c y − d ẏ ↑ 0
-        watches.push_back({w, w0, +1, Kind::ToKD, sigma});
-        penetration(sigma, &w, &w0);
-        watches.push_back({w, w0, -1, Kind::Release, sigma});
+        watches.push_back({w, w0, -1, MeshEvent::LeavePenetration, sigma});
+        flankTorque(sigma, c, d, &w, &w0);  // P = cy + dẏ (msl: τc + τd, KD on re-engaging)
+        watches.push_back({w, w0, +1, MeshEvent::Reengage, sigma});
       }
       else
       {
-        flankTorque(sigma, c, d, &w, &w0);
-        watches.push_back({w, w0, -1, Kind::Release, sigma});
-        if (msl_)
-        {
-          flankTorque(sigma, -c, d, &w, &w0);  // d ẏ − c y ↑ 0
-          watches.push_back({w, w0, +1, Kind::ToK2, sigma});
-        }
+        watches.push_back({w, w0, +1, MeshEvent::Engage, sigma});
       }
-    }
-    w = Eigen::VectorXd::Zero(n());
-    w(l + 1) = 1.0;
-    watches.push_back({w, 0.0, -1, Kind::Maximum, 0});
-
-    const double horizon = t_end - time_;
-    // The event that began this segment lies at its start: its own crossing is not searched for again within the
-    // search floor (1e-9 of the fastest time scale).
-    const double skip = LinearMode::FLOOR_FRACTION / std::max(m.norm(), 1e-300);
-    double first = INF;
-    const Watch* hit = nullptr;
-    for (const Watch& watch : watches)
-    {
-      const bool again = static_cast<int>(watch.kind) == last_kind_ && watch.sigma == last_sigma_;
-      const double tau =
-          m.firstCrossing(watch.w, watch.w0, watch.direction, std::min(horizon, first), again ? skip : 0.0);
-      if (tau < first)
-      {
-        first = tau;
-        hit = &watch;
-      }
-    }
-    if (hit == nullptr)
-    {
-      x_ = m.state(horizon);
-      time_ = t_end;
-      last_kind_ = -1;
-      return;
-    }
-    x_ = m.state(first);
-    time_ += first;
-    last_kind_ = static_cast<int>(hit->kind);
-    last_sigma_ = hit->sigma;
-    if (++guard > 100000000)
-    {
-      throw std::logic_error("CompliantJoint: no progress (internal error; please report with the parameters)");
-    }
-    switch (hit->kind)
-    {
-      case Kind::Maximum:
-        // A turning point only where the load was moving up just before (not a load at rest being pushed down).
-        if (x_(l) > command_ && m.state(first * (1.0 - 1e-6))(l + 1) > 0.0)
-        {
-          maxima_.push_back({time_, x_(l), x_(l + 1)});
-        }
-        break;
-      case Kind::Engage:
-        ++contacts_;
-        // msl_elastobacklash enters in K2 (dẏ > cy = 0) unless the teeth are undamped.
-        mode_ = msl_ && d > 0.0 ? (hit->sigma > 0 ? MeshMode::ForwardK2 : MeshMode::BackwardK2)
-                                : (hit->sigma > 0 ? MeshMode::Forward : MeshMode::Backward);
-        break;
-      case Kind::Reengage:
-        ++contacts_;
-        ++reengagements_;
-        mode_ = hit->sigma > 0 ? MeshMode::Forward : MeshMode::Backward;
-        break;
-      case Kind::LeavePenetration:
-        // Now in the free play — or, with Δ = 0, on the other flank at once.
-        mode_ = chooseMode(hit->sigma > 0, hit->sigma < 0);
-        if (mode_ != MeshMode::Free)
-        {
-          ++contacts_;
-          last_kind_ = static_cast<int>(Kind::Engage);
-          last_sigma_ = -hit->sigma;
-        }
-        break;
-      case Kind::Release:
-        mode_ = MeshMode::Free;
-        break;
-      case Kind::ToKD:
-        mode_ = hit->sigma > 0 ? MeshMode::Forward : MeshMode::Backward;
-        break;
-      case Kind::ToK2:
-        mode_ = hit->sigma > 0 ? MeshMode::ForwardK2 : MeshMode::BackwardK2;
-        break;
     }
   }
+  else
+  {
+    const int sigma = isForward(mode_) ? 1 : -1;
+    if (isK2(mode_))
+    {
+      flankTorque(sigma, c, -d, &w, &w0);  // c y − d ẏ ↑ 0
+      watches.push_back({w, w0, +1, MeshEvent::SubMode, sigma});
+      penetration(sigma, &w, &w0);
+      watches.push_back({w, w0, -1, MeshEvent::Release, sigma});
+    }
+    else
+    {
+      flankTorque(sigma, c, d, &w, &w0);
+      watches.push_back({w, w0, -1, MeshEvent::Release, sigma});
+      if (msl_)
+      {
+        flankTorque(sigma, -c, d, &w, &w0);  // d ẏ − c y ↑ 0
+        watches.push_back({w, w0, +1, MeshEvent::SubMode, sigma});
+      }
+    }
+  }
+  w = Eigen::VectorXd::Zero(size());
+  w(l + 1) = 1.0;
+  watches.push_back({w, 0.0, -1, MeshEvent::Maximum, 0});
+  watches.push_back({w, 0.0, +1, MeshEvent::Minimum, 0});
+  w = Eigen::VectorXd::Zero(size());
+  w(l) = 1.0;
+  if (std::isfinite(watch_hi_))
+  {
+    watches.push_back({w, -watch_hi_, +1, MeshEvent::WatchExit, 1});
+  }
+  if (std::isfinite(watch_lo_))
+  {
+    watches.push_back({w, -watch_lo_, -1, MeshEvent::WatchExit, -1});
+  }
+  // Windows of a fixed length from the anchor: long enough for many of the mode's fastest oscillations, short enough
+  // that a window's search stays cheap.
+  double window = WINDOW_SCALE / std::max(motion.norm(), 1e-300);
+  if (horizon_ > time_ && horizon_ - time_ < window)
+  {
+    window = horizon_ - time_;
+  }
+  segment_.emplace(Segment{std::move(motion), time_, window, 0.0, INF, -1, std::move(watches)});
+}
+
+void CompliantJoint::searchNextWindow()
+{
+  Segment& seg = *segment_;
+  const double from = seg.searched, to = seg.searched + seg.window;
+  // The event that began this segment lies at its start: its own crossing is not searched for again within the
+  // search floor (1e-9 of the fastest time scale).
+  const double skip = LinearMode::FLOOR_FRACTION / std::max(seg.motion.norm(), 1e-300);
+  for (std::size_t i = 0; i < seg.watches.size(); ++i)
+  {
+    const Watch& watch = seg.watches[i];
+    const bool again = from == 0.0 && static_cast<int>(watch.kind) == last_kind_ && watch.sigma == last_sigma_;
+    const double tau =
+        seg.motion.firstCrossing(watch.w, watch.w0, watch.direction, std::min(to, seg.event), again ? skip : from);
+    if (tau < seg.event)
+    {
+      seg.event = tau;
+      seg.hit = static_cast<int>(i);
+    }
+  }
+  seg.searched = to;
+}
+
+bool CompliantJoint::advanceTo(double t_end, const Observer& observer)
+{
+  while (true)
+  {
+    if (!segment_)
+    {
+      beginSegment();
+    }
+    Segment& seg = *segment_;
+    const double local_end = t_end - seg.start;
+    while (!std::isfinite(seg.event) && seg.searched < local_end)
+    {
+      searchNextWindow();
+    }
+    if (!(seg.event <= local_end))
+    {
+      x_ = seg.motion.state(local_end);
+      time_ = t_end;
+      return false;
+    }
+    x_ = seg.motion.state(seg.event);
+    time_ = seg.start + seg.event;
+    const Watch watch = seg.watches[static_cast<std::size_t>(seg.hit)];
+    const double before = seg.motion.state(seg.event * (1.0 - 1e-6))(loadIndex() + 1);
+    segment_.reset();
+    last_kind_ = static_cast<int>(watch.kind);
+    last_sigma_ = watch.sigma;
+    if ((watch.kind == MeshEvent::Maximum && !(before > 0.0)) || (watch.kind == MeshEvent::Minimum && !(before < 0.0)))
+    {
+      continue;  // a turning point only where the load moved that way just before (not a load at rest pushed off)
+    }
+    if (handle(watch, observer))
+    {
+      return true;
+    }
+  }
+}
+
+bool CompliantJoint::handle(const Watch& watch, const Observer& observer)
+{
+  const double d = s_.mesh_damping;
+  int flank = watch.sigma;
+  switch (watch.kind)
+  {
+    case MeshEvent::Maximum:
+    case MeshEvent::Minimum:
+    case MeshEvent::WatchExit:
+      flank = 0;
+      break;
+    case MeshEvent::Engage:
+      ++contacts_;
+      // msl_elastobacklash enters in K2 (dẏ > cy = 0) unless the teeth are undamped.
+      mode_ = msl_ && d > 0.0 ? (watch.sigma > 0 ? MeshMode::ForwardK2 : MeshMode::BackwardK2)
+                              : (watch.sigma > 0 ? MeshMode::Forward : MeshMode::Backward);
+      break;
+    case MeshEvent::Reengage:
+      ++contacts_;
+      ++reengagements_;
+      mode_ = watch.sigma > 0 ? MeshMode::Forward : MeshMode::Backward;
+      break;
+    case MeshEvent::LeavePenetration:
+      // Now in the free play — or, with Δ = 0, on the other flank at once.
+      mode_ = chooseMode(watch.sigma > 0, watch.sigma < 0);
+      if (mode_ != MeshMode::Free)
+      {
+        ++contacts_;
+        last_kind_ = static_cast<int>(MeshEvent::Engage);
+        last_sigma_ = -watch.sigma;
+        if (observer)
+        {
+          observer(MeshEvent::Engage, -watch.sigma);
+        }
+        return false;
+      }
+      break;
+    case MeshEvent::Release:
+      mode_ = MeshMode::Free;
+      break;
+    case MeshEvent::SubMode:
+      mode_ = isK2(mode_) ? (watch.sigma > 0 ? MeshMode::Forward : MeshMode::Backward)
+                          : (watch.sigma > 0 ? MeshMode::ForwardK2 : MeshMode::BackwardK2);
+      break;
+  }
+  if (observer)
+  {
+    observer(watch.kind, flank);
+  }
+  return watch.kind == MeshEvent::WatchExit;
 }
 
 }  // namespace backlash_servo

@@ -63,6 +63,21 @@ std::vector<ParamSpec> makeTable()
     {"load_static_friction", "T_sL", "N·m", T::Real, S::Servo, FRICTION, "",
      "breakaway torque of the load at rest, >= load_coulomb_friction (default: that value; both forms)", true, {},
      &ServoParams::load_static_friction, "load_coulomb_friction"},
+    {"mesh_law", "", "-", T::Choice, S::Servo, FINITE, "spring_damper",
+     "compliant mesh torque: spring_damper (never pulls) or msl_elastobacklash (Modelica's ElastoBacklash; both forms)",
+     true, {"spring_damper", "msl_elastobacklash"}, &ServoParams::mesh_law},
+    {"mesh_stiffness", "c", "N·m/rad", T::Real, S::Servo, ParamRange{0.0, 1e12, false, false}, "0",
+     "tooth stiffness at the load shaft; 0 = rigid teeth with impacts (both forms)", true, {},
+     &ServoParams::mesh_stiffness},
+    {"mesh_damping", "d", "N·m·s/rad", T::Real, S::Servo, FRICTION, "0",
+     "tooth damping at the load shaft, compliant mesh only (both forms)", true, {}, &ServoParams::mesh_damping},
+    {"gear_inertia", "J_g", "kg·m²", T::Real, S::Servo, ParamRange{0.0, 1e9, false, false}, "0",
+     "output gear inertia on the load shaft, compliant mesh only (both forms)", true, {}, &ServoParams::gear_inertia},
+    {"shaft_stiffness", "k_s", "N·m/rad", T::Real, S::Servo, ParamRange{0.0, 1e12, false, false}, "0",
+     "torsional stiffness of the shaft from the output gear to the load; 0 = rigid shaft (both forms)", true, {},
+     &ServoParams::shaft_stiffness},
+    {"shaft_damping", "d_s", "N·m·s/rad", T::Real, S::Servo, FRICTION, "0",
+     "torsional damping of the shaft, with shaft_stiffness only (both forms)", true, {}, &ServoParams::shaft_damping},
     // ---- the servo, chart form (instead of J_m … K) ----
     {"zeta", "ζ", "-", T::Real, S::Chart, ParamRange{0.0, 100.0, false, false}, "", "damping ratio (required in the chart form)", false, {},
      &ChartParams::zeta},
@@ -278,7 +293,9 @@ bool inChartForm(const ParamSpec& spec)
   const std::string_view key = spec.key;  // no copy: asked for every key of every run's configuration
   return spec.section == ParamSection::Chart || key == "gear_ratio" || key == "backlash" || key == "restitution" ||
          key == "load_torque" || key == "motor_coulomb_friction" || key == "motor_static_friction" ||
-         key == "load_coulomb_friction" || key == "load_static_friction";
+         key == "load_coulomb_friction" || key == "load_static_friction" || key == "mesh_law" ||
+         key == "mesh_stiffness" || key == "mesh_damping" || key == "gear_inertia" || key == "shaft_stiffness" ||
+         key == "shaft_damping";
 }
 
 const std::vector<ParamSpec>& parameterTable()

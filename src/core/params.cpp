@@ -32,6 +32,19 @@ void ServoParams::validate() const
 {
   for (const ParamSpec* spec : paramsIn(ParamSection::Servo))
   {
+    if (const auto* text = std::get_if<std::string ServoParams::*>(&spec->field))
+    {
+      if (!spec->isChoice(this->*(*text)))
+      {
+        std::string list;
+        for (const char* c : spec->choices)
+        {
+          list += (list.empty() ? "" : " or ") + std::string(c);
+        }
+        throw InvalidParameterError(spec->key, "must be " + list + " (got '" + this->*(*text) + "')");
+      }
+      continue;
+    }
     spec->check(this->*std::get<double ServoParams::*>(spec->field));
   }
   // A body that sticks must need at least the sliding torque to break away (docs/model.md Part 2).
@@ -46,6 +59,30 @@ void ServoParams::validate() const
                               motor_coulomb_friction);
   requireStaticAtLeastCoulomb("load_static_friction", load_static_friction, "load_coulomb_friction",
                               load_coulomb_friction);
+  // The compliant joint's keys (docs/model.md, "The compliant joint") belong together.
+  auto requireWith = [](bool ok, const char* key, double value, const char* why) {
+    if (!ok)
+    {
+      throw InvalidParameterError(key, formatNumber(value) + " " + why);
+    }
+  };
+  const char* const RIGID = "needs mesh_stiffness > 0 (a compliant mesh; rigid teeth have none)";
+  requireWith(compliant() || mesh_damping == 0.0, "mesh_damping", mesh_damping, RIGID);
+  requireWith(compliant() || gear_inertia == 0.0, "gear_inertia", gear_inertia,
+              "needs mesh_stiffness > 0 (with rigid teeth the output gear is part of load_inertia)");
+  requireWith(compliant() || shaft_stiffness == 0.0, "shaft_stiffness", shaft_stiffness,
+              "needs mesh_stiffness > 0 (a torsional shaft is modelled behind a compliant mesh)");
+  requireWith(shaft_damping == 0.0 || torsionalShaft(), "shaft_damping", shaft_damping,
+              "needs shaft_stiffness > 0 (a rigid shaft has no twist to damp)");
+  requireWith(!torsionalShaft() || gear_inertia > 0.0, "shaft_stiffness", shaft_stiffness,
+              "needs gear_inertia > 0 (the output gear between the mesh and the shaft)");
+  if (compliant() && (motor_coulomb_friction > 0.0 || load_coulomb_friction > 0.0 || motor_static_friction > 0.0 ||
+                      load_static_friction > 0.0))
+  {
+    throw InvalidParameterError("mesh_stiffness", formatNumber(mesh_stiffness) +
+                                                      ": a compliant mesh does not take dry friction yet (set the "
+                                                      "*_coulomb_friction and *_static_friction keys to 0)");
+  }
   // The derived quantities of the validated envelope (docs/validation.md): outside it the core's promises were not
   // measured. The message names every key the quantity follows from, with its value (an absent key has its default, the
   // thesis' App. D1 value for the mechanics: a robot joint that leaves out motor_friction gets 0.48 N·m·s/rad).

@@ -100,6 +100,8 @@ const char* toString(EventType t)
       return "minimum";
     case EventType::Rest:
       return "rest";
+    case EventType::Engagement:
+      return "engagement";
     case EventType::InputChange:
       return "input_change";
     default:
@@ -111,6 +113,11 @@ Plant::Plant(const ServoParams& params, const State& initial, const MotorInput& 
 {
   params_.validate();
   deriveConstants();
+  if (params_.compliant())
+  {
+    state_ = initial;
+    beginCompliant();
+  }
   setState(initial);
 }
 
@@ -133,6 +140,18 @@ void Plant::setState(const State& s)
   requireFinite("load_velocity", s.load_velocity);
   requireFinite("motor_position", s.motor_position);
   requireFinite("motor_velocity", s.motor_velocity);
+  if (compliant_.joint)
+  {
+    requireFinite("shaft_twist", s.shaft_twist);
+    requireFinite("shaft_twist_rate", s.shaft_twist_rate);
+    state_ = s;
+    stateToCompliant();
+    energy_ = EnergyLedger();
+    energy_.initial_kinetic = kineticEnergy();
+    impacts_ = 0;
+    switches_ = 0;
+    return;
+  }
   const double rho = params_.gear_ratio;
   const double delta = params_.backlash;
   const double g = mesh_.gap(s.load_position, s.motor_position);
@@ -176,6 +195,11 @@ void Plant::setLaw(const MotorInput& law)
 {
   law_ = law;
   flight_model_.reset();
+  if (compliant_.joint)
+  {
+    watchCompliant();  // the law and the watch go to the joint together
+    return;
+  }
   // A digital drive's new sample on a joint held by stiction (stick–slip phases: most samples): if the rest rule
   // still holds everything, the held segment is exactly what a new one would be.
   if (dry_ && segmentHeld() && forced_motor_breakaway_ == 0 && heldUnder(law_.torque(state_.load_position)))
@@ -242,6 +266,11 @@ void Plant::setParams(const ServoParams& params, EventSink* sink, bool frame)
   {
     params.validate();
   }
+  if (compliant_.joint || params.compliant())
+  {
+    setCompliantParams(params, sink);
+    return;
+  }
   segment_.reset();  // the closed form restarts from the state now
   const double balance_before = energyBalanceError();
   const double old_gap = gap();
@@ -279,6 +308,10 @@ void Plant::setParams(const ServoParams& params, EventSink* sink, bool frame)
 
 double Plant::meshTorque() const
 {
+  if (compliant_.joint)
+  {
+    return compliantMeshTorque();
+  }
   if (dry_ && state_.contact != Contact::Apart)
   {
     // The kinetic friction of the sliding pair is part of the load's balance (at rest: the static share is not
@@ -294,12 +327,20 @@ double Plant::meshTorque() const
 
 double Plant::kineticEnergy() const
 {
+  if (compliant_.joint)
+  {
+    return compliantKineticEnergy();
+  }
   return 0.5 * params_.motor_inertia * state_.motor_velocity * state_.motor_velocity +
          0.5 * params_.load_inertia * state_.load_velocity * state_.load_velocity;
 }
 
 double Plant::energyBalanceError() const
 {
+  if (compliant_.joint)
+  {
+    return NAN;  // the compliant mesh keeps no ledger yet
+  }
   return energy_.input + energy_.load_work - energy_.motor_friction - energy_.load_friction -
          energy_.motor_dry_friction - energy_.load_dry_friction - energy_.impact_loss -
          (kineticEnergy() - energy_.initial_kinetic);
@@ -315,6 +356,10 @@ void Plant::emit(EventSink* sink, EventType type, const ImpactInfo* impact) cons
   e.type = type;
   e.state = state_;
   e.law = law_;
+  if (compliant_.joint)
+  {
+    e.mesh_torque = compliantMeshTorque();
+  }
   if (impact != nullptr)
   {
     e.impact = *impact;
@@ -339,6 +384,10 @@ bool Plant::advanceTo(double t_end, EventSink* sink)
   {
     throw std::invalid_argument("advanceTo: target time " + std::to_string(t_end) + " s is before the current time " +
                                 std::to_string(state_.time) + " s or not finite");
+  }
+  if (compliant_.joint)
+  {
+    return advanceCompliant(t_end, sink);
   }
   int stalled = 0;
   const bool report_impacts = reportsImpacts(sink);

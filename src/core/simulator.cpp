@@ -1,5 +1,7 @@
 #include "backlash_servo/simulator.h"
 
+#include "backlash_servo/compliant_joint.h"
+
 #include <algorithm>
 #include <cmath>
 #include <limits>
@@ -415,6 +417,11 @@ void Simulator::advanceDriveTo(double t_end, EventSink* sink)
     }
     takeSample();
   }
+}
+
+std::uint64_t Simulator::contactPhases() const
+{
+  return plant_.compliantJoint() ? plant_.compliantJoint()->contacts() : 0;
 }
 
 }  // namespace backlash_servo

@@ -304,10 +304,12 @@ RunSummary runResponse(const RunConfig& config, EventSink* sink, double sample_p
   out.maxima = monitor.maxima();
   out.cycle = monitor.cycleShape();
   out.impacts = sim.impactCount();
+  out.contact_phases = sim.contactPhases();
   out.energy = sim.energy();
   if (!sim.energyValid())
   {
-    // A ramp of the continuous law ran in its moving frame: the plant's ledger is the frame's, not the joint's.
+    // A ramp of the continuous law ran in its moving frame: the plant's ledger is the frame's, not the joint's; a
+    // compliant mesh keeps none.
     for (double* f : {&out.energy.input, &out.energy.motor_friction, &out.energy.load_friction, &out.energy.impact_loss,
                       &out.energy.load_work, &out.energy.motor_dry_friction, &out.energy.load_dry_friction,
                       &out.energy.input_magnitude, &out.energy.initial_kinetic})

@@ -172,6 +172,12 @@ BacklashServoConfig ServoNode::currentConfig() const
   const ServoParams& p = sim_.params();
   for (const ParamSpec* spec : paramsIn(ParamSection::Servo))
   {
+    if (const auto* text = std::get_if<std::string ServoParams::*>(&spec->field))
+    {
+      const auto it = std::find(spec->choices.begin(), spec->choices.end(), p.*(*text));
+      dynamic_reconfigure::ConfigTools::appendParameter(msg, spec->key, static_cast<int>(it - spec->choices.begin()));
+      continue;
+    }
     dynamic_reconfigure::ConfigTools::appendParameter(msg, spec->key, p.*std::get<double ServoParams::*>(spec->field));
   }
   const KeyValues drive = driveKeyValues(config_.run.drive);

@@ -52,7 +52,9 @@ class CsvWriter : public EventSink
   }
   void onEvent(const Event& e) override
   {
-    row(e.state, meshTorque(params_, e.law, e.state), e.law.torque(e.state.load_position), toString(e.type));
+    // A compliant mesh's torque depends on its deflection: the plant's own, at the event (rigid teeth: from the law).
+    const double mesh_torque = params_.compliant() ? e.mesh_torque : meshTorque(params_, e.law, e.state);
+    row(e.state, mesh_torque, e.law.torque(e.state.load_position), toString(e.type));
   }
   void sample(const Simulator& sim) { row(sim.state(), sim.meshTorque(), sim.motorTorque(), ""); }
 
@@ -61,8 +63,9 @@ class CsvWriter : public EventSink
   {
     char buf[512];
     std::snprintf(buf, sizeof buf, "%.15g,%.15g,%.15g,%.15g,%.15g,%.15g,%s,%.15g,%.15g,%s\n", s.time, s.load_position,
-                  s.load_velocity, s.motor_position, s.motor_velocity, mesh_.gap(s.load_position, s.motor_position),
-                  toString(s.contact), mesh_torque, motor_torque, event);
+                  s.load_velocity, s.motor_position, s.motor_velocity,
+                  mesh_.gap(s.load_position + s.shaft_twist, s.motor_position), toString(s.contact), mesh_torque,
+                  motor_torque, event);
     out_ << buf;
   }
 
@@ -104,6 +107,15 @@ void writeSummary(std::ostream& out, const RunConfig& c, const RunSummary& r, do
                 p.frictionRatio(), c.initial.load_position, c.command,
                 c.profile ? " (final value of the profile)" : "");
   out << buf;
+  if (p.compliant())
+  {
+    std::snprintf(buf, sizeof buf,
+                  "compliant mesh (%s): c=%g N·m/rad, d=%g N·m·s/rad, J_g=%g kg·m²; shaft k_s=%g N·m/rad, d_s=%g "
+                  "N·m·s/rad%s (e is not used)\n",
+                  p.mesh_law.c_str(), p.mesh_stiffness, p.mesh_damping, p.gear_inertia, p.shaft_stiffness,
+                  p.shaft_damping, p.torsionalShaft() ? "" : " (rigid shaft)");
+    out << buf;
+  }
   if (r.status.verdict == Verdict::LimitCycle)
   {
     std::snprintf(buf, sizeof buf,
@@ -157,10 +169,20 @@ void writeSummary(std::ostream& out, const RunConfig& c, const RunSummary& r, do
     std::snprintf(buf, sizeof buf, "  (%.4f, %.6f)", r.maxima[i].time, r.maxima[i].position);
     out << buf;
   }
-  std::snprintf(buf, sizeof buf,
-                "\nimpacts: %llu; simulated %.6g s in %.3g ms wall; energy balance residual %.3g J of %.3g J input\n",
-                static_cast<unsigned long long>(r.impacts), r.simulated, wall_seconds * 1e3, r.balance_error,
-                r.energy.input);
+  if (p.compliant())
+  {
+    std::snprintf(buf, sizeof buf,
+                  "\ncontact phases: %llu; simulated %.6g s in %.3g ms wall; energy balance: not kept for a compliant "
+                  "mesh\n",
+                  static_cast<unsigned long long>(r.contact_phases), r.simulated, wall_seconds * 1e3);
+  }
+  else
+  {
+    std::snprintf(buf, sizeof buf,
+                  "\nimpacts: %llu; simulated %.6g s in %.3g ms wall; energy balance residual %.3g J of %.3g J input\n",
+                  static_cast<unsigned long long>(r.impacts), r.simulated, wall_seconds * 1e3, r.balance_error,
+                  r.energy.input);
+  }
   out << buf;
 }
 }  // namespace

@@ -14,7 +14,14 @@ void writeRunJson(std::ostream& out, const RunConfig& c, const RunSummary& r, co
   j.beginObject("params");
   for (const ParamSpec* spec : paramsIn(ParamSection::Servo))
   {
-    j.field(spec->key, p.*std::get<double ServoParams::*>(spec->field));
+    if (const auto* text = std::get_if<std::string ServoParams::*>(&spec->field))
+    {
+      j.field(spec->key, p.*(*text));
+    }
+    else
+    {
+      j.field(spec->key, p.*std::get<double ServoParams::*>(spec->field));
+    }
   }
   j.beginObject("drive");
   for (const ParamSpec* spec : paramsIn(ParamSection::Drive))
@@ -84,6 +91,10 @@ void writeRunJson(std::ostream& out, const RunConfig& c, const RunSummary& r, co
   }
   j.endArray();
   j.field("impacts", static_cast<long long>(r.impacts));
+  if (c.params.compliant())
+  {
+    j.field("contact_phases", static_cast<long long>(r.contact_phases));
+  }
   j.beginObject("energy")
       .field("input", r.energy.input)
       .field("motor_friction", r.energy.motor_friction)

@@ -50,7 +50,9 @@ TEST(ParamTable, EntriesAreWellFormed)
     }
     if (p.section == ParamSection::Servo)
     {
-      EXPECT_TRUE(std::holds_alternative<double ServoParams::*>(p.field)) << p.key;
+      EXPECT_TRUE(p.type == ParamType::Choice ? std::holds_alternative<std::string ServoParams::*>(p.field)
+                                              : std::holds_alternative<double ServoParams::*>(p.field))
+          << p.key;
     }
     if (p.section == ParamSection::Chart)
     {
@@ -68,6 +70,11 @@ TEST(ParamTable, EntriesAreWellFormed)
   const ServoParams defaults;
   for (const ParamSpec* p : paramsIn(ParamSection::Servo))
   {
+    if (const auto* text = std::get_if<std::string ServoParams::*>(&p->field))
+    {
+      EXPECT_EQ(defaults.*(*text), p->fallback) << p->key;
+      continue;
+    }
     EXPECT_EQ(defaults.*std::get<double ServoParams::*>(p->field), p->fallbackNumber()) << p->key;
   }
 }

@@ -1,0 +1,154 @@
+// The Plant with a compliant mesh (mesh_stiffness > 0): the motion is the CompliantJoint's (compliant_joint.h); this
+// file translates between the Plant's interface (State, the motor-torque law, the drive's watch, events, the event
+// budget) and the joint's state vector and mesh events.
+#include <cmath>
+#include <cstdio>
+
+#include "backlash_servo/compliant_joint.h"
+#include "backlash_servo/plant.h"
+
+namespace backlash_servo
+{
+Plant::CompliantHolder::CompliantHolder() = default;
+Plant::CompliantHolder::~CompliantHolder() = default;
+Plant::CompliantHolder::CompliantHolder(const CompliantHolder& other)
+    : joint(other.joint ? std::make_unique<CompliantJoint>(*other.joint) : nullptr)
+{}
+Plant::CompliantHolder& Plant::CompliantHolder::operator=(const CompliantHolder& other)
+{
+  if (this != &other)
+  {
+    joint = other.joint ? std::make_unique<CompliantJoint>(*other.joint) : nullptr;
+  }
+  return *this;
+}
+
+void Plant::beginCompliant()
+{
+  compliant_.joint = std::make_unique<CompliantJoint>(params_, law_);
+  watchCompliant();
+  horizonCompliant();
+}
+
+void Plant::stateToCompliant()
+{
+  CompliantJoint& j = *compliant_.joint;
+  Eigen::VectorXd x(j.size());
+  x(0) = state_.motor_position;
+  x(1) = state_.motor_velocity;
+  const int l = j.loadIndex();
+  x(l) = state_.load_position;
+  x(l + 1) = state_.load_velocity;
+  if (params_.torsionalShaft())
+  {
+    x(2) = state_.load_position + state_.shaft_twist;
+    x(3) = state_.load_velocity + state_.shaft_twist_rate;
+  }
+  j.setState(x, state_.time);
+  stateFromCompliant();
+}
+
+void Plant::stateFromCompliant()
+{
+  const CompliantJoint& j = *compliant_.joint;
+  const Eigen::VectorXd& x = j.state();
+  const int l = j.loadIndex();
+  state_.time = j.time();
+  state_.motor_position = x(0);
+  state_.motor_velocity = x(1);
+  state_.load_position = x(l);
+  state_.load_velocity = x(l + 1);
+  state_.shaft_twist = params_.torsionalShaft() ? x(2) - x(l) : 0.0;
+  state_.shaft_twist_rate = params_.torsionalShaft() ? x(3) - x(l + 1) : 0.0;
+  switch (j.mode())
+  {
+    case MeshMode::Forward:
+    case MeshMode::ForwardK2:
+      state_.contact = Contact::Forward;
+      break;
+    case MeshMode::Backward:
+    case MeshMode::BackwardK2:
+      state_.contact = Contact::Backward;
+      break;
+    default:
+      state_.contact = Contact::Apart;
+  }
+}
+
+void Plant::watchCompliant()
+{
+  compliant_.joint->setLaw(law_);
+  compliant_.joint->setWatch(watch_lo_, watch_hi_);
+}
+
+void Plant::horizonCompliant()
+{
+  compliant_.joint->setSearchHorizon(search_horizon_);
+}
+
+bool Plant::advanceCompliant(double t_end, EventSink* sink)
+{
+  CompliantJoint& j = *compliant_.joint;
+  const bool stopped = j.advanceTo(t_end, [&](MeshEvent e, int) {
+    stateFromCompliant();
+    switch (e)
+    {
+      case MeshEvent::Engage:
+      case MeshEvent::Reengage:
+        if (event_budget_ != 0 && j.contacts() > event_budget_)
+        {
+          char buf[200];
+          std::snprintf(buf, sizeof buf,
+                        "event budget of %llu contact phases exceeded at t = %.9g s (raise max_events to go on)",
+                        static_cast<unsigned long long>(event_budget_), state_.time);
+          throw EventBudgetExceeded(buf);
+        }
+        emit(sink, EventType::Engagement);
+        break;
+      case MeshEvent::Release:
+        emit(sink, EventType::Separation);
+        break;
+      case MeshEvent::Maximum:
+        emit(sink, EventType::Maximum);
+        break;
+      case MeshEvent::Minimum:
+        emit(sink, EventType::Minimum);
+        break;
+      default:
+        break;  // a sub-mode switch, leaving a released flank's penetration, the drive's watch: no event of the plant
+    }
+  });
+  stateFromCompliant();
+  return stopped;
+}
+
+void Plant::setCompliantParams(const ServoParams& params, EventSink* sink)
+{
+  if (!compliant_.joint || !params.compliant())
+  {
+    throw InvalidParameterError("mesh_stiffness", formatNumber(params.mesh_stiffness) +
+                                                      ": cannot switch between rigid teeth and a compliant mesh "
+                                                      "during a run (start a new run with the new parameters)");
+  }
+  compliant_.joint->setParams(params);  // throws (keeping the old ones) when the shaft model would change
+  params_ = params;
+  deriveConstants();
+  watchCompliant();
+  stateFromCompliant();
+  emit(sink, EventType::ParameterChange);
+}
+
+double Plant::compliantMeshTorque() const
+{
+  return compliant_.joint->meshTorque();
+}
+
+double Plant::compliantKineticEnergy() const
+{
+  const double omega_gear = state_.load_velocity + state_.shaft_twist_rate;
+  return 0.5 * params_.motor_inertia * state_.motor_velocity * state_.motor_velocity +
+         0.5 * params_.load_inertia * state_.load_velocity * state_.load_velocity +
+         0.5 * params_.gear_inertia * omega_gear * omega_gear;
+}
+
+}  // namespace backlash_servo
