@@ -96,6 +96,9 @@ class CompliantJoint
   MeshMode mode() const { return mode_; }
   /// The mesh torque Q on the output gear [N·m] (on the motor: −ρQ), ≥ 0 forward, ≤ 0 backward, 0 free.
   double meshTorque() const;
+  /// The eigenvalues [1/s] of the current mode's matrix A (its natural modes: a pressing flank's two-mass resonance,
+  /// or the free play's motions).
+  Eigen::VectorXcd eigenvalues() const;
   /// Contact phases begun so far (each engagement of a flank, re-engagements included).
   std::uint64_t contacts() const { return contacts_; }
   /// Re-engagements of a released flank while still penetrating.

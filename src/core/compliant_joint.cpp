@@ -83,6 +83,14 @@ void CompliantJoint::setState(const Eigen::VectorXd& x, double t)
   segment_.reset();
 }
 
+Eigen::VectorXcd CompliantJoint::eigenvalues() const
+{
+  Eigen::MatrixXd a;
+  Eigen::VectorXd u;
+  modeMatrices(mode_, &a, &u);
+  return a.eigenvalues();
+}
+
 double CompliantJoint::meshTorque() const
 {
   if (mode_ == MeshMode::Free)
@@ -378,7 +386,9 @@ bool CompliantJoint::handle(const Watch& watch, const Observer& observer)
       mode_ = watch.sigma > 0 ? MeshMode::Forward : MeshMode::Backward;
       break;
     case MeshEvent::LeavePenetration:
-      // Now in the free play — or, with Δ = 0, on the other flank at once.
+    case MeshEvent::Release:
+      // Now in the free play — or, with Δ = 0, on the other flank at once (an undamped mesh's torque passes through
+      // zero exactly where the penetration does).
       mode_ = chooseMode(watch.sigma > 0, watch.sigma < 0);
       if (mode_ != MeshMode::Free)
       {
@@ -387,13 +397,14 @@ bool CompliantJoint::handle(const Watch& watch, const Observer& observer)
         last_sigma_ = -watch.sigma;
         if (observer)
         {
+          if (watch.kind == MeshEvent::Release)
+          {
+            observer(MeshEvent::Release, watch.sigma);
+          }
           observer(MeshEvent::Engage, -watch.sigma);
         }
         return false;
       }
-      break;
-    case MeshEvent::Release:
-      mode_ = MeshMode::Free;
       break;
     case MeshEvent::SubMode:
       mode_ = isK2(mode_) ? (watch.sigma > 0 ? MeshMode::Forward : MeshMode::Backward)

@@ -1,0 +1,278 @@
+// The compliant mesh inside the simulator (plant_compliant.cpp): the same joint through the Plant's interface and the
+// drives, against independent truth — the reference maxima of the independent implementation, a Runge–Kutta
+// integration of the linear two-mass drive written here (Δ = 0, where the mesh is linear), Modelica's
+// Rotational.Examples.First eigenvalues, chunk-independence bit for bit, and a sampled P law tending to the
+// continuous one at first order.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <complex>
+#include <vector>
+
+#include "backlash_servo/compliant_joint.h"
+#include "backlash_servo/simulator.h"
+
+namespace
+{
+using namespace backlash_servo;
+
+/// Thesis D1 with a compliant mesh: c = 1e4 N·m/rad, d for a contact damping ratio of e = 0.8's (the reference case
+/// sd_c1e4_e08_D1 of test_compliant_joint.cpp).
+ServoParams compliantD1()
+{
+  ServoParams p;
+  p.mesh_stiffness = 1e4;
+  p.mesh_damping = 4.461305825858438;
+  return p;
+}
+
+struct Collect : EventSink
+{
+  std::vector<Event> events;
+  void onEvent(const Event& e) override { events.push_back(e); }
+  std::vector<Event> of(EventType t) const
+  {
+    std::vector<Event> out;
+    for (const Event& e : events)
+    {
+      if (e.type == t)
+      {
+        out.push_back(e);
+      }
+    }
+    return out;
+  }
+};
+
+TEST(CompliantPlant, TheSimulatorRunsTheReferenceJointAndChunksCutNothing)
+{
+  const ServoParams p = compliantD1();
+  State start;  // at rest at 0, touching the forward flank
+  Simulator whole(p, start, 1.0);
+  Collect a;
+  whole.advanceTo(24.0, &a);
+  // The reference maxima (independent implementation, DOP853 at rtol 1e-12).
+  const std::vector<std::array<double, 2>> ref = {{3.436600908566362, 1.3399487298441173},
+                                                  {11.164785917382483, 1.1069107911761091},
+                                                  {21.095993869958512, 1.0712889517337925}};
+  std::vector<Event> maxima;
+  for (const Event& e : a.of(EventType::Maximum))
+  {
+    if (e.state.load_position > 1.0)
+    {
+      maxima.push_back(e);
+    }
+  }
+  ASSERT_EQ(maxima.size(), ref.size());
+  for (std::size_t i = 0; i < ref.size(); ++i)
+  {
+    EXPECT_NEAR(maxima[i].state.time, ref[i][0], 1e-6) << i;
+    EXPECT_NEAR(maxima[i].state.load_position, ref[i][1], 1e-6) << i;
+  }
+  // Contact phases begin and end in pairs, on both flanks, with the mesh torque on the pressing side.
+  const auto engaged = a.of(EventType::Engagement), released = a.of(EventType::Separation);
+  EXPECT_GE(engaged.size(), 10u);
+  EXPECT_LE(engaged.size() - released.size(), 1u);
+  int backward = 0;
+  for (const Event& e : engaged)
+  {
+    backward += e.state.contact == Contact::Backward;
+    EXPECT_TRUE(e.state.contact != Contact::Apart);
+  }
+  EXPECT_GT(backward, 0);
+  EXPECT_EQ(whole.contactPhases(), engaged.size());
+  EXPECT_FALSE(whole.energyValid());
+  // The same run cut into 2400 uneven chunks: every bit the same.
+  Simulator cut(p, start, 1.0);
+  Collect b;
+  for (int k = 1; k <= 2400; ++k)
+  {
+    cut.advanceTo(std::min(24.0, k * 0.01 + 0.003 * std::sin(k)), &b);
+  }
+  cut.advanceTo(24.0, &b);
+  ASSERT_EQ(a.events.size(), b.events.size());
+  for (std::size_t i = 0; i < a.events.size(); ++i)
+  {
+    EXPECT_EQ(a.events[i].state.time, b.events[i].state.time) << i;
+    EXPECT_EQ(a.events[i].state.load_position, b.events[i].state.load_position) << i;
+  }
+  EXPECT_EQ(whole.state().load_position, cut.state().load_position);
+  EXPECT_EQ(whole.state().motor_velocity, cut.state().motor_velocity);
+}
+
+// With Δ = 0 and an undamped mesh the two flanks' torques are c·y and −c·y of one penetration y = ρθ_m − θ_c, so the
+// mesh is the linear spring c(ρθ_m − θ_c) on both sides of zero: the joint is the linear two-mass drive (with a mesh
+// damper it is not: a flank that would pull is released). Against classical RK4 on its four equations with a step of
+// 1e-5 s (error ~1e-13), through several reversals of the mesh torque (each a switch of flank at y = 0).
+TEST(CompliantPlant, WithoutBacklashItIsTheLinearTwoMassDrive)
+{
+  ServoParams p;
+  p.backlash = 0.0;
+  p.mesh_stiffness = 100.0;
+  const double command = 1.0;
+  Simulator sim(p, State(), command);
+  Collect events;
+  using X = std::array<double, 4>;  // θ_m, ω_m, θ_c, ω_c
+  auto f = [&](const X& x) {
+    const double q = p.mesh_stiffness * (p.gear_ratio * x[0] - x[2]) + p.mesh_damping * (p.gear_ratio * x[1] - x[3]);
+    const double tm = p.gain * (command - x[2]);
+    return X{x[1], (tm - p.motor_friction * x[1] - p.gear_ratio * q) / p.motor_inertia, x[3],
+             (q - p.load_friction * x[3]) / p.load_inertia};
+  };
+  X x{0, 0, 0, 0};
+  const double h = 1e-5;
+  long step = 0;
+  for (int check = 1; check <= 6; ++check)
+  {
+    const double t = check;
+    for (; step * h < t - h / 2; ++step)
+    {
+      const X k1 = f(x);
+      X y;
+      for (int i = 0; i < 4; ++i)
+        y[i] = x[i] + 0.5 * h * k1[i];
+      const X k2 = f(y);
+      for (int i = 0; i < 4; ++i)
+        y[i] = x[i] + 0.5 * h * k2[i];
+      const X k3 = f(y);
+      for (int i = 0; i < 4; ++i)
+        y[i] = x[i] + h * k3[i];
+      const X k4 = f(y);
+      for (int i = 0; i < 4; ++i)
+        x[i] += h / 6.0 * (k1[i] + 2 * k2[i] + 2 * k3[i] + k4[i]);
+    }
+    sim.advanceTo(t, &events);
+    const State s = sim.state();
+    EXPECT_NEAR(s.motor_position, x[0], 1e-9) << t;
+    EXPECT_NEAR(s.motor_velocity, x[1], 1e-9) << t;
+    EXPECT_NEAR(s.load_position, x[2], 1e-9) << t;
+    EXPECT_NEAR(s.load_velocity, x[3], 1e-9) << t;
+  }
+  // The mesh torque reversed on the way (the overshoot): both flanks were used.
+  int backward = 0;
+  for (const Event& e : events.of(EventType::Engagement))
+  {
+    backward += e.state.contact == Contact::Backward;
+  }
+  EXPECT_GT(backward, 0);
+}
+
+// Modelica.Mechanics.Rotational.Examples.First (MSL 4.0): motor inertia 0.1 kg·m² driven by a torque source, an ideal
+// gear of ratio 10 to inertia2 (2 kg·m², with a bearing damper of 10 N·m·s/rad to the housing), a spring of 1e4 N·m/rad
+// to the load inertia3 (2 kg·m²). In this package's terms the motor and inertia2 move as one body behind the ideal
+// gear: motor_inertia 0.1 + ρ²·2 = 0.12, motor_friction ρ²·10 = 0.1, gear_ratio ρ = 1/10, the spring is the mesh
+// (mesh_stiffness 1e4, mesh_damping 0, backlash 0), load_inertia 2, load_friction 0; the torque source is effort
+// mode. Its published eigenvalues: 0, −0.714296126, −0.0595186 ± 76.3756818i [1/s].
+TEST(CompliantPlant, ModelicaExamplesFirstHasItsEigenvalues)
+{
+  ServoParams p;
+  p.motor_inertia = 0.12;
+  p.motor_friction = 0.1;
+  p.gear_ratio = 0.1;
+  p.backlash = 0.0;
+  p.mesh_stiffness = 1e4;
+  p.load_inertia = 2.0;
+  p.load_friction = 0.0;
+  const CompliantJoint joint(p, MotorInput{10.0, 0.0});  // a torque presses the forward flank
+  ASSERT_EQ(joint.mode(), MeshMode::Forward);
+  std::vector<std::complex<double>> ev;
+  for (int i = 0; i < 4; ++i)
+  {
+    ev.push_back(joint.eigenvalues()(i));
+  }
+  std::sort(ev.begin(), ev.end(),
+            [](auto a, auto b) { return a.real() != b.real() ? a.real() > b.real() : a.imag() < b.imag(); });
+  EXPECT_NEAR(std::abs(ev[0]), 0.0, 1e-9);
+  EXPECT_NEAR(ev[1].real(), -0.0595186, 5e-8);
+  EXPECT_NEAR(std::fabs(ev[1].imag()), 76.3756818, 5e-8);
+  EXPECT_NEAR(ev[2].real(), -0.0595186, 5e-8);
+  EXPECT_NEAR(ev[3].real(), -0.714296126, 5e-10);
+  EXPECT_NEAR(ev[3].imag(), 0.0, 1e-12);
+}
+
+// A digital P drive samples θ_c and holds K(θ_R − θ_c): as its rate grows it tends to the continuous law on the
+// compliant joint too, at first order (the hold's error is half a sample period of the loop's motion).
+TEST(CompliantPlant, ASampledPLawTendsToTheContinuousOneAtFirstOrder)
+{
+  const ServoParams p = compliantD1();
+  auto trajectory = [&](double rate) {
+    Simulator sim(p, State(), 1.0);
+    if (rate > 0.0)
+    {
+      DriveParams d;
+      d.controller_rate = rate;
+      sim.setDrive(makePositionDrive(d, p.gain, p.gear_ratio, 1.0, 0.0));
+    }
+    std::vector<double> out;
+    for (int i = 1; i <= 400; ++i)
+    {
+      sim.advanceTo(0.01 * i);
+      out.push_back(sim.state().load_position);
+    }
+    return out;
+  };
+  const std::vector<double> exact = trajectory(0.0);
+  double worst[2] = {0.0, 0.0};
+  const double rates[2] = {1000.0, 4000.0};
+  for (int r = 0; r < 2; ++r)
+  {
+    const std::vector<double> sampled = trajectory(rates[r]);
+    for (std::size_t i = 0; i < exact.size(); ++i)
+    {
+      worst[r] = std::max(worst[r], std::fabs(sampled[i] - exact[i]));
+    }
+  }
+  EXPECT_LT(worst[0], 5e-3);
+  EXPECT_GT(worst[1], 0.15 * worst[0]);  // first order: a quarter of the error for four times the rate
+  EXPECT_LT(worst[1], 0.4 * worst[0]);
+}
+
+// The compliant keys are validated together, and a run cannot switch between rigid teeth and a compliant mesh.
+TEST(CompliantPlant, KeysAreValidatedTogether)
+{
+  auto refused = [](const ServoParams& p, const std::string& key) {
+    try
+    {
+      p.validate();
+    }
+    catch (const InvalidParameterError& e)
+    {
+      return e.field() == key;
+    }
+    return false;
+  };
+  ServoParams p;
+  p.mesh_damping = 1.0;
+  EXPECT_TRUE(refused(p, "mesh_damping"));
+  p = compliantD1();
+  p.shaft_stiffness = 100.0;
+  EXPECT_TRUE(refused(p, "shaft_stiffness"));  // needs gear_inertia
+  p.gear_inertia = 0.1;
+  EXPECT_NO_THROW(p.validate());
+  p.shaft_damping = 1.0;
+  p.shaft_stiffness = 0.0;
+  EXPECT_TRUE(refused(p, "shaft_damping"));
+  p = compliantD1();
+  p.load_coulomb_friction = p.load_static_friction = 0.01;
+  EXPECT_TRUE(refused(p, "mesh_stiffness"));
+  p = compliantD1();
+  p.mesh_law = "hertz";
+  EXPECT_TRUE(refused(p, "mesh_law"));
+  p = compliantD1();
+  p.mesh_stiffness = -1.0;
+  EXPECT_TRUE(refused(p, "mesh_stiffness"));
+
+  Simulator sim(compliantD1(), State(), 1.0);
+  sim.advanceTo(1.0);
+  const State before = sim.state();
+  EXPECT_THROW(sim.setParams(ServoParams()), InvalidParameterError);  // rigid teeth mid-run
+  EXPECT_EQ(sim.state().load_position, before.load_position);
+  ServoParams stiffer = compliantD1();
+  stiffer.mesh_stiffness = 2e4;
+  EXPECT_NO_THROW(sim.setParams(stiffer));
+  EXPECT_EQ(sim.state().load_position, before.load_position);
+  EXPECT_EQ(sim.params().mesh_stiffness, 2e4);
+}
+}  // namespace
