@@ -32,6 +32,8 @@ constexpr double INERTIA_SPLIT_MAX = 1e3;       ///< ρ²J_L/J_m [-]
 constexpr double NATURAL_FREQUENCY_MIN = 1e-3;  ///< ω_n [rad/s]
 constexpr double NATURAL_FREQUENCY_MAX = 1e4;   ///< ω_n [rad/s]
 constexpr double DAMPING_RATIO_MAX = 100.0;     ///< ζ [-]
+/// A compliant mesh's contact frequency √(c/μ), and a torsional shaft's, at most this many times ω_n [-].
+constexpr double COMPLIANT_FREQUENCY_RATIO_MAX = 1e4;
 
 /**
  * @brief Physical parameters of the geared position servo with backlash.

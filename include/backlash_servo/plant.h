@@ -113,6 +113,11 @@ struct EnergyLedger
   double input_magnitude = 0.0;     ///< Σ |motor work| over the segments [J]: the rounding scale of `input` when the
                                     ///< drive's torque alternates (a sampled loop pumping energy in and out)
   double initial_kinetic = 0.0;     ///< kinetic energy at the start [J]
+  // A compliant mesh only (0 with rigid teeth):
+  double mesh_loss = 0.0;          ///< the mesh's damping and its jumps of stored energy (CompliantEnergy) [J]
+  double shaft_loss = 0.0;         ///< ∫ d_s (ω_o − ω_c)² dt [J]
+  double potential = 0.0;          ///< energy stored in the mesh and the shaft now [J]
+  double initial_potential = 0.0;  ///< the same at the start (re-based by a parameter change) [J]
 };
 
 /**
@@ -217,7 +222,7 @@ class Plant
   double meshTorque() const;
   double kineticEnergy() const;
   const EnergyLedger& energy() const { return energy_; }
-  void setEnergyTracking(bool on) { track_energy_ = on; }
+  void setEnergyTracking(bool on);
   double energyBalanceError() const;
   std::uint64_t impactCount() const { return impacts_; }
   /// At most this many impacts — and, counted apart, this many rests and law switches — since the last setState()
@@ -364,6 +369,8 @@ class Plant
   void setCompliantParams(const ServoParams& params, EventSink* sink);
   double compliantMeshTorque() const;
   double compliantKineticEnergy() const;
+  double compliantBalanceError() const;
+  void compliantEnergyTracking();
 
   CompliantHolder compliant_;
   ServoParams params_;

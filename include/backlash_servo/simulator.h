@@ -85,9 +85,8 @@ class Simulator
   /// ½ J_m ω_m² + ½ J_L ω_c² [J].
   double kineticEnergy() const;
   /// False once a ramp of the continuous law ran in its moving frame (until setState): energy() is then the
-  /// frame's, not the joint's (report it as unknown; energyBalanceError() is NaN). Always false with a compliant
-  /// mesh: it keeps no energy ledger yet.
-  bool energyValid() const { return energy_valid_ && !params().compliant(); }
+  /// frame's, not the joint's (report it as unknown; energyBalanceError() is NaN).
+  bool energyValid() const { return energy_valid_; }
   const EnergyLedger& energy() const { return plant_.energy(); }
   /// Energy accounting costs ~25 % of the run time; sweeps that only need verdicts may switch it off (the ledger
   /// then stays at its last values and energyBalanceError() is meaningless).

@@ -46,9 +46,20 @@ void CompliantJoint::setParams(const ServoParams& params)
                                 "cannot switch between a rigid and a compliant " +
                                     std::string(params.compliant() ? "shaft" : "mesh") + " during a run");
   }
+  // A parameter change is not a physical process: the ledger is kept and its reference re-based by the jump of the
+  // stored and kinetic energy.
+  const double before = kineticEnergy() + potentialEnergy();
+  const CompliantEnergy kept = energy_;
+  const double initial_kinetic = initial_kinetic_, initial_potential = initial_potential_;
+  const std::uint64_t contacts = contacts_, reengagements = reengagements_;
   s_ = params;
   msl_ = params.mesh_law == "msl_elastobacklash";
   setState(x_, time_);
+  energy_ = kept;
+  contacts_ = contacts;
+  reengagements_ = reengagements;
+  initial_potential_ = initial_potential;
+  initial_kinetic_ = initial_kinetic + (kineticEnergy() + potentialEnergy() - before);
 }
 
 void CompliantJoint::setLaw(const MotorInput& law)
@@ -81,6 +92,117 @@ void CompliantJoint::setState(const Eigen::VectorXd& x, double t)
   reengagements_ = 0;
   last_kind_ = -1;
   segment_.reset();
+  energy_ = CompliantEnergy();
+  initial_kinetic_ = kineticEnergy();
+  initial_potential_ = potentialEnergy();
+}
+
+double CompliantJoint::kineticEnergy() const
+{
+  const int o = out(), l = loadIndex();
+  const double jo = torsional_ ? s_.gear_inertia : s_.gear_inertia + s_.load_inertia;
+  double k = 0.5 * s_.motor_inertia * x_(1) * x_(1) + 0.5 * jo * x_(o + 1) * x_(o + 1);
+  if (torsional_)
+  {
+    k += 0.5 * s_.load_inertia * x_(l + 1) * x_(l + 1);
+  }
+  return k;
+}
+
+double CompliantJoint::potentialEnergy() const
+{
+  double v = 0.0;
+  if (mode_ != MeshMode::Free)
+  {
+    Eigen::VectorXd w;
+    double w0;
+    penetration(isForward(mode_) ? 1 : -1, &w, &w0);
+    const double y = w.dot(x_) + w0;
+    v = (isK2(mode_) ? 1.0 : 0.5) * s_.mesh_stiffness * y * y;
+  }
+  if (torsional_)
+  {
+    const double twist = x_(out()) - x_(loadIndex());
+    v += 0.5 * s_.shaft_stiffness * twist * twist;
+  }
+  return v;
+}
+
+double CompliantJoint::energyBalanceError() const
+{
+  const CompliantEnergy& e = energy_;
+  return e.input + e.load_work - e.motor_friction - e.load_friction - e.mesh_loss - e.shaft_loss -
+         (kineticEnergy() + potentialEnergy() - initial_kinetic_ - initial_potential_);
+}
+
+void CompliantJoint::integrate(const Segment& seg, double a, double b, CompliantEnergy* e) const
+{
+  // 8-point Gauss–Legendre nodes and weights on [−1, 1].
+  static constexpr double NODE[4] = {0.1834346424956498, 0.5255324099163290, 0.7966664774136267, 0.9602898564975363};
+  static constexpr double WEIGHT[4] = {0.3626837833783620, 0.3137066458778873, 0.2223810344533745, 0.1012285362903763};
+  if (!(b > a))
+  {
+    return;
+  }
+  const int o = out(), l = loadIndex();
+  const double mid = 0.5 * (a + b), half = 0.5 * (b - a);
+  const bool damped_flank = mode_ != MeshMode::Free && !isK2(mode_);
+  Eigen::VectorXd wv;
+  double wv0 = 0.0;
+  if (damped_flank)
+  {
+    flankTorque(isForward(mode_) ? 1 : -1, 0.0, 1.0, &wv, &wv0);  // ẏ
+  }
+  CompliantEnergy sum;
+  for (int i = 0; i < 8; ++i)
+  {
+    const double s = mid + (i < 4 ? -1.0 : 1.0) * half * NODE[i % 4];
+    const double w = half * WEIGHT[i % 4];
+    const Eigen::VectorXd x = seg.motion.state(s);
+    const double wm = x(1), wc = x(l + 1);
+    sum.input += w * (law_.offset - law_.stiffness * x(l)) * wm;
+    sum.motor_friction += w * s_.motor_friction * wm * wm;
+    sum.load_friction += w * s_.load_friction * wc * wc;
+    sum.load_work += w * s_.load_torque * wc;
+    if (damped_flank)
+    {
+      const double ydot = wv.dot(x) + wv0;
+      sum.mesh_loss += w * s_.mesh_damping * ydot * ydot;
+    }
+    if (torsional_)
+    {
+      const double rate = x(o + 1) - wc;
+      sum.shaft_loss += w * s_.shaft_damping * rate * rate;
+    }
+  }
+  e->input += sum.input;
+  e->input_magnitude += std::fabs(sum.input);
+  e->motor_friction += sum.motor_friction;
+  e->load_friction += sum.load_friction;
+  e->load_work += sum.load_work;
+  e->mesh_loss += sum.mesh_loss;
+  e->shaft_loss += sum.shaft_loss;
+}
+
+void CompliantJoint::placeEnergy(double tau)
+{
+  Segment& seg = *segment_;
+  while (static_cast<double>(seg.pieces_done + 1) * seg.piece <= tau)
+  {
+    integrate(seg, static_cast<double>(seg.pieces_done) * seg.piece,
+              static_cast<double>(seg.pieces_done + 1) * seg.piece, &seg.pieces);
+    ++seg.pieces_done;
+  }
+  CompliantEnergy e = seg.pieces;
+  integrate(seg, static_cast<double>(seg.pieces_done) * seg.piece, tau, &e);
+  energy_ = seg.at_start;
+  energy_.input += e.input;
+  energy_.input_magnitude += e.input_magnitude;
+  energy_.motor_friction += e.motor_friction;
+  energy_.load_friction += e.load_friction;
+  energy_.load_work += e.load_work;
+  energy_.mesh_loss += e.mesh_loss;
+  energy_.shaft_loss += e.shaft_loss;
 }
 
 Eigen::VectorXcd CompliantJoint::eigenvalues() const
@@ -300,7 +422,9 @@ void CompliantJoint::beginSegment()
   {
     window = horizon_ - time_;
   }
-  segment_.emplace(Segment{std::move(motion), time_, window, 0.0, INF, -1, std::move(watches)});
+  const double piece = 0.5 / std::max(motion.norm(), 1e-300);
+  segment_.emplace(Segment{std::move(motion), time_, window, 0.0, INF, -1, std::move(watches), energy_,
+                           CompliantEnergy(), piece, 0});
 }
 
 void CompliantJoint::searchNextWindow()
@@ -327,8 +451,20 @@ void CompliantJoint::searchNextWindow()
 
 bool CompliantJoint::advanceTo(double t_end, const Observer& observer)
 {
+  double last_time = time_;
+  long stalled = 0;  // events in a row at one instant
   while (true)
   {
+    if (time_ != last_time)
+    {
+      last_time = time_;
+      stalled = 0;
+    }
+    else if (++stalled > 1000000)
+    {
+      throw std::logic_error("CompliantJoint: no progress at t = " + std::to_string(time_) +
+                             " s (internal error; please report with the parameters)");
+    }
     if (!segment_)
     {
       beginSegment();
@@ -343,10 +479,18 @@ bool CompliantJoint::advanceTo(double t_end, const Observer& observer)
     {
       x_ = seg.motion.state(local_end);
       time_ = t_end;
+      if (track_energy_)
+      {
+        placeEnergy(local_end);
+      }
       return false;
     }
     x_ = seg.motion.state(seg.event);
     time_ = seg.start + seg.event;
+    if (track_energy_)
+    {
+      placeEnergy(seg.event);
+    }
     const Watch watch = seg.watches[static_cast<std::size_t>(seg.hit)];
     const double before = seg.motion.state(seg.event * (1.0 - 1e-6))(loadIndex() + 1);
     segment_.reset();
@@ -365,14 +509,41 @@ bool CompliantJoint::advanceTo(double t_end, const Observer& observer)
 
 bool CompliantJoint::handle(const Watch& watch, const Observer& observer)
 {
+  // The mesh's stored energy may jump where its law changes (a release with y > 0, a re-engagement, K2 ↔ KD).
+  const double stored = potentialEnergy();
+  const bool other_flank = applyEvent(watch);
+  if (track_energy_)
+  {
+    energy_.mesh_loss += stored - potentialEnergy();
+  }
+  if (observer)
+  {
+    if (other_flank)
+    {
+      if (watch.kind == MeshEvent::Release)
+      {
+        observer(MeshEvent::Release, watch.sigma);
+      }
+      observer(MeshEvent::Engage, -watch.sigma);
+    }
+    else
+    {
+      const bool kinematic =
+          watch.kind == MeshEvent::Maximum || watch.kind == MeshEvent::Minimum || watch.kind == MeshEvent::WatchExit;
+      observer(watch.kind, kinematic ? 0 : watch.sigma);
+    }
+  }
+  return !other_flank && watch.kind == MeshEvent::WatchExit;
+}
+
+bool CompliantJoint::applyEvent(const Watch& watch)
+{
   const double d = s_.mesh_damping;
-  int flank = watch.sigma;
   switch (watch.kind)
   {
     case MeshEvent::Maximum:
     case MeshEvent::Minimum:
     case MeshEvent::WatchExit:
-      flank = 0;
       break;
     case MeshEvent::Engage:
       ++contacts_;
@@ -395,15 +566,7 @@ bool CompliantJoint::handle(const Watch& watch, const Observer& observer)
         ++contacts_;
         last_kind_ = static_cast<int>(MeshEvent::Engage);
         last_sigma_ = -watch.sigma;
-        if (observer)
-        {
-          if (watch.kind == MeshEvent::Release)
-          {
-            observer(MeshEvent::Release, watch.sigma);
-          }
-          observer(MeshEvent::Engage, -watch.sigma);
-        }
-        return false;
+        return true;
       }
       break;
     case MeshEvent::SubMode:
@@ -411,11 +574,7 @@ bool CompliantJoint::handle(const Watch& watch, const Observer& observer)
                           : (watch.sigma > 0 ? MeshMode::ForwardK2 : MeshMode::BackwardK2);
       break;
   }
-  if (observer)
-  {
-    observer(watch.kind, flank);
-  }
-  return watch.kind == MeshEvent::WatchExit;
+  return false;
 }
 
 }  // namespace backlash_servo

@@ -116,6 +116,41 @@ void ServoParams::validate() const
     refuse("damping ratio ζ = (f_m + ρ²f_L)/(2ω_n J)", zeta, "[0, 100]",
            {"motor_friction", "load_friction", "gain", "gear_ratio", "motor_inertia", "load_inertia"});
   }
+  if (compliant())
+  {
+    // The compliant joint's envelope: the two sides of the mesh (and of the shaft) within the rigid inertia split's
+    // range of each other, and their contact (shaft) frequency at most COMPLIANT_FREQUENCY_RATIO_MAX times ω_n.
+    const double rho = gear_ratio;
+    const double jo = torsionalShaft() ? gear_inertia : load_inertia + gear_inertia;
+    const double mesh_split = rho * rho * jo / motor_inertia;
+    if (!(mesh_split >= INERTIA_SPLIT_MIN * (1.0 - SLACK) && mesh_split <= INERTIA_SPLIT_MAX * (1.0 + SLACK)))
+    {
+      refuse("mesh inertia split ρ²J_o/J_m (J_o: the output side of the mesh)", mesh_split, "[0.001, 1000]",
+             {"gear_inertia", "load_inertia", "motor_inertia", "gear_ratio", "shaft_stiffness"});
+    }
+    const double mu = motor_inertia * jo / (motor_inertia + rho * rho * jo);
+    const double contact = std::sqrt(mesh_stiffness / mu) / omega_n;
+    if (!(contact <= COMPLIANT_FREQUENCY_RATIO_MAX * (1.0 + SLACK)))
+    {
+      refuse("contact frequency ratio √(c/μ)/ω_n", contact, "[0, 10000]",
+             {"mesh_stiffness", "gear_inertia", "load_inertia", "motor_inertia", "gear_ratio", "gain"});
+    }
+    if (torsionalShaft())
+    {
+      const double shaft_split = gear_inertia / load_inertia;
+      if (!(shaft_split >= INERTIA_SPLIT_MIN * (1.0 - SLACK) && shaft_split <= INERTIA_SPLIT_MAX * (1.0 + SLACK)))
+      {
+        refuse("shaft inertia split J_g/J_L", shaft_split, "[0.001, 1000]", {"gear_inertia", "load_inertia"});
+      }
+      const double shaft =
+          std::sqrt(shaft_stiffness * (gear_inertia + load_inertia) / (gear_inertia * load_inertia)) / omega_n;
+      if (!(shaft <= COMPLIANT_FREQUENCY_RATIO_MAX * (1.0 + SLACK)))
+      {
+        refuse("shaft frequency ratio √(k_s(J_g + J_L)/(J_g J_L))/ω_n", shaft, "[0, 10000]",
+               {"shaft_stiffness", "gear_inertia", "load_inertia", "gain", "gear_ratio", "motor_inertia"});
+      }
+    }
+  }
 }
 
 double ServoParams::naturalFrequency() const

@@ -145,11 +145,10 @@ void Plant::setState(const State& s)
     requireFinite("shaft_twist", s.shaft_twist);
     requireFinite("shaft_twist_rate", s.shaft_twist_rate);
     state_ = s;
-    stateToCompliant();
     energy_ = EnergyLedger();
-    energy_.initial_kinetic = kineticEnergy();
     impacts_ = 0;
     switches_ = 0;
+    stateToCompliant();  // the joint's fresh ledger comes back with the state
     return;
   }
   const double rho = params_.gear_ratio;
@@ -325,6 +324,15 @@ double Plant::meshTorque() const
   return backlash_servo::meshTorque(params_, law_, state_);
 }
 
+void Plant::setEnergyTracking(bool on)
+{
+  track_energy_ = on;
+  if (compliant_.joint)
+  {
+    compliantEnergyTracking();
+  }
+}
+
 double Plant::kineticEnergy() const
 {
   if (compliant_.joint)
@@ -339,7 +347,7 @@ double Plant::energyBalanceError() const
 {
   if (compliant_.joint)
   {
-    return NAN;  // the compliant mesh keeps no ledger yet
+    return compliantBalanceError();
   }
   return energy_.input + energy_.load_work - energy_.motor_friction - energy_.load_friction -
          energy_.motor_dry_friction - energy_.load_dry_friction - energy_.impact_loss -

@@ -28,6 +28,7 @@ void Plant::beginCompliant()
   compliant_.joint = std::make_unique<CompliantJoint>(params_, law_);
   watchCompliant();
   horizonCompliant();
+  compliantEnergyTracking();
 }
 
 void Plant::stateToCompliant()
@@ -60,6 +61,17 @@ void Plant::stateFromCompliant()
   state_.load_velocity = x(l + 1);
   state_.shaft_twist = params_.torsionalShaft() ? x(2) - x(l) : 0.0;
   state_.shaft_twist_rate = params_.torsionalShaft() ? x(3) - x(l + 1) : 0.0;
+  const CompliantEnergy& e = j.energy();
+  energy_.input = e.input;
+  energy_.input_magnitude = e.input_magnitude;
+  energy_.motor_friction = e.motor_friction;
+  energy_.load_friction = e.load_friction;
+  energy_.load_work = e.load_work;
+  energy_.mesh_loss = e.mesh_loss;
+  energy_.shaft_loss = e.shaft_loss;
+  energy_.potential = j.potentialEnergy();
+  energy_.initial_kinetic = j.initialKinetic();
+  energy_.initial_potential = j.initialPotential();
   switch (j.mode())
   {
     case MeshMode::Forward:
@@ -119,6 +131,7 @@ bool Plant::advanceCompliant(double t_end, EventSink* sink)
     }
   });
   stateFromCompliant();
+  requireBounded();  // an unstable loop stops with MotionDiverged, as with rigid teeth
   return stopped;
 }
 
@@ -136,6 +149,16 @@ void Plant::setCompliantParams(const ServoParams& params, EventSink* sink)
   watchCompliant();
   stateFromCompliant();
   emit(sink, EventType::ParameterChange);
+}
+
+double Plant::compliantBalanceError() const
+{
+  return compliant_.joint->energyBalanceError();
+}
+
+void Plant::compliantEnergyTracking()
+{
+  compliant_.joint->setEnergyTracking(track_energy_);
 }
 
 double Plant::compliantMeshTorque() const

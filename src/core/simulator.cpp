@@ -114,8 +114,10 @@ double Simulator::kineticEnergy() const
     return plant_.kineticEnergy();
   }
   const State s = state();
+  const double gear_velocity = s.load_velocity + s.shaft_twist_rate;
   return 0.5 * true_params_.motor_inertia * s.motor_velocity * s.motor_velocity +
-         0.5 * true_params_.load_inertia * s.load_velocity * s.load_velocity;
+         0.5 * true_params_.load_inertia * s.load_velocity * s.load_velocity +
+         0.5 * true_params_.gear_inertia * gear_velocity * gear_velocity;
 }
 
 void Simulator::enterFrame(double v)

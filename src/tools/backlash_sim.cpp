@@ -172,9 +172,10 @@ void writeSummary(std::ostream& out, const RunConfig& c, const RunSummary& r, do
   if (p.compliant())
   {
     std::snprintf(buf, sizeof buf,
-                  "\ncontact phases: %llu; simulated %.6g s in %.3g ms wall; energy balance: not kept for a compliant "
-                  "mesh\n",
-                  static_cast<unsigned long long>(r.contact_phases), r.simulated, wall_seconds * 1e3);
+                  "\ncontact phases: %llu; simulated %.6g s in %.3g ms wall; energy balance residual %.3g J of %.3g J "
+                  "input (mesh losses %.3g J, shaft losses %.3g J)\n",
+                  static_cast<unsigned long long>(r.contact_phases), r.simulated, wall_seconds * 1e3, r.balance_error,
+                  r.energy.input, r.energy.mesh_loss, r.energy.shaft_loss);
   }
   else
   {

@@ -105,8 +105,15 @@ void writeRunJson(std::ostream& out, const RunConfig& c, const RunSummary& r, co
       .field("load_dry_friction", r.energy.load_dry_friction)
       .field("kinetic", r.kinetic)
       .field("initial_kinetic", r.energy.initial_kinetic)
-      .field("balance_error", r.balance_error)
-      .endObject();
+      .field("balance_error", r.balance_error);
+  if (c.params.compliant())
+  {
+    j.field("mesh_loss", r.energy.mesh_loss)
+        .field("shaft_loss", r.energy.shaft_loss)
+        .field("potential", r.energy.potential)
+        .field("initial_potential", r.energy.initial_potential);
+  }
+  j.endObject();
   const State& s = r.final_state;
   j.beginObject("final_state")
       .field("time", s.time)
@@ -114,8 +121,12 @@ void writeRunJson(std::ostream& out, const RunConfig& c, const RunSummary& r, co
       .field("load_velocity", s.load_velocity)
       .field("motor_position", s.motor_position)
       .field("motor_velocity", s.motor_velocity)
-      .field("contact", std::string(toString(s.contact)))
-      .endObject();
+      .field("contact", std::string(toString(s.contact)));
+  if (c.params.torsionalShaft())
+  {
+    j.field("shaft_twist", s.shaft_twist).field("shaft_twist_rate", s.shaft_twist_rate);
+  }
+  j.endObject();
   j.field("simulated_time", r.simulated);
   j.field("wall_time", wall_seconds);
   j.endObject();
