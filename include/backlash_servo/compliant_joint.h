@@ -71,6 +71,17 @@ struct CompliantEnergy
                            ///< a re-engagement with y > 0 and at KD → K2 (msl_elastobacklash's rule)
   double shaft_loss = 0.0;       ///< ∫ d_s (ω_o − ω_c)² dt
   double input_magnitude = 0.0;  ///< Σ |motor work| over the quadrature pieces: the rounding scale of `input`
+  CompliantEnergy& operator+=(const CompliantEnergy& o)
+  {
+    input += o.input;
+    motor_friction += o.motor_friction;
+    load_friction += o.load_friction;
+    load_work += o.load_work;
+    mesh_loss += o.mesh_loss;
+    shaft_loss += o.shaft_loss;
+    input_magnitude += o.input_magnitude;
+    return *this;
+  }
 };
 
 class CompliantJoint

@@ -175,13 +175,8 @@ void CompliantJoint::integrate(const Segment& seg, double a, double b, Compliant
       sum.shaft_loss += w * s_.shaft_damping * rate * rate;
     }
   }
-  e->input += sum.input;
-  e->input_magnitude += std::fabs(sum.input);
-  e->motor_friction += sum.motor_friction;
-  e->load_friction += sum.load_friction;
-  e->load_work += sum.load_work;
-  e->mesh_loss += sum.mesh_loss;
-  e->shaft_loss += sum.shaft_loss;
+  sum.input_magnitude = std::fabs(sum.input);
+  *e += sum;
 }
 
 void CompliantJoint::placeEnergy(double tau)
@@ -196,13 +191,7 @@ void CompliantJoint::placeEnergy(double tau)
   CompliantEnergy e = seg.pieces;
   integrate(seg, static_cast<double>(seg.pieces_done) * seg.piece, tau, &e);
   energy_ = seg.at_start;
-  energy_.input += e.input;
-  energy_.input_magnitude += e.input_magnitude;
-  energy_.motor_friction += e.motor_friction;
-  energy_.load_friction += e.load_friction;
-  energy_.load_work += e.load_work;
-  energy_.mesh_loss += e.mesh_loss;
-  energy_.shaft_loss += e.shaft_loss;
+  energy_ += e;
 }
 
 Eigen::VectorXcd CompliantJoint::eigenvalues() const
