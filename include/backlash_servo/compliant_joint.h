@@ -26,6 +26,7 @@
 #include <cmath>
 #include <cstdint>
 #include <functional>
+#include <memory>
 #include <optional>
 #include <string>
 #include <vector>
@@ -184,6 +185,8 @@ class CompliantJoint
   void flankTorque(int sigma, double ky, double kv, Eigen::VectorXd* w, double* w0) const;
   /// The mode the mesh takes from the current state (after an event).
   MeshMode chooseMode(bool released_forward, bool released_backward) const;
+  /// The basis of a mode's matrix A: computed once and kept (a few modes and drive laws recur all run long).
+  std::shared_ptr<const ModeBasis> basisFor(const Eigen::MatrixXd& a);
   void beginSegment();
   void searchNextWindow();
   /// The ledger's integrals over [a, b] of the segment's local time (8-point Gauss–Legendre), added to *e.
@@ -206,6 +209,7 @@ class CompliantJoint
   Eigen::VectorXd x_;
   MeshMode mode_ = MeshMode::Forward;
   std::optional<Segment> segment_;
+  std::vector<std::shared_ptr<const ModeBasis>> bases_;  // most recently used last
   std::uint64_t contacts_ = 0, reengagements_ = 0;
   CompliantEnergy energy_;
   double initial_kinetic_ = 0.0;    // kinetic energy at the start, re-based by setParams [J]

@@ -5,16 +5,25 @@
  *        order (a compliant mesh couples motor and load into order 4, a torsional shaft into order 6); the rigid
  *        thesis modes keep their hand-written closed forms (modes.h) as the fast special case. No ROS dependency.
  *
- * **Solution.** With z = (x, 1): ż = Ã z, Ã = [[A, u], [0, 0]], so x(τ) = the first n entries of exp(Ã τ) z₀. When
- * Ã has a complete, well-conditioned eigenbasis (cond(V) ≤ MAX_EIGENBASIS_CONDITION) the exponential is evaluated
- * modally, exp(Ã τ) z₀ = V e^{Λτ} V⁻¹ z₀ — a sum of damped sinusoids and exponentials at the mode's own frequencies,
- * at O(n²) per evaluation. Otherwise (a body whose position feeds back nowhere makes A singular and Ã defective:
- * polynomial terms) it is evaluated by Padé scaling and squaring (Eigen's MatrixFunctions), to rounding.
+ * **Solution.** A depends only on the mode (and the drive law's stiffness), u and x₀ on the moment, so what costs is
+ * done once per A in a ModeBasis, which the caller may keep and share between motions. When A has a complete,
+ * well-conditioned eigenbasis, A = D V Λ V⁻¹ D⁻¹ (computed on the balanced Â = D⁻¹AD, cond(V) ≤
+ * MAX_EIGENBASIS_CONDITION), the motion is evaluated modally,
+ *   x(τ) = D V [e^{Λτ} c + τ φ₁(Λτ) g],  c = V⁻¹D⁻¹x₀,  g = V⁻¹D⁻¹u,  φ₁(z) = (e^z − 1)/z (φ₁(0) = 1),
+ * a sum of damped sinusoids and exponentials at the mode's own frequencies plus the drift of its zero eigenvalues
+ * (a free body under constant torque), O(n²) per evaluation. Otherwise (a zero eigenvalue without a full eigenspace:
+ * a body without viscous friction, or a free body whose position drives the motor through the drive law, gives
+ * polynomial terms) the motion is its Taylor series in the balanced basis, x̂(a + r) = Σ_j k_j r^j (k_0 = x̂(a),
+ * k_1 = Âx̂(a) + û, k_j = Âk_{j−1}/j), summed to rounding (TAYLOR_TERMS terms) from anchors a at multiples of
+ * TAYLOR_STEP/‖Â‖₂ from the start, each anchor from the one before — exact to rounding, and a pure function of τ.
  *
  * **Zero crossings, rigorously.** ẋ obeys the homogeneous equation (ẍ = A ẋ), so on a window [a, a + h]
- *   s(a + t) = s(a) + s'(a) t + R(t),  |R(t)| ≤ ½ M t²,  M = ‖(Dw)ᵀÂ‖₂ ‖D⁻¹ẋ(a)‖₂ e^{‖Â‖₂ h}
- * (s'' = wᵀ A exp(A t) ẋ(a), written in the balanced basis x = D x̂, Â = D⁻¹AD with D a diagonal of powers of 2
- * (Parlett–Reinsch) so that ‖Â‖₂ is near the mode's fastest frequency; ‖exp(Â t)‖₂ ≤ e^{‖Â‖₂ t}). A window on which the
+ *   s(a + t) = s(a) + s'(a) t + R(t),  |R(t)| ≤ ½ M t²,  M ≥ max |s''| on the window:
+ * modally s''(τ) = Σ_k (wᵀDv_k) λ_k (λ_k c_k + g_k) e^{λ_k τ}, so M = Σ_k |(wᵀDv_k) λ_k (λ_k c_k + g_k)| e^{Re λ_k τ*}
+ * with τ* the window's end where that mode's term is largest (tight: a single mode's amplitude times ω², the rigid
+ * body's drift adding nothing); otherwise M = ‖(Dw)ᵀÂ‖₂ ‖D⁻¹ẋ(a)‖₂ e^{‖Â‖₂ h} (s'' = wᵀ A exp(A t) ẋ(a) in the
+ * balanced basis x = D x̂, Â = D⁻¹AD, D a diagonal of powers of 2 (Parlett–Reinsch) so that ‖Â‖₂ is near the mode's
+ * fastest frequency; ‖exp(Â t)‖₂ ≤ e^{‖Â‖₂ t}). A window on which the
  * linear part keeps one sign farther from 0 than ½ M h² plus the rounding of an evaluated output holds no zero. A
  * window where |s'(a)| > M h has a derivative of one sign, so s is monotone there: one zero at most, bracketed by the
  * signs at its ends and refined by bisection to the last representable bit. Any other window is halved, earliest half
@@ -27,16 +36,57 @@
 
 #include <Eigen/Dense>
 #include <complex>
+#include <memory>
+#include <vector>
 
 namespace backlash_servo
 {
+/// What one mode's matrix A determines, computed once: the balancing D, Â = D⁻¹AD and ‖Â‖₂, and the eigenbasis of Â
+/// when it is complete and well-conditioned. Immutable; shared between the motions of that mode.
+class ModeBasis
+{
+ public:
+  /// Eigenbases worse conditioned than this are not used: the Taylor series instead. (A defective eigenvalue's
+  /// computed eigenvectors are parallel to about √ε, a condition near 1e8: the threshold stays well below that.)
+  static constexpr double MAX_EIGENBASIS_CONDITION = 1e6;
+
+  /// @param a the mode's matrix A (n × n, finite) [SI per the state's units]. Throws std::invalid_argument.
+  explicit ModeBasis(const Eigen::MatrixXd& a);
+
+  int order() const { return static_cast<int>(a_.rows()); }
+  const Eigen::MatrixXd& matrix() const { return a_; }
+  /// Whether motions are evaluated modally (else by their Taylor series).
+  bool modal() const { return modal_; }
+  /// ‖Â‖₂ [1/s] of the balanced matrix: the mode's fastest time scale is its inverse.
+  double norm() const { return norm_a_; }
+  /// The eigenvalues of A [1/s].
+  Eigen::VectorXcd eigenvalues() const;
+  /// The relative rounding error of an evaluated state, in the balanced basis (grows with cond(V)).
+  double rounding() const { return rounding_; }
+
+ private:
+  friend class LinearMode;
+  Eigen::MatrixXd a_;
+  Eigen::VectorXd bal_;       // the balancing D (diagonal)
+  Eigen::MatrixXd balanced_;  // Â = D⁻¹AD
+  double norm_a_ = 0.0;       // ‖Â‖₂
+  bool modal_ = false;
+  double rounding_ = 0.0;
+  Eigen::MatrixXcd v_;       // eigenvectors of Â (modal)
+  Eigen::VectorXcd lambda_;  // eigenvalues (modal)
+  Eigen::MatrixXcd v_inv_;   // V⁻¹ (modal)
+};
+
 class LinearMode
 {
  public:
-  /// Eigenbases worse conditioned than this are not used: the Padé exponential instead.
-  static constexpr double MAX_EIGENBASIS_CONDITION = 1e8;
   /// The search's floor h_min as a fraction of the fastest time scale 1/‖Â‖₂ (the grazing tolerance).
   static constexpr double FLOOR_FRACTION = 1e-9;
+  /// Without a modal basis: the Taylor anchors' spacing [1/‖Â‖₂], the terms summed, and the most anchors a motion
+  /// may use (a motion that long without any event is refused rather than filling memory).
+  static constexpr double TAYLOR_STEP = 0.5;
+  static constexpr int TAYLOR_TERMS = 18;
+  static constexpr std::size_t MAX_ANCHORS = 50000000;
 
   /**
    * @param a the mode's matrix A (n × n, finite) [SI per the state's units]
@@ -45,6 +95,8 @@ class LinearMode
    * Throws std::invalid_argument on mismatched sizes or non-finite entries.
    */
   LinearMode(const Eigen::MatrixXd& a, const Eigen::VectorXd& u, const Eigen::VectorXd& x0);
+  /// The same with A's basis computed beforehand (shared, not copied).
+  LinearMode(std::shared_ptr<const ModeBasis> basis, const Eigen::VectorXd& u, const Eigen::VectorXd& x0);
 
   int order() const { return static_cast<int>(x0_.size()); }
   /// x(τ) at local time τ ≥ 0 [s].
@@ -59,30 +111,43 @@ class LinearMode
    */
   double firstCrossing(const Eigen::VectorXd& w, double w0, int direction, double horizon, double from = 0.0) const;
 
-  /// Whether the closed form is the modal one (else the Padé exponential).
-  bool modal() const { return modal_; }
-  /// The eigenvalues of A [1/s] (those of Ã less the input's zero).
-  Eigen::VectorXcd eigenvalues() const;
+  /// Whether the closed form is the modal one (else the Taylor series).
+  bool modal() const { return basis_->modal(); }
+  /// The eigenvalues of A [1/s].
+  Eigen::VectorXcd eigenvalues() const { return basis_->eigenvalues(); }
   /// ‖Â‖₂ [1/s] of the balanced matrix Â = D⁻¹AD: the mode's fastest time scale is its inverse.
-  double norm() const { return norm_a_; }
+  double norm() const { return basis_->norm(); }
 
  private:
-  /// The first crossing in [lo, hi] (the window's state known at lo), +inf if none.
-  double searchWindow(const Eigen::VectorXd& w, double w0, int direction, double lo, double hi, double wa,
-                      double floor) const;
+  /// What bounds the curvature |s''| of one output: per mode |wᵀDv_k λ_k(λ_k c_k + g_k)| and Re λ_k (modal), or
+  /// ‖(Dw)ᵀÂ‖₂ (Taylor).
+  struct Curvature
+  {
+    Eigen::VectorXd beta, rate;
+    double wa = 0.0;
+  };
+  Curvature curvature(const Eigen::VectorXd& w) const;
+  /// A bound on |s''| over [lo, lo + h] (x the state at lo).
+  double curvatureBound(const Curvature& k, const Eigen::VectorXd& x, double lo, double h) const;
+  /// The first crossing in [lo, hi] (the window's state known at lo), +inf if none; `origin` is the search's start.
+  double searchWindow(const Eigen::VectorXd& w, double w0, int direction, double lo, double hi, const Curvature& curv,
+                      double floor, double origin) const;
+  /// What rounding can do to the output w·x + w₀ of an evaluated state x (the closed form's error).
+  double noise(const Eigen::VectorXd& w, double w0, const Eigen::VectorXd& x) const;
   /// The bracketed crossing in (lo, hi] refined by bisection: direction·s(lo) ≤ 0 < direction·s(hi).
   double bisect(const Eigen::VectorXd& w, double w0, int direction, double lo, double hi) const;
 
-  Eigen::MatrixXd a_;
+  std::shared_ptr<const ModeBasis> basis_;
   Eigen::VectorXd u_, x0_;
-  Eigen::MatrixXd aug_;  // Ã
-  bool modal_ = false;
-  Eigen::MatrixXcd v_;        // eigenvectors of Ã (modal)
-  Eigen::VectorXcd lambda_;   // eigenvalues of Ã (modal)
-  Eigen::VectorXcd c_;        // V⁻¹ z₀ (modal)
-  Eigen::VectorXd bal_;       // the balancing D (diagonal)
-  Eigen::MatrixXd balanced_;  // Â = D⁻¹AD
-  double norm_a_ = 0.0;       // ‖Â‖₂
+  Eigen::VectorXcd c_, g_;          // V⁻¹D⁻¹x₀, V⁻¹D⁻¹u (modal)
+  Eigen::VectorXcd g_over_lambda_;  // g/λ (modal)
+  // Without a modal basis: the anchors x̂ at multiples of step_, and the Taylor coefficients of the last one used.
+  double step_ = 0.0;
+  mutable std::vector<Eigen::VectorXd> anchors_;
+  mutable Eigen::MatrixXd krylov_;
+  mutable std::size_t krylov_anchor_ = static_cast<std::size_t>(-1);
+  Eigen::VectorXd taylorState(double tau) const;
+  Eigen::VectorXd taylor(std::size_t anchor, double r) const;
 };
 
 }  // namespace backlash_servo

@@ -341,6 +341,31 @@ MeshMode CompliantJoint::chooseMode(bool released_forward, bool released_backwar
   return MeshMode::Free;
 }
 
+std::shared_ptr<const ModeBasis> CompliantJoint::basisFor(const Eigen::MatrixXd& a)
+{
+  // Bounded: a drive whose law stiffness keeps changing would otherwise grow it without end.
+  constexpr std::size_t KEPT = 16;
+  for (auto it = bases_.rbegin(); it != bases_.rend(); ++it)
+  {
+    if ((*it)->matrix() == a)
+    {
+      std::shared_ptr<const ModeBasis> found = *it;
+      if (it != bases_.rbegin())
+      {
+        bases_.erase(std::next(it).base());
+        bases_.push_back(found);
+      }
+      return found;
+    }
+  }
+  if (bases_.size() >= KEPT)
+  {
+    bases_.erase(bases_.begin());
+  }
+  bases_.push_back(std::make_shared<const ModeBasis>(a));
+  return bases_.back();
+}
+
 void CompliantJoint::beginSegment()
 {
   const double c = s_.mesh_stiffness, d = s_.mesh_damping;
@@ -348,7 +373,7 @@ void CompliantJoint::beginSegment()
   Eigen::MatrixXd a;
   Eigen::VectorXd u;
   modeMatrices(mode_, &a, &u);
-  LinearMode motion(a, u, x_);
+  LinearMode motion(basisFor(a), u, x_);
   std::vector<Watch> watches;
   Eigen::VectorXd w;
   double w0;

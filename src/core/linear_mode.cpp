@@ -1,7 +1,5 @@
 #include "backlash_servo/linear_mode.h"
 
-#include <unsupported/Eigen/MatrixFunctions>
-
 #include <cmath>
 #include <limits>
 #include <stdexcept>
@@ -13,21 +11,17 @@ namespace
 constexpr double INF = std::numeric_limits<double>::infinity();
 }  // namespace
 
-LinearMode::LinearMode(const Eigen::MatrixXd& a, const Eigen::VectorXd& u, const Eigen::VectorXd& x0)
-    : a_(a), u_(u), x0_(x0)
+ModeBasis::ModeBasis(const Eigen::MatrixXd& a) : a_(a)
 {
-  const Eigen::Index n = x0.size();
-  if (n < 1 || a.rows() != n || a.cols() != n || u.size() != n)
+  const Eigen::Index n = a.rows();
+  if (n < 1 || a.cols() != n)
   {
-    throw std::invalid_argument("LinearMode: A must be n × n and u, x0 of size n");
+    throw std::invalid_argument("LinearMode: A must be n × n");
   }
-  if (!a.allFinite() || !u.allFinite() || !x0.allFinite())
+  if (!a.allFinite())
   {
     throw std::invalid_argument("LinearMode: A, u and x0 must be finite");
   }
-  aug_ = Eigen::MatrixXd::Zero(n + 1, n + 1);
-  aug_.topLeftCorner(n, n) = a;
-  aug_.topRightCorner(n, 1) = u;
   // Diagonal balancing D (Parlett–Reinsch, powers of 2): Â = D⁻¹AD has the mode's frequencies without the spread of
   // units between positions and speeds (c/J against 1), so the search's windows are as long as the motion allows.
   bal_ = Eigen::VectorXd::Ones(n);
@@ -75,22 +69,99 @@ LinearMode::LinearMode(const Eigen::MatrixXd& a, const Eigen::VectorXd& u, const
   }
   balanced_ = b;
   norm_a_ = b.operatorNorm();
-  Eigen::ComplexEigenSolver<Eigen::MatrixXcd> solver(aug_.cast<std::complex<double>>());
+  const double eps = std::numeric_limits<double>::epsilon();
+  rounding_ = 256.0 * eps;  // the Taylor steps' (a few ulps per step, over the steps of a long motion)
+  const Eigen::EigenSolver<Eigen::MatrixXd> solver(b);
   if (solver.info() == Eigen::Success)
   {
-    const Eigen::JacobiSVD<Eigen::MatrixXcd> svd(solver.eigenvectors());
+    const Eigen::MatrixXcd v = solver.eigenvectors();
+    const Eigen::JacobiSVD<Eigen::MatrixXcd> svd(v);
     const auto& sv = svd.singularValues();
     if (sv(sv.size() - 1) > 0.0 && sv(0) / sv(sv.size() - 1) <= MAX_EIGENBASIS_CONDITION)
     {
-      v_ = solver.eigenvectors();
+      v_ = v;
       lambda_ = solver.eigenvalues();
-      Eigen::VectorXcd z0(n + 1);
-      z0.head(n) = x0.cast<std::complex<double>>();
-      z0(n) = 1.0;
-      c_ = v_.partialPivLu().solve(z0);
+      v_inv_ = v.inverse();
       modal_ = true;
+      rounding_ = 64.0 * eps * sv(0) / sv(sv.size() - 1);
     }
   }
+}
+
+Eigen::VectorXcd ModeBasis::eigenvalues() const
+{
+  return Eigen::EigenSolver<Eigen::MatrixXd>(a_).eigenvalues();
+}
+
+LinearMode::LinearMode(const Eigen::MatrixXd& a, const Eigen::VectorXd& u, const Eigen::VectorXd& x0)
+    : LinearMode(std::make_shared<const ModeBasis>(a), u, x0)
+{}
+
+LinearMode::LinearMode(std::shared_ptr<const ModeBasis> basis, const Eigen::VectorXd& u, const Eigen::VectorXd& x0)
+    : basis_(std::move(basis)), u_(u), x0_(x0)
+{
+  const Eigen::Index n = x0.size();
+  if (n < 1 || basis_->order() != n || u.size() != n)
+  {
+    throw std::invalid_argument("LinearMode: A must be n × n and u, x0 of size n");
+  }
+  if (!u.allFinite() || !x0.allFinite())
+  {
+    throw std::invalid_argument("LinearMode: A, u and x0 must be finite");
+  }
+  if (basis_->modal_)
+  {
+    c_ = basis_->v_inv_ * x0.cwiseQuotient(basis_->bal_).cast<std::complex<double>>();
+    g_ = basis_->v_inv_ * u.cwiseQuotient(basis_->bal_).cast<std::complex<double>>();
+    g_over_lambda_ = g_.cwiseQuotient(basis_->lambda_);  // used only where |λτ| ≥ 0.1 (λ ≠ 0)
+  }
+  else
+  {
+    step_ = basis_->norm_a_ > 0.0 ? TAYLOR_STEP / basis_->norm_a_ : INF;
+    anchors_.push_back(x0.cwiseQuotient(basis_->bal_));
+  }
+}
+
+Eigen::VectorXd LinearMode::taylorState(double tau) const
+{
+  // Anchors x̂ at multiples of the step from the start, each from the one before: a pure function of τ, whatever order
+  // the states are asked in.
+  const double index = std::isfinite(step_) ? std::floor(tau / step_) : 0.0;
+  const std::size_t i = static_cast<std::size_t>(index);
+  if (i >= MAX_ANCHORS)
+  {
+    throw std::length_error("LinearMode: a motion longer than " + std::to_string(MAX_ANCHORS) +
+                            " of its fastest time scales without an event");
+  }
+  while (anchors_.size() <= i)
+  {
+    anchors_.push_back(taylor(anchors_.size() - 1, step_));
+  }
+  return taylor(i, tau - index * step_).cwiseProduct(basis_->bal_);
+}
+
+Eigen::VectorXd LinearMode::taylor(std::size_t anchor, double r) const
+{
+  // x̂(r) = Σ_j k_j r^j with k_0 = x̂_a, k_1 = Âx̂_a + û, k_j = Â k_{j−1} / j: ‖Â r‖ ≤ ½, so the terms fall below
+  // 2⁻ʲ/j! of the first ones — TAYLOR_TERMS of them reach rounding.
+  if (krylov_anchor_ != anchor)
+  {
+    const Eigen::VectorXd& xa = anchors_[anchor];
+    krylov_.resize(xa.size(), TAYLOR_TERMS + 1);
+    krylov_.col(0) = xa;
+    krylov_.col(1) = basis_->balanced_ * xa + u_.cwiseQuotient(basis_->bal_);
+    for (int j = 2; j <= TAYLOR_TERMS; ++j)
+    {
+      krylov_.col(j) = basis_->balanced_ * krylov_.col(j - 1) / static_cast<double>(j);
+    }
+    krylov_anchor_ = anchor;
+  }
+  Eigen::VectorXd x = krylov_.col(TAYLOR_TERMS);
+  for (int j = TAYLOR_TERMS - 1; j >= 0; --j)
+  {
+    x = x * r + krylov_.col(j);
+  }
+  return x;
 }
 
 Eigen::VectorXd LinearMode::state(double tau) const
@@ -100,25 +171,38 @@ Eigen::VectorXd LinearMode::state(double tau) const
   {
     return x0_;
   }
-  if (modal_)
+  if (basis_->modal_)
   {
-    Eigen::VectorXcd e(lambda_.size());
-    for (Eigen::Index k = 0; k < lambda_.size(); ++k)
+    // Σ_k v_k [e^{λ_k τ} c_k + τ φ₁(λ_k τ) g_k]: τφ₁(λτ) g = (e^{λτ} − 1) g/λ, by φ₁'s series where that would cancel.
+    const Eigen::VectorXcd& lambda = basis_->lambda_;
+    Eigen::Matrix<std::complex<double>, Eigen::Dynamic, 1, 0, 8, 1> e(n);
+    for (Eigen::Index k = 0; k < n; ++k)
     {
-      e(k) = std::exp(lambda_(k) * tau) * c_(k);
+      const std::complex<double> z = lambda(k) * tau;
+      const std::complex<double> ez = std::exp(z);
+      if (std::norm(z) < 0.01)
+      {
+        std::complex<double> phi1 = 1.0, term = 1.0;
+        for (int j = 2; j <= 10; ++j)
+        {
+          term *= z * (1.0 / j);
+          phi1 += term;
+        }
+        e(k) = ez * c_(k) + tau * phi1 * g_(k);
+      }
+      else
+      {
+        e(k) = ez * c_(k) + (ez - 1.0) * g_over_lambda_(k);
+      }
     }
-    return (v_ * e).head(n).real();
+    return (basis_->v_ * e).real().cwiseProduct(basis_->bal_);
   }
-  Eigen::VectorXd z0(n + 1);
-  z0.head(n) = x0_;
-  z0(n) = 1.0;
-  const Eigen::MatrixXd e = (aug_ * tau).exp();
-  return (e * z0).head(n);
+  return taylorState(tau);
 }
 
 Eigen::VectorXd LinearMode::rate(double tau) const
 {
-  return a_ * state(tau) + u_;
+  return basis_->a_ * state(tau) + u_;
 }
 
 double LinearMode::output(const Eigen::VectorXd& w, double w0, double tau) const
@@ -126,9 +210,51 @@ double LinearMode::output(const Eigen::VectorXd& w, double w0, double tau) const
   return w.dot(state(tau)) + w0;
 }
 
-Eigen::VectorXcd LinearMode::eigenvalues() const
+double LinearMode::noise(const Eigen::VectorXd& w, double w0, const Eigen::VectorXd& x) const
 {
-  return Eigen::EigenSolver<Eigen::MatrixXd>(a_).eigenvalues();
+  // Each balanced coordinate carries an error of about rounding·‖D⁻¹x‖; the output sums them with weights |w_i| D_i.
+  return basis_->rounding_ * (w.cwiseAbs().dot(basis_->bal_) * x.cwiseQuotient(basis_->bal_).norm() + std::fabs(w0));
+}
+
+LinearMode::Curvature LinearMode::curvature(const Eigen::VectorXd& w) const
+{
+  Curvature k;
+  if (basis_->modal_)
+  {
+    // s''(τ) = Σ_k (wᵀD v_k) λ_k (λ_k c_k + g_k) e^{λ_k τ}: the drift of a zero eigenvalue has no curvature.
+    const Eigen::Index n = x0_.size();
+    const Eigen::VectorXcd wv = basis_->v_.transpose() * w.cwiseProduct(basis_->bal_).cast<std::complex<double>>();
+    k.beta.resize(n);
+    k.rate.resize(n);
+    for (Eigen::Index i = 0; i < n; ++i)
+    {
+      const std::complex<double> l = basis_->lambda_(i);
+      k.beta(i) = std::abs(wv(i) * l * (l * c_(i) + g_(i)));
+      k.rate(i) = l.real();
+    }
+  }
+  else
+  {
+    k.wa = (w.cwiseProduct(basis_->bal_).transpose() * basis_->balanced_).norm();
+  }
+  return k;
+}
+
+double LinearMode::curvatureBound(const Curvature& k, const Eigen::VectorXd& x, double lo, double h) const
+{
+  if (basis_->modal_)
+  {
+    // Each mode's term is largest at one end of the window.
+    double m = 0.0;
+    for (Eigen::Index i = 0; i < k.beta.size(); ++i)
+    {
+      m += k.beta(i) * std::exp(k.rate(i) * lo + std::max(0.0, k.rate(i) * h));
+    }
+    return m * (1.0 + 64.0 * std::numeric_limits<double>::epsilon());
+  }
+  // ‖(Dw)ᵀÂ‖₂ ‖D⁻¹ẋ(lo)‖₂ e^{‖Â‖₂ h}.
+  const Eigen::VectorXd xd = basis_->a_ * x + u_;
+  return k.wa * xd.cwiseQuotient(basis_->bal_).norm() * std::exp(basis_->norm_a_ * h);
 }
 
 double LinearMode::firstCrossing(const Eigen::VectorXd& w, double w0, int direction, double horizon, double from) const
@@ -138,20 +264,19 @@ double LinearMode::firstCrossing(const Eigen::VectorXd& w, double w0, int direct
     return INF;
   }
   // In the balanced basis x = D x̂: s = (Dw)·x̂ + w₀, s'' = (Dw)ᵀ Â exp(Ât) (D⁻¹ẋ).
-  const double wa = (w.cwiseProduct(bal_).transpose() * balanced_).norm();
-  const double scale = norm_a_ > 0.0 ? 1.0 / norm_a_ : horizon;  // the fastest time scale [s]
+  const Curvature curv = curvature(w);
+  const double scale = basis_->norm_a_ > 0.0 ? 1.0 / basis_->norm_a_ : horizon;  // the fastest time scale [s]
   const double floor = FLOOR_FRACTION * scale;
   {
     // An output that is zero with all its derivatives at the start (wᵀAᵏẋ = 0, k < n: the output does not see the
     // motion at all, e.g. the velocity of a body at rest on which nothing acts) stays zero: it never crosses.
     const Eigen::VectorXd x = state(from);
-    Eigen::VectorXd v = a_ * x + u_;
-    const double eps = 64.0 * std::numeric_limits<double>::epsilon();
-    bool flat = std::fabs(w.dot(x) + w0) <= eps * (w.cwiseAbs().dot(x.cwiseAbs()) + std::fabs(w0));
+    Eigen::VectorXd v = basis_->a_ * x + u_;
+    bool flat = std::fabs(w.dot(x) + w0) <= noise(w, w0, x);
     for (int k = 0; flat && k < order(); ++k)
     {
-      flat = std::fabs(w.dot(v)) <= eps * w.cwiseAbs().dot(v.cwiseAbs());
-      v = a_ * v;
+      flat = std::fabs(w.dot(v)) <= noise(w, 0.0, v);
+      v = basis_->a_ * v;
     }
     if (flat)
     {
@@ -164,12 +289,12 @@ double LinearMode::firstCrossing(const Eigen::VectorXd& w, double w0, int direct
     // A window the exclusion test is likely to pass: where the remainder bound reaches about |s|.
     const Eigen::VectorXd x = state(t);
     const double s = w.dot(x) + w0;
-    const double m = wa * (a_ * x + u_).cwiseQuotient(bal_).norm() * std::exp(1.0);
+    const double m = curvatureBound(curv, x, t, scale);
     double h = m > 0.0 ? std::sqrt(std::fabs(s) / m) : horizon;
     // (At least a thousandth of the fastest time scale: an output hovering near zero is searched by halving the
     // window, not by crawling.)
     h = std::min({std::max(h, 1e-3 * scale), scale, horizon - t});
-    const double hit = searchWindow(w, w0, direction, t, t + h, wa, floor);
+    const double hit = searchWindow(w, w0, direction, t, t + h, curv, floor, from);
     if (hit < INF)
     {
       return hit;
@@ -179,26 +304,38 @@ double LinearMode::firstCrossing(const Eigen::VectorXd& w, double w0, int direct
   return INF;
 }
 
-double LinearMode::searchWindow(const Eigen::VectorXd& w, double w0, int direction, double lo, double hi, double wa,
-                                double floor) const
+double LinearMode::searchWindow(const Eigen::VectorXd& w, double w0, int direction, double lo, double hi,
+                                const Curvature& curv, double floor, double origin) const
 {
   const Eigen::VectorXd x = state(lo);
-  const Eigen::VectorXd xd = a_ * x + u_;
+  const Eigen::VectorXd xd = basis_->a_ * x + u_;
   const double s = w.dot(x) + w0;
   const double s1 = w.dot(xd);
   const double h = hi - lo;
-  const double m = wa * xd.cwiseQuotient(bal_).norm() * std::exp(norm_a_ * h);  // ≥ max |s''| on the window
-  // What rounding can do to an evaluated output (the closed form's error, relative to the terms it sums).
-  const double noise = (modal_ ? 64.0 : 4096.0) * std::numeric_limits<double>::epsilon() *
-                       (w.cwiseAbs().dot(x.cwiseAbs()) + std::fabs(w0));
-  const double margin = 0.5 * m * h * h + noise;
+  const double m = curvatureBound(curv, x, lo, h);  // ≥ max |s''| on the window
+  const double rounding = noise(w, w0, x);
+  const double margin = 0.5 * m * h * h + rounding;
   const double end = s + s1 * h;
   if ((s > margin && end > margin) || (s < -margin && end < -margin))
   {
     return INF;  // the linear part keeps one sign beyond the remainder: no zero here
   }
   const double s_hi = output(w, w0, hi);
-  const bool changes = direction * s <= 0.0 && direction * s_hi > 0.0;
+  // A search's start where the output is within rounding of zero and moving in the asked direction is a crossing
+  // already behind (the event that began the motion, evaluated again): its sign there means nothing.
+  const bool behind = lo == origin && std::fabs(s) <= rounding && direction * s1 > 0.0;
+  const bool changes = !behind && direction * s <= 0.0 && direction * s_hi > 0.0;
+  // Within rounding of zero at both ends and in its slope, on a window much shorter than any of the mode's
+  // oscillations (or by the bound all along): the output's turning points there cannot be resolved, only a sign
+  // change between the ends counts. (Where an output leaves zero to high order — a load set moving from rest — the
+  // curvature bound, a sum over the modes, stays far above the output itself: without this the search would halve
+  // down to the floor across the whole band.)
+  const bool short_window = h * basis_->norm_a_ <= 1e-3;
+  if (std::fabs(s) + std::fabs(s1) * h + 0.5 * m * h * h <= rounding ||
+      (short_window && std::fabs(s) <= rounding && std::fabs(s_hi) <= rounding && std::fabs(s1) * h <= rounding))
+  {
+    return changes ? bisect(w, w0, direction, lo, hi) : INF;
+  }
   if (std::fabs(s1) > m * h)
   {
     // s' keeps its sign on the window (|s'(τ) − s'(lo)| ≤ M h): s is monotone, one zero at most.
@@ -210,8 +347,8 @@ double LinearMode::searchWindow(const Eigen::VectorXd& w, double w0, int directi
     return changes ? bisect(w, w0, direction, lo, hi) : INF;
   }
   const double mid = lo + 0.5 * h;
-  const double first = searchWindow(w, w0, direction, lo, mid, wa, floor);
-  return first < INF ? first : searchWindow(w, w0, direction, mid, hi, wa, floor);
+  const double first = searchWindow(w, w0, direction, lo, mid, curv, floor, origin);
+  return first < INF ? first : searchWindow(w, w0, direction, mid, hi, curv, floor, origin);
 }
 
 double LinearMode::bisect(const Eigen::VectorXd& w, double w0, int direction, double lo, double hi) const

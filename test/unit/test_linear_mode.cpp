@@ -47,8 +47,8 @@ TEST(LinearMode, TheSecondOrderStepIsItsClosedForm)
   EXPECT_NEAR(m.firstCrossing(vec({0.0, 1.0}), 0.0, -1, 10.0), M_PI / wd, 1e-14 * M_PI / wd);
 }
 
-// Two inertias joined by a spring c, nothing else (a free–free two-mass drive, A singular: the Padé path): the relative
-// angle rings at ω² = c(1/J₁ + 1/J₂) as r₀ cos ωt, momentum is zero and the energy constant.
+// Two inertias joined by a spring c, nothing else (a free–free two-mass drive, A defective: the Taylor path): the
+// relative angle rings at ω² = c(1/J₁ + 1/J₂) as r₀ cos ωt, momentum is zero and the energy constant.
 TEST(LinearMode, ATwoMassDriveRingsAtItsAntiresonance)
 {
   const double j1 = 0.2, j2 = 1.5, c = 3.0e4, r0 = 1e-3;
@@ -66,7 +66,7 @@ TEST(LinearMode, ATwoMassDriveRingsAtItsAntiresonance)
   for (double t : {1e-4, 3e-3, 0.05, 1.0})
   {
     const VectorXd x = m.state(t);
-    EXPECT_NEAR(x(0) - x(2), r0 * std::cos(w * t), 1e-10 * r0) << t;  // (Padé over up to 8000 rad of phase)
+    EXPECT_NEAR(x(0) - x(2), r0 * std::cos(w * t), 1e-10 * r0) << t;  // (Taylor anchors over up to 8000 rad of phase)
     EXPECT_NEAR(j1 * x(1) + j2 * x(3), 0.0, 1e-12 * j1 * r0 * w) << t;
     const double e = 0.5 * j1 * x(1) * x(1) + 0.5 * j2 * x(3) * x(3) + 0.5 * c * (x(0) - x(2)) * (x(0) - x(2));
     EXPECT_NEAR(e, e0, 1e-10 * e0) << t;
@@ -74,6 +74,58 @@ TEST(LinearMode, ATwoMassDriveRingsAtItsAntiresonance)
   const VectorXd rel = vec({1.0, 0.0, -1.0, 0.0});
   EXPECT_NEAR(m.firstCrossing(rel, 0.0, -1, 1.0), 0.5 * M_PI / w, 1e-13);
   EXPECT_NEAR(m.firstCrossing(rel, 0.0, +1, 1.0), 1.5 * M_PI / w, 1e-13);
+}
+
+// A body without friction under a constant torque (A = [[0, 1], [0, 0]], a Jordan block: no eigenbasis) is its
+// parabola θ₀ + ω₀τ + ½ατ² over a thousand seconds (two thousand Taylor anchors), and it reaches a level at the root
+// of that quadratic.
+TEST(LinearMode, ADefectiveModeIsItsPolynomial)
+{
+  MatrixXd a(2, 2);
+  a << 0.0, 1.0, 0.0, 0.0;
+  const double th0 = 0.3, w0 = -2.0, alpha = 0.01;
+  const LinearMode m(a, vec({0.0, alpha}), vec({th0, w0}));
+  EXPECT_FALSE(m.modal());
+  for (double t : {1e-3, 0.7, 12.5, 399.0, 1000.0})
+  {
+    const double th = th0 + w0 * t + 0.5 * alpha * t * t;
+    EXPECT_NEAR(m.state(t)(0), th, 1e-13 * (std::fabs(th) + std::fabs(w0 * t) + 1.0)) << t;
+    EXPECT_NEAR(m.state(t)(1), w0 + alpha * t, 1e-13 * (std::fabs(w0) + alpha * t)) << t;
+  }
+  // θ = 50 upward: ½ατ² + ω₀τ + θ₀ − 50 = 0, the larger root.
+  const double c = th0 - 50.0, root = (-w0 + std::sqrt(w0 * w0 - 2.0 * alpha * c)) / alpha;
+  EXPECT_NEAR(m.firstCrossing(vec({1.0, 0.0}), -50.0, +1, 1e4), root, 1e-12 * root);
+}
+
+// The free mode of a joint under the continuous law: the motor driven by the free load's position
+// (J_m ω̇_m = a − kθ_c − f_m ω_m, J_L ω̇_c = −f_L ω_c; two zero eigenvalues, one eigenvector: no eigenbasis) against
+// RK4 on the same equations with a step of 1e-4 s.
+TEST(LinearMode, TheDriveLawsFreeModeAgainstRK4)
+{
+  const double jm = 0.1, jl = 0.9, fm = 0.48, fl = 0.32, k = 1.0, off = 1.0;
+  MatrixXd a = MatrixXd::Zero(4, 4);  // (θ_m, ω_m, θ_c, ω_c)
+  a(0, 1) = 1.0;
+  a(1, 1) = -fm / jm;
+  a(1, 2) = -k / jm;
+  a(2, 3) = 1.0;
+  a(3, 3) = -fl / jl;
+  const VectorXd u = vec({0.0, off / jm, 0.0, 0.0});
+  const VectorXd x0 = vec({0.2, -0.5, 0.1, 1.5});
+  const LinearMode m(a, u, x0);
+  EXPECT_FALSE(m.modal());
+  VectorXd x = x0;
+  const double h = 1e-4;
+  long step = 0;
+  for (double t : {0.5, 2.0, 7.0})
+  {
+    for (; step * h < t - h / 2; ++step)
+    {
+      const VectorXd k1 = a * x + u, k2 = a * (x + 0.5 * h * k1) + u, k3 = a * (x + 0.5 * h * k2) + u,
+                     k4 = a * (x + h * k3) + u;
+      x += h / 6.0 * (k1 + 2.0 * k2 + 2.0 * k3 + k4);
+    }
+    EXPECT_LT((m.state(t) - x).norm(), 1e-11) << t;
+  }
 }
 
 // Two independent damped oscillators, 1 rad/s and 37 rad/s, and s = x₁ + 0.3 x₃ − 0.05: the crossings in both
