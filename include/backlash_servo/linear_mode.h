@@ -82,11 +82,12 @@ class LinearMode
  public:
   /// The search's floor h_min as a fraction of the fastest time scale 1/‖Â‖₂ (the grazing tolerance).
   static constexpr double FLOOR_FRACTION = 1e-9;
-  /// Without a modal basis: the Taylor anchors' spacing [1/‖Â‖₂], the terms summed, and the most anchors a motion
-  /// may use (a motion that long without any event is refused rather than filling memory).
+  /// Without a modal basis: the Taylor anchors' spacing [1/‖Â‖₂], the terms summed, how many anchors are all kept,
+  /// and how many apart the kept ones are beyond those.
   static constexpr double TAYLOR_STEP = 0.5;
   static constexpr int TAYLOR_TERMS = 18;
-  static constexpr std::size_t MAX_ANCHORS = 50000000;
+  static constexpr std::size_t DENSE_ANCHORS = 65536;
+  static constexpr std::size_t CHECKPOINT = 256;
 
   /**
    * @param a the mode's matrix A (n × n, finite) [SI per the state's units]
@@ -141,13 +142,23 @@ class LinearMode
   Eigen::VectorXd u_, x0_;
   Eigen::VectorXcd c_, g_;          // V⁻¹D⁻¹x₀, V⁻¹D⁻¹u (modal)
   Eigen::VectorXcd g_over_lambda_;  // g/λ (modal)
-  // Without a modal basis: the anchors x̂ at multiples of step_, and the Taylor coefficients of the last one used.
+  // Without a modal basis: the anchors x̂ at multiples of step_ (all of the first DENSE_ANCHORS, then every
+  // CHECKPOINT-th, and the farthest reached), and the Taylor coefficients of the anchor last used.
   double step_ = 0.0;
-  mutable std::vector<Eigen::VectorXd> anchors_;
+  mutable std::vector<Eigen::VectorXd> checkpoints_;
+  mutable Eigen::VectorXd frontier_;
+  mutable std::size_t frontier_index_ = 0;
   mutable Eigen::MatrixXd krylov_;
   mutable std::size_t krylov_anchor_ = static_cast<std::size_t>(-1);
   Eigen::VectorXd taylorState(double tau) const;
-  Eigen::VectorXd taylor(std::size_t anchor, double r) const;
+  /// The anchor x̂ at i steps from the start.
+  const Eigen::VectorXd& anchor(std::size_t i) const;
+  /// The Taylor coefficients k_j of the motion from the anchor state x̂_a, into krylov_.
+  void setKrylov(const Eigen::VectorXd& xa) const;
+  /// Σ_j k_j r^j (Horner).
+  static Eigen::VectorXd taylor(const Eigen::MatrixXd& k, double r);
+  /// One Taylor step of r from x̂_a.
+  Eigen::VectorXd taylor(const Eigen::VectorXd& xa, double r) const;
 };
 
 }  // namespace backlash_servo

@@ -1,5 +1,6 @@
 #include "backlash_servo/linear_mode.h"
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 #include <stdexcept>
@@ -118,7 +119,7 @@ LinearMode::LinearMode(std::shared_ptr<const ModeBasis> basis, const Eigen::Vect
   else
   {
     step_ = basis_->norm_a_ > 0.0 ? TAYLOR_STEP / basis_->norm_a_ : INF;
-    anchors_.push_back(x0.cwiseQuotient(basis_->bal_));
+    checkpoints_.push_back(x0.cwiseQuotient(basis_->bal_));
   }
 }
 
@@ -127,41 +128,80 @@ Eigen::VectorXd LinearMode::taylorState(double tau) const
   // Anchors x̂ at multiples of the step from the start, each from the one before: a pure function of τ, whatever order
   // the states are asked in.
   const double index = std::isfinite(step_) ? std::floor(tau / step_) : 0.0;
+  if (!(index < 1e15))
+  {
+    throw std::length_error("LinearMode: a motion of more than 1e15 of its fastest time scales without an event");
+  }
   const std::size_t i = static_cast<std::size_t>(index);
-  if (i >= MAX_ANCHORS)
+  if (i != krylov_anchor_)
   {
-    throw std::length_error("LinearMode: a motion longer than " + std::to_string(MAX_ANCHORS) +
-                            " of its fastest time scales without an event");
+    setKrylov(anchor(i));
+    krylov_anchor_ = i;
   }
-  while (anchors_.size() <= i)
-  {
-    anchors_.push_back(taylor(anchors_.size() - 1, step_));
-  }
-  return taylor(i, tau - index * step_).cwiseProduct(basis_->bal_);
+  return taylor(krylov_, tau - index * step_).cwiseProduct(basis_->bal_);
 }
 
-Eigen::VectorXd LinearMode::taylor(std::size_t anchor, double r) const
+const Eigen::VectorXd& LinearMode::anchor(std::size_t i) const
 {
-  // x̂(r) = Σ_j k_j r^j with k_0 = x̂_a, k_1 = Âx̂_a + û, k_j = Â k_{j−1} / j: ‖Â r‖ ≤ ½, so the terms fall below
-  // 2⁻ʲ/j! of the first ones — TAYLOR_TERMS of them reach rounding.
-  if (krylov_anchor_ != anchor)
+  // All of the first DENSE_ANCHORS; beyond, every CHECKPOINT-th and the farthest reached (memory stays bounded over a
+  // long motion without events; a query behind the frontier repeats at most CHECKPOINT steps from a checkpoint).
+  while (i >= checkpoints_.size() && checkpoints_.size() < DENSE_ANCHORS)
   {
-    const Eigen::VectorXd& xa = anchors_[anchor];
-    krylov_.resize(xa.size(), TAYLOR_TERMS + 1);
-    krylov_.col(0) = xa;
-    krylov_.col(1) = basis_->balanced_ * xa + u_.cwiseQuotient(basis_->bal_);
-    for (int j = 2; j <= TAYLOR_TERMS; ++j)
-    {
-      krylov_.col(j) = basis_->balanced_ * krylov_.col(j - 1) / static_cast<double>(j);
-    }
-    krylov_anchor_ = anchor;
+    checkpoints_.push_back(taylor(checkpoints_.back(), step_));
   }
-  Eigen::VectorXd x = krylov_.col(TAYLOR_TERMS);
-  for (int j = TAYLOR_TERMS - 1; j >= 0; --j)
+  if (i < DENSE_ANCHORS)
   {
-    x = x * r + krylov_.col(j);
+    return checkpoints_[i];
+  }
+  // Kept anchor c (c ≥ DENSE_ANCHORS − 1) is anchor number DENSE_ANCHORS − 1 + (c − DENSE_ANCHORS + 1)·CHECKPOINT.
+  const std::size_t base = DENSE_ANCHORS - 1;
+  const auto checkpoint = [base](std::size_t k) { return base + (k - base) / CHECKPOINT; };
+  if (frontier_index_ < DENSE_ANCHORS || i < frontier_index_)
+  {
+    const std::size_t c = std::min(checkpoint(i), checkpoints_.size() - 1);
+    frontier_index_ = base + (c - base) * CHECKPOINT;
+    frontier_ = checkpoints_[c];
+  }
+  while (frontier_index_ < i)
+  {
+    frontier_ = taylor(frontier_, step_);
+    ++frontier_index_;
+    if ((frontier_index_ - base) % CHECKPOINT == 0 && checkpoint(frontier_index_) == checkpoints_.size())
+    {
+      checkpoints_.push_back(frontier_);
+    }
+  }
+  return frontier_;
+}
+
+void LinearMode::setKrylov(const Eigen::VectorXd& xa) const
+{
+  // x̂(a + r) = Σ_j k_j r^j with k_0 = x̂_a, k_1 = Âx̂_a + û, k_j = Â k_{j−1} / j: ‖Â r‖ ≤ ½, so the terms fall below
+  // 2⁻ʲ/j! of the first ones — TAYLOR_TERMS of them reach rounding.
+  krylov_.resize(xa.size(), TAYLOR_TERMS + 1);
+  krylov_.col(0) = xa;
+  krylov_.col(1) = basis_->balanced_ * xa + u_.cwiseQuotient(basis_->bal_);
+  for (int j = 2; j <= TAYLOR_TERMS; ++j)
+  {
+    krylov_.col(j) = basis_->balanced_ * krylov_.col(j - 1) / static_cast<double>(j);
+  }
+}
+
+Eigen::VectorXd LinearMode::taylor(const Eigen::MatrixXd& k, double r)
+{
+  Eigen::VectorXd x = k.col(k.cols() - 1);
+  for (Eigen::Index j = k.cols() - 2; j >= 0; --j)
+  {
+    x = x * r + k.col(j);
   }
   return x;
+}
+
+Eigen::VectorXd LinearMode::taylor(const Eigen::VectorXd& xa, double r) const
+{
+  setKrylov(xa);
+  krylov_anchor_ = static_cast<std::size_t>(-1);
+  return taylor(krylov_, r);
 }
 
 Eigen::VectorXd LinearMode::state(double tau) const

@@ -77,8 +77,8 @@ TEST(LinearMode, ATwoMassDriveRingsAtItsAntiresonance)
 }
 
 // A body without friction under a constant torque (A = [[0, 1], [0, 0]], a Jordan block: no eigenbasis) is its
-// parabola θ₀ + ω₀τ + ½ατ² over a thousand seconds (two thousand Taylor anchors), and it reaches a level at the root
-// of that quadratic.
+// parabola θ₀ + ω₀τ + ½ατ² over a thousand seconds (two thousand Taylor anchors) and 1e5 s, and it reaches a level at
+// the root of that quadratic.
 TEST(LinearMode, ADefectiveModeIsItsPolynomial)
 {
   MatrixXd a(2, 2);
@@ -92,6 +92,15 @@ TEST(LinearMode, ADefectiveModeIsItsPolynomial)
     EXPECT_NEAR(m.state(t)(0), th, 1e-13 * (std::fabs(th) + std::fabs(w0 * t) + 1.0)) << t;
     EXPECT_NEAR(m.state(t)(1), w0 + alpha * t, 1e-13 * (std::fabs(w0) + alpha * t)) << t;
   }
+  // Far on (2e5 anchors: beyond those all kept) and back (between kept ones): the same parabola, and the same bits
+  // asked again after going back — a pure function of τ.
+  const VectorXd far = m.state(1e5);
+  for (double t : {4e4 + 0.3, 1e5, 3.3e4, 9e4 + 0.1})
+  {
+    const double th = th0 + w0 * t + 0.5 * alpha * t * t;
+    EXPECT_NEAR(m.state(t)(0), th, 1e-10 * std::fabs(th)) << t;
+  }
+  EXPECT_EQ(m.state(1e5), far);
   // θ = 50 upward: ½ατ² + ω₀τ + θ₀ − 50 = 0, the larger root.
   const double c = th0 - 50.0, root = (-w0 + std::sqrt(w0 * w0 - 2.0 * alpha * c)) / alpha;
   EXPECT_NEAR(m.firstCrossing(vec({1.0, 0.0}), -50.0, +1, 1e4), root, 1e-12 * root);
