@@ -8,14 +8,21 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 export PATH=/usr/bin:$PATH
 bash scripts/setup.sh >/dev/null   # dependencies (and the normal build)
+# SUNDIALS CVODE for the compliant joint's comparison (only the benchmarks need it).
+if ! dpkg-query -W -f='${Status}' libsundials-dev 2>/dev/null | grep -q "install ok installed"; then
+  SUDO=""; [ "$(id -u)" -eq 0 ] || SUDO=sudo
+  DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -q --no-install-recommends libsundials-dev >/dev/null
+fi
 mkdir -p build/release/devel/lib/python3/dist-packages
 cmake -S . -B build/release -DPYTHON_EXECUTABLE=/usr/bin/python3 -DCMAKE_BUILD_TYPE=Release >/dev/null
-make -C build/release -j"$(nproc)" bench_core backlash_sweep backlash_sim >/dev/null
+make -C build/release -j"$(nproc)" bench_core bench_compliant backlash_sweep backlash_sim >/dev/null
 bin=build/release/devel/lib/backlash_servo
 ref=$(mktemp)
 trap 'rm -f "$ref"' EXIT
 echo "== core vs baselines (ratios: wall time per simulated second, baseline / ours)"
 "$bin/bench_core" "$@" --reference-out "$ref"
+echo "== the compliant joint against SUNDIALS CVODE (and the 1 kHz PID robot joint with a compliant mesh)"
+"$bin/bench_compliant" "$@"
 echo "== scipy solve_ivp with events (python; first 200 s of each case, or 20 s with --quick)"
 /usr/bin/python3 bench/scipy_baseline.py "$ref" --max-sim "$([ "${1:-}" = --quick ] && echo 20 || echo 200)"
 echo "== thesis grid (1344 points, until each verdict is settled)"

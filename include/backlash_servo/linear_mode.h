@@ -35,6 +35,7 @@
 #pragma once
 
 #include <Eigen/Dense>
+#include <array>
 #include <complex>
 #include <memory>
 #include <vector>
@@ -143,18 +144,24 @@ class LinearMode
   Eigen::VectorXcd c_, g_;          // V⁻¹D⁻¹x₀, V⁻¹D⁻¹u (modal)
   Eigen::VectorXcd g_over_lambda_;  // g/λ (modal)
   // Without a modal basis: the anchors x̂ at multiples of step_ (all of the first DENSE_ANCHORS, then every
-  // CHECKPOINT-th, and the farthest reached), and the Taylor coefficients of the anchor last used.
+  // CHECKPOINT-th, and the farthest reached), and the Taylor coefficients of the anchors last used.
   double step_ = 0.0;
   mutable std::vector<Eigen::VectorXd> checkpoints_;
   mutable Eigen::VectorXd frontier_;
   mutable std::size_t frontier_index_ = 0;
-  mutable Eigen::MatrixXd krylov_;
-  mutable std::size_t krylov_anchor_ = static_cast<std::size_t>(-1);
+  struct KrylovEntry
+  {
+    std::size_t anchor = static_cast<std::size_t>(-1);
+    Eigen::MatrixXd k;
+  };
+  mutable std::array<KrylovEntry, 4> krylov_;
+  mutable std::size_t krylov_next_ = 0;
+  mutable Eigen::MatrixXd step_krylov_;
   Eigen::VectorXd taylorState(double tau) const;
   /// The anchor x̂ at i steps from the start.
   const Eigen::VectorXd& anchor(std::size_t i) const;
-  /// The Taylor coefficients k_j of the motion from the anchor state x̂_a, into krylov_.
-  void setKrylov(const Eigen::VectorXd& xa) const;
+  /// The Taylor coefficients k_j (columns) of the motion from the anchor state x̂_a.
+  void setKrylov(const Eigen::VectorXd& xa, Eigen::MatrixXd* k) const;
   /// Σ_j k_j r^j (Horner).
   static Eigen::VectorXd taylor(const Eigen::MatrixXd& k, double r);
   /// One Taylor step of r from x̂_a.
