@@ -1,5 +1,6 @@
 // backlash_fuzz: runs N property-fuzz cases (fuzz_cases.h) and prints counts per outcome class and examples.
-// usage: backlash_fuzz [--cases N] [--seed S] [--first K] [--budget IMPACTS] [--verbose]
+// usage: backlash_fuzz [--cases N] [--seed S] [--first K] [--budget IMPACTS] [--compliant] [--verbose]
+// (--compliant: the cases' joints with a compliant mesh, fuzz::makeCompliantCase)
 #include <chrono>
 #include <cstdio>
 #include <cstdlib>
@@ -12,7 +13,7 @@
 int main(int argc, char** argv)
 {
   std::uint64_t cases = 2000, seed = 1, first = 0, budget = 100000;
-  bool verbose = false;
+  bool verbose = false, compliant = false;
   for (int i = 1; i < argc; ++i)
   {
     auto next = [&]() { return i + 1 < argc ? std::strtoull(argv[++i], nullptr, 10) : 0ull; };
@@ -26,9 +27,13 @@ int main(int argc, char** argv)
       budget = next();
     else if (!std::strcmp(argv[i], "--verbose"))
       verbose = true;
+    else if (!std::strcmp(argv[i], "--compliant"))
+      compliant = true;
     else
     {
-      std::fprintf(stderr, "usage: backlash_fuzz [--cases N] [--seed S] [--first K] [--budget IMPACTS] [--verbose]\n");
+      std::fprintf(stderr,
+                   "usage: backlash_fuzz [--cases N] [--seed S] [--first K] [--budget IMPACTS] [--compliant] "
+                   "[--verbose]\n");
       return 2;
     }
   }
@@ -41,7 +46,7 @@ int main(int argc, char** argv)
   const auto start = std::chrono::steady_clock::now();
   for (std::uint64_t i = first; i < first + cases; ++i)
   {
-    const fuzz::Case c = fuzz::makeCase(seed, i);
+    const fuzz::Case c = compliant ? fuzz::makeCompliantCase(seed, i) : fuzz::makeCase(seed, i);
     if (trace)
     {
       std::fprintf(stderr, "case %llu\n", static_cast<unsigned long long>(i));  // a hang shows its case

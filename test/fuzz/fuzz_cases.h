@@ -317,6 +317,54 @@ inline Case makeCase(std::uint64_t seed, std::uint64_t index)
   }
 }
 
+/// Case number `index` of the sequence `seed` with a compliant joint: the case's servo, command, start and drive, the
+/// rigid teeth replaced by a mesh drawn across the envelope from a stream of its own — the contact frequency √(c/μ)
+/// from ω_n to 1e4 ω_n, the contact damping ratio from 0 to 1, either mesh law, a torsional shaft in a third of the
+/// cases (J_g/J_L and its frequency across the envelope) — and no dry friction (not modelled with a compliant mesh);
+/// runs of two periods of ω_n at most.
+inline Case makeCompliantCase(std::uint64_t seed, std::uint64_t index)
+{
+  for (std::uint64_t attempt = 0;; ++attempt)
+  {
+    Case c = makeCase(seed, index + attempt * 0x100000000ull);
+    std::mt19937_64 rng(seed * 0xA24BAED4963EE407ull + index * 7919 + attempt + 3);
+    std::uniform_real_distribution<double> u(0.0, 1.0);
+    auto logu = [&](double lo, double hi) { return lo * std::pow(hi / lo, u(rng)); };
+    ServoParams& p = c.params;
+    p.motor_coulomb_friction = p.motor_static_friction = p.load_coulomb_friction = p.load_static_friction = 0.0;
+    const double omega_n = p.naturalFrequency();
+    const bool shaft = u(rng) < 0.3;
+    if (shaft)
+    {
+      // Split the load: the output gear J_g and the load J_L behind the shaft.
+      const double split = logu(1e-2, 1e2);  // J_g / J_L
+      const double total = p.load_inertia;
+      p.load_inertia = total / (1.0 + split);
+      p.gear_inertia = total - p.load_inertia;
+      const double mu_s = p.gear_inertia * p.load_inertia / total;
+      p.shaft_stiffness = mu_s * std::pow(omega_n * logu(1.0, 1e3), 2);
+      p.shaft_damping = u(rng) < 0.3 ? 0.0 : 2.0 * logu(1e-3, 1.0) * std::sqrt(p.shaft_stiffness * mu_s);
+    }
+    const double jm = p.motor_inertia / (p.gear_ratio * p.gear_ratio);  // at the load shaft
+    const double jo = shaft ? p.gear_inertia : p.load_inertia;
+    const double mu = jm * jo / (jm + jo);
+    p.mesh_stiffness = mu * std::pow(omega_n * logu(1.0, 1e4), 2);
+    p.mesh_damping = u(rng) < 0.2 ? 0.0 : 2.0 * logu(1e-3, 1.0) * std::sqrt(p.mesh_stiffness * mu);
+    p.mesh_law = u(rng) < 0.3 ? "msl_elastobacklash" : "spring_damper";
+    // Two periods of ω_n at most: a stiff mesh makes every contact a train of fast oscillations.
+    c.duration = std::min(c.duration, 4.0 * 3.14159265358979 / omega_n);
+    try
+    {
+      p.validate();
+      return c;
+    }
+    catch (const InvalidParameterError&)
+    {
+      // outside the envelope (an inertia split or frequency at its edge): draw again
+    }
+  }
+}
+
 /// Records the worst excursion of the gap out of [0, Δ] over every event.
 struct GapWatch : EventSink
 {
@@ -454,7 +502,10 @@ inline Outcome check(const Case& c, std::uint64_t event_budget = 100000)
     // An unstable digital loop (large integral gains, delay), or a load torque beyond what the law and the friction
     // can hold (the load falls for ever), stopped where it left the closed forms' bounds: allowed. Otherwise the
     // continuous law on a joint with friction cannot run away: there it is a failure.
-    return {c.drive.sampled() || c.params.load_torque != 0.0 ? "diverged" : "exception", e.what()};
+    // With a compliant mesh or shaft the continuous law can be unstable too: feedback from the load through an
+    // undamped compliance (non-collocated) grows the two-mass mode beyond a critical gain.
+    return {c.drive.sampled() || c.params.load_torque != 0.0 || c.params.compliant() ? "diverged" : "exception",
+            e.what()};
   }
   catch (const std::exception& e)
   {
