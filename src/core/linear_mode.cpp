@@ -114,7 +114,12 @@ LinearMode::LinearMode(std::shared_ptr<const ModeBasis> basis, const Eigen::Vect
   {
     c_ = basis_->v_inv_ * x0.cwiseQuotient(basis_->bal_).cast<std::complex<double>>();
     g_ = basis_->v_inv_ * u.cwiseQuotient(basis_->bal_).cast<std::complex<double>>();
-    g_over_lambda_ = g_.cwiseQuotient(basis_->lambda_);  // used only where |λτ| ≥ 0.1 (λ ≠ 0)
+    g_over_lambda_.resize(n);  // used only where |λτ| ≥ 0.1
+    for (Eigen::Index k = 0; k < n; ++k)
+    {
+      const std::complex<double> l = basis_->lambda_(k);
+      g_over_lambda_(k) = l == 0.0 ? 0.0 : g_(k) / l;
+    }
   }
   else
   {
