@@ -8,14 +8,17 @@
  * **Solution.** A depends only on the mode (and the drive law's stiffness), u and x₀ on the moment, so what costs is
  * done once per A in a ModeBasis, which the caller may keep and share between motions. When A has a complete,
  * well-conditioned eigenbasis, A = D V Λ V⁻¹ D⁻¹ (computed on the balanced Â = D⁻¹AD, cond(V) ≤
- * MAX_EIGENBASIS_CONDITION), the motion is evaluated modally,
- *   x(τ) = D V [e^{Λτ} c + τ φ₁(Λτ) g],  c = V⁻¹D⁻¹x₀,  g = V⁻¹D⁻¹u,  φ₁(z) = (e^z − 1)/z (φ₁(0) = 1),
+ * MAX_EIGENBASIS_CONDITION), the motion is evaluated modally — as the deviation δ = x − x₀ from the start, which obeys
+ * δ̇ = Aδ + v₀ (v₀ = Ax₀ + u, δ(0) = 0), so that rounding is relative to how far the state has moved and not to the
+ * angles it started at, which grow without bound over a run:
+ *   x(τ) = x₀ + D V τ φ₁(Λτ) g,  g = V⁻¹D⁻¹v₀,  φ₁(z) = (e^z − 1)/z (φ₁(0) = 1),
  * a sum of damped sinusoids and exponentials at the mode's own frequencies plus the drift of its zero eigenvalues
  * (a free body under constant torque), O(n²) per evaluation. Otherwise (a zero eigenvalue without a full eigenspace:
  * a body without viscous friction, or a free body whose position drives the motor through the drive law, gives
- * polynomial terms) the motion is its Taylor series in the balanced basis, x̂(a + r) = Σ_j k_j r^j (k_0 = x̂(a),
- * k_1 = Âx̂(a) + û, k_j = Âk_{j−1}/j), summed to rounding (TAYLOR_TERMS terms) from anchors a at multiples of
+ * polynomial terms) δ is its Taylor series in the balanced basis, δ̂(a + r) = Σ_j k_j r^j (k_0 = δ̂(a),
+ * k_1 = Âδ̂(a) + v̂₀, k_j = Âk_{j−1}/j), summed to rounding (TAYLOR_TERMS terms) from anchors a at multiples of
  * TAYLOR_STEP/‖Â‖₂ from the start, each anchor from the one before — exact to rounding, and a pure function of τ.
+ * (The caller re-anchors long motions: CompliantJoint starts a new one every 4096 fast time scales without events.)
  *
  * **Zero crossings, rigorously.** ẋ obeys the homogeneous equation (ẍ = A ẋ), so on a window [a, a + h]
  *   s(a + t) = s(a) + s'(a) t + R(t),  |R(t)| ≤ ½ M t²,  M ≥ max |s''| on the window:
@@ -141,7 +144,8 @@ class LinearMode
 
   std::shared_ptr<const ModeBasis> basis_;
   Eigen::VectorXd u_, x0_;
-  Eigen::VectorXcd c_, g_;          // V⁻¹D⁻¹x₀, V⁻¹D⁻¹u (modal)
+  Eigen::VectorXd v0_;      // ẋ(0) = Ax₀ + u: the input of the deviation δ = x − x₀ the motion is solved for
+  Eigen::VectorXcd c_, g_;  // V⁻¹D⁻¹δ(0) = 0, V⁻¹D⁻¹v₀ (modal)
   Eigen::VectorXcd g_over_lambda_;  // g/λ (modal)
   // Without a modal basis: the anchors x̂ at multiples of step_ (all of the first DENSE_ANCHORS, then every
   // CHECKPOINT-th, and the farthest reached), and the Taylor coefficients of the anchors last used.

@@ -110,10 +110,13 @@ LinearMode::LinearMode(std::shared_ptr<const ModeBasis> basis, const Eigen::Vect
   {
     throw std::invalid_argument("LinearMode: A, u and x0 must be finite");
   }
+  // The motion is solved as the deviation δ = x − x₀ (δ̇ = Aδ + v₀, v₀ = Ax₀ + u, δ(0) = 0), so that its rounding is
+  // relative to how far the state has moved, not to the angles it started at (which grow without bound).
+  v0_ = basis_->a_ * x0 + u;
   if (basis_->modal_)
   {
-    c_ = basis_->v_inv_ * x0.cwiseQuotient(basis_->bal_).cast<std::complex<double>>();
-    g_ = basis_->v_inv_ * u.cwiseQuotient(basis_->bal_).cast<std::complex<double>>();
+    c_ = Eigen::VectorXcd::Zero(n);
+    g_ = basis_->v_inv_ * v0_.cwiseQuotient(basis_->bal_).cast<std::complex<double>>();
     g_over_lambda_.resize(n);  // used only where |λτ| ≥ 0.1
     for (Eigen::Index k = 0; k < n; ++k)
     {
@@ -124,7 +127,7 @@ LinearMode::LinearMode(std::shared_ptr<const ModeBasis> basis, const Eigen::Vect
   else
   {
     step_ = basis_->norm_a_ > 0.0 ? TAYLOR_STEP / basis_->norm_a_ : INF;
-    checkpoints_.push_back(x0.cwiseQuotient(basis_->bal_));
+    checkpoints_.push_back(Eigen::VectorXd::Zero(n));
   }
 }
 
@@ -154,7 +157,7 @@ Eigen::VectorXd LinearMode::taylorState(double tau) const
     setKrylov(anchor(i), &entry->k);
     entry->anchor = i;
   }
-  return taylor(entry->k, tau - index * step_).cwiseProduct(basis_->bal_);
+  return x0_ + taylor(entry->k, tau - index * step_).cwiseProduct(basis_->bal_);
 }
 
 const Eigen::VectorXd& LinearMode::anchor(std::size_t i) const
@@ -192,12 +195,12 @@ const Eigen::VectorXd& LinearMode::anchor(std::size_t i) const
 
 void LinearMode::setKrylov(const Eigen::VectorXd& xa, Eigen::MatrixXd* k) const
 {
-  // x̂(a + r) = Σ_j k_j r^j with k_0 = x̂_a, k_1 = Âx̂_a + û, k_j = Â k_{j−1} / j: ‖Â r‖ ≤ ½, so the terms fall below
+  // δ̂(a + r) = Σ_j k_j r^j with k_0 = δ̂_a, k_1 = Âδ̂_a + v̂₀, k_j = Â k_{j−1} / j: ‖Â r‖ ≤ ½, so the terms fall below
   // 2⁻ʲ/j! of the first ones — TAYLOR_TERMS of them reach rounding.
   k->resize(xa.size(), TAYLOR_TERMS + 1);
   k->col(0) = xa;
   k->col(1).noalias() = basis_->balanced_ * xa;
-  k->col(1) += u_.cwiseQuotient(basis_->bal_);
+  k->col(1) += v0_.cwiseQuotient(basis_->bal_);
   for (int j = 2; j <= TAYLOR_TERMS; ++j)
   {
     k->col(j).noalias() = basis_->balanced_ * k->col(j - 1);
@@ -252,7 +255,7 @@ Eigen::VectorXd LinearMode::state(double tau) const
         e(k) = ez * c_(k) + (ez - 1.0) * g_over_lambda_(k);
       }
     }
-    return (basis_->v_ * e).real().cwiseProduct(basis_->bal_);
+    return x0_ + (basis_->v_ * e).real().cwiseProduct(basis_->bal_);
   }
   return taylorState(tau);
 }
