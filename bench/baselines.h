@@ -18,15 +18,11 @@
 #include <boost/numeric/odeint.hpp>
 
 #include "backlash_servo/params.h"
+#include "maxima.h"
 
 namespace bench
 {
 using Vec = std::array<double, 4>;  // θ_c, ω_c, θ_m, ω_m
-
-struct Max
-{
-  double time, position;
-};
 
 struct Outcome
 {

@@ -26,16 +26,12 @@
 
 #include "backlash_servo/drive.h"
 #include "backlash_servo/simulator.h"
+#include "maxima.h"
 
 using namespace backlash_servo;
 
 namespace
 {
-struct Max
-{
-  double time, position;
-};
-
 /// Counts this process's user-space instructions while alive (−1 when the kernel does not allow it).
 class InstructionCounter
 {
@@ -103,7 +99,7 @@ ServoParams compliantD1()
 
 struct Ours
 {
-  std::vector<Max> maxima;
+  std::vector<bench::Max> maxima;
   long events = 0;
   double wall = 0.0;
   long long instructions = -1;
@@ -194,7 +190,7 @@ int roots(sunrealtype, N_Vector xv, sunrealtype* g, void* data)
 
 struct CvodeRun
 {
-  std::vector<Max> maxima;
+  std::vector<bench::Max> maxima;
   long events = 0, steps = 0;
   double wall = 0.0;
   bool ok = true;
@@ -310,17 +306,6 @@ CvodeRun runCvode(const ServoParams& p, double command, double duration, double 
   return r;
 }
 
-double maxError(const std::vector<Max>& a, const std::vector<Max>& b, std::size_t* compared)
-{
-  *compared = std::min(a.size(), b.size());
-  double e = 0.0;
-  for (std::size_t i = 0; i < *compared; ++i)
-  {
-    e = std::max(e, std::fabs(a[i].position - b[i].position));
-  }
-  return e;
-}
-
 }  // namespace
 
 int main(int argc, char** argv)
@@ -362,7 +347,7 @@ int main(int argc, char** argv)
   {
     const CvodeRun r = runCvode(p, 1.0, duration, s.rtol, s.method);
     std::size_t compared = 0;
-    const double err = maxError(ours.maxima, r.maxima, &compared);
+    const double err = bench::maxError(ours.maxima, r.maxima, &compared);
     std::printf("%-24s %10.1f %9ld %9ld %10.0f %12s %9zu %9.1e   %.0fx ours%s\n", s.name, r.wall * 1e3, r.events,
                 r.steps, r.wall * 1e9 / std::max(1L, r.events), "", r.maxima.size(), err, r.wall / ours.wall,
                 r.ok ? "" : " (CVODE stopped: failed or a root storm)");

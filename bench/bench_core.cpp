@@ -344,17 +344,6 @@ bool interleavingProbe(bool quick)
          100 * (a.restarts + b.restarts) <= a.impacts + b.impacts;
 }
 
-double maxError(const std::vector<bench::Max>& a, const std::vector<bench::Max>& ref, std::size_t* compared)
-{
-  const std::size_t n = std::min(a.size(), ref.size());
-  double worst = 0.0;
-  for (std::size_t i = 0; i < n; ++i)
-  {
-    worst = std::max(worst, std::fabs(a[i].position - ref[i].position));
-  }
-  *compared = n;
-  return n == 0 ? INFINITY : worst;
-}
 }  // namespace
 
 int main(int argc, char** argv)
@@ -425,7 +414,7 @@ int main(int argc, char** argv)
     {
       const Row& r = rows[k];
       std::size_t n = 0;
-      const double err = maxError(r.maxima, ref.maxima, &n);
+      const double err = bench::maxError(r.maxima, ref.maxima, &n);
       if (k == 0)
       {
         ours_err = err;

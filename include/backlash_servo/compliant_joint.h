@@ -193,6 +193,8 @@ class CompliantJoint
   void integrate(const Segment& seg, double a, double b, CompliantEnergy* e) const;
   /// The ledger at local time tau of the current segment (its whole pieces kept for the next call).
   void placeEnergy(double tau);
+  /// The state, time t [s] and ledger at local time tau [s] of the current segment.
+  void moveTo(double tau, double t);
   /// Applies the segment's event at the current state (the mode, counters, the mesh's jump of stored energy) and
   /// reports it; true for a WatchExit.
   bool handle(const Watch& watch, const Observer& observer);

@@ -22,7 +22,7 @@
  *
  * **Zero crossings, rigorously.** ẋ obeys the homogeneous equation (ẍ = A ẋ), so on a window [a, a + h]
  *   s(a + t) = s(a) + s'(a) t + R(t),  |R(t)| ≤ ½ M t²,  M ≥ max |s''| on the window:
- * modally s''(τ) = Σ_k (wᵀDv_k) λ_k (λ_k c_k + g_k) e^{λ_k τ}, so M = Σ_k |(wᵀDv_k) λ_k (λ_k c_k + g_k)| e^{Re λ_k τ*}
+ * modally s''(τ) = Σ_k (wᵀDv_k) λ_k g_k e^{λ_k τ}, so M = Σ_k |(wᵀDv_k) λ_k g_k| e^{Re λ_k τ*}
  * with τ* the window's end where that mode's term is largest (tight: a single mode's amplitude times ω², the rigid
  * body's drift adding nothing); otherwise M = ‖(Dw)ᵀÂ‖₂ ‖D⁻¹ẋ(a)‖₂ e^{‖Â‖₂ h} (s'' = wᵀ A exp(A t) ẋ(a) in the
  * balanced basis x = D x̂, Â = D⁻¹AD, D a diagonal of powers of 2 (Parlett–Reinsch) so that ‖Â‖₂ is near the mode's
@@ -124,7 +124,7 @@ class LinearMode
   double norm() const { return basis_->norm(); }
 
  private:
-  /// What bounds the curvature |s''| of one output: per mode |wᵀDv_k λ_k(λ_k c_k + g_k)| and Re λ_k (modal), or
+  /// What bounds the curvature |s''| of one output: per mode |wᵀDv_k λ_k g_k| and Re λ_k (modal), or
   /// ‖(Dw)ᵀÂ‖₂ (Taylor).
   struct Curvature
   {
@@ -144,8 +144,8 @@ class LinearMode
 
   std::shared_ptr<const ModeBasis> basis_;
   Eigen::VectorXd u_, x0_;
-  Eigen::VectorXd v0_;      // ẋ(0) = Ax₀ + u: the input of the deviation δ = x − x₀ the motion is solved for
-  Eigen::VectorXcd c_, g_;  // V⁻¹D⁻¹δ(0) = 0, V⁻¹D⁻¹v₀ (modal)
+  Eigen::VectorXd v0_;  // ẋ(0) = Ax₀ + u: the input of the deviation δ = x − x₀ the motion is solved for
+  Eigen::VectorXcd g_;  // V⁻¹D⁻¹v₀ (modal)
   Eigen::VectorXcd g_over_lambda_;  // g/λ (modal)
   // Without a modal basis: the anchors x̂ at multiples of step_ (all of the first DENSE_ANCHORS, then every
   // CHECKPOINT-th, and the farthest reached), and the Taylor coefficients of the anchors last used.

@@ -498,32 +498,17 @@ bool CompliantJoint::advanceTo(double t_end, const Observer& observer)
     if (!std::isfinite(seg.event) && local_end > seg.searched && seg.searched >= anchor_end)
     {
       // No event over the segment's re-anchoring span: a new segment from its state there (not an event).
-      x_ = seg.motion.state(seg.searched);
-      time_ = seg.start + seg.searched;
-      if (track_energy_)
-      {
-        placeEnergy(seg.searched);
-      }
+      moveTo(seg.searched, seg.start + seg.searched);
       segment_.reset();
       last_kind_ = -1;
       continue;
     }
     if (!(seg.event <= local_end))
     {
-      x_ = seg.motion.state(local_end);
-      time_ = t_end;
-      if (track_energy_)
-      {
-        placeEnergy(local_end);
-      }
+      moveTo(local_end, t_end);
       return false;
     }
-    x_ = seg.motion.state(seg.event);
-    time_ = seg.start + seg.event;
-    if (track_energy_)
-    {
-      placeEnergy(seg.event);
-    }
+    moveTo(seg.event, seg.start + seg.event);
     const Watch watch = seg.watches[static_cast<std::size_t>(seg.hit)];
     const double before = seg.motion.state(seg.event * (1.0 - 1e-6))(loadIndex() + 1);
     segment_.reset();
@@ -537,6 +522,16 @@ bool CompliantJoint::advanceTo(double t_end, const Observer& observer)
     {
       return true;
     }
+  }
+}
+
+void CompliantJoint::moveTo(double tau, double t)
+{
+  x_ = segment_->motion.state(tau);
+  time_ = t;
+  if (track_energy_)
+  {
+    placeEnergy(tau);
   }
 }
 

@@ -115,7 +115,6 @@ LinearMode::LinearMode(std::shared_ptr<const ModeBasis> basis, const Eigen::Vect
   v0_ = basis_->a_ * x0 + u;
   if (basis_->modal_)
   {
-    c_ = Eigen::VectorXcd::Zero(n);
     g_ = basis_->v_inv_ * v0_.cwiseQuotient(basis_->bal_).cast<std::complex<double>>();
     g_over_lambda_.resize(n);  // used only where |λτ| ≥ 0.1
     for (Eigen::Index k = 0; k < n; ++k)
@@ -133,7 +132,7 @@ LinearMode::LinearMode(std::shared_ptr<const ModeBasis> basis, const Eigen::Vect
 
 Eigen::VectorXd LinearMode::taylorState(double tau) const
 {
-  // Anchors x̂ at multiples of the step from the start, each from the one before: a pure function of τ, whatever order
+  // Anchors δ̂ at multiples of the step from the start, each from the one before: a pure function of τ, whatever order
   // the states are asked in.
   const double index = std::isfinite(step_) ? std::floor(tau / step_) : 0.0;
   if (!(index < 1e15))
@@ -233,13 +232,12 @@ Eigen::VectorXd LinearMode::state(double tau) const
   }
   if (basis_->modal_)
   {
-    // Σ_k v_k [e^{λ_k τ} c_k + τ φ₁(λ_k τ) g_k]: τφ₁(λτ) g = (e^{λτ} − 1) g/λ, by φ₁'s series where that would cancel.
+    // δ = D Σ_k v_k τ φ₁(λ_k τ) g_k: τφ₁(λτ) g = (e^{λτ} − 1) g/λ, by φ₁'s series where that would cancel.
     const Eigen::VectorXcd& lambda = basis_->lambda_;
     Eigen::Matrix<std::complex<double>, Eigen::Dynamic, 1, 0, 8, 1> e(n);
     for (Eigen::Index k = 0; k < n; ++k)
     {
       const std::complex<double> z = lambda(k) * tau;
-      const std::complex<double> ez = std::exp(z);
       if (std::norm(z) < 0.01)
       {
         std::complex<double> phi1 = 1.0, term = 1.0;
@@ -248,11 +246,11 @@ Eigen::VectorXd LinearMode::state(double tau) const
           term *= z * (1.0 / j);
           phi1 += term;
         }
-        e(k) = ez * c_(k) + tau * phi1 * g_(k);
+        e(k) = tau * phi1 * g_(k);
       }
       else
       {
-        e(k) = ez * c_(k) + (ez - 1.0) * g_over_lambda_(k);
+        e(k) = (std::exp(z) - 1.0) * g_over_lambda_(k);
       }
     }
     return x0_ + (basis_->v_ * e).real().cwiseProduct(basis_->bal_);
@@ -281,7 +279,7 @@ LinearMode::Curvature LinearMode::curvature(const Eigen::VectorXd& w) const
   Curvature k;
   if (basis_->modal_)
   {
-    // s''(τ) = Σ_k (wᵀD v_k) λ_k (λ_k c_k + g_k) e^{λ_k τ}: the drift of a zero eigenvalue has no curvature.
+    // s''(τ) = Σ_k (wᵀD v_k) λ_k g_k e^{λ_k τ}: the drift of a zero eigenvalue has no curvature.
     const Eigen::Index n = x0_.size();
     const Eigen::VectorXcd wv = basis_->v_.transpose() * w.cwiseProduct(basis_->bal_).cast<std::complex<double>>();
     k.beta.resize(n);
@@ -289,7 +287,7 @@ LinearMode::Curvature LinearMode::curvature(const Eigen::VectorXd& w) const
     for (Eigen::Index i = 0; i < n; ++i)
     {
       const std::complex<double> l = basis_->lambda_(i);
-      k.beta(i) = std::abs(wv(i) * l * (l * c_(i) + g_(i)));
+      k.beta(i) = std::abs(wv(i) * l * g_(i));
       k.rate(i) = l.real();
     }
   }

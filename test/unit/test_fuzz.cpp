@@ -8,28 +8,37 @@
 // BasicFreeMotion::energy. Long runs: bash scripts/fuzz_long.sh.
 #include <gtest/gtest.h>
 
+#include <functional>
 #include <map>
 
 #include "fuzz_cases.h"
 
 namespace
 {
-TEST(Fuzz, TwoThousandCasesKeepEveryProperty)
+/// Checks cases 0 … n − 1 drawn by `make`: each keeps every property or ends as an allowed outcome (the event budget,
+/// a divergence). Prints and returns the counts per outcome class.
+std::map<std::string, int> checkSample(const std::function<fuzz::Case(std::uint64_t)>& make, int n, const char* label)
 {
-  const int n = 2000;
   std::map<std::string, int> counts;
   for (int i = 0; i < n; ++i)
   {
-    const fuzz::Case c = fuzz::makeCase(2, static_cast<std::uint64_t>(i));
+    const fuzz::Case c = make(static_cast<std::uint64_t>(i));
     const fuzz::Outcome o = fuzz::check(c);
     ++counts[o.klass];
     EXPECT_TRUE(o.klass == "ok" || o.klass == "budget" || o.klass == "diverged")
-        << o.klass << " in case " << i << ": " << o.detail << "\n  backlash_sim " << c.describe();
+        << o.klass << " in " << label << " case " << i << ": " << o.detail << "\n  backlash_sim " << c.describe();
   }
   for (const auto& kv : counts)
   {
-    std::printf("fuzz: %-10s %d\n", kv.first.c_str(), kv.second);
+    std::printf("fuzz (%s): %-10s %d\n", label, kv.first.c_str(), kv.second);
   }
+  return counts;
+}
+
+TEST(Fuzz, TwoThousandCasesKeepEveryProperty)
+{
+  const int n = 2000;
+  std::map<std::string, int> counts = checkSample([](std::uint64_t i) { return fuzz::makeCase(2, i); }, n, "rigid");
   // The sample covers issue 12's additions too: compensators and command profiles.
   int compensated = 0, profiled = 0;
   for (int i = 0; i < n; ++i)
@@ -51,23 +60,16 @@ TEST(Fuzz, TwoThousandCasesKeepEveryProperty)
 TEST(Fuzz, CompliantJointsKeepEveryProperty)
 {
   const int n = 40;
-  std::map<std::string, int> counts;
   int shafts = 0, msl = 0;
-  for (int i = 0; i < n; ++i)
-  {
-    const fuzz::Case c = fuzz::makeCompliantCase(2, static_cast<std::uint64_t>(i));
-    ASSERT_TRUE(c.params.compliant());
-    shafts += c.params.torsionalShaft();
-    msl += c.params.mesh_law == "msl_elastobacklash";
-    const fuzz::Outcome o = fuzz::check(c);
-    ++counts[o.klass];
-    EXPECT_TRUE(o.klass == "ok" || o.klass == "budget" || o.klass == "diverged")
-        << o.klass << " in compliant case " << i << ": " << o.detail << "\n  backlash_sim " << c.describe();
-  }
-  for (const auto& kv : counts)
-  {
-    std::printf("fuzz (compliant): %-10s %d\n", kv.first.c_str(), kv.second);
-  }
+  std::map<std::string, int> counts = checkSample(
+      [&](std::uint64_t i) {
+        fuzz::Case c = fuzz::makeCompliantCase(2, i);
+        EXPECT_TRUE(c.params.compliant());
+        shafts += c.params.torsionalShaft();
+        msl += c.params.mesh_law == "msl_elastobacklash";
+        return c;
+      },
+      n, "compliant");
   EXPECT_GT(shafts, 5);
   EXPECT_GT(msl, 5);
   EXPECT_GT(counts["ok"], n * 8 / 10);
