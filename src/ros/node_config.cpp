@@ -69,9 +69,24 @@ void validateNodeSettings(const NodeConfig& c)
   {
     throw ConfigError("sync: lockstep needs publish_clock: true (the controller must follow the node's sim time)");
   }
-  if (c.motor_joint_name.empty() || c.load_joint_name.empty() || c.motor_joint_name == c.load_joint_name)
+  const std::pair<const char*, const std::string*> names[] = {{"motor_joint_name", &c.motor_joint_name},
+                                                              {"load_joint_name", &c.load_joint_name},
+                                                              {"gear_joint_name", &c.gear_joint_name},
+                                                              {"shaft_twist_joint_name", &c.shaft_twist_joint_name}};
+  for (std::size_t i = 0; i < std::size(names); ++i)
   {
-    throw ConfigError("motor_joint_name, load_joint_name: must be two different non-empty names");
+    if (names[i].second->empty())
+    {
+      throw ConfigError(std::string(names[i].first) + ": must be a non-empty joint name");
+    }
+    for (std::size_t k = 0; k < i; ++k)
+    {
+      if (*names[k].second == *names[i].second)
+      {
+        throw ConfigError(std::string(names[k].first) + ", " + names[i].first +
+                          ": must be different joint names (both '" + *names[i].second + "')");
+      }
+    }
   }
 }
 
@@ -92,6 +107,8 @@ NodeConfig nodeSettingsFrom(const KeyValues& kv, const NodeConfig& base)
   c.publish_clock = kv.has("publish_clock") ? kv.boolean("publish_clock") : c.publish_clock;
   c.motor_joint_name = textValue(kv, "motor_joint_name", c.motor_joint_name);
   c.load_joint_name = textValue(kv, "load_joint_name", c.load_joint_name);
+  c.gear_joint_name = textValue(kv, "gear_joint_name", c.gear_joint_name);
+  c.shaft_twist_joint_name = textValue(kv, "shaft_twist_joint_name", c.shaft_twist_joint_name);
   c.min_impact_speed = realValue(kv, "min_impact_speed", c.min_impact_speed);
   c.paused = kv.has("paused") ? kv.boolean("paused") : c.paused;
   c.stop_after = realValue(kv, "stop_after", c.stop_after);

@@ -27,6 +27,8 @@ struct NodeConfig
   bool publish_clock = false;                        ///< the node publishes /clock (use with use_sim_time)
   std::string motor_joint_name;                      ///< JointState name of the motor shaft
   std::string load_joint_name;                       ///< JointState name of the load shaft
+  std::string gear_joint_name;                       ///< JointState name of the output gear (compliant mesh)
+  std::string shaft_twist_joint_name;                ///< JointState name of the shaft twist (compliant mesh)
   double min_impact_speed = 0.0;                     ///< publish only impacts at least this fast [rad/s]; 0 = all
   bool paused = false;                               ///< start paused (resume with ~resume)
   double stop_after = 0.0;                           ///< shut down after this much sim time [s]; 0 = never

@@ -493,7 +493,7 @@ void ServoNode::publishEncoders(const State& s, const Drive& drive)
 void ServoNode::publishEncoderReadings(const State& s, double motor, double load)
 {
   sensor_msgs::JointState& js = encoder_msg_;
-  setJointNames(&js);
+  setJointNames(&js, false);
   js.header.stamp = stamp(s.time);
   js.position.resize(2);
   js.position[0] = motor;  // quantised readings q(θ_m) [rad, motor shaft] and q(θ_c) [rad]
@@ -501,11 +501,18 @@ void ServoNode::publishEncoderReadings(const State& s, double motor, double load
   emit(encoder_pub_, encoder_topic_, js);
 }
 
-void ServoNode::setJointNames(sensor_msgs::JointState* js) const
+void ServoNode::setJointNames(sensor_msgs::JointState* js, bool compliant) const
 {
-  if (js->name.size() != 2 || js->name[0] != config_.motor_joint_name || js->name[1] != config_.load_joint_name)
+  const std::size_t n = compliant ? 4 : 2;
+  if (js->name.size() != n || js->name[0] != config_.motor_joint_name || js->name[1] != config_.load_joint_name ||
+      (compliant && (js->name[2] != config_.gear_joint_name || js->name[3] != config_.shaft_twist_joint_name)))
   {
     js->name = {config_.motor_joint_name, config_.load_joint_name};
+    if (compliant)
+    {
+      js->name.push_back(config_.gear_joint_name);
+      js->name.push_back(config_.shaft_twist_joint_name);
+    }
   }
 }
 
@@ -521,17 +528,22 @@ void ServoNode::publishSample()
   }
   const ros::Time now = stamp(s.time);
   sensor_msgs::JointState& js = joint_msg_;
-  setJointNames(&js);
+  const ServoParams& p = sim_.params();
+  const bool compliant = p.compliant();
+  setJointNames(&js, compliant);
   js.header.stamp = now;
-  js.position.resize(2);
-  js.velocity.resize(2);
-  js.effort.resize(2);
-  js.position[0] = s.motor_position;
-  js.position[1] = s.load_position;
-  js.velocity[0] = s.motor_velocity;
-  js.velocity[1] = s.load_velocity;
-  js.effort[0] = sim_.motorTorque();
-  js.effort[1] = sim_.meshTorque();
+  js.position.assign({s.motor_position, s.load_position});
+  js.velocity.assign({s.motor_velocity, s.load_velocity});
+  js.effort.assign({sim_.motorTorque(), sim_.meshTorque()});
+  if (compliant)
+  {
+    // The output gear θ_o = θ_c + twist (effort: the mesh torque Q on it) and the shaft twist θ_o − θ_c (effort: the
+    // shaft's spring–damper torque S; a rigid shaft has no twist and carries 0 here).
+    js.position.insert(js.position.end(), {s.load_position + s.shaft_twist, s.shaft_twist});
+    js.velocity.insert(js.velocity.end(), {s.load_velocity + s.shaft_twist_rate, s.shaft_twist_rate});
+    js.effort.insert(js.effort.end(),
+                     {sim_.meshTorque(), p.shaft_stiffness * s.shaft_twist + p.shaft_damping * s.shaft_twist_rate});
+  }
   emit(joint_pub_, joint_topic_, js);
   published_ += 2 + (clock_mode_ == ClockMode::Publisher ? 1 : 0);  // joint_states, backlash_state, /clock
 

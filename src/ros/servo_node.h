@@ -79,8 +79,9 @@ class ServoNode : public EventSink
   void publishEncoders(const State& s, const Drive& drive);
   /// encoder_states at the state's instant: motor reading on the motor shaft and load reading [rad].
   void publishEncoderReadings(const State& s, double motor, double load);
-  /// joint_states / encoder_states carry the configured motor and load joint names (set only when they differ).
-  void setJointNames(sensor_msgs::JointState* js) const;
+  /// joint_states / encoder_states carry the configured motor and load joint names, and joint_states of a compliant
+  /// joint also the gear and shaft-twist names (set only when they differ).
+  void setJointNames(sensor_msgs::JointState* js, bool compliant) const;
   /// /diagnostics through diagnostic_updater, every second of wall time (publishDiagnostics forces an update).
   void publishDiagnostics();
   /// The "simulation" task: OK while running, ERROR with the fault while a core error holds the simulation; values
