@@ -217,7 +217,11 @@ class CompliantJoint
   double initial_kinetic_ = 0.0;    // kinetic energy at the start, re-based by setParams [J]
   double initial_potential_ = 0.0;  // stored energy at the start [J]
   bool track_energy_ = true;
-  int last_kind_ = -1, last_sigma_ = 0;  // the event that began the current segment
+  int last_kind_ = -1, last_sigma_ = 0;  // the latest event, at time last_time_ [s]
+  double last_time_ = -INFINITY;
+  double release_time_[2] = {-INFINITY, -INFINITY};
+  bool fresh_ = true;  // nothing has happened since setState (the start's mode follows the law set next)  // the latest
+                       // release of the forward [0] and backward [1] flank [s]
 };
 
 }  // namespace backlash_servo

@@ -113,8 +113,11 @@ class LinearMode
   /**
    * The first τ in (from, horizon] where s = w·x + w₀ crosses zero in `direction` (+1: from ≤ 0 to > 0, −1: from ≥ 0
    * to < 0), located to the last bit; +inf if none (a grazing within the floor is none, see the file comment).
+   * `began_here`: this output's crossing is the event that began the motion, at `from` — there, within rounding of
+   * zero and moving in `direction`, its sign means nothing and is not a crossing.
    */
-  double firstCrossing(const Eigen::VectorXd& w, double w0, int direction, double horizon, double from = 0.0) const;
+  double firstCrossing(const Eigen::VectorXd& w, double w0, int direction, double horizon, double from = 0.0,
+                       bool began_here = false) const;
 
   /// Whether the closed form is the modal one (else the Taylor series).
   bool modal() const { return basis_->modal(); }
@@ -134,7 +137,8 @@ class LinearMode
   Curvature curvature(const Eigen::VectorXd& w) const;
   /// A bound on |s''| over [lo, lo + h] (x the state at lo).
   double curvatureBound(const Curvature& k, const Eigen::VectorXd& x, double lo, double h) const;
-  /// The first crossing in [lo, hi] (the window's state known at lo), +inf if none; `origin` is the search's start.
+  /// The first crossing in [lo, hi] (the window's state known at lo), +inf if none; `origin` is where the crossing
+  /// that began the motion lies (NaN: none, see firstCrossing's began_here).
   double searchWindow(const Eigen::VectorXd& w, double w0, int direction, double lo, double hi, const Curvature& curv,
                       double floor, double origin) const;
   /// What rounding can do to the output w·x + w₀ of an evaluated state x (the closed form's error).

@@ -71,6 +71,12 @@ void CompliantJoint::setLaw(const MotorInput& law)
 {
   law_ = law;
   segment_.reset();
+  if (fresh_)
+  {
+    // Teeth touching at relative rest at the start engage as the law in force at the start pushes them.
+    mode_ = chooseMode(false, false);
+    contacts_ = mode_ == MeshMode::Free ? 0 : 1;
+  }
 }
 
 void CompliantJoint::setWatch(double lo, double hi)
@@ -96,6 +102,8 @@ void CompliantJoint::setState(const Eigen::VectorXd& x, double t)
   contacts_ = mode_ == MeshMode::Free ? 0 : 1;
   reengagements_ = 0;
   last_kind_ = -1;
+  release_time_[0] = release_time_[1] = -INFINITY;
+  fresh_ = true;
   segment_.reset();
   energy_ = CompliantEnergy();
   initial_kinetic_ = kineticEnergy();
@@ -315,7 +323,13 @@ MeshMode CompliantJoint::chooseMode(bool released_forward, bool released_backwar
       y = 0.0;
     }
     flankTorque(sigma, 0.0, 1.0, &w, &w0);
-    const double ydot = w.dot(x_) + w0;
+    double ydot = w.dot(x_) + w0;
+    // Touching, the rate too is judged against the rounding of the speeds it is the difference of.
+    if (y == 0.0 && std::fabs(ydot) <= 64.0 * std::numeric_limits<double>::epsilon() *
+                                           (w.cwiseAbs().dot(x_.cwiseAbs()) + std::fabs(w0)))
+    {
+      ydot = 0.0;
+    }
     const double tc = s_.mesh_stiffness * y, td = s_.mesh_damping * ydot;
     if (y == 0.0 && ydot == 0.0)
     {
@@ -326,6 +340,11 @@ MeshMode CompliantJoint::chooseMode(bool released_forward, bool released_backwar
       flankTorque(sigma, 0.0, 1.0, &w, &w0);
       if (w.dot(a * x_ + u) > 0.0)
       {
+        // (msl_elastobacklash enters in K2, dẏ > cy = 0, unless the teeth are undamped — as at an engagement.)
+        if (msl_ && s_.mesh_damping > 0.0)
+        {
+          return sigma > 0 ? MeshMode::ForwardK2 : MeshMode::BackwardK2;
+        }
         return sigma > 0 ? MeshMode::Forward : MeshMode::Backward;
       }
       continue;
@@ -413,7 +432,7 @@ void CompliantJoint::beginSegment()
     {
       flankTorque(sigma, c, d, &w, &w0);
       watches.push_back({w, w0, -1, MeshEvent::Release, sigma});
-      if (msl_)
+      if (msl_ && d > 0.0)  // (undamped, ElastoBacklash is the plain spring: no K2, whose switch would be the release)
       {
         flankTorque(sigma, -c, d, &w, &w0);  // d ẏ − c y ↑ 0
         watches.push_back({w, w0, +1, MeshEvent::SubMode, sigma});
@@ -444,6 +463,55 @@ void CompliantJoint::beginSegment()
   const double piece = 0.5 / std::max(motion.norm(), 1e-300);
   segment_.emplace(Segment{std::move(motion), time_, window, 0.0, INF, -1, std::move(watches), energy_,
                            CompliantEnergy(), piece, 0});
+  if (mode_ != MeshMode::Free)
+  {
+    // A contact whose release output (P, or in K2 the penetration) starts below zero beyond rounding, or within it
+    // and falling, releases here, as the segment's first event: its crossing lay within the rounding of this start
+    // (the end of the previous segment, a sample, evaluated again). Not a contact begun at this very instant.
+    const int sigma = isForward(mode_) ? 1 : -1;
+    const bool just_engaged =
+        last_time_ == time_ && last_sigma_ == sigma &&
+        (last_kind_ == static_cast<int>(MeshEvent::Engage) || last_kind_ == static_cast<int>(MeshEvent::Reengage));
+    const std::vector<Watch>& ws = segment_->watches;
+    for (std::size_t i = 0; i < ws.size() && !just_engaged; ++i)
+    {
+      if (ws[i].kind == MeshEvent::Release)
+      {
+        constexpr double EPS = std::numeric_limits<double>::epsilon();
+        const Eigen::VectorXd xd = a * x_ + u;
+        const double out = ws[i].w.dot(x_) + ws[i].w0, rate = ws[i].w.dot(xd);
+        const double out_noise = 64.0 * EPS * (ws[i].w.cwiseAbs().dot(x_.cwiseAbs()) + std::fabs(ws[i].w0));
+        const double rate_noise = 64.0 * EPS * ws[i].w.cwiseAbs().dot(xd.cwiseAbs());
+        if (out < -out_noise || (std::fabs(out) <= out_noise && rate < -rate_noise))
+        {
+          segment_->event = 0.0;
+          segment_->hit = static_cast<int>(i);
+        }
+        break;
+      }
+    }
+  }
+  else
+  {
+    // A flank the state presses (within rounding of touching and closing, or penetrating with P > 0) engages here,
+    // as the segment's first event: its crossing lay within the rounding of an earlier start (a sample, a
+    // re-anchoring) and had no sign to search for. Not a flank released at this very instant.
+    const MeshMode pressing = chooseMode(release_time_[0] == time_, release_time_[1] == time_);
+    if (pressing != MeshMode::Free)
+    {
+      const int sigma = isForward(pressing) ? 1 : -1;
+      const std::vector<Watch>& ws = segment_->watches;
+      for (std::size_t i = 0; i < ws.size(); ++i)
+      {
+        if (ws[i].sigma == sigma && (ws[i].kind == MeshEvent::Engage || ws[i].kind == MeshEvent::Reengage))
+        {
+          segment_->event = 0.0;
+          segment_->hit = static_cast<int>(i);
+          break;
+        }
+      }
+    }
+  }
 }
 
 void CompliantJoint::searchNextWindow()
@@ -456,9 +524,10 @@ void CompliantJoint::searchNextWindow()
   for (std::size_t i = 0; i < seg.watches.size(); ++i)
   {
     const Watch& watch = seg.watches[i];
-    const bool again = from == 0.0 && static_cast<int>(watch.kind) == last_kind_ && watch.sigma == last_sigma_;
-    const double tau =
-        seg.motion.firstCrossing(watch.w, watch.w0, watch.direction, std::min(to, seg.event), again ? skip : from);
+    const bool again = from == 0.0 && static_cast<int>(watch.kind) == last_kind_ && watch.sigma == last_sigma_ &&
+                       seg.start == last_time_;
+    const double tau = seg.motion.firstCrossing(watch.w, watch.w0, watch.direction, std::min(to, seg.event),
+                                                again ? skip : from, again);
     if (tau < seg.event)
     {
       seg.event = tau;
@@ -514,6 +583,7 @@ bool CompliantJoint::advanceTo(double t_end, const Observer& observer)
     segment_.reset();
     last_kind_ = static_cast<int>(watch.kind);
     last_sigma_ = watch.sigma;
+    last_time_ = time_;
     if ((watch.kind == MeshEvent::Maximum && !(before > 0.0)) || (watch.kind == MeshEvent::Minimum && !(before < 0.0)))
     {
       continue;  // a turning point only where the load moved that way just before (not a load at rest pushed off)
@@ -527,6 +597,7 @@ bool CompliantJoint::advanceTo(double t_end, const Observer& observer)
 
 void CompliantJoint::moveTo(double tau, double t)
 {
+  fresh_ = fresh_ && tau == 0.0;
   x_ = segment_->motion.state(tau);
   time_ = t;
   if (track_energy_)
@@ -538,6 +609,7 @@ void CompliantJoint::moveTo(double tau, double t)
 bool CompliantJoint::handle(const Watch& watch, const Observer& observer)
 {
   // The mesh's stored energy may jump where its law changes (a release with y > 0, a re-engagement, K2 ↔ KD).
+  fresh_ = false;
   const double stored = potentialEnergy();
   const bool other_flank = applyEvent(watch);
   if (track_energy_)
@@ -579,13 +651,18 @@ bool CompliantJoint::applyEvent(const Watch& watch)
       mode_ = msl_ && d > 0.0 ? (watch.sigma > 0 ? MeshMode::ForwardK2 : MeshMode::BackwardK2)
                               : (watch.sigma > 0 ? MeshMode::Forward : MeshMode::Backward);
       break;
-    case MeshEvent::Reengage:
+    case MeshEvent::Reengage: {
       ++contacts_;
       ++reengagements_;
-      mode_ = watch.sigma > 0 ? MeshMode::Forward : MeshMode::Backward;
+      // At its crossing P = 0 (KD); found pressing at a segment's start, msl_elastobacklash may be in K2 (dẏ > cy).
+      const MeshMode m = chooseMode(watch.sigma<0, watch.sigma> 0);
+      mode_ = m != MeshMode::Free ? m : (watch.sigma > 0 ? MeshMode::Forward : MeshMode::Backward);
       break;
-    case MeshEvent::LeavePenetration:
+    }
     case MeshEvent::Release:
+      release_time_[watch.sigma > 0 ? 0 : 1] = time_;
+      [[fallthrough]];
+    case MeshEvent::LeavePenetration:
       // Now in the free play — or, with Δ = 0, on the other flank at once (an undamped mesh's torque passes through
       // zero exactly where the penetration does).
       mode_ = chooseMode(watch.sigma > 0, watch.sigma < 0);

@@ -315,7 +315,8 @@ double LinearMode::curvatureBound(const Curvature& k, const Eigen::VectorXd& x, 
   return k.wa * xd.cwiseQuotient(basis_->bal_).norm() * std::exp(basis_->norm_a_ * h);
 }
 
-double LinearMode::firstCrossing(const Eigen::VectorXd& w, double w0, int direction, double horizon, double from) const
+double LinearMode::firstCrossing(const Eigen::VectorXd& w, double w0, int direction, double horizon, double from,
+                                 bool began_here) const
 {
   if (!(horizon > 0.0) || (direction != 1 && direction != -1))
   {
@@ -341,6 +342,7 @@ double LinearMode::firstCrossing(const Eigen::VectorXd& w, double w0, int direct
       return INF;
     }
   }
+  const double origin = began_here ? from : std::numeric_limits<double>::quiet_NaN();
   double t = from;
   while (t < horizon)
   {
@@ -354,7 +356,7 @@ double LinearMode::firstCrossing(const Eigen::VectorXd& w, double w0, int direct
     // holds on windows of any length and lets the search stride over slow motion, but a window much longer than the
     // fast modes' scale is mostly halved again: four of them measured best.)
     h = std::min({std::max(h, 1e-3 * scale), basis_->modal_ ? 4.0 * scale : scale, horizon - t});
-    const double hit = searchWindow(w, w0, direction, t, t + h, curv, floor, from);
+    const double hit = searchWindow(w, w0, direction, t, t + h, curv, floor, origin);
     if (hit < INF)
     {
       return hit;
@@ -381,8 +383,9 @@ double LinearMode::searchWindow(const Eigen::VectorXd& w, double w0, int directi
     return INF;  // the linear part keeps one sign beyond the remainder: no zero here
   }
   const double s_hi = output(w, w0, hi);
-  // A search's start where the output is within rounding of zero and moving in the asked direction is a crossing
-  // already behind (the event that began the motion, evaluated again): its sign there means nothing.
+  // The start of a motion begun by this output's own crossing, where the output is within rounding of zero and
+  // moving in the asked direction: that crossing, evaluated again — its sign there means nothing. (Only there: any
+  // other output found within rounding of zero at a start, moving across, is searched by its signs like anywhere.)
   const bool behind = lo == origin && std::fabs(s) <= rounding && direction * s1 > 0.0;
   const bool changes = !behind && direction * s <= 0.0 && direction * s_hi > 0.0;
   // Within rounding of zero at both ends and in its slope, on a window much shorter than any of the mode's

@@ -386,6 +386,37 @@ struct GapWatch : EventSink
   }
 };
 
+/**
+ * The compliant mesh's torque Q on the output gear [N·m] as its law gives it from a state (docs/model.md, Part 3),
+ * written here independently of the simulator: y the penetration of a flank, ẏ its rate, τ_c = c·y, τ_d = d·ẏ;
+ * spring_damper P = τ_c + τ_d, msl_elastobacklash P = τ_c + min(τ_c, τ_d) where τ_c + τ_d > 0; a flank with y > 0
+ * transmits max(0, P) (a released flank re-engages exactly where P turns positive, so Q is a function of the state).
+ * *scale receives what rounding of the angles and speeds can make of it (1e-9 of c·angles + d·speeds).
+ */
+inline double meshLawTorque(const ServoParams& p, const State& s, double* scale)
+{
+  const double rho = p.gear_ratio, c = p.mesh_stiffness, d = p.mesh_damping;
+  const double g = s.load_position + s.shaft_twist - rho * s.motor_position;        // θ_o − ρθ_m [rad]
+  const double gd = s.load_velocity + s.shaft_twist_rate - rho * s.motor_velocity;  // [rad/s]
+  *scale =
+      1e-9 *
+      (c * (std::fabs(s.load_position) + std::fabs(s.shaft_twist) + rho * std::fabs(s.motor_position) + p.backlash) +
+       d * (std::fabs(s.load_velocity) + std::fabs(s.shaft_twist_rate) + rho * std::fabs(s.motor_velocity)));
+  double q = 0.0;
+  for (int sigma : {1, -1})
+  {
+    const double y = sigma > 0 ? -g : g - p.backlash, yd = sigma > 0 ? -gd : gd;
+    if (y <= 0.0)
+    {
+      continue;
+    }
+    const double tc = c * y, td = d * yd;
+    const double push = tc + td <= 0.0 ? 0.0 : (p.mesh_law == "msl_elastobacklash" ? tc + std::min(tc, td) : tc + td);
+    q += sigma * push;
+  }
+  return q;
+}
+
 /// Outcome class of one case: "ok", "budget" (stopped by the event budget: allowed), or a failure class.
 struct Outcome
 {
@@ -421,6 +452,20 @@ inline Outcome check(const Case& c, std::uint64_t event_budget = 100000)
       whole.advanceTo(i == 1000 ? c.start.time + c.duration : c.start.time + c.duration * i / 1000.0, &watch);
       kinetic_max = std::max(kinetic_max, whole.kineticEnergy());
       motor_torque_max = std::max(motor_torque_max, std::fabs(whole.motorTorque()));
+      if (c.params.compliant())
+      {
+        // The mesh transmits what its law says of the state: a flank pressed beyond rounding but not in contact (a
+        // missed engagement), or a contact pulling, shows here and nowhere else (no energy flows through it).
+        double scale = 0.0;
+        const double q = meshLawTorque(c.params, whole.state(), &scale);
+        if (std::fabs(whole.meshTorque() - q) > scale + 1e-300)
+        {
+          std::ostringstream d;
+          d << "mesh torque " << whole.meshTorque() << " N·m where its law gives " << q
+            << " N·m at t = " << whole.state().time << " s";
+          return {"mesh_law", d.str()};
+        }
+      }
     }
     const State& s = whole.state();
     if (!std::isfinite(s.load_position) || !std::isfinite(s.motor_position) || !std::isfinite(s.load_velocity) ||
