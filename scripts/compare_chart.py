@@ -16,8 +16,8 @@ import matplotlib.pyplot as plt  # noqa: E402
 
 BARS = [("rms_error", "RMS tracking error [rad]"), ("steady_rms_error", "steady-state RMS error [rad]"),
         ("limit_cycle_error", "limit-cycle error [rad]"), ("settling_time", "settling time into the band [s]"),
-        ("overshoot", "overshoot [rad]"), ("impacts_per_second", "impacts per second [1/s]"),
-        ("impact_energy_per_second", "impact energy per second [W]"), ("rms_torque", "RMS motor torque [N·m]")]
+        ("overshoot", "overshoot [rad]"), ("impacts_per_second", "impacts (compliant: contacts) per second [1/s]"),
+        ("impact_energy_per_second", "impact (compliant: mesh) losses [W]"), ("rms_torque", "RMS motor torque [N·m]")]
 
 
 def save(fig, out):

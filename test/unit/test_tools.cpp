@@ -505,6 +505,35 @@ TEST(Compare, MetricsAgreeWithSingleRunsAndCsvSamples)
   EXPECT_NE(err.find("integral_gian"), std::string::npos) << err;
 }
 
+// On a compliant joint the impact columns count what the mesh does instead: contact phases begun per second (the
+// CSV's engagement rows of backlash_sim) and the mesh's losses per second (its energy.mesh_loss).
+TEST(Compare, ACompliantStrategyCountsContactPhasesAndMeshLosses)
+{
+  const std::string yaml = "/tmp/backlash_compare_compliant_test.yaml";
+  std::ofstream(yaml) << "backlash: 0.05\nmesh_stiffness: 1000\nmesh_damping: 2\ncontroller_rate: 200\n"
+                         "command: 1.0\nduration: 20\nsample_rate: 100\n"
+                         "strategies:\n  - {name: PID, control_law: pid, integral_gain: 0.5, derivative_gain: 0.3}\n";
+  int code = 0;
+  const std::string json = runCapture(COMPARE + " --config " + yaml + " --json", &code);
+  ASSERT_EQ(code, 0) << json;
+  const std::string sim = SIM +
+                          " --backlash 0.05 --mesh-stiffness 1000 --mesh-damping 2 --controller-rate 200 --control-law "
+                          "pid --integral-gain 0.5 --derivative-gain 0.3 --duration 20";
+  const std::string cli = runCapture(sim + " --json");
+  const std::string csv = "/tmp/backlash_compare_compliant_test.csv";
+  runCapture(sim + " --csv " + csv);
+  long engagements = 0;
+  for (const auto& r : csvRows(readFile(csv)))
+  {
+    engagements += r.size() >= 10 && r[9] == "engagement";
+  }
+  EXPECT_GT(engagements, 5);
+  EXPECT_NEAR(jsonNumber(json, "impacts_per_second"), engagements / 20.0, 1e-12);
+  const double mesh_loss = jsonNumber(cli.substr(cli.find("\"energy\"")), "mesh_loss");
+  EXPECT_GT(mesh_loss, 0.0);
+  EXPECT_NEAR(jsonNumber(json, "impact_energy_per_second"), mesh_loss / 20.0, 1e-12 * mesh_loss);
+}
+
 // --vary: every strategy re-run at each value of a plant key (factors of the file's value, or absolute values); each
 // row equals backlash_sim with that value and the strategy's own settings (the compensator's estimate stays), and a
 // key the strategy overrides is varied around its own value.

@@ -14,10 +14,11 @@ namespace backlash_servo
 {
 namespace
 {
-/// Counts impacts and the energy they take.
+/// Counts impacts and the energy they take, and a compliant mesh's contact phases begun.
 struct ImpactTally : EventSink
 {
   long impacts = 0;
+  long engagements = 0;
   double energy = 0.0;
   void onEvent(const Event& e) override
   {
@@ -25,6 +26,10 @@ struct ImpactTally : EventSink
     {
       ++impacts;
       energy += e.impact.energy_loss;
+    }
+    else if (e.type == EventType::Engagement)
+    {
+      ++engagements;
     }
   }
 };
@@ -97,8 +102,11 @@ CompareMetrics runStrategy(const std::string& name, const RunConfig& config, dou
   m.overshoot = f.overshoot;
   m.peak_torque = f.peak_torque;
   m.rms_torque = f.rms_torque;
-  m.impacts_per_second = tally.impacts / simulated;
-  m.impact_energy_per_second = tally.energy / simulated;
+  // A compliant mesh has contact phases instead of impacts, and its losses (damping, the jumps of stored energy at
+  // releases) instead of the impacts' kinetic energy.
+  const bool compliant = config.params.compliant();
+  m.impacts_per_second = (compliant ? tally.engagements : tally.impacts) / simulated;
+  m.impact_energy_per_second = (compliant ? r.energy.mesh_loss : tally.energy) / simulated;
   m.settling_band = band;
   return m;
 }

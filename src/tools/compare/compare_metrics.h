@@ -27,8 +27,8 @@ struct CompareMetrics
   double steady_rms_error = NAN;          ///< √(mean e²) after the transient: from the settling time on [rad]
   double max_error = NAN;                 ///< max |e| after the profile has ended [rad]
   double overshoot = NAN;                 ///< beyond the final reference, in the direction of the last move [rad]
-  double impacts_per_second = NAN;        ///< tooth impacts [1/s]
-  double impact_energy_per_second = NAN;  ///< kinetic energy lost in impacts [W]
+  double impacts_per_second = NAN;        ///< tooth impacts [1/s]; a compliant mesh: contact phases begun [1/s]
+  double impact_energy_per_second = NAN;  ///< kinetic energy lost in impacts [W]; a compliant mesh: its losses [W]
   double peak_torque = NAN;               ///< max |T_m| [N·m]
   double rms_torque = NAN;                ///< √(mean T_m²) [N·m]
   double settling_band = NAN;             ///< the band of settling_time and steady_rms_error [rad] (not a column)
