@@ -11,8 +11,15 @@ usage: backlash_charts.py existence SWEEP.csv OUTDIR [THESIS.csv]   per e, the d
        backlash_charts.py digital RATE.csv ENCODER.csv OUTDIR   limit-cycle error vs controller rate and vs
                                                          encoder resolution (sweeps over controller_rate and
                                                          load_encoder_resolution)
-SWEEP.csv is backlash_sweep output; SIM.csv is backlash_sim --csv output.
+       backlash_charts.py compliant DIR OUTDIR          the compliant joint: D1's limit cycle against the mesh
+                                                         stiffness (DIR/d1_*.json, the rigid run d1_rigid.json),
+                                                         its contact phases (DIR/d1_c1e4.csv) and a robot joint's
+                                                         load loop exciting the two-mass resonance
+                                                         (DIR/robot_rigid.csv, DIR/robot_compliant.csv)
+SWEEP.csv is backlash_sweep output; SIM.csv is backlash_sim --csv output; *.json is backlash_sim --json output.
 """
+import glob
+import json
 import csv
 import math
 import os
@@ -290,7 +297,77 @@ def digital(rate_csv, encoder_csv, outdir, continuous=0.0514732):
     save(fig, outdir, "digital_drive")
 
 
+def read_samples(path):
+    """Sample rows (not event rows) of backlash_sim --csv as arrays by column."""
+    cols = defaultdict(list)
+    with open(path) as f:
+        for r in csv.DictReader(f):
+            if r["event"]:
+                continue
+            for k in ("time", "load_position", "mesh_torque", "motor_torque"):
+                cols[k].append(float(r[k]))
+            cols["contact"].append(r["contact"])
+    return {k: (v if k == "contact" else np.array(v)) for k, v in cols.items()}
+
+
+def compliant(src, outdir):
+    runs = []
+    for path in glob.glob(os.path.join(src, "d1_c*.json")):
+        with open(path) as f:
+            d = json.load(f)
+        runs.append((d["params"]["mesh_stiffness"], d["limit_cycle_error"], d["period"], d["contact_phases"]))
+    runs.sort()
+    with open(os.path.join(src, "d1_rigid.json")) as f:
+        rigid = json.load(f)
+    fig, axes = plt.subplots(2, 2, figsize=(13, 8.5))
+    a, b, c, d = axes.flat
+    cs = [r[0] for r in runs]
+    a.semilogx(cs, [1e3 * r[1] for r in runs], "o-", color="#1f77b4", label="compliant mesh, ζ_c = 0.0744")
+    a.axhline(1e3 * rigid["limit_cycle_error"], color="k", ls="--", lw=1,
+              label="rigid teeth, e = 0.8 (the contact's restitution)")
+    a.set_xlabel("mesh stiffness c [N·m/rad]")
+    a.set_ylabel("limit-cycle error [mrad]")
+    a.set_title("Thesis D1: the limit cycle tends to the rigid one as the teeth stiffen", fontsize=10)
+    a.grid(True, which="both", alpha=0.3)
+    a.legend(fontsize=8)
+    s = read_samples(os.path.join(src, "d1_c1e4.csv"))
+    t = s["time"]
+    keep = t >= t[-1] - 13.0
+    b.plot(t[keep], s["load_position"][keep], color="#1f77b4", lw=1)
+    b.set_xlabel("time [s]")
+    b.set_ylabel("load position θ_c [rad]", color="#1f77b4")
+    b2 = b.twinx()
+    b2.plot(t[keep], s["mesh_torque"][keep], color="#d62728", lw=0.8)
+    b2.set_ylabel("mesh torque Q [N·m] (0 in the free play)", color="#d62728")
+    b.set_title("D1 at c = 1e4 N·m/rad: one cycle — each reversal a train of short contact phases", fontsize=10)
+    b.grid(True, alpha=0.3)
+    r = read_samples(os.path.join(src, "robot_rigid.csv"))
+    m = read_samples(os.path.join(src, "robot_compliant.csv"))
+    c.plot(r["time"], r["load_position"], color="k", lw=1, label="rigid teeth")
+    c.plot(m["time"], m["load_position"], color="#d62728", lw=0.7, label="compliant mesh, c = 8.6e4 N·m/rad")
+    c.set_xlabel("time [s]")
+    c.set_ylabel("load position θ_c [rad]")
+    c.set_title("Robot joint, 1 kHz PID on the load (more derivative action):\nsettles on rigid teeth, "
+                "excites the two-mass resonance on the compliant joint", fontsize=10)
+    c.grid(True, alpha=0.3)
+    c.legend(fontsize=8)
+    w0, w1 = 8.0, 8.1
+    for run, color, label in ((r, "k", "rigid teeth"), (m, "#d62728", "compliant mesh")):
+        k = (run["time"] >= w0) & (run["time"] <= w1)
+        d.plot(run["time"][k], run["motor_torque"][k], color=color, lw=1, label=label)
+    d.set_xlabel("time [s]")
+    d.set_ylabel("motor torque T_m [N·m]")
+    d.set_title("The same, 0.1 s of the motor torque: the resonance (~74 Hz) in the loop", fontsize=10)
+    d.grid(True, alpha=0.3)
+    d.legend(fontsize=8)
+    fig.tight_layout()
+    save(fig, outdir, "compliant_joint")
+
+
 def main(argv):
+    if len(argv) >= 3 and argv[0] == "compliant":
+        compliant(argv[1], argv[2])
+        return 0
     if len(argv) >= 4 and argv[0] == "digital":
         digital(argv[1], argv[2], argv[3])
         return 0

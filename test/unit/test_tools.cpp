@@ -664,7 +664,7 @@ TEST(Charts, ScriptsRunHeadlessAndWriteImages)
       runCapture("bash " + std::string(SOURCE_DIR) + "/scripts/make_charts.sh --quick " + out + " 2>&1", &code);
   ASSERT_EQ(code, 0) << log;
   for (const char* name : {"existence_maps", "existence_surface", "limit_cycle_error", "error_vs_backlash",
-                           "phase_portrait_fig31", "digital_drive"})
+                           "phase_portrait_fig31", "digital_drive", "compliant_joint"})
   {
     for (const char* ext : {".png", ".svg"})
     {
