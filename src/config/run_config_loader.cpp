@@ -177,6 +177,24 @@ RunConfig runConfigFrom(const KeyValues& kv, ControlMode mode)
     ch.load_coulomb_friction = shared.load_coulomb_friction;
     ch.load_static_friction = shared.load_static_friction;
     c.params = ch.toServoParams();
+    // Every other key the forms share (the compliant mesh and shaft) is the physical one as given.
+    for (const ParamSpec* spec : paramsIn(ParamSection::Servo))
+    {
+      if (!inChartForm(*spec))
+      {
+        continue;
+      }
+      if (const auto* text = std::get_if<std::string ServoParams::*>(&spec->field))
+      {
+        c.params.*(*text) = shared.*(*text);
+      }
+      else
+      {
+        const auto field = std::get<double ServoParams::*>(spec->field);
+        c.params.*field = shared.*field;
+      }
+    }
+    c.params.validate();
   }
   else
   {

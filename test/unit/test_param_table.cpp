@@ -185,6 +185,40 @@ TEST(ParamTable, TypedValuesAreNotRoundTrippedThroughText)
   EXPECT_THROW(runConfigFrom(mixed), ConfigError);
 }
 
+// The chart form shares the compliant mesh's and shaft's keys with the physical form: they reach the joint as given
+// (the same joint as the physical form of that chart), and are validated together there too.
+TEST(ParamTable, TheChartFormCarriesTheCompliantKeys)
+{
+  KeyValues kv;
+  kv.setNumber("zeta", 0.4);
+  kv.setNumber("inertia_ratio", 9.0);
+  kv.setNumber("friction_ratio", 0.4);
+  kv.set("mesh_law", "msl_elastobacklash");
+  kv.setNumber("mesh_stiffness", 1e4);
+  kv.setNumber("mesh_damping", 4.5);
+  kv.setNumber("gear_inertia", 0.05);
+  kv.setNumber("shaft_stiffness", 300.0);
+  kv.setNumber("shaft_damping", 0.2);
+  const ServoParams p = runConfigFrom(kv).params;
+  EXPECT_EQ(p.mesh_law, "msl_elastobacklash");
+  EXPECT_EQ(p.mesh_stiffness, 1e4);
+  EXPECT_EQ(p.mesh_damping, 4.5);
+  EXPECT_EQ(p.gear_inertia, 0.05);
+  EXPECT_EQ(p.shaft_stiffness, 300.0);
+  EXPECT_EQ(p.shaft_damping, 0.2);
+  EXPECT_NEAR(p.motor_inertia, 0.1, 1e-15);  // D1 in physical units: the chart's J = 1 kg·m², ρ²J_L/J_m = 9
+  kv.setNumber("shaft_stiffness", 0.0);      // shaft damping without a shaft: refused, naming the key
+  try
+  {
+    runConfigFrom(kv);
+    ADD_FAILURE() << "accepted shaft_damping without shaft_stiffness";
+  }
+  catch (const std::exception& e)
+  {
+    EXPECT_NE(std::string(e.what()).find("shaft_damping"), std::string::npos) << e.what();
+  }
+}
+
 TEST(ParamTable, GeneratedFilesMatchTheTable)
 {
   const std::string src = SOURCE_DIR;

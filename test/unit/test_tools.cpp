@@ -199,7 +199,10 @@ TEST(Sweep, AnyParameterIsAnAxisInEitherForm)
       {" --motor-inertia 0.1 --load-inertia 0.9 --motor-friction 0.48 --load-friction 0.32 --backlash 0.05"
        " --restitution 0.5 --gain 0.5:1.5:2 --control-law pid --controller-rate 100 --integral-gain 0,0.2"
        " --derivative-gain 0.1",
-       "restitution,backlash,gain,integral_gain,"}};
+       "restitution,backlash,gain,integral_gain,"},
+      // The compliant keys in the chart form (the impacts column counts a compliant mesh's contact phases).
+      {" --zeta 0.4 --mesh-stiffness 1e3,1e4 --mesh-damping 1,3",
+       "zeta,inertia_ratio,friction_ratio,restitution,backlash,mesh_stiffness,mesh_damping,"}};
   for (const Grid& g : grids)
   {
     int code = 0;
@@ -242,6 +245,8 @@ TEST(Sweep, AnyParameterIsAnAxisInEitherForm)
       const std::string json = runCapture(SIM + " --json" + point);
       EXPECT_EQ(r[axes], jsonText(json, "verdict")) << point;
       EXPECT_EQ(std::stod(r[axes + 2]), jsonNumber(json, "limit_cycle_error")) << point;
+      const bool compliant = json.find("\"contact_phases\"") != std::string::npos;  // (only compliant runs have it)
+      EXPECT_EQ(std::stod(r[axes + 4]), jsonNumber(json, compliant ? "contact_phases" : "impacts")) << point;
       if (r[axes] == "converged")
       {
         EXPECT_EQ(std::stod(r[axes + 7]), jsonNumber(json, "steady_error")) << point;

@@ -21,9 +21,11 @@ namespace backlash_servo
 std::string sweepRow(const SweepPoint& p, const RunSummary& r, double command, const TrackingFigures* tracking)
 {
   const bool lc = r.status.verdict == Verdict::LimitCycle || r.status.verdict == Verdict::Irregular;
+  // A compliant mesh has contact phases where rigid teeth have impacts: the column counts those.
+  const std::uint64_t impacts = r.contact_phases > 0 ? r.contact_phases : r.impacts;
   char buf[400];
   std::snprintf(buf, sizeof buf, "%s,%d,%.17g,%.17g,%llu,%.17g,%d,", toString(r.status.verdict), lc ? 1 : 0,
-                lc ? r.status.error : 0.0, lc ? r.status.period : 0.0, static_cast<unsigned long long>(r.impacts),
+                lc ? r.status.error : 0.0, lc ? r.status.period : 0.0, static_cast<unsigned long long>(impacts),
                 r.simulated, r.settled ? 1 : 0);
   std::string row = p.columns();
   row += (row.empty() ? "" : ",") + std::string(buf);
