@@ -172,8 +172,8 @@ const Eigen::VectorXd& LinearMode::anchor(std::size_t i) const
     return checkpoints_[i];
   }
   // Kept anchor c (c ≥ DENSE_ANCHORS − 1) is anchor number DENSE_ANCHORS − 1 + (c − DENSE_ANCHORS + 1)·CHECKPOINT.
-  const std::size_t base = DENSE_ANCHORS - 1;
-  const auto checkpoint = [base](std::size_t k) { return base + (k - base) / CHECKPOINT; };
+  constexpr std::size_t base = DENSE_ANCHORS - 1;
+  const auto checkpoint = [](std::size_t k) { return base + (k - base) / CHECKPOINT; };
   if (frontier_index_ < DENSE_ANCHORS || i < frontier_index_)
   {
     const std::size_t c = std::min(checkpoint(i), checkpoints_.size() - 1);
