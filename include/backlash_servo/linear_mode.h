@@ -143,6 +143,8 @@ class LinearMode
                       double floor, double origin) const;
   /// What rounding can do to the output w·x + w₀ of an evaluated state x (the closed form's error).
   double noise(const Eigen::VectorXd& w, double w0, const Eigen::VectorXd& x) const;
+  /// What rounding can do to w·v of a rate v = A x + u (or a higher derivative) computed from an evaluated state.
+  double rateNoise(const Eigen::VectorXd& w, const Eigen::VectorXd& v) const;
   /// The bracketed crossing in (lo, hi] refined by bisection: direction·s(lo) ≤ 0 < direction·s(hi).
   double bisect(const Eigen::VectorXd& w, double w0, int direction, double lo, double hi) const;
 
