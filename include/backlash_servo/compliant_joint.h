@@ -16,6 +16,12 @@
  *   torsional shaft: J_g ω̇_o = Q − S, J_L ω̇_c = S − f_L ω_c + T_ext, S = k_s(θ_o − θ_c) + d_s(ω_o − ω_c).
  * Dry friction is not part of this model yet (ServoParams::validate refuses it).
  *
+ * Decisions within rounding: an event's crossing may fall within the rounding of a segment's start (a sample, a
+ * re-anchoring, the end of the previous segment evaluated again), where its output has no sign left to search for.
+ * So every segment start checks the law: a flank the state presses (touching and closing, or penetrating with P > 0)
+ * engages, and a contact whose release output is below zero (or within rounding and falling) releases — as the
+ * segment's first event, at its start, through the same path as a located one.
+ *
  * Exactness and chunk-independence: a segment's closed form is anchored where the segment began (at an event), and
  * its events are searched in windows of fixed length from that anchor, so how a run is cut into advanceTo() calls
  * does not change a bit of it — as in the rigid plant.

@@ -655,7 +655,8 @@ bool CompliantJoint::applyEvent(const Watch& watch)
       ++contacts_;
       ++reengagements_;
       // At its crossing P = 0 (KD); found pressing at a segment's start, msl_elastobacklash may be in K2 (dẏ > cy).
-      const MeshMode m = chooseMode(watch.sigma<0, watch.sigma> 0);
+      const bool forward = watch.sigma > 0;
+      const MeshMode m = chooseMode(!forward, forward);  // this flank only
       mode_ = m != MeshMode::Free ? m : (watch.sigma > 0 ? MeshMode::Forward : MeshMode::Backward);
       break;
     }
