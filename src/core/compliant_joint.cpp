@@ -29,6 +29,13 @@ bool isK2(MeshMode m)
   return m == MeshMode::ForwardK2 || m == MeshMode::BackwardK2;
 }
 
+/// What rounding can do to an output w·x + w₀ of a state x whose entries are known to their last bits (the angles or
+/// speeds it is the difference of).
+double roundingOf(const Eigen::VectorXd& w, double w0, const Eigen::VectorXd& x)
+{
+  return 64.0 * std::numeric_limits<double>::epsilon() * (w.cwiseAbs().dot(x.cwiseAbs()) + std::fabs(w0));
+}
+
 }  // namespace
 
 CompliantJoint::CompliantJoint(const ServoParams& params, const MotorInput& law)
@@ -316,17 +323,14 @@ MeshMode CompliantJoint::chooseMode(bool released_forward, bool released_backwar
     penetration(sigma, &w, &w0);
     double y = w.dot(x_) + w0;
     // A penetration within the rounding of the angles it is the difference of counts as touching.
-    const double rounding =
-        64.0 * std::numeric_limits<double>::epsilon() * (w.cwiseAbs().dot(x_.cwiseAbs()) + std::fabs(w0));
-    if (std::fabs(y) <= rounding)
+    if (std::fabs(y) <= roundingOf(w, w0, x_))
     {
       y = 0.0;
     }
     flankTorque(sigma, 0.0, 1.0, &w, &w0);
     double ydot = w.dot(x_) + w0;
     // Touching, the rate too is judged against the rounding of the speeds it is the difference of.
-    if (y == 0.0 && std::fabs(ydot) <= 64.0 * std::numeric_limits<double>::epsilon() *
-                                           (w.cwiseAbs().dot(x_.cwiseAbs()) + std::fabs(w0)))
+    if (y == 0.0 && std::fabs(ydot) <= roundingOf(w, w0, x_))
     {
       ydot = 0.0;
     }
@@ -463,6 +467,19 @@ void CompliantJoint::beginSegment()
   const double piece = 0.5 / std::max(motion.norm(), 1e-300);
   segment_.emplace(Segment{std::move(motion), time_, window, 0.0, INF, -1, std::move(watches), energy_,
                            CompliantEnergy(), piece, 0});
+  // The watch `matches` picks becomes the segment's first event, at its start.
+  Segment& seg = *segment_;
+  const auto startWith = [&seg](const auto& matches) {
+    for (std::size_t i = 0; i < seg.watches.size(); ++i)
+    {
+      if (matches(seg.watches[i]))
+      {
+        seg.event = 0.0;
+        seg.hit = static_cast<int>(i);
+        return;
+      }
+    }
+  };
   if (mode_ != MeshMode::Free)
   {
     // A contact whose release output (P, or in K2 the penetration) starts below zero beyond rounding, or within it
@@ -472,23 +489,17 @@ void CompliantJoint::beginSegment()
     const bool just_engaged =
         last_time_ == time_ && last_sigma_ == sigma &&
         (last_kind_ == static_cast<int>(MeshEvent::Engage) || last_kind_ == static_cast<int>(MeshEvent::Reengage));
-    const std::vector<Watch>& ws = segment_->watches;
-    for (std::size_t i = 0; i < ws.size() && !just_engaged; ++i)
+    if (!just_engaged)
     {
-      if (ws[i].kind == MeshEvent::Release)
-      {
-        constexpr double EPS = std::numeric_limits<double>::epsilon();
-        const Eigen::VectorXd xd = a * x_ + u;
-        const double out = ws[i].w.dot(x_) + ws[i].w0, rate = ws[i].w.dot(xd);
-        const double out_noise = 64.0 * EPS * (ws[i].w.cwiseAbs().dot(x_.cwiseAbs()) + std::fabs(ws[i].w0));
-        const double rate_noise = 64.0 * EPS * ws[i].w.cwiseAbs().dot(xd.cwiseAbs());
-        if (out < -out_noise || (std::fabs(out) <= out_noise && rate < -rate_noise))
+      const Eigen::VectorXd xd = a * x_ + u;
+      startWith([&](const Watch& r) {
+        if (r.kind != MeshEvent::Release)
         {
-          segment_->event = 0.0;
-          segment_->hit = static_cast<int>(i);
+          return false;
         }
-        break;
-      }
+        const double out = r.w.dot(x_) + r.w0, noise = roundingOf(r.w, r.w0, x_);
+        return out < -noise || (std::fabs(out) <= noise && r.w.dot(xd) < -roundingOf(r.w, 0.0, xd));
+      });
     }
   }
   else
@@ -500,16 +511,9 @@ void CompliantJoint::beginSegment()
     if (pressing != MeshMode::Free)
     {
       const int sigma = isForward(pressing) ? 1 : -1;
-      const std::vector<Watch>& ws = segment_->watches;
-      for (std::size_t i = 0; i < ws.size(); ++i)
-      {
-        if (ws[i].sigma == sigma && (ws[i].kind == MeshEvent::Engage || ws[i].kind == MeshEvent::Reengage))
-        {
-          segment_->event = 0.0;
-          segment_->hit = static_cast<int>(i);
-          break;
-        }
-      }
+      startWith([sigma](const Watch& e) {
+        return e.sigma == sigma && (e.kind == MeshEvent::Engage || e.kind == MeshEvent::Reengage);
+      });
     }
   }
 }
