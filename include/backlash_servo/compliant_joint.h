@@ -14,7 +14,13 @@
  *   motor:  J_m ω̇_m = T_m − f_m ω_m − ρ Q,  T_m = a − kθ_c (the drive's law in force; K(θ_R − θ_c) for the P law)
  *   rigid shaft: (J_L + J_g) ω̇_c = Q − f_L ω_c + T_ext
  *   torsional shaft: J_g ω̇_o = Q − S, J_L ω̇_c = S − f_L ω_c + T_ext, S = k_s(θ_o − θ_c) + d_s(ω_o − ω_c).
- * Dry friction is not part of this model yet (ServoParams::validate refuses it).
+ * Dry friction (docs/model.md Part 2's law, Part 3's rest rule): a sliding body gets −T_c sign(ω), folded into the
+ * mode's constant input; a body at rest is stuck — its velocity row of A and u zeroed, so its angle stays — while the
+ * torque that holds it, H (the motor: T_m − ρQ; the load: Q + T_ext with a rigid shaft, S + T_ext with a torsional
+ * one), stays within its static band ±T_s, a linear output of the state in every mode. Events: a sliding body's
+ * velocity reaching 0 (Stop: it sticks when |H| ≤ T_s, else slides on in the direction of H) and a stuck body's H
+ * leaving the band (Breakaway, in the direction of H). No pair rule is needed: the mesh torque is a function of the
+ * state, so each body sticks or breaks away on its own. Both bodies stuck with a rigid shaft: nothing moves (held()).
  *
  * Decisions within rounding: an event's crossing may fall within the rounding of a segment's start (a sample, a
  * re-anchoring, the end of the previous segment evaluated again), where its output has no sign left to search for.
@@ -29,6 +35,7 @@
 #pragma once
 
 #include <Eigen/Dense>
+#include <array>
 #include <cmath>
 #include <cstdint>
 #include <functional>
@@ -63,7 +70,16 @@ enum class MeshEvent
   SubMode,           ///< msl_elastobacklash switched between K2 and KD
   Maximum,           ///< ω_c fell through 0: a maximum of θ_c
   Minimum,           ///< ω_c rose through 0: a minimum of θ_c
-  WatchExit          ///< θ_c left the watched interval (a drive's switch)
+  WatchExit,         ///< θ_c left the watched interval (a drive's switch)
+  Stop,              ///< a sliding body with dry friction came to rest (it sticks, or slides on: the rest rule)
+  Breakaway          ///< a stuck body's holding torque left its static band: it slides in that direction
+};
+
+/// The bodies with dry friction, as Stop and Breakaway events name them.
+enum class Body
+{
+  Motor = 0,
+  Load = 1
 };
 
 /// Cumulative energy terms of a compliant joint since setState() [J].
@@ -76,8 +92,10 @@ struct CompliantEnergy
   double mesh_loss = 0.0;       ///< ∫ d ẏ² dt while a flank presses with damping (KD), plus the mesh's jumps of
                            ///< stored energy: ½cy² at a release with y > 0, at K2 → KD; less ½cy² given back at
                            ///< a re-engagement with y > 0 and at KD → K2 (msl_elastobacklash's rule)
-  double shaft_loss = 0.0;       ///< ∫ d_s (ω_o − ω_c)² dt
-  double input_magnitude = 0.0;  ///< Σ |motor work| over the quadrature pieces: the rounding scale of `input`
+  double shaft_loss = 0.0;          ///< ∫ d_s (ω_o − ω_c)² dt
+  double motor_dry_friction = 0.0;  ///< ∫ T_cm |ω_m| dt
+  double load_dry_friction = 0.0;   ///< ∫ T_cL |ω_c| dt
+  double input_magnitude = 0.0;     ///< Σ |motor work| over the quadrature pieces: the rounding scale of `input`
   CompliantEnergy& operator+=(const CompliantEnergy& o)
   {
     input += o.input;
@@ -86,6 +104,8 @@ struct CompliantEnergy
     load_work += o.load_work;
     mesh_loss += o.mesh_loss;
     shaft_loss += o.shaft_loss;
+    motor_dry_friction += o.motor_dry_friction;
+    load_dry_friction += o.load_dry_friction;
     input_magnitude += o.input_magnitude;
     return *this;
   }
@@ -113,7 +133,8 @@ class CompliantJoint
   /// the first search window of a segment beginning before t ends there. Depends only on drive times, so
   /// chunk-independence holds. +inf: no limit.
   void setSearchHorizon(double t) { horizon_ = t; }
-  /// Receives each event with the flank it concerns (+1 forward, −1 backward, 0 none), the state just after it.
+  /// Receives each event with the flank it concerns (+1 forward, −1 backward, 0 none; for Stop and Breakaway the
+  /// Body), the state just after it.
   using Observer = std::function<void(MeshEvent, int)>;
   /**
    * Advances exactly to t_end [s] (≥ time()), reporting events in order to `observer` (may be empty). Returns true
@@ -157,6 +178,16 @@ class CompliantJoint
   std::uint64_t contacts() const { return contacts_; }
   /// Re-engagements of a released flank while still penetrating.
   std::uint64_t reengagements() const { return reengagements_; }
+  /// How a body with dry friction moves: 0 stuck, ±1 sliding that way (a body without dry friction: always 1, it
+  /// never sticks).
+  int slide(Body b) const { return slide_[static_cast<int>(b)]; }
+  /// Both bodies stuck with a rigid shaft: nothing moves until the motor torque leaves heldMotorTorque().
+  bool held() const;
+  /// While held(): the motor torques [N·m] that keep it so, [ρQ − T_sm, ρQ + T_sm] (the load's holding torque
+  /// Q + T_ext does not depend on the motor torque while the motor stands).
+  void heldMotorTorque(double* lo, double* hi) const;
+  /// Moves the clock to t ≥ time() [s] while held() (nothing moves).
+  void holdTo(double t);
 
  private:
   struct Watch
@@ -179,12 +210,22 @@ class CompliantJoint
     std::vector<Watch> watches;
     CompliantEnergy at_start;  // the ledger at the segment's start
     CompliantEnergy pieces;    // the integrals over its whole pieces so far
+    std::array<int, 2> slide;  // the bodies' slides over the segment (slide_ at its start)
     double piece = 0.0;        // length of a piece [s]
     long pieces_done = 0;
   };
   int out() const { return 2; }  // index of θ_o, the mesh's output-side angle (θ_c itself with a rigid shaft)
-  /// A and u of the current mode.
-  void modeMatrices(MeshMode m, Eigen::MatrixXd* a, Eigen::VectorXd* u) const;
+  /// A and u of mesh mode m with the bodies' slides (0 stuck: its rows zeroed; ±1: −T_c·slide folded into u).
+  void modeMatrices(MeshMode m, const std::array<int, 2>& slide, Eigen::MatrixXd* a, Eigen::VectorXd* u) const;
+  /// Indices of a body's angle (its velocity follows) and its inertia [kg·m²]; its Coulomb and static levels [N·m].
+  int angleIndex(int body) const { return body == 0 ? 0 : loadIndex(); }
+  double inertiaOf(int body) const;
+  double coulombOf(int body) const { return body == 0 ? s_.motor_coulomb_friction : s_.load_coulomb_friction; }
+  double staticOf(int body) const { return body == 0 ? s_.motor_static_friction : s_.load_static_friction; }
+  /// The torque H = w·x + w₀ [N·m] that must hold a body at rest in mesh mode m (all it receives but its friction).
+  void holdingTorque(int body, MeshMode m, Eigen::VectorXd* w, double* w0) const;
+  /// The rest rule for a body at rest now: 0 while |H| ≤ T_s, else the sign of H.
+  int restSlide(int body) const;
   /// The penetration y = w·x + w0 of a flank (σ = +1 forward, −1 backward) as a linear output.
   void penetration(int sigma, Eigen::VectorXd* w, double* w0) const;
   /// P = k_y y + k_v ẏ of a flank as a linear output.
@@ -225,9 +266,12 @@ class CompliantJoint
   bool track_energy_ = true;
   int last_kind_ = -1, last_sigma_ = 0;  // the latest event, at time last_time_ [s]
   double last_time_ = -INFINITY;
-  double release_time_[2] = {-INFINITY, -INFINITY};
-  bool fresh_ = true;  // nothing has happened since setState (the start's mode follows the law set next)  // the latest
-                       // release of the forward [0] and backward [1] flank [s]
+  double release_time_[2] = {-INFINITY, -INFINITY};  // the latest release of the forward [0], backward [1] flank [s]
+  bool fresh_ = true;  // nothing has happened since setState (the start's mode follows the law set next)
+  std::array<int, 2> slide_ = {1, 1};            // motor, load: 0 stuck, ±1 sliding (dry_[b]); 1 without dry friction
+  std::array<bool, 2> dry_ = {false, false};     // the body has dry friction (T_s > 0)
+  std::array<double, 2> stuck_at_ = {0.0, 0.0};  // a stuck body's angle [rad]
+  std::array<double, 2> slide_began_ = {-INFINITY, -INFINITY};  // when a body last began to slide from rest [s]
 };
 
 }  // namespace backlash_servo

@@ -177,9 +177,22 @@ class Plant
   /// through the samples of a stick phase (exactly what advanceTo(t) does there, without its dispatch).
   bool holdsThrough(double t) const
   {
+    double lo, hi;
+    if (compliant_.joint)
+    {
+      return t >= state_.time && compliantHeld(&lo, &hi);
+    }
     return segmentHeld() && segment_->start.time + segment_->end_tau > t && t >= state_.time;
   }
-  void holdTo(double t) { state_.time = t; }
+  void holdTo(double t)
+  {
+    if (compliant_.joint)
+    {
+      compliantHoldTo(t);
+      return;
+    }
+    state_.time = t;
+  }
   /// While holdsThrough(): an interval [*lo, *hi] of motor torques [N·m] under which the rest rule still holds both
   /// bodies (and the contact) with the state as it is, and *until [s], the end of the stick segment. The set of
   /// such torques is an interval (every test in decideAtRest() is monotone in the torque), found exactly:
@@ -371,6 +384,9 @@ class Plant
   double compliantKineticEnergy() const;
   double compliantBalanceError() const;
   void compliantEnergyTracking();
+  /// Both bodies stuck with a rigid shaft and held by the law in force; *lo, *hi: the motor torques that keep it so.
+  bool compliantHeld(double* lo, double* hi) const;
+  void compliantHoldTo(double t);
 
   CompliantHolder compliant_;
   ServoParams params_;

@@ -105,6 +105,16 @@ void CompliantJoint::setState(const Eigen::VectorXd& x, double t)
   }
   x_ = x;
   time_ = t;
+  for (int b = 0; b < 2; ++b)
+  {
+    // A body with dry friction at rest starts stuck: the segment's start applies the rest rule (it breaks away when
+    // its holding torque is beyond the static band).
+    dry_[b] = staticOf(b) > 0.0;
+    const double v = x_(angleIndex(b) + 1);
+    slide_[b] = !dry_[b] ? 1 : v > 0.0 ? 1 : v < 0.0 ? -1 : 0;
+    stuck_at_[b] = x_(angleIndex(b));
+    slide_began_[b] = -INFINITY;
+  }
   mode_ = chooseMode(false, false);
   contacts_ = mode_ == MeshMode::Free ? 0 : 1;
   reengagements_ = 0;
@@ -152,6 +162,7 @@ double CompliantJoint::energyBalanceError() const
 {
   const CompliantEnergy& e = energy_;
   return e.input + e.load_work - e.motor_friction - e.load_friction - e.mesh_loss - e.shaft_loss -
+         e.motor_dry_friction - e.load_dry_friction -
          (kineticEnergy() + potentialEnergy() - initial_kinetic_ - initial_potential_);
 }
 
@@ -184,6 +195,8 @@ void CompliantJoint::integrate(const Segment& seg, double a, double b, Compliant
     sum.motor_friction += w * s_.motor_friction * wm * wm;
     sum.load_friction += w * s_.load_friction * wc * wc;
     sum.load_work += w * s_.load_torque * wc;
+    sum.motor_dry_friction += w * s_.motor_coulomb_friction * seg.slide[0] * wm;
+    sum.load_dry_friction += w * s_.load_coulomb_friction * seg.slide[1] * wc;
     if (damped_flank)
     {
       const double ydot = wv.dot(x) + wv0;
@@ -218,8 +231,61 @@ Eigen::VectorXcd CompliantJoint::eigenvalues() const
 {
   Eigen::MatrixXd a;
   Eigen::VectorXd u;
-  modeMatrices(mode_, &a, &u);
+  modeMatrices(mode_, slide_, &a, &u);
   return a.eigenvalues();
+}
+
+double CompliantJoint::inertiaOf(int body) const
+{
+  return body == 0 ? s_.motor_inertia : torsional_ ? s_.load_inertia : s_.load_inertia + s_.gear_inertia;
+}
+
+void CompliantJoint::holdingTorque(int body, MeshMode m, Eigen::VectorXd* w, double* w0) const
+{
+  // J ω̇ = H − f ω − T_c·slide: H is J times the body's velocity row while it moves, its fold taken back (ω = 0).
+  Eigen::MatrixXd a;
+  Eigen::VectorXd u;
+  modeMatrices(m, {1, 1}, &a, &u);
+  const int v = angleIndex(body) + 1;
+  const double j = inertiaOf(body);
+  *w = j * a.row(v).transpose();
+  (*w)(v) = 0.0;  // (the viscous term vanishes at rest)
+  *w0 = j * u(v) + coulombOf(body);
+}
+
+int CompliantJoint::restSlide(int body) const
+{
+  Eigen::VectorXd w;
+  double w0;
+  holdingTorque(body, mode_, &w, &w0);
+  const double h = w.dot(x_) + w0;
+  return std::fabs(h) <= staticOf(body) ? 0 : h > 0.0 ? 1 : -1;
+}
+
+bool CompliantJoint::held() const
+{
+  if (torsional_ || !dry_[0] || !dry_[1] || slide_[0] != 0 || slide_[1] != 0)
+  {
+    return false;
+  }
+  return restSlide(0) == 0 && restSlide(1) == 0;
+}
+
+void CompliantJoint::heldMotorTorque(double* lo, double* hi) const
+{
+  const double pressed = s_.gear_ratio * meshTorque(), now = law_.offset - law_.stiffness * x_(loadIndex());
+  const auto inside = [now](double end) { return end - 1e-9 * (end - now); };  // pulled towards the torque now
+  *lo = inside(pressed - s_.motor_static_friction);
+  *hi = inside(pressed + s_.motor_static_friction);
+}
+
+void CompliantJoint::holdTo(double t)
+{
+  if (t > time_)
+  {
+    time_ = t;
+    segment_.reset();
+  }
 }
 
 double CompliantJoint::meshTorque() const
@@ -256,7 +322,8 @@ void CompliantJoint::flankTorque(int sigma, double ky, double kv, Eigen::VectorX
   *w0 = sigma > 0 ? 0.0 : -ky * s_.backlash;
 }
 
-void CompliantJoint::modeMatrices(MeshMode m, Eigen::MatrixXd* a, Eigen::VectorXd* u) const
+void CompliantJoint::modeMatrices(MeshMode m, const std::array<int, 2>& slide, Eigen::MatrixXd* a,
+                                  Eigen::VectorXd* u) const
 {
   const int k = size(), o = out(), l = loadIndex();
   *a = Eigen::MatrixXd::Zero(k, k);
@@ -308,6 +375,21 @@ void CompliantJoint::modeMatrices(MeshMode m, Eigen::MatrixXd* a, Eigen::VectorX
     A(o + 1, o + 1) += -s_.load_friction / j_out;
     U(o + 1) += s_.load_torque / j_out;
   }
+  for (int b = 0; b < 2; ++b)
+  {
+    const int i = angleIndex(b);
+    if (slide[b] == 0)
+    {
+      // Stuck: angle and velocity stay (θ̇ = 0 too, so that the zero eigenvalue keeps a full eigenspace).
+      A.row(i).setZero();
+      A.row(i + 1).setZero();
+      U(i) = U(i + 1) = 0.0;
+    }
+    else
+    {
+      U(i + 1) -= slide[b] * coulombOf(b) / inertiaOf(b);
+    }
+  }
 }
 
 MeshMode CompliantJoint::chooseMode(bool released_forward, bool released_backward) const
@@ -340,7 +422,7 @@ MeshMode CompliantJoint::chooseMode(bool released_forward, bool released_backwar
       // Touching at relative rest (the start): engaged when the free motion would push the teeth together.
       Eigen::MatrixXd a;
       Eigen::VectorXd u;
-      modeMatrices(MeshMode::Free, &a, &u);
+      modeMatrices(MeshMode::Free, slide_, &a, &u);
       flankTorque(sigma, 0.0, 1.0, &w, &w0);
       if (w.dot(a * x_ + u) > 0.0)
       {
@@ -400,7 +482,7 @@ void CompliantJoint::beginSegment()
   const int l = loadIndex();
   Eigen::MatrixXd a;
   Eigen::VectorXd u;
-  modeMatrices(mode_, &a, &u);
+  modeMatrices(mode_, slide_, &a, &u);
   LinearMode motion(basisFor(a), u, x_);
   std::vector<Watch> watches;
   Eigen::VectorXd w;
@@ -443,19 +525,42 @@ void CompliantJoint::beginSegment()
       }
     }
   }
-  w = Eigen::VectorXd::Zero(size());
-  w(l + 1) = 1.0;
-  watches.push_back({w, 0.0, -1, MeshEvent::Maximum, 0});
-  watches.push_back({w, 0.0, +1, MeshEvent::Minimum, 0});
-  w = Eigen::VectorXd::Zero(size());
-  w(l) = 1.0;
-  if (std::isfinite(watch_hi_))
+  for (int b = 0; b < 2; ++b)
   {
-    watches.push_back({w, -watch_hi_, +1, MeshEvent::WatchExit, 1});
+    if (!dry_[b])
+    {
+      continue;
+    }
+    if (slide_[b] == 0)
+    {
+      // Stuck: its holding torque H leaving ±T_s.
+      holdingTorque(b, mode_, &w, &w0);
+      watches.push_back({w, w0 - staticOf(b), +1, MeshEvent::Breakaway, b});
+      watches.push_back({w, w0 + staticOf(b), -1, MeshEvent::Breakaway, b});
+    }
+    else
+    {
+      w = Eigen::VectorXd::Zero(size());
+      w(angleIndex(b) + 1) = slide_[b];  // slide·ω falling through 0
+      watches.push_back({w, 0.0, -1, MeshEvent::Stop, b});
+    }
   }
-  if (std::isfinite(watch_lo_))
+  if (slide_[1] != 0)  // (a stuck load has no turning points and cannot leave the watched interval)
   {
-    watches.push_back({w, -watch_lo_, -1, MeshEvent::WatchExit, -1});
+    w = Eigen::VectorXd::Zero(size());
+    w(l + 1) = 1.0;
+    watches.push_back({w, 0.0, -1, MeshEvent::Maximum, 0});
+    watches.push_back({w, 0.0, +1, MeshEvent::Minimum, 0});
+    w = Eigen::VectorXd::Zero(size());
+    w(l) = 1.0;
+    if (std::isfinite(watch_hi_))
+    {
+      watches.push_back({w, -watch_hi_, +1, MeshEvent::WatchExit, 1});
+    }
+    if (std::isfinite(watch_lo_))
+    {
+      watches.push_back({w, -watch_lo_, -1, MeshEvent::WatchExit, -1});
+    }
   }
   // Windows of a fixed length from the anchor: long enough for many of the mode's fastest oscillations, short enough
   // that a window's search stays cheap.
@@ -466,11 +571,11 @@ void CompliantJoint::beginSegment()
   }
   const double piece = 0.5 / std::max(motion.norm(), 1e-300);
   segment_.emplace(Segment{std::move(motion), time_, window, 0.0, INF, -1, std::move(watches), energy_,
-                           CompliantEnergy(), piece, 0});
+                           CompliantEnergy(), slide_, piece, 0});
   // The watch `matches` picks becomes the segment's first event, at its start.
   Segment& seg = *segment_;
   const auto startWith = [&seg](const auto& matches) {
-    for (std::size_t i = 0; i < seg.watches.size(); ++i)
+    for (std::size_t i = 0; i < seg.watches.size() && seg.event != 0.0; ++i)
     {
       if (matches(seg.watches[i]))
       {
@@ -516,6 +621,38 @@ void CompliantJoint::beginSegment()
       });
     }
   }
+  // Dry friction, likewise: a stuck body whose holding torque is beyond its static band (or at its edge and
+  // leaving it) breaks away here; a sliding body whose velocity is against its slide (or zero and turning against
+  // it) stops here — not one that began to slide at this very instant.
+  const Eigen::VectorXd xd = a * x_ + u;
+  for (int b = 0; b < 2 && seg.event != 0.0; ++b)
+  {
+    if (!dry_[b])
+    {
+      continue;
+    }
+    if (slide_[b] == 0)
+    {
+      startWith([&](const Watch& e) {
+        if (e.kind != MeshEvent::Breakaway || e.sigma != b)
+        {
+          return false;
+        }
+        // H ∓ T_s in its direction: beyond the band, or at its edge and rising (H̊ from the moving bodies' rates).
+        const double out = e.direction * (e.w.dot(x_) + e.w0), noise = roundingOf(e.w, e.w0, x_);
+        return out > noise || (out >= -noise && e.direction * e.w.dot(xd) > roundingOf(e.w, 0.0, xd));
+      });
+    }
+    else if (slide_began_[b] != time_)
+    {
+      const int v = angleIndex(b) + 1;
+      const double along = slide_[b] * x_(v), accel = slide_[b] * xd(v);
+      if (along < 0.0 || (along == 0.0 && accel < 0.0))
+      {
+        startWith([b](const Watch& e) { return e.kind == MeshEvent::Stop && e.sigma == b; });
+      }
+    }
+  }
 }
 
 void CompliantJoint::searchNextWindow()
@@ -528,8 +665,11 @@ void CompliantJoint::searchNextWindow()
   for (std::size_t i = 0; i < seg.watches.size(); ++i)
   {
     const Watch& watch = seg.watches[i];
-    const bool again = from == 0.0 && static_cast<int>(watch.kind) == last_kind_ && watch.sigma == last_sigma_ &&
-                       seg.start == last_time_;
+    // (A body that began to slide from rest here: its velocity's zero at the start began the motion.)
+    const bool again =
+        from == 0.0 &&
+        ((static_cast<int>(watch.kind) == last_kind_ && watch.sigma == last_sigma_ && seg.start == last_time_) ||
+         (watch.kind == MeshEvent::Stop && slide_began_[watch.sigma] == seg.start));
     const double tau = seg.motion.firstCrossing(watch.w, watch.w0, watch.direction, std::min(to, seg.event),
                                                 again ? skip : from, again);
     if (tau < seg.event)
@@ -603,6 +743,15 @@ void CompliantJoint::moveTo(double tau, double t)
 {
   fresh_ = fresh_ && tau == 0.0;
   x_ = segment_->motion.state(tau);
+  for (int b = 0; b < 2; ++b)
+  {
+    if (segment_->slide[b] == 0)
+    {
+      // A stuck body stands exactly (the closed form's rounding would move it by a few ulps).
+      x_(angleIndex(b)) = stuck_at_[b];
+      x_(angleIndex(b) + 1) = 0.0;
+    }
+  }
   time_ = t;
   if (track_energy_)
   {
@@ -615,6 +764,7 @@ bool CompliantJoint::handle(const Watch& watch, const Observer& observer)
   // The mesh's stored energy may jump where its law changes (a release with y > 0, a re-engagement, K2 ↔ KD).
   fresh_ = false;
   const double stored = potentialEnergy();
+  const int load_slide = slide_[1];
   const bool other_flank = applyEvent(watch);
   if (track_energy_)
   {
@@ -622,6 +772,11 @@ bool CompliantJoint::handle(const Watch& watch, const Observer& observer)
   }
   if (observer)
   {
+    if (watch.kind == MeshEvent::Stop && watch.sigma == static_cast<int>(Body::Load))
+    {
+      // The load coming to rest is a turning point of θ_c as well (its velocity's zero is the same crossing).
+      observer(load_slide > 0 ? MeshEvent::Maximum : MeshEvent::Minimum, 0);
+    }
     if (other_flank)
     {
       if (watch.kind == MeshEvent::Release)
@@ -634,6 +789,7 @@ bool CompliantJoint::handle(const Watch& watch, const Observer& observer)
     {
       const bool kinematic =
           watch.kind == MeshEvent::Maximum || watch.kind == MeshEvent::Minimum || watch.kind == MeshEvent::WatchExit;
+      // (Stop and Breakaway report the body in sigma.)
       observer(watch.kind, kinematic ? 0 : watch.sigma);
     }
   }
@@ -648,6 +804,22 @@ bool CompliantJoint::applyEvent(const Watch& watch)
     case MeshEvent::Maximum:
     case MeshEvent::Minimum:
     case MeshEvent::WatchExit:
+      break;
+    case MeshEvent::Stop: {
+      // At rest exactly: the rest rule decides whether it sticks or slides on in the direction of its torque.
+      const int b = watch.sigma, i = angleIndex(b);
+      x_(i + 1) = 0.0;
+      slide_[b] = restSlide(b);
+      stuck_at_[b] = x_(i);
+      if (slide_[b] != 0)
+      {
+        slide_began_[b] = time_;
+      }
+      break;
+    }
+    case MeshEvent::Breakaway:
+      slide_[watch.sigma] = watch.direction;
+      slide_began_[watch.sigma] = time_;
       break;
     case MeshEvent::Engage:
       ++contacts_;

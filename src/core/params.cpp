@@ -76,13 +76,6 @@ void ServoParams::validate() const
               "needs shaft_stiffness > 0 (a rigid shaft has no twist to damp)");
   requireWith(!torsionalShaft() || gear_inertia > 0.0, "shaft_stiffness", shaft_stiffness,
               "needs gear_inertia > 0 (the output gear between the mesh and the shaft)");
-  if (compliant() && (motor_coulomb_friction > 0.0 || load_coulomb_friction > 0.0 || motor_static_friction > 0.0 ||
-                      load_static_friction > 0.0))
-  {
-    throw InvalidParameterError("mesh_stiffness", formatNumber(mesh_stiffness) +
-                                                      ": a compliant mesh does not take dry friction yet (set the "
-                                                      "*_coulomb_friction and *_static_friction keys to 0)");
-  }
   // The derived quantities of the validated envelope (docs/validation.md): outside it the core's promises were not
   // measured. The message names every key the quantity follows from, with its value (an absent key has its default, the
   // thesis' App. D1 value for the mechanics: a robot joint that leaves out motor_friction gets 0.48 N·m·s/rad).

@@ -216,6 +216,11 @@ bool Plant::heldUnder(double torque) const
 
 bool Plant::heldTorqueRange(double* lo, double* hi, double* until) const
 {
+  if (compliant_.joint)
+  {
+    *until = INFINITY;  // (nothing moves and no torque on a body changes until the motor's does)
+    return compliantHeld(lo, hi);
+  }
   if (!dry_ || forced_motor_breakaway_ != 0 || !segmentHeld())
   {
     return false;

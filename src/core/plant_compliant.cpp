@@ -69,6 +69,8 @@ void Plant::stateFromCompliant()
   energy_.load_work = e.load_work;
   energy_.mesh_loss = e.mesh_loss;
   energy_.shaft_loss = e.shaft_loss;
+  energy_.motor_dry_friction = e.motor_dry_friction;
+  energy_.load_dry_friction = e.load_dry_friction;
   energy_.potential = j.potentialEnergy();
   energy_.initial_kinetic = j.initialKinetic();
   energy_.initial_potential = j.initialPotential();
@@ -126,6 +128,10 @@ bool Plant::advanceCompliant(double t_end, EventSink* sink)
       case MeshEvent::Minimum:
         emit(sink, EventType::Minimum);
         break;
+      case MeshEvent::Stop:
+      case MeshEvent::Breakaway:
+        emit(sink, EventType::Rest);
+        break;
       default:
         break;  // a sub-mode switch, leaving a released flank's penetration, the drive's watch: no event of the plant
     }
@@ -149,6 +155,24 @@ void Plant::setCompliantParams(const ServoParams& params, EventSink* sink)
   watchCompliant();
   stateFromCompliant();
   emit(sink, EventType::ParameterChange);
+}
+
+bool Plant::compliantHeld(double* lo, double* hi) const
+{
+  const CompliantJoint& j = *compliant_.joint;
+  if (!j.held())
+  {
+    return false;
+  }
+  j.heldMotorTorque(lo, hi);
+  const double now = law_.torque(state_.load_position);
+  return *lo <= now && now <= *hi;
+}
+
+void Plant::compliantHoldTo(double t)
+{
+  compliant_.joint->holdTo(t);
+  state_.time = t;
 }
 
 double Plant::compliantBalanceError() const

@@ -320,8 +320,8 @@ inline Case makeCase(std::uint64_t seed, std::uint64_t index)
 /// Case number `index` of the sequence `seed` with a compliant joint: the case's servo, command, start and drive, the
 /// rigid teeth replaced by a mesh drawn across the envelope from a stream of its own — the contact frequency √(c/μ)
 /// from ω_n to 1e4 ω_n, the contact damping ratio from 0 to 1, either mesh law, a torsional shaft in a third of the
-/// cases (J_g/J_L and its frequency across the envelope) — and no dry friction (not modelled with a compliant mesh);
-/// runs of two periods of ω_n at most.
+/// cases (J_g/J_L and its frequency across the envelope) — and the case's dry friction kept; runs of two periods of
+/// ω_n at most.
 inline Case makeCompliantCase(std::uint64_t seed, std::uint64_t index)
 {
   for (std::uint64_t attempt = 0;; ++attempt)
@@ -331,7 +331,6 @@ inline Case makeCompliantCase(std::uint64_t seed, std::uint64_t index)
     std::uniform_real_distribution<double> u(0.0, 1.0);
     auto logu = [&](double lo, double hi) { return lo * std::pow(hi / lo, u(rng)); };
     ServoParams& p = c.params;
-    p.motor_coulomb_friction = p.motor_static_friction = p.load_coulomb_friction = p.load_static_friction = 0.0;
     const double omega_n = p.naturalFrequency();
     const bool shaft = u(rng) < 0.3;
     if (shaft)
@@ -464,6 +463,25 @@ inline Outcome check(const Case& c, std::uint64_t event_budget = 100000)
           d << "mesh torque " << whole.meshTorque() << " N·m where its law gives " << q
             << " N·m at t = " << whole.state().time << " s";
           return {"mesh_law", d.str()};
+        }
+        // A body with dry friction standing still (stuck) is held by a torque within its static band: the motor's
+        // T_m − ρQ, the load's Q + T_ext (S + T_ext behind a torsional shaft, S its spring–damper torque).
+        const State& st = whole.state();
+        const double shaft = c.params.shaft_stiffness * st.shaft_twist + c.params.shaft_damping * st.shaft_twist_rate;
+        const double held[2] = {whole.motorTorque() - c.params.gear_ratio * q,
+                                (c.params.torsionalShaft() ? shaft : q) + c.params.load_torque};
+        const double band[2] = {c.params.motor_static_friction, c.params.load_static_friction};
+        const double speed[2] = {st.motor_velocity, st.load_velocity};
+        for (int b = 0; b < 2; ++b)
+        {
+          const double slack = 1e-9 * (band[b] + std::fabs(held[b])) + (b == 0 ? c.params.gear_ratio : 1.0) * scale;
+          if (band[b] > 0.0 && speed[b] == 0.0 && std::fabs(held[b]) > band[b] + slack)
+          {
+            std::ostringstream d;
+            d << (b == 0 ? "motor" : "load") << " stands under " << held[b] << " N·m beyond its static band " << band[b]
+              << " N·m at t = " << st.time << " s";
+            return {"stick_law", d.str()};
+          }
         }
       }
     }

@@ -383,9 +383,6 @@ TEST(CompliantPlant, KeysAreValidatedTogether)
   p.shaft_stiffness = 0.0;
   EXPECT_TRUE(refused(p, "shaft_damping"));
   p = compliantD1();
-  p.load_coulomb_friction = p.load_static_friction = 0.01;
-  EXPECT_TRUE(refused(p, "mesh_stiffness"));
-  p = compliantD1();
   p.mesh_law = "hertz";
   EXPECT_TRUE(refused(p, "mesh_law"));
   p = compliantD1();

@@ -60,18 +60,20 @@ TEST(Fuzz, TwoThousandCasesKeepEveryProperty)
 TEST(Fuzz, CompliantJointsKeepEveryProperty)
 {
   const int n = 40;
-  int shafts = 0, msl = 0;
+  int shafts = 0, msl = 0, dry = 0;
   std::map<std::string, int> counts = checkSample(
       [&](std::uint64_t i) {
         fuzz::Case c = fuzz::makeCompliantCase(2, i);
         EXPECT_TRUE(c.params.compliant());
         shafts += c.params.torsionalShaft();
+        dry += c.params.hasDryFriction();
         msl += c.params.mesh_law == "msl_elastobacklash";
         return c;
       },
       n, "compliant");
   EXPECT_GT(shafts, 5);
   EXPECT_GT(msl, 5);
+  EXPECT_GT(dry, 5);
   EXPECT_GT(counts["ok"], n * 8 / 10);
 }
 
