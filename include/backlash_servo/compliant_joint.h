@@ -192,7 +192,7 @@ class CompliantJoint
  private:
   struct Watch
   {
-    Eigen::VectorXd w;
+    ModeVector w;
     double w0;
     int direction;
     MeshEvent kind;
@@ -216,24 +216,24 @@ class CompliantJoint
   };
   int out() const { return 2; }  // index of θ_o, the mesh's output-side angle (θ_c itself with a rigid shaft)
   /// A and u of mesh mode m with the bodies' slides (0 stuck: its rows zeroed; ±1: −T_c·slide folded into u).
-  void modeMatrices(MeshMode m, const std::array<int, 2>& slide, Eigen::MatrixXd* a, Eigen::VectorXd* u) const;
+  void modeMatrices(MeshMode m, const std::array<int, 2>& slide, ModeMatrix* a, ModeVector* u) const;
   /// Indices of a body's angle (its velocity follows) and its inertia [kg·m²]; its Coulomb and static levels [N·m].
   int angleIndex(int body) const { return body == 0 ? 0 : loadIndex(); }
   double inertiaOf(int body) const;
   double coulombOf(int body) const { return body == 0 ? s_.motor_coulomb_friction : s_.load_coulomb_friction; }
   double staticOf(int body) const { return body == 0 ? s_.motor_static_friction : s_.load_static_friction; }
   /// The torque H = w·x + w₀ [N·m] that must hold a body at rest in mesh mode m (all it receives but its friction).
-  void holdingTorque(int body, MeshMode m, Eigen::VectorXd* w, double* w0) const;
+  void holdingTorque(int body, MeshMode m, ModeVector* w, double* w0) const;
   /// The rest rule for a body at rest now: 0 while |H| ≤ T_s, else the sign of H.
   int restSlide(int body) const;
   /// The penetration y = w·x + w0 of a flank (σ = +1 forward, −1 backward) as a linear output.
-  void penetration(int sigma, Eigen::VectorXd* w, double* w0) const;
+  void penetration(int sigma, ModeVector* w, double* w0) const;
   /// P = k_y y + k_v ẏ of a flank as a linear output.
-  void flankTorque(int sigma, double ky, double kv, Eigen::VectorXd* w, double* w0) const;
+  void flankTorque(int sigma, double ky, double kv, ModeVector* w, double* w0) const;
   /// The mode the mesh takes from the current state (after an event).
   MeshMode chooseMode(bool released_forward, bool released_backward) const;
   /// The basis of a mode's matrix A: computed once and kept (a few modes and drive laws recur all run long).
-  std::shared_ptr<const ModeBasis> basisFor(const Eigen::MatrixXd& a);
+  std::shared_ptr<const ModeBasis> basisFor(const ModeMatrix& a);
   void beginSegment();
   void searchNextWindow();
   /// The ledger's integrals over [a, b] of the segment's local time (8-point Gauss–Legendre), added to *e.

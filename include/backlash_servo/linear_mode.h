@@ -40,11 +40,21 @@
 #include <Eigen/Dense>
 #include <array>
 #include <complex>
+#include <limits>
 #include <memory>
 #include <vector>
 
 namespace backlash_servo
 {
+/// The largest order of a linear mode (the compliant joint's are 4 and 6).
+constexpr int MAX_MODE_ORDER = 8;
+/// Vectors and matrices of a mode's order, stored in place (no heap allocation on the event searches' hot paths).
+using ModeVector = Eigen::Matrix<double, Eigen::Dynamic, 1, 0, MAX_MODE_ORDER, 1>;
+using ModeVectorC = Eigen::Matrix<std::complex<double>, Eigen::Dynamic, 1, 0, MAX_MODE_ORDER, 1>;
+using ModeMatrix = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, MAX_MODE_ORDER, MAX_MODE_ORDER>;
+using ModeMatrixC =
+    Eigen::Matrix<std::complex<double>, Eigen::Dynamic, Eigen::Dynamic, 0, MAX_MODE_ORDER, MAX_MODE_ORDER>;
+
 /// What one mode's matrix A determines, computed once: the balancing D, Â = D⁻¹AD and ‖Â‖₂, and the eigenbasis of Â
 /// when it is complete and well-conditioned. Immutable; shared between the motions of that mode.
 class ModeBasis
@@ -54,11 +64,12 @@ class ModeBasis
   /// computed eigenvectors are parallel to about √ε, a condition near 1e8: the threshold stays well below that.)
   static constexpr double MAX_EIGENBASIS_CONDITION = 1e6;
 
-  /// @param a the mode's matrix A (n × n, finite) [SI per the state's units]. Throws std::invalid_argument.
+  /// @param a the mode's matrix A (n × n, n ≤ MAX_MODE_ORDER, finite) [SI per the state's units]. Throws
+  /// std::invalid_argument.
   explicit ModeBasis(const Eigen::MatrixXd& a);
 
   int order() const { return static_cast<int>(a_.rows()); }
-  const Eigen::MatrixXd& matrix() const { return a_; }
+  const ModeMatrix& matrix() const { return a_; }
   /// Whether motions are evaluated modally (else by their Taylor series).
   bool modal() const { return modal_; }
   /// ‖Â‖₂ [1/s] of the balanced matrix: the mode's fastest time scale is its inverse.
@@ -70,15 +81,15 @@ class ModeBasis
 
  private:
   friend class LinearMode;
-  Eigen::MatrixXd a_;
-  Eigen::VectorXd bal_;       // the balancing D (diagonal)
-  Eigen::MatrixXd balanced_;  // Â = D⁻¹AD
-  double norm_a_ = 0.0;       // ‖Â‖₂
+  ModeMatrix a_;
+  ModeVector bal_;       // the balancing D (diagonal)
+  ModeMatrix balanced_;  // Â = D⁻¹AD
+  double norm_a_ = 0.0;  // ‖Â‖₂
   bool modal_ = false;
   double rounding_ = 0.0;
-  Eigen::MatrixXcd v_;       // eigenvectors of Â (modal)
-  Eigen::VectorXcd lambda_;  // eigenvalues (modal)
-  Eigen::MatrixXcd v_inv_;   // V⁻¹ (modal)
+  ModeMatrixC v_;       // eigenvectors of Â (modal)
+  ModeVectorC lambda_;  // eigenvalues (modal)
+  ModeMatrixC v_inv_;   // V⁻¹ (modal)
 };
 
 class LinearMode
@@ -99,24 +110,24 @@ class LinearMode
    * @param x0 the state at local time 0 (n)
    * Throws std::invalid_argument on mismatched sizes or non-finite entries.
    */
-  LinearMode(const Eigen::MatrixXd& a, const Eigen::VectorXd& u, const Eigen::VectorXd& x0);
+  LinearMode(const Eigen::MatrixXd& a, const ModeVector& u, const ModeVector& x0);
   /// The same with A's basis computed beforehand (shared, not copied).
-  LinearMode(std::shared_ptr<const ModeBasis> basis, const Eigen::VectorXd& u, const Eigen::VectorXd& x0);
+  LinearMode(std::shared_ptr<const ModeBasis> basis, const ModeVector& u, const ModeVector& x0);
 
   int order() const { return static_cast<int>(x0_.size()); }
   /// x(τ) at local time τ ≥ 0 [s].
-  Eigen::VectorXd state(double tau) const;
+  ModeVector state(double tau) const;
   /// ẋ(τ) = A x(τ) + u.
-  Eigen::VectorXd rate(double tau) const;
+  ModeVector rate(double tau) const;
   /// s(τ) = w·x(τ) + w₀.
-  double output(const Eigen::VectorXd& w, double w0, double tau) const;
+  double output(const ModeVector& w, double w0, double tau) const;
   /**
    * The first τ in (from, horizon] where s = w·x + w₀ crosses zero in `direction` (+1: from ≤ 0 to > 0, −1: from ≥ 0
    * to < 0), located to the last bit; +inf if none (a grazing within the floor is none, see the file comment).
    * `began_here`: this output's crossing is the event that began the motion, at `from` — there, within rounding of
    * zero and moving in `direction`, its sign means nothing and is not a crossing.
    */
-  double firstCrossing(const Eigen::VectorXd& w, double w0, int direction, double horizon, double from = 0.0,
+  double firstCrossing(const ModeVector& w, double w0, int direction, double horizon, double from = 0.0,
                        bool began_here = false) const;
 
   /// Whether the closed form is the modal one (else the Taylor series).
@@ -131,51 +142,62 @@ class LinearMode
   /// ‖(Dw)ᵀÂ‖₂ (Taylor).
   struct Curvature
   {
-    Eigen::VectorXd beta, rate;
+    ModeVector beta, rate;
     double wa = 0.0;
   };
-  Curvature curvature(const Eigen::VectorXd& w) const;
+  Curvature curvature(const ModeVector& w) const;
   /// A bound on |s''| over [lo, lo + h] (x the state at lo).
-  double curvatureBound(const Curvature& k, const Eigen::VectorXd& x, double lo, double h) const;
+  double curvatureBound(const Curvature& k, const ModeVector& x, double lo, double h) const;
   /// The first crossing in [lo, hi] (the window's state known at lo), +inf if none; `origin` is where the crossing
   /// that began the motion lies (NaN: none, see firstCrossing's began_here).
-  double searchWindow(const Eigen::VectorXd& w, double w0, int direction, double lo, double hi, const Curvature& curv,
+  double searchWindow(const ModeVector& w, double w0, int direction, double lo, double hi, const Curvature& curv,
                       double floor, double origin) const;
   /// What rounding can do to the output w·x + w₀ of an evaluated state x (the closed form's error).
-  double noise(const Eigen::VectorXd& w, double w0, const Eigen::VectorXd& x) const;
+  double noise(const ModeVector& w, double w0, const ModeVector& x) const;
   /// What rounding can do to w·v of a rate v = A x + u (or a higher derivative) computed from an evaluated state.
-  double rateNoise(const Eigen::VectorXd& w, const Eigen::VectorXd& v) const;
-  /// The bracketed crossing in (lo, hi] refined by bisection: direction·s(lo) ≤ 0 < direction·s(hi).
-  double bisect(const Eigen::VectorXd& w, double w0, int direction, double lo, double hi) const;
+  double rateNoise(const ModeVector& w, const ModeVector& v) const;
+  /// The bracketed crossing in (lo, hi] (direction·s(lo) ≤ 0 < direction·s(hi)) refined to adjacent doubles (ITP);
+  /// returns the end past it.
+  double bisect(const ModeVector& w, double w0, int direction, double lo, double hi) const;
 
   std::shared_ptr<const ModeBasis> basis_;
-  Eigen::VectorXd u_, x0_;
-  Eigen::VectorXd v0_;  // ẋ(0) = Ax₀ + u: the input of the deviation δ = x − x₀ the motion is solved for
-  Eigen::VectorXcd g_;  // V⁻¹D⁻¹v₀ (modal)
-  Eigen::VectorXcd g_over_lambda_;  // g/λ (modal)
+  ModeVector u_, x0_;
+  ModeVector v0_;  // ẋ(0) = Ax₀ + u: the input of the deviation δ = x − x₀ the motion is solved for
+  ModeVectorC g_;  // V⁻¹D⁻¹v₀ (modal)
+  ModeVectorC g_over_lambda_;  // g/λ (modal)
   // Without a modal basis: the anchors x̂ at multiples of step_ (all of the first DENSE_ANCHORS, then every
   // CHECKPOINT-th, and the farthest reached), and the Taylor coefficients of the anchors last used.
   double step_ = 0.0;
-  mutable std::vector<Eigen::VectorXd> checkpoints_;
-  mutable Eigen::VectorXd frontier_;
+  mutable std::vector<ModeVector> checkpoints_;
+  mutable ModeVector frontier_;
   mutable std::size_t frontier_index_ = 0;
+  using KrylovMatrix = Eigen::MatrixXd;  // (on the heap: a modal motion, the common case, stays small to copy)
   struct KrylovEntry
   {
     std::size_t anchor = static_cast<std::size_t>(-1);
-    Eigen::MatrixXd k;
+    KrylovMatrix k;
   };
   mutable std::array<KrylovEntry, 4> krylov_;
   mutable std::size_t krylov_next_ = 0;
-  mutable Eigen::MatrixXd step_krylov_;
-  Eigen::VectorXd taylorState(double tau) const;
+  mutable KrylovMatrix step_krylov_;
+  /// The closed form at τ (state() keeps the last few).
+  ModeVector evaluate(double tau) const;
+  struct Memo
+  {
+    double tau = std::numeric_limits<double>::quiet_NaN();
+    ModeVector x;
+  };
+  mutable std::array<Memo, 4> memo_;
+  mutable std::size_t memo_next_ = 0;
+  ModeVector taylorState(double tau) const;
   /// The anchor x̂ at i steps from the start.
-  const Eigen::VectorXd& anchor(std::size_t i) const;
+  const ModeVector& anchor(std::size_t i) const;
   /// The Taylor coefficients k_j (columns) of the motion from the anchor state x̂_a.
-  void setKrylov(const Eigen::VectorXd& xa, Eigen::MatrixXd* k) const;
+  void setKrylov(const ModeVector& xa, KrylovMatrix* k) const;
   /// Σ_j k_j r^j (Horner).
-  static Eigen::VectorXd taylor(const Eigen::MatrixXd& k, double r);
+  static ModeVector taylor(const KrylovMatrix& k, double r);
   /// One Taylor step of r from x̂_a.
-  Eigen::VectorXd taylor(const Eigen::VectorXd& xa, double r) const;
+  ModeVector taylor(const ModeVector& xa, double r) const;
 };
 
 }  // namespace backlash_servo

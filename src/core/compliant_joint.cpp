@@ -31,7 +31,7 @@ bool isK2(MeshMode m)
 
 /// What rounding can do to an output w·x + w₀ of a state x whose entries are known to their last bits (the angles or
 /// speeds it is the difference of).
-double roundingOf(const Eigen::VectorXd& w, double w0, const Eigen::VectorXd& x)
+double roundingOf(const ModeVector& w, double w0, const ModeVector& x)
 {
   return 64.0 * std::numeric_limits<double>::epsilon() * (w.cwiseAbs().dot(x.cwiseAbs()) + std::fabs(w0));
 }
@@ -144,7 +144,7 @@ double CompliantJoint::potentialEnergy() const
   double v = 0.0;
   if (mode_ != MeshMode::Free)
   {
-    Eigen::VectorXd w;
+    ModeVector w;
     double w0;
     penetration(isForward(mode_) ? 1 : -1, &w, &w0);
     const double y = w.dot(x_) + w0;
@@ -178,7 +178,7 @@ void CompliantJoint::integrate(const Segment& seg, double a, double b, Compliant
   const int o = out(), l = loadIndex();
   const double mid = 0.5 * (a + b), half = 0.5 * (b - a);
   const bool damped_flank = mode_ != MeshMode::Free && !isK2(mode_);
-  Eigen::VectorXd wv;
+  ModeVector wv;
   double wv0 = 0.0;
   if (damped_flank)
   {
@@ -189,7 +189,7 @@ void CompliantJoint::integrate(const Segment& seg, double a, double b, Compliant
   {
     const double s = mid + (i < 4 ? -1.0 : 1.0) * half * NODE[i % 4];
     const double w = half * WEIGHT[i % 4];
-    const Eigen::VectorXd x = seg.motion.state(s);
+    const ModeVector x = seg.motion.state(s);
     const double wm = x(1), wc = x(l + 1);
     sum.input += w * (law_.offset - law_.stiffness * x(l)) * wm;
     sum.motor_friction += w * s_.motor_friction * wm * wm;
@@ -229,8 +229,8 @@ void CompliantJoint::placeEnergy(double tau)
 
 Eigen::VectorXcd CompliantJoint::eigenvalues() const
 {
-  Eigen::MatrixXd a;
-  Eigen::VectorXd u;
+  ModeMatrix a;
+  ModeVector u;
   modeMatrices(mode_, slide_, &a, &u);
   return a.eigenvalues();
 }
@@ -240,11 +240,11 @@ double CompliantJoint::inertiaOf(int body) const
   return body == 0 ? s_.motor_inertia : torsional_ ? s_.load_inertia : s_.load_inertia + s_.gear_inertia;
 }
 
-void CompliantJoint::holdingTorque(int body, MeshMode m, Eigen::VectorXd* w, double* w0) const
+void CompliantJoint::holdingTorque(int body, MeshMode m, ModeVector* w, double* w0) const
 {
   // J ω̇ = H − f ω − T_c·slide: H is J times the body's velocity row while it moves, its fold taken back (ω = 0).
-  Eigen::MatrixXd a;
-  Eigen::VectorXd u;
+  ModeMatrix a;
+  ModeVector u;
   modeMatrices(m, {1, 1}, &a, &u);
   const int v = angleIndex(body) + 1;
   const double j = inertiaOf(body);
@@ -255,7 +255,7 @@ void CompliantJoint::holdingTorque(int body, MeshMode m, Eigen::VectorXd* w, dou
 
 int CompliantJoint::restSlide(int body) const
 {
-  Eigen::VectorXd w;
+  ModeVector w;
   double w0;
   holdingTorque(body, mode_, &w, &w0);
   const double h = w.dot(x_) + w0;
@@ -296,25 +296,25 @@ double CompliantJoint::meshTorque() const
   }
   const int sigma = isForward(mode_) ? 1 : -1;
   const bool k2 = isK2(mode_);
-  Eigen::VectorXd w;
+  ModeVector w;
   double w0;
   flankTorque(sigma, (k2 ? 2.0 : 1.0) * s_.mesh_stiffness, k2 ? 0.0 : s_.mesh_damping, &w, &w0);
   return sigma * std::max(0.0, w.dot(x_) + w0);
 }
 
-void CompliantJoint::penetration(int sigma, Eigen::VectorXd* w, double* w0) const
+void CompliantJoint::penetration(int sigma, ModeVector* w, double* w0) const
 {
   // y = σ(ρθ_m − θ_o) − δ, δ = 0 forward, Δ backward.
-  *w = Eigen::VectorXd::Zero(size());
+  *w = ModeVector::Zero(size());
   (*w)(0) = sigma * s_.gear_ratio;
   (*w)(out()) = -sigma;
   *w0 = sigma > 0 ? 0.0 : -s_.backlash;
 }
 
-void CompliantJoint::flankTorque(int sigma, double ky, double kv, Eigen::VectorXd* w, double* w0) const
+void CompliantJoint::flankTorque(int sigma, double ky, double kv, ModeVector* w, double* w0) const
 {
   // ky y + kv ẏ with ẏ = σ(ρω_m − ω_o).
-  *w = Eigen::VectorXd::Zero(size());
+  *w = ModeVector::Zero(size());
   (*w)(0) = sigma * ky * s_.gear_ratio;
   (*w)(out()) = -sigma * ky;
   (*w)(1) = sigma * kv * s_.gear_ratio;
@@ -322,16 +322,15 @@ void CompliantJoint::flankTorque(int sigma, double ky, double kv, Eigen::VectorX
   *w0 = sigma > 0 ? 0.0 : -ky * s_.backlash;
 }
 
-void CompliantJoint::modeMatrices(MeshMode m, const std::array<int, 2>& slide, Eigen::MatrixXd* a,
-                                  Eigen::VectorXd* u) const
+void CompliantJoint::modeMatrices(MeshMode m, const std::array<int, 2>& slide, ModeMatrix* a, ModeVector* u) const
 {
   const int k = size(), o = out(), l = loadIndex();
-  *a = Eigen::MatrixXd::Zero(k, k);
-  *u = Eigen::VectorXd::Zero(k);
+  *a = ModeMatrix::Zero(k, k);
+  *u = ModeVector::Zero(k);
   const double rho = s_.gear_ratio, jm = s_.motor_inertia;
   const double j_out = torsional_ ? s_.gear_inertia : s_.load_inertia + s_.gear_inertia;
-  Eigen::MatrixXd& A = *a;
-  Eigen::VectorXd& U = *u;
+  ModeMatrix& A = *a;
+  ModeVector& U = *u;
   A(0, 1) = 1.0;
   A(o, o + 1) = 1.0;
   // Motor: J_m ω̇_m = a − kθ_c − f_m ω_m − ρQ.
@@ -400,7 +399,7 @@ MeshMode CompliantJoint::chooseMode(bool released_forward, bool released_backwar
     {
       continue;
     }
-    Eigen::VectorXd w;
+    ModeVector w;
     double w0;
     penetration(sigma, &w, &w0);
     double y = w.dot(x_) + w0;
@@ -420,8 +419,8 @@ MeshMode CompliantJoint::chooseMode(bool released_forward, bool released_backwar
     if (y == 0.0 && ydot == 0.0)
     {
       // Touching at relative rest (the start): engaged when the free motion would push the teeth together.
-      Eigen::MatrixXd a;
-      Eigen::VectorXd u;
+      ModeMatrix a;
+      ModeVector u;
       modeMatrices(MeshMode::Free, slide_, &a, &u);
       flankTorque(sigma, 0.0, 1.0, &w, &w0);
       if (w.dot(a * x_ + u) > 0.0)
@@ -451,7 +450,7 @@ MeshMode CompliantJoint::chooseMode(bool released_forward, bool released_backwar
   return MeshMode::Free;
 }
 
-std::shared_ptr<const ModeBasis> CompliantJoint::basisFor(const Eigen::MatrixXd& a)
+std::shared_ptr<const ModeBasis> CompliantJoint::basisFor(const ModeMatrix& a)
 {
   // Bounded: a drive whose law stiffness keeps changing would otherwise grow it without end.
   constexpr std::size_t KEPT = 16;
@@ -480,19 +479,21 @@ void CompliantJoint::beginSegment()
 {
   const double c = s_.mesh_stiffness, d = s_.mesh_damping;
   const int l = loadIndex();
-  Eigen::MatrixXd a;
-  Eigen::VectorXd u;
+  ModeMatrix a;
+  ModeVector u;
   modeMatrices(mode_, slide_, &a, &u);
   LinearMode motion(basisFor(a), u, x_);
   std::vector<Watch> watches;
-  Eigen::VectorXd w;
+  watches.reserve(12);
+  ModeVector w;
   double w0;
   if (mode_ == MeshMode::Free)
   {
     for (int sigma : {1, -1})
     {
       penetration(sigma, &w, &w0);
-      if (w.dot(x_) + w0 > 0.0)
+      const double y = w.dot(x_) + w0, band = roundingOf(w, w0, x_);
+      if (y > band)
       {
         watches.push_back({w, w0, -1, MeshEvent::LeavePenetration, sigma});
         flankTorque(sigma, c, d, &w, &w0);  // P = cy + dẏ (msl: τc + τd, KD on re-engaging)
@@ -500,7 +501,9 @@ void CompliantJoint::beginSegment()
       }
       else
       {
-        watches.push_back({w, w0, +1, MeshEvent::Engage, sigma});
+        // Penetrating within rounding (released there) is touching: the flank engages where y rises past that
+        // rounding — watching P or y itself from a start whose sign is rounding could miss it for good.
+        watches.push_back({w, y > 0.0 ? w0 - band : w0, +1, MeshEvent::Engage, sigma});
       }
     }
   }
@@ -540,18 +543,18 @@ void CompliantJoint::beginSegment()
     }
     else
     {
-      w = Eigen::VectorXd::Zero(size());
+      w = ModeVector::Zero(size());
       w(angleIndex(b) + 1) = slide_[b];  // slide·ω falling through 0
       watches.push_back({w, 0.0, -1, MeshEvent::Stop, b});
     }
   }
   if (slide_[1] != 0)  // (a stuck load has no turning points and cannot leave the watched interval)
   {
-    w = Eigen::VectorXd::Zero(size());
+    w = ModeVector::Zero(size());
     w(l + 1) = 1.0;
     watches.push_back({w, 0.0, -1, MeshEvent::Maximum, 0});
     watches.push_back({w, 0.0, +1, MeshEvent::Minimum, 0});
-    w = Eigen::VectorXd::Zero(size());
+    w = ModeVector::Zero(size());
     w(l) = 1.0;
     if (std::isfinite(watch_hi_))
     {
@@ -596,7 +599,7 @@ void CompliantJoint::beginSegment()
         (last_kind_ == static_cast<int>(MeshEvent::Engage) || last_kind_ == static_cast<int>(MeshEvent::Reengage));
     if (!just_engaged)
     {
-      const Eigen::VectorXd xd = a * x_ + u;
+      const ModeVector xd = a * x_ + u;
       startWith([&](const Watch& r) {
         if (r.kind != MeshEvent::Release)
         {
@@ -624,7 +627,7 @@ void CompliantJoint::beginSegment()
   // Dry friction, likewise: a stuck body whose holding torque is beyond its static band (or at its edge and
   // leaving it) breaks away here; a sliding body whose velocity is against its slide (or zero and turning against
   // it) stops here — not one that began to slide at this very instant.
-  const Eigen::VectorXd xd = a * x_ + u;
+  const ModeVector xd = a * x_ + u;
   for (int b = 0; b < 2 && seg.event != 0.0; ++b)
   {
     if (!dry_[b])

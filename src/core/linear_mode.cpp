@@ -4,20 +4,41 @@
 #include <cmath>
 #include <limits>
 #include <stdexcept>
+#include <string>
 
 namespace backlash_servo
 {
 namespace
 {
 constexpr double INF = std::numeric_limits<double>::infinity();
+
+/// a·x + u (plain loops: at these orders Eigen's general product costs more in dispatch than in arithmetic). The
+/// product is summed before u is added, as Eigen does: near an equilibrium the two cancel, and the event search's
+/// windows depend on how the rounding of that difference falls (adding u first made a stiff case halve ten times
+/// as often).
+ModeVector affine(const ModeMatrix& a, const ModeVector& x, const ModeVector& u)
+{
+  const Eigen::Index n = x.size();
+  ModeVector y(n);
+  for (Eigen::Index i = 0; i < n; ++i)
+  {
+    double sum = 0.0;
+    for (Eigen::Index j = 0; j < n; ++j)
+    {
+      sum += a(i, j) * x(j);
+    }
+    y(i) = sum + u(i);
+  }
+  return y;
+}
 }  // namespace
 
 ModeBasis::ModeBasis(const Eigen::MatrixXd& a) : a_(a)
 {
   const Eigen::Index n = a.rows();
-  if (n < 1 || a.cols() != n)
+  if (n < 1 || a.cols() != n || n > MAX_MODE_ORDER)
   {
-    throw std::invalid_argument("LinearMode: A must be n × n");
+    throw std::invalid_argument("LinearMode: A must be n × n, n ≤ " + std::to_string(MAX_MODE_ORDER));
   }
   if (!a.allFinite())
   {
@@ -25,8 +46,8 @@ ModeBasis::ModeBasis(const Eigen::MatrixXd& a) : a_(a)
   }
   // Diagonal balancing D (Parlett–Reinsch, powers of 2): Â = D⁻¹AD has the mode's frequencies without the spread of
   // units between positions and speeds (c/J against 1), so the search's windows are as long as the motion allows.
-  bal_ = Eigen::VectorXd::Ones(n);
-  Eigen::MatrixXd b = a;
+  bal_ = ModeVector::Ones(n);
+  Eigen::MatrixXd b = a;  // (the decompositions below on heap storage: they run once per mode)
   for (bool changed = true; changed;)
   {
     changed = false;
@@ -91,14 +112,14 @@ ModeBasis::ModeBasis(const Eigen::MatrixXd& a) : a_(a)
 
 Eigen::VectorXcd ModeBasis::eigenvalues() const
 {
-  return Eigen::EigenSolver<Eigen::MatrixXd>(a_).eigenvalues();
+  return Eigen::EigenSolver<Eigen::MatrixXd>(Eigen::MatrixXd(a_)).eigenvalues();
 }
 
-LinearMode::LinearMode(const Eigen::MatrixXd& a, const Eigen::VectorXd& u, const Eigen::VectorXd& x0)
+LinearMode::LinearMode(const Eigen::MatrixXd& a, const ModeVector& u, const ModeVector& x0)
     : LinearMode(std::make_shared<const ModeBasis>(a), u, x0)
 {}
 
-LinearMode::LinearMode(std::shared_ptr<const ModeBasis> basis, const Eigen::VectorXd& u, const Eigen::VectorXd& x0)
+LinearMode::LinearMode(std::shared_ptr<const ModeBasis> basis, const ModeVector& u, const ModeVector& x0)
     : basis_(std::move(basis)), u_(u), x0_(x0)
 {
   const Eigen::Index n = x0.size();
@@ -112,10 +133,20 @@ LinearMode::LinearMode(std::shared_ptr<const ModeBasis> basis, const Eigen::Vect
   }
   // The motion is solved as the deviation δ = x − x₀ (δ̇ = Aδ + v₀, v₀ = Ax₀ + u, δ(0) = 0), so that its rounding is
   // relative to how far the state has moved, not to the angles it started at (which grow without bound).
-  v0_ = basis_->a_ * x0 + u;
+  v0_ = affine(basis_->a_, x0_, u_);
   if (basis_->modal_)
   {
-    g_ = basis_->v_inv_ * v0_.cwiseQuotient(basis_->bal_).cast<std::complex<double>>();
+    // (Plain loops: Eigen's general products carry a dispatch overhead that dominates at these orders.)
+    g_.resize(n);
+    for (Eigen::Index k = 0; k < n; ++k)
+    {
+      std::complex<double> sum = 0.0;
+      for (Eigen::Index j = 0; j < n; ++j)
+      {
+        sum += basis_->v_inv_(k, j) * (v0_(j) / basis_->bal_(j));
+      }
+      g_(k) = sum;
+    }
     g_over_lambda_.resize(n);  // used only where |λτ| ≥ 0.1
     for (Eigen::Index k = 0; k < n; ++k)
     {
@@ -126,11 +157,11 @@ LinearMode::LinearMode(std::shared_ptr<const ModeBasis> basis, const Eigen::Vect
   else
   {
     step_ = basis_->norm_a_ > 0.0 ? TAYLOR_STEP / basis_->norm_a_ : INF;
-    checkpoints_.push_back(Eigen::VectorXd::Zero(n));
+    checkpoints_.push_back(ModeVector::Zero(n));
   }
 }
 
-Eigen::VectorXd LinearMode::taylorState(double tau) const
+ModeVector LinearMode::taylorState(double tau) const
 {
   // Anchors δ̂ at multiples of the step from the start, each from the one before: a pure function of τ, whatever order
   // the states are asked in.
@@ -159,7 +190,7 @@ Eigen::VectorXd LinearMode::taylorState(double tau) const
   return x0_ + taylor(entry->k, tau - index * step_).cwiseProduct(basis_->bal_);
 }
 
-const Eigen::VectorXd& LinearMode::anchor(std::size_t i) const
+const ModeVector& LinearMode::anchor(std::size_t i) const
 {
   // All of the first DENSE_ANCHORS; beyond, every CHECKPOINT-th and the farthest reached (memory stays bounded over a
   // long motion without events; a query behind the frontier repeats at most CHECKPOINT steps from a checkpoint).
@@ -192,7 +223,7 @@ const Eigen::VectorXd& LinearMode::anchor(std::size_t i) const
   return frontier_;
 }
 
-void LinearMode::setKrylov(const Eigen::VectorXd& xa, Eigen::MatrixXd* k) const
+void LinearMode::setKrylov(const ModeVector& xa, KrylovMatrix* k) const
 {
   // δ̂(a + r) = Σ_j k_j r^j with k_0 = δ̂_a, k_1 = Âδ̂_a + v̂₀, k_j = Â k_{j−1} / j: ‖Â r‖ ≤ ½, so the terms fall below
   // 2⁻ʲ/j! of the first ones — TAYLOR_TERMS of them reach rounding.
@@ -207,9 +238,9 @@ void LinearMode::setKrylov(const Eigen::VectorXd& xa, Eigen::MatrixXd* k) const
   }
 }
 
-Eigen::VectorXd LinearMode::taylor(const Eigen::MatrixXd& k, double r)
+ModeVector LinearMode::taylor(const KrylovMatrix& k, double r)
 {
-  Eigen::VectorXd x = k.col(k.cols() - 1);
+  ModeVector x = k.col(k.cols() - 1);
   for (Eigen::Index j = k.cols() - 2; j >= 0; --j)
   {
     x = x * r + k.col(j);
@@ -217,24 +248,42 @@ Eigen::VectorXd LinearMode::taylor(const Eigen::MatrixXd& k, double r)
   return x;
 }
 
-Eigen::VectorXd LinearMode::taylor(const Eigen::VectorXd& xa, double r) const
+ModeVector LinearMode::taylor(const ModeVector& xa, double r) const
 {
   setKrylov(xa, &step_krylov_);
   return taylor(step_krylov_, r);
 }
 
-Eigen::VectorXd LinearMode::state(double tau) const
+ModeVector LinearMode::state(double tau) const
 {
-  const Eigen::Index n = x0_.size();
   if (tau == 0.0)
   {
     return x0_;
   }
+  // The searches of a segment's outputs ask for the same instants (a window's ends, the event, the end of a step):
+  // the last few are kept.
+  for (const Memo& m : memo_)
+  {
+    if (m.tau == tau)
+    {
+      return m.x;
+    }
+  }
+  Memo& slot = memo_[memo_next_];
+  memo_next_ = (memo_next_ + 1) % memo_.size();
+  slot.x = evaluate(tau);
+  slot.tau = tau;
+  return slot.x;
+}
+
+ModeVector LinearMode::evaluate(double tau) const
+{
+  const Eigen::Index n = x0_.size();
   if (basis_->modal_)
   {
     // δ = D Σ_k v_k τ φ₁(λ_k τ) g_k: τφ₁(λτ) g = (e^{λτ} − 1) g/λ, by φ₁'s series where that would cancel.
-    const Eigen::VectorXcd& lambda = basis_->lambda_;
-    Eigen::Matrix<std::complex<double>, Eigen::Dynamic, 1, 0, 8, 1> e(n);
+    const ModeVectorC& lambda = basis_->lambda_;
+    ModeVectorC e(n);
     for (Eigen::Index k = 0; k < n; ++k)
     {
       const std::complex<double> z = lambda(k) * tau;
@@ -253,22 +302,32 @@ Eigen::VectorXd LinearMode::state(double tau) const
         e(k) = (std::exp(z) - 1.0) * g_over_lambda_(k);
       }
     }
-    return x0_ + (basis_->v_ * e).real().cwiseProduct(basis_->bal_);
+    ModeVector x = x0_;
+    for (Eigen::Index i = 0; i < n; ++i)
+    {
+      double sum = 0.0;
+      for (Eigen::Index k = 0; k < n; ++k)
+      {
+        sum += basis_->v_(i, k).real() * e(k).real() - basis_->v_(i, k).imag() * e(k).imag();
+      }
+      x(i) += sum * basis_->bal_(i);
+    }
+    return x;
   }
   return taylorState(tau);
 }
 
-Eigen::VectorXd LinearMode::rate(double tau) const
+ModeVector LinearMode::rate(double tau) const
 {
-  return basis_->a_ * state(tau) + u_;
+  return affine(basis_->a_, state(tau), u_);
 }
 
-double LinearMode::output(const Eigen::VectorXd& w, double w0, double tau) const
+double LinearMode::output(const ModeVector& w, double w0, double tau) const
 {
   return w.dot(state(tau)) + w0;
 }
 
-double LinearMode::noise(const Eigen::VectorXd& w, double w0, const Eigen::VectorXd& x) const
+double LinearMode::noise(const ModeVector& w, double w0, const ModeVector& x) const
 {
   // The motion is solved as its deviation δ = x − x₀: each balanced coordinate of δ carries an error of about
   // rounding·‖D⁻¹δ‖ (the output sums them with weights |w_i| D_i), and adding x₀ a few ulps of each |x_i|. (Relative
@@ -279,19 +338,28 @@ double LinearMode::noise(const Eigen::VectorXd& w, double w0, const Eigen::Vecto
          8.0 * EPS * (w.cwiseAbs().dot(x.cwiseAbs()) + std::fabs(w0));
 }
 
-double LinearMode::rateNoise(const Eigen::VectorXd& w, const Eigen::VectorXd& v) const
+double LinearMode::rateNoise(const ModeVector& w, const ModeVector& v) const
 {
   return basis_->rounding_ * w.cwiseAbs().dot(basis_->bal_) * v.cwiseQuotient(basis_->bal_).norm();
 }
 
-LinearMode::Curvature LinearMode::curvature(const Eigen::VectorXd& w) const
+LinearMode::Curvature LinearMode::curvature(const ModeVector& w) const
 {
   Curvature k;
   if (basis_->modal_)
   {
     // s''(τ) = Σ_k (wᵀD v_k) λ_k g_k e^{λ_k τ}: the drift of a zero eigenvalue has no curvature.
     const Eigen::Index n = x0_.size();
-    const Eigen::VectorXcd wv = basis_->v_.transpose() * w.cwiseProduct(basis_->bal_).cast<std::complex<double>>();
+    ModeVectorC wv(n);
+    for (Eigen::Index k = 0; k < n; ++k)
+    {
+      std::complex<double> sum = 0.0;
+      for (Eigen::Index i = 0; i < n; ++i)
+      {
+        sum += basis_->v_(i, k) * (w(i) * basis_->bal_(i));
+      }
+      wv(k) = sum;
+    }
     k.beta.resize(n);
     k.rate.resize(n);
     for (Eigen::Index i = 0; i < n; ++i)
@@ -308,7 +376,7 @@ LinearMode::Curvature LinearMode::curvature(const Eigen::VectorXd& w) const
   return k;
 }
 
-double LinearMode::curvatureBound(const Curvature& k, const Eigen::VectorXd& x, double lo, double h) const
+double LinearMode::curvatureBound(const Curvature& k, const ModeVector& x, double lo, double h) const
 {
   if (basis_->modal_)
   {
@@ -321,11 +389,11 @@ double LinearMode::curvatureBound(const Curvature& k, const Eigen::VectorXd& x, 
     return m * (1.0 + 64.0 * std::numeric_limits<double>::epsilon());
   }
   // ‖(Dw)ᵀÂ‖₂ ‖D⁻¹ẋ(lo)‖₂ e^{‖Â‖₂ h}.
-  const Eigen::VectorXd xd = basis_->a_ * x + u_;
+  const ModeVector xd = affine(basis_->a_, x, u_);
   return k.wa * xd.cwiseQuotient(basis_->bal_).norm() * std::exp(basis_->norm_a_ * h);
 }
 
-double LinearMode::firstCrossing(const Eigen::VectorXd& w, double w0, int direction, double horizon, double from,
+double LinearMode::firstCrossing(const ModeVector& w, double w0, int direction, double horizon, double from,
                                  bool began_here) const
 {
   if (!(horizon > 0.0) || (direction != 1 && direction != -1))
@@ -339,13 +407,13 @@ double LinearMode::firstCrossing(const Eigen::VectorXd& w, double w0, int direct
   {
     // An output that is zero with all its derivatives at the start (wᵀAᵏẋ = 0, k < n: the output does not see the
     // motion at all, e.g. the velocity of a body at rest on which nothing acts) stays zero: it never crosses.
-    const Eigen::VectorXd x = state(from);
-    Eigen::VectorXd v = basis_->a_ * x + u_;
+    const ModeVector x = state(from);
+    ModeVector v = affine(basis_->a_, x, u_);
     bool flat = std::fabs(w.dot(x) + w0) <= noise(w, w0, x);
     for (int k = 0; flat && k < order(); ++k)
     {
       flat = std::fabs(w.dot(v)) <= rateNoise(w, v);
-      v = basis_->a_ * v;
+      v = affine(basis_->a_, v, ModeVector::Zero(v.size()));
     }
     if (flat)
     {
@@ -357,7 +425,7 @@ double LinearMode::firstCrossing(const Eigen::VectorXd& w, double w0, int direct
   while (t < horizon)
   {
     // A window the exclusion test is likely to pass: where the remainder bound reaches about |s|.
-    const Eigen::VectorXd x = state(t);
+    const ModeVector x = state(t);
     const double s = w.dot(x) + w0;
     const double m = curvatureBound(curv, x, t, scale);
     double h = m > 0.0 ? std::sqrt(std::fabs(s) / m) : horizon;
@@ -376,11 +444,11 @@ double LinearMode::firstCrossing(const Eigen::VectorXd& w, double w0, int direct
   return INF;
 }
 
-double LinearMode::searchWindow(const Eigen::VectorXd& w, double w0, int direction, double lo, double hi,
+double LinearMode::searchWindow(const ModeVector& w, double w0, int direction, double lo, double hi,
                                 const Curvature& curv, double floor, double origin) const
 {
-  const Eigen::VectorXd x = state(lo);
-  const Eigen::VectorXd xd = basis_->a_ * x + u_;
+  const ModeVector x = state(lo);
+  const ModeVector xd = affine(basis_->a_, x, u_);
   const double s = w.dot(x) + w0;
   const double s1 = w.dot(xd);
   const double h = hi - lo;
@@ -424,16 +492,50 @@ double LinearMode::searchWindow(const Eigen::VectorXd& w, double w0, int directi
   return first < INF ? first : searchWindow(w, w0, direction, mid, hi, curv, floor, origin);
 }
 
-double LinearMode::bisect(const Eigen::VectorXd& w, double w0, int direction, double lo, double hi) const
+double LinearMode::bisect(const ModeVector& w, double w0, int direction, double lo, double hi) const
 {
-  for (int i = 0; i < 200; ++i)
+  // The ITP method (Oliveira & Takahashi, ACM TOMS 2020): regula falsi, truncated a little past the root so that the
+  // bracket closes from both sides, projected to within a shrinking distance of the midpoint so that it never takes
+  // more steps than bisection plus one — superlinear in practice. Run down to adjacent doubles: the same crossing as
+  // plain bisection in fewer evaluations.
+  double f_lo = direction * output(w, w0, lo), f_hi = direction * output(w, w0, hi);
+  const double eps = 0.5 * std::max(std::nextafter(hi, INF) - hi, std::numeric_limits<double>::denorm_min());
+  const double kappa1 = 0.2 / (hi - lo);
+  const int n_half = static_cast<int>(std::ceil(std::log2(std::max((hi - lo) / (2.0 * eps), 1.0))));
+  const int n_max = n_half + 1;
+  for (int j = 0; j < 400; ++j)
   {
-    const double mid = lo + 0.5 * (hi - lo);
-    if (!(mid > lo && mid < hi))
+    const double half = lo + 0.5 * (hi - lo);
+    if (!(half > lo && half < hi))
     {
       break;
     }
-    (direction * output(w, w0, mid) > 0.0 ? hi : lo) = mid;
+    double x = half;
+    if (f_hi > 0.0 && f_lo <= 0.0 && std::isfinite(f_hi - f_lo))
+    {
+      const double width = hi - lo;
+      const double r = std::max(eps * std::ldexp(1.0, std::max(n_max - j, 0)) - 0.5 * width, 0.0);
+      const double delta = kappa1 * width * width;
+      const double falsi = (hi * f_lo - lo * f_hi) / (f_lo - f_hi);
+      const double sigma = half >= falsi ? 1.0 : -1.0;
+      const double truncated = delta <= std::fabs(half - falsi) ? falsi + sigma * delta : half;
+      x = std::fabs(truncated - half) <= r ? truncated : half - sigma * r;
+      if (!(x > lo && x < hi))
+      {
+        x = half;
+      }
+    }
+    const double f = direction * output(w, w0, x);
+    if (f > 0.0)
+    {
+      hi = x;
+      f_hi = f;
+    }
+    else
+    {
+      lo = x;
+      f_lo = f;
+    }
   }
   return hi;
 }
