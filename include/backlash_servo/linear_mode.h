@@ -29,7 +29,8 @@
  * fastest frequency; ‖exp(Â t)‖₂ ≤ e^{‖Â‖₂ t}). A window on which the
  * linear part keeps one sign farther from 0 than ½ M h² plus the rounding of an evaluated output holds no zero. A
  * window where |s'(a)| > M h has a derivative of one sign, so s is monotone there: one zero at most, bracketed by the
- * signs at its ends and refined by bisection to the last representable bit. Any other window is halved, earliest half
+ * signs at its ends and refined to the last representable bit (the ITP method: regula falsi made two-sided and
+ * never slower than bisection). Any other window is halved, earliest half
  * first. Windows start as long as the exclusion is likely to pass (h = √(|s(a)|/M), at most 1/‖Â‖₂); halving stops at
  * the floor h_min = FLOOR_FRACTION / ‖Â‖₂ — only near a turning point of s that lies within h_min·|s'| of zero — where
  * a sign change in the asked direction is the crossing and none is a **grazing**, reported as no crossing. That is the
