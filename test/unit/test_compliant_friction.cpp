@@ -11,6 +11,7 @@
 #include "backlash_servo/compliant_joint.h"
 #include "backlash_servo/drive.h"
 #include "backlash_servo/simulator.h"
+#include "test_helpers.h"
 
 namespace
 {
@@ -140,16 +141,7 @@ TEST(CompliantFriction, AStuckLoadBreaksAwayExactlyWhereTheMeshTorqueReachesItsS
 /// the load) with stick–slip on both bodies, stepped to 0.1 rad.
 Simulator stickSlipJoint()
 {
-  ServoParams p;
-  p.motor_inertia = 1e-4;
-  p.load_inertia = 0.5;
-  p.motor_friction = 1e-4;
-  p.load_friction = 0.5;
-  p.gear_ratio = 0.01;
-  p.backlash = 0.005;
-  p.gain = 6.0;
-  p.mesh_stiffness = 8.6e4;
-  p.mesh_damping = 20.0;
+  ServoParams p = test_helpers::compliantRobotJoint();
   p.motor_coulomb_friction = 0.002;
   p.motor_static_friction = 0.003;
   p.load_coulomb_friction = 0.3;

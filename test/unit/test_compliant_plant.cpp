@@ -15,6 +15,7 @@
 #include "backlash_servo/compliant_joint.h"
 #include "backlash_servo/drive.h"
 #include "backlash_servo/simulator.h"
+#include "test_helpers.h"
 
 namespace
 {
@@ -301,16 +302,7 @@ TEST(CompliantPlant, ASampledPLawTendsToTheContinuousOneAtFirstOrder)
 // 20 rad while the load stayed, the gap 40 times the backlash.)
 TEST(CompliantPlant, AFlankTouchingWithoutForceTakesTheLoadWhenPushed)
 {
-  ServoParams p;
-  p.motor_inertia = 1e-4;
-  p.load_inertia = 0.5;
-  p.motor_friction = 1e-4;
-  p.load_friction = 0.5;
-  p.gear_ratio = 0.01;
-  p.backlash = 0.005;
-  p.gain = 6.0;
-  p.mesh_stiffness = 8.6e4;
-  p.mesh_damping = 20.0;
+  ServoParams p = test_helpers::compliantRobotJoint();
   DriveParams d;
   d.controller_rate = 1000.0;
   d.control_law = "cascade";

@@ -29,6 +29,23 @@ inline backlash_servo::ServoParams chart(double zeta, double inertia_ratio, doub
   return c.toServoParams();
 }
 
+/// The robot joint of config/compare_compliant.yaml: 100:1 gear, 5 mrad backlash at the load, a harmonic drive's mesh
+/// stiffness (c = 8.6e4 N·m/rad, d = 20 N·m·s/rad), viscous friction only, K = 6 N·m/rad.
+inline backlash_servo::ServoParams compliantRobotJoint()
+{
+  backlash_servo::ServoParams p;
+  p.motor_inertia = 1e-4;
+  p.load_inertia = 0.5;
+  p.motor_friction = 1e-4;
+  p.load_friction = 0.5;
+  p.gear_ratio = 0.01;
+  p.backlash = 0.005;
+  p.gain = 6.0;
+  p.mesh_stiffness = 8.6e4;
+  p.mesh_damping = 20.0;
+  return p;
+}
+
 /// Keeps every event.
 struct Recorder : backlash_servo::EventSink
 {
