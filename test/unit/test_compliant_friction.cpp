@@ -17,14 +17,7 @@ namespace
 {
 using namespace backlash_servo;
 
-/// Thesis D1 (J_m = 0.1, J_L = 0.9, f_m = 0.48, f_L = 0.32, ρ = 1) with a compliant mesh c = 1e4 N·m/rad.
-ServoParams compliantD1()
-{
-  ServoParams p;
-  p.mesh_stiffness = 1e4;
-  p.mesh_damping = 4.461305825858438;
-  return p;
-}
+using test_helpers::compliantD1;
 
 struct Seen
 {

@@ -21,15 +21,7 @@ namespace
 {
 using namespace backlash_servo;
 
-/// Thesis D1 with a compliant mesh: c = 1e4 N·m/rad, d for a contact damping ratio of e = 0.8's (the reference case
-/// sd_c1e4_e08_D1 of test_compliant_joint.cpp).
-ServoParams compliantD1()
-{
-  ServoParams p;
-  p.mesh_stiffness = 1e4;
-  p.mesh_damping = 4.461305825858438;
-  return p;
-}
+using test_helpers::compliantD1;
 
 struct Collect : EventSink
 {

@@ -29,6 +29,16 @@ inline backlash_servo::ServoParams chart(double zeta, double inertia_ratio, doub
   return c.toServoParams();
 }
 
+/// Thesis D1 with a compliant mesh: c = 1e4 N·m/rad, d for a contact damping ratio of e = 0.8's (the reference case
+/// sd_c1e4_e08_D1 of test_compliant_joint.cpp).
+inline backlash_servo::ServoParams compliantD1()
+{
+  backlash_servo::ServoParams p;
+  p.mesh_stiffness = 1e4;
+  p.mesh_damping = 4.461305825858438;
+  return p;
+}
+
 /// The robot joint of config/compare_compliant.yaml: 100:1 gear, 5 mrad backlash at the load, a harmonic drive's mesh
 /// stiffness (c = 8.6e4 N·m/rad, d = 20 N·m·s/rad), viscous friction only, K = 6 N·m/rad.
 inline backlash_servo::ServoParams compliantRobotJoint()
