@@ -34,6 +34,118 @@ std::complex<double> backlashDescribingFunction(double amplitude, double backlas
   return {real, imag};
 }
 
+namespace
+{
+/// The A > Δ/2 with |N(A)| = magnitude (0 < magnitude < 1), by bisection on the monotone |N|.
+double amplitudeFor(double magnitude, double backlash)
+{
+  double lo = 0.5 * backlash, hi = backlash;
+  while (std::abs(backlashDescribingFunction(hi, backlash)) < magnitude)
+  {
+    lo = hi;
+    hi *= 2.0;
+    if (!std::isfinite(hi))
+    {
+      return hi;
+    }
+  }
+  for (int i = 0; i < 200; ++i)
+  {
+    const double mid = 0.5 * (lo + hi);
+    if (!(mid > lo && mid < hi))
+    {
+      break;
+    }
+    (std::abs(backlashDescribingFunction(mid, backlash)) < magnitude ? lo : hi) = mid;
+  }
+  return 0.5 * (lo + hi);
+}
+
+/// At a frequency: the amplitude the balance's magnitude asks for and the phase mismatch arg N(A) − arg N* (wrapped
+/// to (−π, π]); `ok` false where no amplitude fits (|N*| ≥ 1 or 0).
+struct Mismatch
+{
+  bool ok = false;
+  double amplitude = 0.0, phase = 0.0;
+};
+Mismatch mismatch(const std::function<std::complex<double>(double)>& g, double backlash, double omega)
+{
+  Mismatch m;
+  const std::complex<double> wanted = -1.0 / g(omega);
+  const double magnitude = std::abs(wanted);
+  if (!(magnitude > 0.0 && magnitude < 1.0) || !std::isfinite(magnitude))
+  {
+    return m;
+  }
+  m.amplitude = amplitudeFor(magnitude, backlash);
+  m.phase = std::arg(backlashDescribingFunction(m.amplitude, backlash) / wanted);
+  m.ok = std::isfinite(m.amplitude);
+  return m;
+}
+}  // namespace
+
+std::vector<HarmonicBalance> backlashHarmonicBalance(const std::function<std::complex<double>(double)>& g,
+                                                     double backlash, double omega_lo, double omega_hi, int points)
+{
+  if (!std::isfinite(backlash) || !(backlash > 0.0))
+  {
+    throw InvalidParameterError("backlash", formatNumber(backlash) + ": must be > 0 and finite [rad]");
+  }
+  if (!std::isfinite(omega_lo) || !std::isfinite(omega_hi) || !(omega_lo > 0.0) || !(omega_hi > omega_lo) || points < 2)
+  {
+    throw InvalidParameterError("frequency", "the range " + formatNumber(omega_lo) + " … " + formatNumber(omega_hi) +
+                                                 " rad/s must satisfy 0 < low < high, finite, with 2 points or more");
+  }
+  std::vector<HarmonicBalance> out;
+  const double ratio = std::pow(omega_hi / omega_lo, 1.0 / (points - 1));
+  double w_prev = omega_lo;
+  Mismatch prev = mismatch(g, backlash, w_prev);
+  for (int i = 1; i < points; ++i)
+  {
+    const double w = i == points - 1 ? omega_hi : omega_lo * std::pow(ratio, i);
+    const Mismatch here = mismatch(g, backlash, w);
+    // A sign change of the mismatch away from its wrap at ±π is a solution.
+    if (prev.ok && here.ok && (prev.phase <= 0.0) != (here.phase <= 0.0) &&
+        std::fabs(prev.phase - here.phase) < 3.14159265358979323846)
+    {
+      double lo = w_prev, hi = w;
+      const bool rising = here.phase > prev.phase;
+      for (int k = 0; k < 200; ++k)
+      {
+        const double mid = std::sqrt(lo * hi);
+        if (!(mid > lo && mid < hi))
+        {
+          break;
+        }
+        const Mismatch m = mismatch(g, backlash, mid);
+        if (!m.ok)
+        {
+          break;
+        }
+        ((m.phase > 0.0) == rising ? hi : lo) = mid;
+      }
+      const double omega = std::sqrt(lo * hi);
+      const Mismatch m = mismatch(g, backlash, omega);
+      if (m.ok)
+      {
+        HarmonicBalance h;
+        h.amplitude = m.amplitude;
+        h.frequency = omega;
+        // Loeb: F(A, ω) = G(jω)N(A) + 1, central differences.
+        const double da = 1e-6 * h.amplitude, dw = 1e-6 * omega;
+        const auto f = [&](double a, double w2) { return g(w2) * backlashDescribingFunction(a, backlash) + 1.0; };
+        const std::complex<double> fa = (f(h.amplitude + da, omega) - f(h.amplitude - da, omega)) / (2.0 * da);
+        const std::complex<double> fw = (f(h.amplitude, omega + dw) - f(h.amplitude, omega - dw)) / (2.0 * dw);
+        h.stable = fa.real() * fw.imag() - fw.real() * fa.imag() > 0.0;
+        out.push_back(h);
+      }
+    }
+    prev = here;
+    w_prev = w;
+  }
+  return out;
+}
+
 double deadZoneDescribingFunction(double amplitude, double half_width)
 {
   requireLength("amplitude", amplitude);

@@ -5,6 +5,7 @@
 
 #include <cmath>
 #include <complex>
+#include <vector>
 
 #include "backlash_servo/describing_function.h"
 #include "backlash_servo/params.h"
@@ -87,6 +88,66 @@ TEST(DescribingFunction, DeadZoneIsItsFundamental)
   EXPECT_EQ(deadZoneDescribingFunction(delta, delta), 0.0);
 }
 
+// Harmonic balance on a second-order type-1 loop against its closed form: the motor J θ̈ + f θ̇ = K e drives the
+// backlash element, whose output is fed back, G(s) = ρK/(J s² + f s). Its phase −π/2 − atan(Jω/f) and the DF's give
+// ω(A) = (f/J)(−N_R/N_I) on the balance; the magnitude then leaves one equation in A, m(A) = ρK|N(A)| −
+// ω√(J²ω² + f²) = 0, solved here by a scan and bisection. A cycle is stable where m falls through zero (a larger
+// amplitude makes the loop's gain at the phase crossover fall below 1).
+TEST(DescribingFunction, HarmonicBalanceOfATypeOneLoopHasItsClosedForm)
+{
+  const double j = 0.1, f = 0.48, rho = 1.0, k = 20.0, backlash = 0.3, d = 0.5 * backlash;
+  const auto omega_of = [&](double a) {
+    const std::complex<double> n = backlashDescribingFunction(a, backlash);
+    return f / j * (-n.real() / n.imag());
+  };
+  const auto m = [&](double a) {
+    const double w = omega_of(a);
+    return rho * k * std::abs(backlashDescribingFunction(a, backlash)) - w * std::sqrt(j * j * w * w + f * f);
+  };
+  struct Root
+  {
+    double a, w;
+    bool stable;
+  };
+  std::vector<Root> exact;
+  double prev_a = d * (1.0 + 1e-9), prev_m = m(prev_a);
+  for (int i = 1; i <= 20000; ++i)
+  {
+    const double a = d * (1.0 + std::pow(10.0, -9.0 + i * 0.0006));
+    const double here = m(a);
+    if ((here > 0.0) != (prev_m > 0.0))
+    {
+      double lo = prev_a, hi = a;
+      for (int it = 0; it < 200; ++it)
+      {
+        const double mid = 0.5 * (lo + hi);
+        ((m(mid) > 0.0) == (prev_m > 0.0) ? lo : hi) = mid;
+      }
+      exact.push_back({lo, omega_of(lo), here < prev_m});
+    }
+    prev_a = a;
+    prev_m = here;
+  }
+  ASSERT_EQ(exact.size(), 2u);  // an unstable cycle just beyond the free play and a stable one
+  EXPECT_FALSE(exact[0].stable);
+  EXPECT_TRUE(exact[1].stable);
+
+  const auto g = [&](double w) { return rho * k / std::complex<double>(-j * w * w, f * w); };
+  const std::vector<HarmonicBalance> found = backlashHarmonicBalance(g, backlash, 1e-3, 1e3);
+  ASSERT_EQ(found.size(), 2u);
+  // (The solver's order is by frequency: the small cycle is the slow one.)
+  for (std::size_t i = 0; i < 2; ++i)
+  {
+    SCOPED_TRACE(i);
+    EXPECT_NEAR(found[i].amplitude, exact[i].a, 1e-9 * exact[i].a);
+    EXPECT_NEAR(found[i].frequency, exact[i].w, 1e-7 * exact[i].w);
+    EXPECT_EQ(found[i].stable, exact[i].stable);
+  }
+  // A gain too low for a cycle: none.
+  const auto weak = [&](double w) { return rho * 2.0 / std::complex<double>(-j * w * w, f * w); };
+  EXPECT_TRUE(backlashHarmonicBalance(weak, backlash, 1e-3, 1e3).empty());
+}
+
 TEST(DescribingFunction, BadInputIsNamed)
 {
   const auto field = [](auto call) {
@@ -104,6 +165,9 @@ TEST(DescribingFunction, BadInputIsNamed)
   EXPECT_EQ(field([] { backlashDescribingFunction(1.0, NAN); }), "backlash");
   EXPECT_EQ(field([] { deadZoneDescribingFunction(INFINITY, 0.1); }), "amplitude");
   EXPECT_EQ(field([] { deadZoneDescribingFunction(1.0, -0.1); }), "half_width");
+  const auto one = [](double) { return std::complex<double>(-2.0, 0.0); };
+  EXPECT_EQ(field([&] { backlashHarmonicBalance(one, 0.0, 1.0, 10.0); }), "backlash");
+  EXPECT_EQ(field([&] { backlashHarmonicBalance(one, 0.3, 10.0, 1.0); }), "frequency");
 }
 
 }  // namespace
