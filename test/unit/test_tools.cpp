@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <sstream>
 
+#include "backlash_servo/describing_function.h"
 #include "test_helpers.h"
 
 #include <sys/stat.h>
@@ -11,6 +12,7 @@
 #include <unistd.h>
 
 #include <cmath>
+#include <complex>
 #include <csignal>
 #include <cstdio>
 #include <fstream>
@@ -73,6 +75,7 @@ const std::string SWEEP = BACKLASH_SWEEP_EXE;
 const std::string SIM = BACKLASH_SIM_EXE;
 const std::string DESIGN = BACKLASH_DESIGN_EXE;
 const std::string COMPARE = BACKLASH_COMPARE_EXE;
+const std::string DF = BACKLASH_DF_EXE;
 const std::string GRID = " --zeta 0.3,0.6 --inertia-ratio 1,9 --friction-ratio 0.4 --restitution 0,0.6,1";
 }  // namespace
 
@@ -824,4 +827,114 @@ TEST(Design, SearchRangesOutsideAKeysRangeAreRefusedNeverAborted)
                                      &code);
   EXPECT_EQ(code, 0) << out;
   EXPECT_EQ(out.find("1e+15"), std::string::npos) << out;
+}
+
+// backlash_df's classical prediction is the harmonic balance of the thesis' linear servo x'' + 2ζω_n x' = ω_n²(θ_R −
+// θ_c) with the backlash as hysteresis: on it ω(A) = 2ζω_n(−N_R/N_I) and the magnitude leaves |N(A)| ω_n² =
+// ω√(ω² + 4ζ²ω_n²), solved here by a scan. Its simulated cycle is backlash_sim's: the frequency is 2π over the run's
+// period, and the amplitude is the fundamental of ρθ_m over the last period of backlash_sim's own CSV samples.
+TEST(DescribingFunctionTool, PredictsByHarmonicBalanceAndMeasuresTheExactCycle)
+{
+  const std::string joint = " --zeta 0.1 --inertia-ratio 9 --friction-ratio 0.4 --restitution 1 --backlash 0.3";
+  int code = 0;
+  const std::string json = runCapture(DF + joint + " --json", &code);
+  ASSERT_EQ(code, 0) << json;
+  // The closed-form balance (ω_n = 1).
+  const double zeta = 0.1, backlash = 0.3;
+  const auto omega_of = [&](double a) {
+    const std::complex<double> n = backlash_servo::backlashDescribingFunction(a, backlash);
+    return 2.0 * zeta * (-n.real() / n.imag());
+  };
+  const auto m = [&](double a) {
+    const double w = omega_of(a);
+    return std::abs(backlash_servo::backlashDescribingFunction(a, backlash)) - w * std::sqrt(w * w + 4 * zeta * zeta);
+  };
+  std::vector<std::pair<double, bool>> roots;  // amplitude, stable
+  double prev_a = 0.15 * (1.0 + 1e-9), prev_m = m(prev_a);
+  for (int i = 1; i <= 20000; ++i)
+  {
+    const double a = 0.15 * (1.0 + std::pow(10.0, -9.0 + i * 0.0006));
+    const double here = m(a);
+    if ((here > 0.0) != (prev_m > 0.0))
+    {
+      double lo = prev_a, hi = a;
+      for (int it = 0; it < 200; ++it)
+      {
+        const double mid = 0.5 * (lo + hi);
+        ((m(mid) > 0.0) == (prev_m > 0.0) ? lo : hi) = mid;
+      }
+      roots.push_back({lo, here < prev_m});
+    }
+    prev_a = a;
+    prev_m = here;
+  }
+  ASSERT_EQ(roots.size(), 2u);
+  const std::regex prediction("\\{\"amplitude\":([0-9.eE+-]+),\"frequency\":([0-9.eE+-]+),\"stable\":(true|false)");
+  std::vector<std::smatch> found;
+  for (std::sregex_iterator it(json.begin(), json.end(), prediction), end; it != end; ++it)
+  {
+    found.push_back(*it);
+  }
+  ASSERT_EQ(found.size(), 2u) << json;
+  for (std::size_t i = 0; i < 2; ++i)
+  {
+    EXPECT_NEAR(std::stod(found[i][1]), roots[i].first, 1e-8);
+    EXPECT_NEAR(std::stod(found[i][2]), omega_of(roots[i].first), 1e-6);
+    EXPECT_EQ(found[i][3] == "true", roots[i].second);
+  }
+  // The simulated cycle against backlash_sim's run of the same joint.
+  const std::string csv_path = testing::TempDir() + "backlash_df_cycle.csv";
+  const std::string sim = runCapture(SIM + joint + " --json --sample-rate 2000 --csv " + csv_path, &code);
+  ASSERT_EQ(code, 0) << sim;
+  ASSERT_EQ(jsonText(sim, "verdict"), "limit_cycle");
+  const double period = jsonNumber(sim, "period"), end = jsonNumber(sim, "simulated_time");
+  EXPECT_EQ(jsonText(json, "verdict"), "limit_cycle");
+  EXPECT_NEAR(jsonNumber(json.substr(json.find("\"simulated\"")), "frequency"), 2.0 * 3.14159265358979 / period, 1e-9);
+  std::ifstream in(csv_path);
+  std::string line;
+  std::getline(in, line);
+  double b1 = 0.0, a1 = 0.0, count = 0.0;
+  while (std::getline(in, line))
+  {
+    std::vector<std::string> cells;
+    std::stringstream row(line);
+    for (std::string cell; std::getline(row, cell, ',');)
+    {
+      cells.push_back(cell);
+    }
+    if (cells.size() < 9 || (cells.size() > 9 && !cells[9].empty()))
+    {
+      continue;  // an event row (a sample row ends with an empty event cell)
+    }
+    const double t = std::stod(cells[0]);
+    if (t < end - period || t >= end)
+    {
+      continue;
+    }
+    const double theta = 2.0 * 3.14159265358979 * t / period;
+    b1 += std::stod(cells[3]) * std::sin(theta);  // ρ = 1: the backlash input is θ_m
+    a1 += std::stod(cells[3]) * std::cos(theta);
+    ++count;
+  }
+  ASSERT_GT(count, 1000.0);
+  const double amplitude = 2.0 / count * std::hypot(a1, b1);
+  EXPECT_NEAR(jsonNumber(json.substr(json.find("\"simulated\"")), "amplitude"), amplitude, 2e-3 * amplitude);
+  std::remove(csv_path.c_str());
+}
+
+// D1 (ζ = 0.4) limit-cycles, yet the classical DF predicts no cycle: said, not hidden; other laws are refused.
+TEST(DescribingFunctionTool, SaysWhenTheClassicalDfSeesNoCycleAndRefusesOtherLaws)
+{
+  int code = 0;
+  const std::string json =
+      runCapture(DF + " --config " + std::string(SOURCE_DIR) + "/config/thesis_limit_cycle.yaml --json", &code);
+  ASSERT_EQ(code, 0) << json;
+  EXPECT_NE(json.find("\"predictions\":[]"), std::string::npos) << json;
+  EXPECT_EQ(jsonText(json, "verdict"), "limit_cycle");
+  const std::string digital = runCapture(DF + " --controller-rate 100 2>&1", &code);
+  EXPECT_EQ(code, 2);
+  EXPECT_NE(digital.find("continuous P law"), std::string::npos) << digital;
+  const std::string none = runCapture(DF + " --backlash 0 2>&1", &code);
+  EXPECT_EQ(code, 2);
+  EXPECT_NE(none.find("--backlash"), std::string::npos) << none;
 }

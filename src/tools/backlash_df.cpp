@@ -1,0 +1,219 @@
+// backlash_df: the describing-function prediction of the joint's limit cycle beside the exact simulation.
+// See docs/describing_function.md.
+#include <cmath>
+#include <complex>
+#include <cstdio>
+#include <iostream>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "backlash_servo/config/flag_parser.h"
+#include "backlash_servo/config/run_config_loader.h"
+#include "backlash_servo/describing_function.h"
+#include "backlash_servo/simulator.h"
+#include "json_writer.h"
+#include "safe_output.h"
+
+using namespace backlash_servo;
+
+namespace
+{
+const char* HEADER =
+    R"(usage: backlash_df [--config FILE.yaml] [any servo or initial-state flag] [--command THETA_R] [--json]
+Predicts the joint's limit cycle by harmonic balance with the classical describing function of backlash (hysteresis
+in the feedback of the linear servo G(s) = w_n²/(s² + 2 zeta w_n s)) — every intersection with its stability — and
+simulates the joint exactly beside it: the cycle's amplitude (fundamental of the backlash input rho*theta_m about
+its centre), peak and frequency, and the error of each prediction. The continuous P law (the thesis' loop) only.
+SI units: amplitudes in rad, frequencies in rad/s.
+)";
+
+constexpr double PI = 3.14159265358979323846;
+constexpr int CYCLE_SAMPLES = 4096;
+
+struct Options
+{
+  RunConfig config;
+  bool json = false;
+};
+
+Options parse(int argc, char** argv)
+{
+  FlagParser parser("backlash_df", HEADER,
+                    keysOfSections({ParamSection::Servo, ParamSection::Chart, ParamSection::Drive,
+                                    ParamSection::Initial, ParamSection::Run}),
+                    {{"config", "FILE.yaml", "the joint's keys in snake_case (flags override it)"},
+                     {"json", "", "one JSON object on stdout"}});
+  parser.parse(argc, argv);
+  Options o;
+  o.config = runConfigFrom(parser.keys());
+  o.json = parser.given("json");
+  if (!o.config.drive.thesisLaw() || o.config.profile)
+  {
+    throw ConfigError(
+        "backlash_df analyses the continuous P law with a constant command (no controller_rate, "
+        "torque_limit, compensation or profile)");
+  }
+  if (!(o.config.params.backlash > 0.0))
+  {
+    throw ConfigError("--backlash must be > 0: without backlash there is no describing function to balance");
+  }
+  return o;
+}
+
+/// The exact cycle: the fundamental of ρθ_m over one period after the run's verdict.
+struct SimulatedCycle
+{
+  Verdict verdict = Verdict::Undecided;
+  double amplitude = NAN, peak = NAN, frequency = NAN, centre = NAN;
+  double simulated = 0.0;  // [s]
+};
+
+SimulatedCycle simulate(const RunConfig& config)
+{
+  SimulatedCycle c;
+  RunConfig run = config;
+  run.track_energy = false;
+  const RunSummary r = runResponse(run);
+  c.verdict = r.status.verdict;
+  c.simulated = r.simulated;
+  if (r.status.verdict != Verdict::LimitCycle || !(r.status.period > 0.0))
+  {
+    return c;
+  }
+  // One more period from the settled state, sampled evenly: the continuous law's state is the plant's.
+  const double period = r.status.period, rho = config.params.gear_ratio;
+  Simulator sim(config.params, r.final_state, config.command);
+  const double t0 = r.final_state.time;
+  std::vector<double> x(CYCLE_SAMPLES);
+  for (int k = 0; k < CYCLE_SAMPLES; ++k)
+  {
+    sim.advanceTo(t0 + period * k / CYCLE_SAMPLES);
+    x[static_cast<std::size_t>(k)] = rho * sim.state().motor_position;
+  }
+  double mean = 0.0, b1 = 0.0, a1 = 0.0;
+  for (int k = 0; k < CYCLE_SAMPLES; ++k)
+  {
+    const double theta = 2.0 * PI * k / CYCLE_SAMPLES, v = x[static_cast<std::size_t>(k)];
+    mean += v;
+    b1 += v * std::sin(theta);
+    a1 += v * std::cos(theta);
+  }
+  c.centre = mean / CYCLE_SAMPLES;
+  c.amplitude = 2.0 / CYCLE_SAMPLES * std::hypot(a1, b1);
+  c.peak = 0.0;
+  for (double v : x)
+  {
+    c.peak = std::max(c.peak, std::fabs(v - c.centre));
+  }
+  c.frequency = 2.0 * PI / period;
+  return c;
+}
+
+void report(const Options& o, const std::vector<HarmonicBalance>& predictions, const SimulatedCycle& sim)
+{
+  const ServoParams& p = o.config.params;
+  const bool cycle = sim.verdict == Verdict::LimitCycle && std::isfinite(sim.amplitude);
+  if (o.json)
+  {
+    std::ostringstream out;
+    JsonWriter w(out);
+    w.beginObject();
+    w.field("zeta", p.dampingRatio());
+    w.field("natural_frequency", p.naturalFrequency());
+    w.field("backlash", p.backlash);
+    w.beginArray("predictions");
+    for (const HarmonicBalance& h : predictions)
+    {
+      w.beginObject();
+      w.field("amplitude", h.amplitude);
+      w.field("frequency", h.frequency);
+      w.field("stable", h.stable);
+      w.field("method", std::string("classical"));
+      w.field("amplitude_error", cycle && h.stable ? h.amplitude / sim.amplitude - 1.0 : NAN);
+      w.field("frequency_error", cycle && h.stable ? h.frequency / sim.frequency - 1.0 : NAN);
+      w.endObject();
+    }
+    w.endArray();
+    w.beginObject("simulated");
+    w.field("verdict", std::string(toString(sim.verdict)));
+    w.field("amplitude", sim.amplitude);
+    w.field("peak", sim.peak);
+    w.field("frequency", sim.frequency);
+    w.field("centre", sim.centre);
+    w.field("simulated_time", sim.simulated);
+    w.endObject();
+    w.endObject();
+    std::cout << out.str() << "\n";
+    return;
+  }
+  char buf[400];
+  std::snprintf(buf, sizeof buf,
+                "loop: zeta = %.4g, w_n = %.4g rad/s, backlash %.4g rad (classical DF: hysteresis in the feedback of "
+                "the linear servo)\n",
+                p.dampingRatio(), p.naturalFrequency(), p.backlash);
+  std::cout << buf;
+  if (predictions.empty())
+  {
+    std::cout << "predicted: no limit cycle (G(jw) never meets -1/N(A))\n";
+  }
+  for (const HarmonicBalance& h : predictions)
+  {
+    std::snprintf(buf, sizeof buf, "predicted (classical): %s cycle, amplitude %.6g rad, frequency %.6g rad/s",
+                  h.stable ? "stable" : "unstable", h.amplitude, h.frequency);
+    std::cout << buf;
+    if (cycle && h.stable)
+    {
+      std::snprintf(buf, sizeof buf, " (%+.1f %% amplitude, %+.1f %% frequency against the exact cycle)",
+                    100.0 * (h.amplitude / sim.amplitude - 1.0), 100.0 * (h.frequency / sim.frequency - 1.0));
+      std::cout << buf;
+    }
+    std::cout << "\n";
+  }
+  if (cycle)
+  {
+    std::snprintf(buf, sizeof buf,
+                  "simulated: limit cycle, amplitude %.6g rad (fundamental of rho*theta_m about %.6g rad), peak "
+                  "%.6g rad, frequency %.6g rad/s\n",
+                  sim.amplitude, sim.centre, sim.peak, sim.frequency);
+  }
+  else
+  {
+    std::snprintf(buf, sizeof buf, "simulated: %s after %.6g s (no cycle to compare)\n", toString(sim.verdict),
+                  sim.simulated);
+  }
+  std::cout << buf;
+}
+
+}  // namespace
+
+int main(int argc, char** argv)
+{
+  Options o;
+  try
+  {
+    o = parse(argc, argv);
+  }
+  catch (const std::exception& e)
+  {
+    std::cerr << "backlash_df: error: " << e.what() << "\n";
+    return 2;
+  }
+  try
+  {
+    const ServoParams& p = o.config.params;
+    const double wn = p.naturalFrequency(), zeta = p.dampingRatio();
+    // The linear servo seen by the backlash: x = ρθ_m driven by the error, x'' + 2ζω_n x' = ω_n²(θ_R − θ_c).
+    const auto g = [&](double w) { return wn * wn / std::complex<double>(-w * w, 2.0 * zeta * wn * w); };
+    const std::vector<HarmonicBalance> predictions = backlashHarmonicBalance(g, p.backlash, 1e-4 * wn, 1e4 * wn);
+    const SimulatedCycle sim = simulate(o.config);
+    report(o, predictions, sim);
+    flushStdout();
+  }
+  catch (const std::exception& e)
+  {
+    std::cerr << "backlash_df: error: " << e.what() << "\n";
+    return 1;
+  }
+  return 0;
+}
