@@ -9,6 +9,7 @@
 #include <csignal>
 #include <cstdio>
 #include <cstring>
+#include <fstream>
 #include <iostream>
 #include <stdexcept>
 
@@ -350,6 +351,17 @@ void removeTemporariesOnSignals()
     sigemptyset(&sa.sa_mask);
     ::sigaction(sig, &sa, nullptr);
   }
+}
+
+void copyFileInto(const std::string& from, SafeOutput& to)
+{
+  std::ifstream in(from, std::ios::binary);
+  if (!in)
+  {
+    throw std::runtime_error(to.flag() + ": the chart script wrote no '" + from + "'");
+  }
+  to.stream() << in.rdbuf();
+  to.commit();
 }
 
 void flushStdout()

@@ -57,6 +57,8 @@ class SafeOutput
   void discard();
   const std::string& path() const { return path_; }
   const std::string& temporaryPath() const { return tmp_; }
+  /// The flag it was opened for (for messages).
+  const std::string& flag() const { return flag_; }
 
  private:
   std::string flag_;
@@ -93,5 +95,9 @@ void removeTemporariesOnSignals();
 
 /// Flushes stdout; throws std::runtime_error when writing it failed (closed pipe, /dev/full).
 void flushStdout();
+
+/// Copies a finished file (a chart a helper script drew in a private directory) into `to` and commits it. Throws
+/// std::runtime_error naming `to`'s flag when `from` is missing or the write fails.
+void copyFileInto(const std::string& from, SafeOutput& to);
 
 }  // namespace backlash_servo

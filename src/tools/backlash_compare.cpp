@@ -158,13 +158,7 @@ namespace
 /// Copies a finished file into a SafeOutput (checked writes, then commit).
 void copyInto(const std::string& from, SafeOutput& to)
 {
-  std::ifstream in(from, std::ios::binary);
-  if (!in)
-  {
-    throw std::runtime_error("--png: the chart script wrote no '" + from + "'");
-  }
-  to.stream() << in.rdbuf();
-  to.commit();
+  copyFileInto(from, to);
   std::cerr << "backlash_compare: wrote " << to.path() << "\n";
 }
 

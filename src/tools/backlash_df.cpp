@@ -3,7 +3,10 @@
 #include <cmath>
 #include <complex>
 #include <cstdio>
+#include <fstream>
+#include <functional>
 #include <iostream>
+#include <memory>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -13,6 +16,7 @@
 #include "backlash_servo/describing_function.h"
 #include "backlash_servo/simulator.h"
 #include "json_writer.h"
+#include "run_program.h"
 #include "safe_output.h"
 
 using namespace backlash_servo;
@@ -21,6 +25,7 @@ namespace
 {
 const char* HEADER =
     R"(usage: backlash_df [--config FILE.yaml] [any servo or initial-state flag] [--command THETA_R] [--json]
+                  [--png FILE.png]
 Predicts the joint's limit cycle by harmonic balance with the classical describing function of backlash (hysteresis
 in the feedback of the linear servo G(s) = w_n²/(s² + 2 zeta w_n s)) — every intersection with its stability — and
 simulates the joint exactly beside it: the cycle's amplitude (fundamental of the backlash input rho*theta_m about
@@ -35,6 +40,7 @@ struct Options
 {
   RunConfig config;
   bool json = false;
+  std::string config_path, png_path;
 };
 
 Options parse(int argc, char** argv)
@@ -43,11 +49,18 @@ Options parse(int argc, char** argv)
                     keysOfSections({ParamSection::Servo, ParamSection::Chart, ParamSection::Drive,
                                     ParamSection::Initial, ParamSection::Run}),
                     {{"config", "FILE.yaml", "the joint's keys in snake_case (flags override it)"},
-                     {"json", "", "one JSON object on stdout"}});
+                     {"json", "", "one JSON object on stdout"},
+                     {"png", "FILE.png", "the Nyquist chart: G(jw), -1/N(A), the predictions and the exact cycle"}});
   parser.parse(argc, argv);
   Options o;
   o.config = runConfigFrom(parser.keys());
   o.json = parser.given("json");
+  o.config_path = parser.option("config");
+  o.png_path = parser.option("png");
+  if (parser.given("png") && (o.png_path.size() < 5 || o.png_path.compare(o.png_path.size() - 4, 4, ".png") != 0))
+  {
+    throw ConfigError("--png: '" + o.png_path + "' must end in .png");
+  }
   if (!o.config.drive.thesisLaw() || o.config.profile)
   {
     throw ConfigError(
@@ -108,6 +121,73 @@ SimulatedCycle simulate(const RunConfig& config)
   }
   c.frequency = 2.0 * PI / period;
   return c;
+}
+
+/// The chart's data to a private directory, drawn there by df_chart.py (run without a shell), then moved into place
+/// through the safe-write path.
+void drawChart(const std::function<std::complex<double>(double)>& g, double wn, double backlash,
+               const std::vector<HarmonicBalance>& predictions, const SimulatedCycle& sim, const std::string& script,
+               SafeOutput& png)
+{
+  TemporaryDirectory dir("backlash_df");
+  {
+    std::ofstream nyquist(dir.file("nyquist.csv")), locus(dir.file("locus.csv")), points(dir.file("points.csv"));
+    nyquist.precision(10);
+    locus.precision(10);
+    points.precision(10);
+    nyquist << "frequency,re,im\n";
+    for (int i = 0; i <= 2000; ++i)
+    {
+      const double w = wn * std::pow(10.0, -3.0 + 6.0 * i / 2000.0);
+      const std::complex<double> z = g(w);
+      if (std::abs(z) < 1e3)
+      {
+        nyquist << w << "," << z.real() << "," << z.imag() << "\n";
+      }
+    }
+    locus << "amplitude,re,im\n";
+    for (int i = 0; i <= 2000; ++i)
+    {
+      const double a = 0.5 * backlash * (1.0 + std::pow(10.0, -6.0 + 9.0 * i / 2000.0));
+      const std::complex<double> z = -1.0 / backlashDescribingFunction(a, backlash);
+      if (std::abs(z) < 1e3)
+      {
+        locus << a << "," << z.real() << "," << z.imag() << "\n";
+      }
+    }
+    points << "kind,amplitude,frequency,re,im\n";
+    for (const HarmonicBalance& h : predictions)
+    {
+      const std::complex<double> z = g(h.frequency);
+      points << (h.stable ? "stable" : "unstable") << "," << h.amplitude << "," << h.frequency << "," << z.real() << ","
+             << z.imag() << "\n";
+    }
+    if (std::isfinite(sim.amplitude) && sim.amplitude > 0.5 * backlash)
+    {
+      const std::complex<double> z = -1.0 / backlashDescribingFunction(sim.amplitude, backlash);
+      points << "simulated_locus," << sim.amplitude << "," << sim.frequency << "," << z.real() << "," << z.imag()
+             << "\n";
+    }
+    if (std::isfinite(sim.frequency))
+    {
+      const std::complex<double> z = g(sim.frequency);
+      points << "simulated_nyquist," << sim.amplitude << "," << sim.frequency << "," << z.real() << "," << z.imag()
+             << "\n";
+    }
+    if (!nyquist.flush() || !locus.flush() || !points.flush())
+    {
+      throw std::runtime_error("--png: writing the chart data to '" + dir.path() + "' failed (disk full?)");
+    }
+  }
+  const std::string tmp = dir.file("chart.png");
+  const int status = runProgram({"/usr/bin/python3", script, dir.path(), tmp});
+  if (status != 0)
+  {
+    throw std::runtime_error("--png: the chart script " + script + " failed (exit status " + std::to_string(status) +
+                             ")");
+  }
+  copyFileInto(tmp, png);
+  std::cerr << "backlash_df: wrote " << png.path() << "\n";
 }
 
 void report(const Options& o, const std::vector<HarmonicBalance>& predictions, const SimulatedCycle& sim)
@@ -190,9 +270,17 @@ void report(const Options& o, const std::vector<HarmonicBalance>& predictions, c
 int main(int argc, char** argv)
 {
   Options o;
+  std::unique_ptr<SafeOutput> png;
+  std::string chart_script;
   try
   {
     o = parse(argc, argv);
+    if (!o.png_path.empty())
+    {
+      // The output is checked and its temporary created before the run.
+      png = std::make_unique<SafeOutput>("--png", o.png_path, std::vector<std::string>{o.config_path});
+      chart_script = helperBesideExecutable("df_chart.py");
+    }
   }
   catch (const std::exception& e)
   {
@@ -207,6 +295,10 @@ int main(int argc, char** argv)
     const auto g = [&](double w) { return wn * wn / std::complex<double>(-w * w, 2.0 * zeta * wn * w); };
     const std::vector<HarmonicBalance> predictions = backlashHarmonicBalance(g, p.backlash, 1e-4 * wn, 1e4 * wn);
     const SimulatedCycle sim = simulate(o.config);
+    if (png)
+    {
+      drawChart(g, wn, p.backlash, predictions, sim, chart_script, *png);
+    }
     report(o, predictions, sim);
     flushStdout();
   }

@@ -937,4 +937,17 @@ TEST(DescribingFunctionTool, SaysWhenTheClassicalDfSeesNoCycleAndRefusesOtherLaw
   const std::string none = runCapture(DF + " --backlash 0 2>&1", &code);
   EXPECT_EQ(code, 2);
   EXPECT_NE(none.find("--backlash"), std::string::npos) << none;
+  // --png: a PNG (its signature) through the safe-write path; any other name refused before the run.
+  const std::string png = testing::TempDir() + "backlash_df_chart.png";
+  std::remove(png.c_str());
+  runCapture(DF + " --zeta 0.1 --inertia-ratio 1 --friction-ratio 0.4 --restitution 0 --png " + png + " 2>&1", &code);
+  ASSERT_EQ(code, 0);
+  std::ifstream chart(png, std::ios::binary);
+  char signature[8] = {};
+  chart.read(signature, 8);
+  EXPECT_EQ(std::string(signature + 1, 3), "PNG");
+  std::remove(png.c_str());
+  const std::string txt = runCapture(DF + " --png chart.txt 2>&1", &code);
+  EXPECT_EQ(code, 2);
+  EXPECT_NE(txt.find("must end in .png"), std::string::npos) << txt;
 }
