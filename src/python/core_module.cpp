@@ -3,6 +3,8 @@
 // metrics of `backlash_compare`, and Simulator steps a joint from Python. Configurations are the YAML keys (a dict,
 // or a path to a YAML file); errors are Python exceptions carrying the tools' one-line message. The GIL is released
 // while the core computes. See docs/python.md.
+#include <pybind11/complex.h>
+#include <pybind11/functional.h>
 #include <pybind11/numpy.h>
 #include <pybind11/pybind11.h>
 #include <pybind11/stl.h>
@@ -24,6 +26,7 @@
 #include "backlash_servo/config/key_values.h"
 #include "backlash_servo/config/run_config_loader.h"
 #include "backlash_servo/config/safe_input.h"
+#include "backlash_servo/describing_function.h"
 #include "backlash_servo/drive.h"
 #include "backlash_servo/gear_mesh.h"
 #include "backlash_servo/param_table.h"
@@ -422,6 +425,30 @@ PYBIND11_MODULE(core, m)
         "The same sweep as `backlash_sweep`'s CSV text.");
   m.def("compare", &compare, py::arg("path"), py::kw_only(), py::arg("jobs") = 0,
         "The compensation workbench (`backlash_compare --config PATH`): one dict of metrics per strategy.");
+  m.def("backlash_df", &backlashDescribingFunction, py::arg("amplitude"), py::arg("backlash"),
+        "The classical describing function of backlash as hysteresis (complex) at input amplitude A [rad] about its "
+        "centre for a full backlash Δ [rad]; 0 for A ≤ Δ/2 (docs/describing_function.md).");
+  m.def("dead_zone_df", &deadZoneDescribingFunction, py::arg("amplitude"), py::arg("half_width"),
+        "The describing function of a unit-slope dead zone of half-width δ [rad] at input amplitude A [rad].");
+  m.def(
+      "harmonic_balance",
+      [](const std::function<std::complex<double>(double)>& g, double backlash, double omega_lo, double omega_hi,
+         int points) {
+        py::list out;
+        for (const HarmonicBalance& h : backlashHarmonicBalance(g, backlash, omega_lo, omega_hi, points))
+        {
+          py::dict d;
+          d["amplitude"] = h.amplitude;
+          d["frequency"] = h.frequency;
+          d["stable"] = h.stable;
+          out.append(d);
+        }
+        return out;
+      },
+      py::arg("g"), py::arg("backlash"), py::arg("omega_lo"), py::arg("omega_hi"), py::arg("points") = 2000,
+      "The solutions of G(jω)·N(A) = −1 for the classical backlash DF with ω in [omega_lo, omega_hi] [rad/s]: g is "
+      "a callable ω → complex G(jω) (from the element's output back to its input). A list of dicts amplitude [rad], "
+      "frequency [rad/s], stable (Loeb), in order of frequency.");
   py::class_<PySimulator>(m, "Simulator", "A joint stepped from Python (the configured plant and drive).")
       .def(py::init<const py::object&>(), py::arg("config") = py::none())
       .def("advance", &PySimulator::advance, py::arg("t_end"), "Advances exactly to t_end [s].")

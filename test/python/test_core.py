@@ -187,3 +187,21 @@ def test_an_inline_profile_equals_the_yaml_file(tmp_path):
     code, out, err = tool("backlash_sweep", "--config", str(path), "--zeta", "0.2,0.4")
     assert code == 0, err
     assert core.sweep_csv(dict(config, zeta=[0.2, 0.4])) == out
+
+
+def test_describing_functions_and_harmonic_balance():
+    # A = 2d: N = 1/2 - j/pi; within the free play nothing passes.
+    n = core.backlash_df(0.3, 0.3)
+    assert abs(n - (0.5 - 1j / np.pi)) < 1e-15
+    assert core.backlash_df(0.1, 0.3) == 0
+    assert abs(core.dead_zone_df(0.3, 0.15) - (1 - 2 / np.pi * (np.arcsin(0.5) + 0.5 * np.sqrt(0.75)))) < 1e-15
+    # The type-1 loop rho*K / (J s^2 + f s) (J 0.1, f 0.48, K 20): every solution satisfies the balance, an unstable
+    # cycle beside the free play and a stable one (the C++ test checks them against the closed form).
+    g = lambda w: 20.0 / complex(-0.1 * w * w, 0.48 * w)  # noqa: E731
+    found = core.harmonic_balance(g, 0.3, 1e-3, 1e3)
+    assert [h["stable"] for h in found] == [False, True]
+    for h in found:
+        assert abs(g(h["frequency"]) * core.backlash_df(h["amplitude"], 0.3) + 1) < 1e-6
+    assert 0.15 < found[0]["amplitude"] < found[1]["amplitude"]
+    with pytest.raises(ValueError, match="backlash"):
+        core.harmonic_balance(g, 0.0, 1e-3, 1e3)
