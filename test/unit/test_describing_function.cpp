@@ -9,6 +9,7 @@
 
 #include "backlash_servo/describing_function.h"
 #include "backlash_servo/params.h"
+#include "test_helpers.h"
 
 namespace
 {
@@ -88,46 +89,12 @@ TEST(DescribingFunction, DeadZoneIsItsFundamental)
   EXPECT_EQ(deadZoneDescribingFunction(delta, delta), 0.0);
 }
 
-// Harmonic balance on a second-order type-1 loop against its closed form: the motor J θ̈ + f θ̇ = K e drives the
-// backlash element, whose output is fed back, G(s) = ρK/(J s² + f s). Its phase −π/2 − atan(Jω/f) and the DF's give
-// ω(A) = (f/J)(−N_R/N_I) on the balance; the magnitude then leaves one equation in A, m(A) = ρK|N(A)| −
-// ω√(J²ω² + f²) = 0, solved here by a scan and bisection. A cycle is stable where m falls through zero (a larger
-// amplitude makes the loop's gain at the phase crossover fall below 1).
+// Harmonic balance on a second-order type-1 loop against its closed form (test_helpers::typeOneLoopCycles): the
+// motor J θ̈ + f θ̇ = K e drives the backlash element, whose output is fed back, G(s) = ρK/(J s² + f s).
 TEST(DescribingFunction, HarmonicBalanceOfATypeOneLoopHasItsClosedForm)
 {
-  const double j = 0.1, f = 0.48, rho = 1.0, k = 20.0, backlash = 0.3, d = 0.5 * backlash;
-  const auto omega_of = [&](double a) {
-    const std::complex<double> n = backlashDescribingFunction(a, backlash);
-    return f / j * (-n.real() / n.imag());
-  };
-  const auto m = [&](double a) {
-    const double w = omega_of(a);
-    return rho * k * std::abs(backlashDescribingFunction(a, backlash)) - w * std::sqrt(j * j * w * w + f * f);
-  };
-  struct Root
-  {
-    double a, w;
-    bool stable;
-  };
-  std::vector<Root> exact;
-  double prev_a = d * (1.0 + 1e-9), prev_m = m(prev_a);
-  for (int i = 1; i <= 20000; ++i)
-  {
-    const double a = d * (1.0 + std::pow(10.0, -9.0 + i * 0.0006));
-    const double here = m(a);
-    if ((here > 0.0) != (prev_m > 0.0))
-    {
-      double lo = prev_a, hi = a;
-      for (int it = 0; it < 200; ++it)
-      {
-        const double mid = 0.5 * (lo + hi);
-        ((m(mid) > 0.0) == (prev_m > 0.0) ? lo : hi) = mid;
-      }
-      exact.push_back({lo, omega_of(lo), here < prev_m});
-    }
-    prev_a = a;
-    prev_m = here;
-  }
+  const double j = 0.1, f = 0.48, rho = 1.0, k = 20.0, backlash = 0.3;
+  const std::vector<test_helpers::BalanceRoot> exact = test_helpers::typeOneLoopCycles(j, f, rho * k, backlash);
   ASSERT_EQ(exact.size(), 2u);  // an unstable cycle just beyond the free play and a stable one
   EXPECT_FALSE(exact[0].stable);
   EXPECT_TRUE(exact[1].stable);
@@ -139,8 +106,8 @@ TEST(DescribingFunction, HarmonicBalanceOfATypeOneLoopHasItsClosedForm)
   for (std::size_t i = 0; i < 2; ++i)
   {
     SCOPED_TRACE(i);
-    EXPECT_NEAR(found[i].amplitude, exact[i].a, 1e-9 * exact[i].a);
-    EXPECT_NEAR(found[i].frequency, exact[i].w, 1e-7 * exact[i].w);
+    EXPECT_NEAR(found[i].amplitude, exact[i].amplitude, 1e-9 * exact[i].amplitude);
+    EXPECT_NEAR(found[i].frequency, exact[i].frequency, 1e-7 * exact[i].frequency);
     EXPECT_EQ(found[i].stable, exact[i].stable);
   }
   // A gain too low for a cycle: none.

@@ -3,12 +3,15 @@
 
 #include <sys/wait.h>
 
+#include <cmath>
+#include <complex>
 #include <cstdio>
 #include <fstream>
 #include <sstream>
 #include <string>
 #include <vector>
 
+#include "backlash_servo/describing_function.h"
 #include "backlash_servo/params.h"
 #include "backlash_servo/simulator.h"
 
@@ -54,6 +57,53 @@ inline backlash_servo::ServoParams compliantRobotJoint()
   p.mesh_stiffness = 8.6e4;
   p.mesh_damping = 20.0;
   return p;
+}
+
+/// A limit cycle the harmonic balance predicts: amplitude [rad], frequency [rad/s], stability.
+struct BalanceRoot
+{
+  double amplitude, frequency;
+  bool stable;
+};
+
+/**
+ * The closed form of the harmonic balance of a second-order type-1 loop G(s) = gain/(j s² + f s) with the classical
+ * backlash DF: its phase −π/2 − atan(jω/f) and the DF's give ω(A) = (f/j)(−N_R/N_I) on the balance, and the
+ * magnitude leaves one equation in A, m(A) = gain·|N(A)| − ω√(j²ω² + f²) = 0, scanned over A/d − 1 in [1e-9, 1e3]
+ * and bisected. A cycle is stable where m falls through zero (a larger amplitude lowers the loop's gain).
+ */
+inline std::vector<BalanceRoot> typeOneLoopCycles(double j, double f, double gain, double backlash)
+{
+  const double d = 0.5 * backlash;
+  const auto omega_of = [&](double a) {
+    const std::complex<double> n = backlash_servo::backlashDescribingFunction(a, backlash);
+    return f / j * (-n.real() / n.imag());
+  };
+  const auto m = [&](double a) {
+    const double w = omega_of(a);
+    return gain * std::abs(backlash_servo::backlashDescribingFunction(a, backlash)) -
+           w * std::sqrt(j * j * w * w + f * f);
+  };
+  std::vector<BalanceRoot> roots;
+  double prev_a = d * (1.0 + 1e-9), prev_m = m(prev_a);
+  for (int i = 1; i <= 20000; ++i)
+  {
+    const double a = d * (1.0 + std::pow(10.0, -9.0 + i * 0.0006));
+    const double here = m(a);
+    if ((here > 0.0) != (prev_m > 0.0))
+    {
+      double lo = prev_a, hi = a;
+      for (int it = 0; it < 200; ++it)
+      {
+        const double mid = 0.5 * (lo + hi);
+        ((m(mid) > 0.0) == (prev_m > 0.0) ? lo : hi) = mid;
+      }
+      roots.push_back({lo, omega_of(lo), here < prev_m});
+    }
+    prev_a = a;
+    prev_m = here;
+  }
+  return roots;
 }
 
 /// Keeps every event.

@@ -4,7 +4,6 @@
 #include <algorithm>
 #include <sstream>
 
-#include "backlash_servo/describing_function.h"
 #include "test_helpers.h"
 
 #include <sys/stat.h>
@@ -830,44 +829,17 @@ TEST(Design, SearchRangesOutsideAKeysRangeAreRefusedNeverAborted)
 }
 
 // backlash_df's classical prediction is the harmonic balance of the thesis' linear servo x'' + 2ζω_n x' = ω_n²(θ_R −
-// θ_c) with the backlash as hysteresis: on it ω(A) = 2ζω_n(−N_R/N_I) and the magnitude leaves |N(A)| ω_n² =
-// ω√(ω² + 4ζ²ω_n²), solved here by a scan. Its simulated cycle is backlash_sim's: the frequency is 2π over the run's
-// period, and the amplitude is the fundamental of ρθ_m over the last period of backlash_sim's own CSV samples.
+// θ_c) with the backlash as hysteresis, against its closed form (test_helpers::typeOneLoopCycles). Its simulated cycle
+// is backlash_sim's: the frequency is 2π over the run's period, and the amplitude is the fundamental of ρθ_m over the
+// last period of backlash_sim's own CSV samples.
 TEST(DescribingFunctionTool, PredictsByHarmonicBalanceAndMeasuresTheExactCycle)
 {
   const std::string joint = " --zeta 0.1 --inertia-ratio 9 --friction-ratio 0.4 --restitution 1 --backlash 0.3";
   int code = 0;
   const std::string json = runCapture(DF + joint + " --json", &code);
   ASSERT_EQ(code, 0) << json;
-  // The closed-form balance (ω_n = 1).
-  const double zeta = 0.1, backlash = 0.3;
-  const auto omega_of = [&](double a) {
-    const std::complex<double> n = backlash_servo::backlashDescribingFunction(a, backlash);
-    return 2.0 * zeta * (-n.real() / n.imag());
-  };
-  const auto m = [&](double a) {
-    const double w = omega_of(a);
-    return std::abs(backlash_servo::backlashDescribingFunction(a, backlash)) - w * std::sqrt(w * w + 4 * zeta * zeta);
-  };
-  std::vector<std::pair<double, bool>> roots;  // amplitude, stable
-  double prev_a = 0.15 * (1.0 + 1e-9), prev_m = m(prev_a);
-  for (int i = 1; i <= 20000; ++i)
-  {
-    const double a = 0.15 * (1.0 + std::pow(10.0, -9.0 + i * 0.0006));
-    const double here = m(a);
-    if ((here > 0.0) != (prev_m > 0.0))
-    {
-      double lo = prev_a, hi = a;
-      for (int it = 0; it < 200; ++it)
-      {
-        const double mid = 0.5 * (lo + hi);
-        ((m(mid) > 0.0) == (prev_m > 0.0) ? lo : hi) = mid;
-      }
-      roots.push_back({lo, here < prev_m});
-    }
-    prev_a = a;
-    prev_m = here;
-  }
+  // The closed-form balance (ω_n = 1: G = 1/(s² + 2ζ s)).
+  const std::vector<test_helpers::BalanceRoot> roots = test_helpers::typeOneLoopCycles(1.0, 0.2, 1.0, 0.3);
   ASSERT_EQ(roots.size(), 2u);
   const std::regex prediction("\\{\"amplitude\":([0-9.eE+-]+),\"frequency\":([0-9.eE+-]+),\"stable\":(true|false)");
   std::vector<std::smatch> found;
@@ -878,9 +850,9 @@ TEST(DescribingFunctionTool, PredictsByHarmonicBalanceAndMeasuresTheExactCycle)
   ASSERT_EQ(found.size(), 2u) << json;
   for (std::size_t i = 0; i < 2; ++i)
   {
-    EXPECT_NEAR(std::stod(found[i][1]), roots[i].first, 1e-8);
-    EXPECT_NEAR(std::stod(found[i][2]), omega_of(roots[i].first), 1e-6);
-    EXPECT_EQ(found[i][3] == "true", roots[i].second);
+    EXPECT_NEAR(std::stod(found[i][1]), roots[i].amplitude, 1e-8);
+    EXPECT_NEAR(std::stod(found[i][2]), roots[i].frequency, 1e-6);
+    EXPECT_EQ(found[i][3] == "true", roots[i].stable);
   }
   // The simulated cycle against backlash_sim's run of the same joint.
   const std::string csv_path = testing::TempDir() + "backlash_df_cycle.csv";
