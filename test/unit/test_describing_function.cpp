@@ -115,6 +115,42 @@ TEST(DescribingFunction, HarmonicBalanceOfATypeOneLoopHasItsClosedForm)
   EXPECT_TRUE(backlashHarmonicBalance(weak, backlash, 1e-3, 1e3).empty());
 }
 
+// For the thesis' loop G(s) = ω_n²/(s² + 2ζω_n s) the classical prediction depends on ζ alone (amplitudes scale with Δ,
+// frequencies with ω_n): a stable cycle is predicted below a critical ζ* where the two solutions merge and vanish.
+// ζ* found by bisection with the solver agrees with the closed form's fold (test_helpers::typeOneLoopCycles).
+TEST(DescribingFunction, TheThesisLoopsPredictionEndsAtOneCriticalDamping)
+{
+  const auto solver_predicts = [](double zeta, double backlash, double wn) {
+    const auto g = [&](double w) { return wn * wn / std::complex<double>(-w * w, 2.0 * zeta * wn * w); };
+    for (const HarmonicBalance& h : backlashHarmonicBalance(g, backlash, 1e-4 * wn, 1e4 * wn))
+    {
+      if (h.stable)
+      {
+        return true;
+      }
+    }
+    return false;
+  };
+  const auto closed_form_predicts = [](double zeta) {
+    return !test_helpers::typeOneLoopCycles(1.0, 2.0 * zeta, 1.0, 0.3).empty();
+  };
+  const auto critical = [](const auto& predicts) {
+    double lo = 0.1, hi = 0.5;
+    for (int i = 0; i < 40; ++i)
+    {
+      const double mid = 0.5 * (lo + hi);
+      (predicts(mid) ? lo : hi) = mid;
+    }
+    return lo;
+  };
+  const double zeta_star = critical([&](double z) { return solver_predicts(z, 0.3, 1.0); });
+  EXPECT_NEAR(zeta_star, critical(closed_form_predicts), 1e-6);
+  EXPECT_GT(zeta_star, 0.2);
+  EXPECT_LT(zeta_star, 0.4);  // the thesis' D1 (ζ = 0.4) limit-cycles with no prediction at all
+  // Independent of the backlash and of ω_n.
+  EXPECT_NEAR(critical([&](double z) { return solver_predicts(z, 0.01, 37.0); }), zeta_star, 1e-6);
+}
+
 TEST(DescribingFunction, BadInputIsNamed)
 {
   const auto field = [](auto call) {
