@@ -159,7 +159,7 @@ class LinearMode
   double rateNoise(const ModeVector& w, const ModeVector& v) const;
   /// The bracketed crossing in (lo, hi] (direction·s(lo) ≤ 0 < direction·s(hi)) refined to adjacent doubles (ITP);
   /// returns the end past it.
-  double bisect(const ModeVector& w, double w0, int direction, double lo, double hi) const;
+  double refine(const ModeVector& w, double w0, int direction, double lo, double hi) const;
 
   std::shared_ptr<const ModeBasis> basis_;
   ModeVector u_, x0_;

@@ -273,7 +273,7 @@ bool CompliantJoint::held() const
 
 void CompliantJoint::heldMotorTorque(double* lo, double* hi) const
 {
-  const double pressed = s_.gear_ratio * meshTorque(), now = law_.offset - law_.stiffness * x_(loadIndex());
+  const double pressed = s_.gear_ratio * meshTorque(), now = law_.torque(x_(loadIndex()));
   const auto inside = [now](double end) { return end - 1e-9 * (end - now); };  // pulled towards the torque now
   *lo = inside(pressed - s_.motor_static_friction);
   *hi = inside(pressed + s_.motor_static_friction);
@@ -577,6 +577,7 @@ void CompliantJoint::beginSegment()
                            CompliantEnergy(), slide_, piece, 0});
   // The watch `matches` picks becomes the segment's first event, at its start.
   Segment& seg = *segment_;
+  const ModeVector xd = a * x_ + u;  // ẋ at the start: which way the start's outputs move
   const auto startWith = [&seg](const auto& matches) {
     for (std::size_t i = 0; i < seg.watches.size() && seg.event != 0.0; ++i)
     {
@@ -599,7 +600,6 @@ void CompliantJoint::beginSegment()
         (last_kind_ == static_cast<int>(MeshEvent::Engage) || last_kind_ == static_cast<int>(MeshEvent::Reengage));
     if (!just_engaged)
     {
-      const ModeVector xd = a * x_ + u;
       startWith([&](const Watch& r) {
         if (r.kind != MeshEvent::Release)
         {
@@ -627,7 +627,6 @@ void CompliantJoint::beginSegment()
   // Dry friction, likewise: a stuck body whose holding torque is beyond its static band (or at its edge and
   // leaving it) breaks away here; a sliding body whose velocity is against its slide (or zero and turning against
   // it) stops here — not one that began to slide at this very instant.
-  const ModeVector xd = a * x_ + u;
   for (int b = 0; b < 2 && seg.event != 0.0; ++b)
   {
     if (!dry_[b])

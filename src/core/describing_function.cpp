@@ -105,8 +105,7 @@ std::vector<HarmonicBalance> backlashHarmonicBalance(const std::function<std::co
     const double w = i == points - 1 ? omega_hi : omega_lo * std::pow(ratio, i);
     const Mismatch here = mismatch(g, backlash, w);
     // A sign change of the mismatch away from its wrap at ±π is a solution.
-    if (prev.ok && here.ok && (prev.phase <= 0.0) != (here.phase <= 0.0) &&
-        std::fabs(prev.phase - here.phase) < 3.14159265358979323846)
+    if (prev.ok && here.ok && (prev.phase <= 0.0) != (here.phase <= 0.0) && std::fabs(prev.phase - here.phase) < PI)
     {
       double lo = w_prev, hi = w;
       const bool rising = here.phase > prev.phase;

@@ -475,24 +475,24 @@ double LinearMode::searchWindow(const ModeVector& w, double w0, int direction, d
   if (std::fabs(s) + std::fabs(s1) * h + 0.5 * m * h * h <= rounding ||
       (short_window && std::fabs(s) <= rounding && std::fabs(s_hi) <= rounding && std::fabs(s1) * h <= rounding))
   {
-    return changes ? bisect(w, w0, direction, lo, hi) : INF;
+    return changes ? refine(w, w0, direction, lo, hi) : INF;
   }
   if (std::fabs(s1) > m * h)
   {
     // s' keeps its sign on the window (|s'(τ) − s'(lo)| ≤ M h): s is monotone, one zero at most.
-    return changes ? bisect(w, w0, direction, lo, hi) : INF;
+    return changes ? refine(w, w0, direction, lo, hi) : INF;
   }
   if (h <= floor)
   {
     // Within the floor of a turning point: a sign change is the crossing; none is a grazing (see the file comment).
-    return changes ? bisect(w, w0, direction, lo, hi) : INF;
+    return changes ? refine(w, w0, direction, lo, hi) : INF;
   }
   const double mid = lo + 0.5 * h;
   const double first = searchWindow(w, w0, direction, lo, mid, curv, floor, origin);
   return first < INF ? first : searchWindow(w, w0, direction, mid, hi, curv, floor, origin);
 }
 
-double LinearMode::bisect(const ModeVector& w, double w0, int direction, double lo, double hi) const
+double LinearMode::refine(const ModeVector& w, double w0, int direction, double lo, double hi) const
 {
   // The ITP method (Oliveira & Takahashi, ACM TOMS 2020): regula falsi, truncated a little past the root so that the
   // bracket closes from both sides, projected to within a shrinking distance of the midpoint so that it never takes

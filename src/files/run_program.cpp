@@ -8,6 +8,7 @@
 #include <cstdlib>
 #include <cstring>
 #include <stdexcept>
+#include <string>
 
 #include "backlash_servo/config/key_values.h"
 
@@ -50,6 +51,16 @@ int runProgram(const std::vector<std::string>& argv)
     throw std::runtime_error("'" + argv[0] + "' was killed by signal " + std::to_string(WTERMSIG(status)));
   }
   return WEXITSTATUS(status);
+}
+
+void runChartScript(const std::string& script, const std::string& dir, const std::string& out)
+{
+  const int status = runProgram({"/usr/bin/python3", script, dir, out});
+  if (status != 0)
+  {
+    throw std::runtime_error("--png: the chart script " + script + " failed (exit status " + std::to_string(status) +
+                             ")");
+  }
 }
 
 std::string helperBesideExecutable(const std::string& name)

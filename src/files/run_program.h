@@ -14,6 +14,12 @@ namespace backlash_servo
 int runProgram(const std::vector<std::string>& argv);
 
 /**
+ * Draws a chart: runs `/usr/bin/python3 script dir out` (runProgram: no shell) on the data the caller wrote to `dir`.
+ * Throws std::runtime_error naming --png and the script when it fails.
+ */
+void runChartScript(const std::string& script, const std::string& dir, const std::string& out);
+
+/**
  * The path of a helper file installed beside this executable (the package's bin directory, in the devel space and
  * after install). Throws std::runtime_error naming the expected path when it is not there.
  */

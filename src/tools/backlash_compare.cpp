@@ -190,12 +190,7 @@ void drawCharts(const std::string& script, TemporaryDirectory& dir,
   }
   const std::string png_tmp = dir.file("chart.png");
   const std::string svg_tmp = dir.file("chart.svg");
-  const int status = runProgram({"/usr/bin/python3", script, dir.path(), png_tmp});
-  if (status != 0)
-  {
-    throw std::runtime_error("--png: the chart script " + script + " failed (exit status " + std::to_string(status) +
-                             ")");
-  }
+  runChartScript(script, dir.path(), png_tmp);
   copyInto(png_tmp, png);
   copyInto(svg_tmp, svg);
 }

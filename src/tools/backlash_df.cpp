@@ -180,12 +180,7 @@ void drawChart(const std::function<std::complex<double>(double)>& g, double wn, 
     }
   }
   const std::string tmp = dir.file("chart.png");
-  const int status = runProgram({"/usr/bin/python3", script, dir.path(), tmp});
-  if (status != 0)
-  {
-    throw std::runtime_error("--png: the chart script " + script + " failed (exit status " + std::to_string(status) +
-                             ")");
-  }
+  runChartScript(script, dir.path(), tmp);
   copyFileInto(tmp, png);
   std::cerr << "backlash_df: wrote " << png.path() << "\n";
 }
