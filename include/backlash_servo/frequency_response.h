@@ -1,0 +1,102 @@
+/**
+ * @file frequency_response.h
+ * @brief The joint's frequency response as a drive's commissioning tool measures it — one sine at a time (stepped
+ *        sine) — but from the exact motion: the periodic steady state is detected (not assumed), and the output's
+ *        fundamental and harmonics are exact Fourier integrals over one period. No ROS dependency.
+ *
+ * **Excitation.** The input is u(t) = u₀ + A sin(ω(t − t₀)), t₀ the run's initial time, applied the way a digital drive
+ * applies it — sampled and held: the command θ_R [rad] through the configured digital drive (it samples the sine at
+ * its own instants, `controller_rate`), or the motor torque T_m [N·m] in effort mode (the drive's loop off: the
+ * joint's mechanical response) held over samples of the injection rate. The plant then sees piecewise-constant
+ * torques, so every motion stays the closed form of its mode and the response is exact. For a periodic input the
+ * period T = 2π/ω must hold a whole number N ≥ 4 of samples: the frequency is placed there, ω = 2π f_s / N with
+ * N = round(2π f_s / ω) (the frequency used is reported beside the one asked for).
+ *
+ * **Steady state.** The state is compared at the starts of successive periods: velocities, gap and shaft twist must
+ * repeat and positions advance by the same amount each period (a torque input may drift at a constant mean speed),
+ * each within `tolerance` of that quantity's range over the period. Repeating only after m = 2…4 periods is a
+ * subharmonic response (period_multiple = m, the fundamental still read at ω). Not settled after `max_periods`: the
+ * point is reported not periodic and its figures are those of the last period.
+ *
+ * **Fourier integrals.** Over the settled period [t_n, t_n + mT] the coefficients Y_h = (2/mT)∫ y(t) e^{−jhω(t − t₀)}
+ * dt (h = 1 … harmonics) are integrated by 8-point Gauss–Legendre on pieces cut at every sample and every event that
+ * makes y or its slope jump (impacts, contacts, rests), no longer than half the plant's fastest time scale, so each
+ * piece integrates an analytic function to rounding. The response is H = Y₁/U₁ with U₁ = −jA (the input's fundamental
+ * as a phasor e^{jω(t − t₀)}): gain |H| [output unit per input unit], phase arg H [rad] — the convention of a transfer
+ * function, H = G(jω) for a linear joint (times the hold's e^{−jωT_s/2} sinc(ωT_s/2) and, for the command, the
+ * sampled loop's response; see docs/frequency_response.md).
+ */
+#pragma once
+
+#include <complex>
+#include <functional>
+#include <string>
+
+#include "backlash_servo/step_response.h"
+
+namespace backlash_servo
+{
+/// What is excited and what is measured.
+enum class FrfChannel
+{
+  CommandToLoadPosition,  ///< θ_R [rad] through the digital drive → θ_c [rad]
+  TorqueToMotorVelocity,  ///< T_m [N·m] in effort mode → ω_m [rad/s]
+  TorqueToLoadVelocity    ///< T_m [N·m] in effort mode → ω_c [rad/s]
+};
+
+/// "command:load_position", "motor_torque:motor_velocity", "motor_torque:load_velocity".
+const char* toString(FrfChannel c);
+/// The channel named by toString(); throws InvalidParameterError(key, …) naming the value otherwise.
+FrfChannel frfChannelFrom(const std::string& name, const std::string& key);
+
+struct FrfSettings
+{
+  FrfChannel channel = FrfChannel::CommandToLoadPosition;
+  double offset = 0.0;  ///< u₀, the input's constant part [rad for the command, N·m for the torque]
+  /// Samples per second of the torque injection [Hz] (torque channels; 0 = the drive's controller_rate, else
+  /// DEFAULT_INJECTION_RATE). The command is sampled by the drive at its controller_rate.
+  double injection_rate = 0.0;
+  double tolerance = 1e-8;  ///< steady state: relative repeat of the state from one period to the next [-]
+  int max_periods = 1000;   ///< periods run before a point is declared not periodic
+  int harmonics = 10;       ///< harmonics integrated (distortion from 2 … harmonics)
+};
+
+/// The torque injection's rate [Hz] when neither the settings nor the drive give one.
+constexpr double DEFAULT_INJECTION_RATE = 10000.0;
+
+struct FrfPoint
+{
+  double amplitude = 0.0;            ///< A [rad or N·m]
+  double requested_frequency = 0.0;  ///< ω asked for [rad/s]
+  double frequency = 0.0;            ///< ω used [rad/s]: a whole number of samples per period
+  int samples_per_period = 0;        ///< N
+  std::complex<double> response;     ///< H = Y₁/U₁ [output unit per input unit]
+  double gain = 0.0;                 ///< |H|
+  double phase = 0.0;                ///< arg H [rad], in (−π, π]
+  double distortion = 0.0;           ///< √(Σ_{h≥2}|Y_h|²)/|Y₁| [-]
+  double mean = 0.0;                 ///< the output's mean over the period [rad or rad/s]
+  double peak_to_peak = 0.0;         ///< the output's range over the period, at the samples [rad or rad/s]
+  bool periodic = false;             ///< the steady state repeated within the tolerance
+  int period_multiple = 0;           ///< 1: periodic at T; m = 2…4: subharmonic (repeats after mT); 0: not periodic
+  int periods = 0;                   ///< periods simulated
+  double flank_changes = 0.0;        ///< the teeth changed flank (crossed the backlash) this often per period [1]
+  double settled_at = 0.0;           ///< sim time where the analysed period began [s]
+  State settled_state;               ///< the joint's state there (with a memoryless drive law, a run started on it at
+                                     ///< that time with the same excitation is periodic from its first period)
+};
+
+/// The joint's fastest own rate [1/s] under the configuration (natural frequencies of the loop, the contact, the
+/// mesh and shaft springs; viscous and damper rates): the Fourier pieces are no longer than half its inverse.
+double fastestRate(const ServoParams& params);
+
+/**
+ * One stepped-sine point: amplitude A (> 0) [rad or N·m] at ω (> 0) [rad/s]. The config's command and profile are
+ * replaced by the excitation; its initial state is where the run starts. Throws InvalidParameterError for bad
+ * parameters and for a channel the configuration cannot take (the command channel needs a digital drive; ω above a
+ * quarter of the sample rate). `cancelled`, polled once per period, stops the point early (it is then
+ * reported as it stands, not periodic).
+ */
+FrfPoint measureFrequencyResponse(const RunConfig& config, const FrfSettings& settings, double amplitude, double omega,
+                                  const std::function<bool()>& cancelled = nullptr);
+
+}  // namespace backlash_servo

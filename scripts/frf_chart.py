@@ -1,0 +1,69 @@
+#!/usr/bin/python3
+"""Bode chart of a backlash_frf measurement: gain (dB) and phase (deg) against frequency, one curve per amplitude,
+the response with backlash 0 dashed; points that did not settle into a periodic response are marked with a cross.
+Called by backlash_frf --png FILE with the directory of its points.csv and channel.txt.
+usage: frf_chart.py DIR OUT.png"""
+import csv
+import math
+import os
+import sys
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+
+UNITS = {
+    "command:load_position": ("θ_c / θ_R", "rad/rad"),
+    "motor_torque:motor_velocity": ("ω_m / T_m", "(rad/s)/(N·m)"),
+    "motor_torque:load_velocity": ("ω_c / T_m", "(rad/s)/(N·m)"),
+}
+
+
+def number(text):
+    return float(text) if text != "" else math.nan
+
+
+def main():
+    if len(sys.argv) != 3:
+        sys.exit(__doc__)
+    directory, out = sys.argv[1], sys.argv[2]
+    with open(os.path.join(directory, "points.csv"), newline="") as f:
+        rows = [{k: number(v) for k, v in r.items()} for r in csv.DictReader(f)]
+    with open(os.path.join(directory, "channel.txt")) as f:
+        channel = f.read().strip()
+    ratio, unit = UNITS.get(channel, ("gain", ""))
+    amplitudes = sorted({r["amplitude"] for r in rows})
+    fig, (mag, pha) = plt.subplots(2, 1, sharex=True, figsize=(8, 7))
+    colours = plt.rcParams["axes.prop_cycle"].by_key()["color"]
+
+    def db(g):
+        return 20.0 * math.log10(g) if g > 0 else math.nan
+
+    for i, a in enumerate(amplitudes):
+        pts = sorted((r for r in rows if r["amplitude"] == a), key=lambda r: r["frequency"])
+        c = colours[i % len(colours)]
+        w = [r["frequency"] for r in pts]
+        mag.semilogx(w, [db(r["gain"]) for r in pts], "o-", color=c, ms=3, label=f"A = {a:.4g}")
+        pha.semilogx(w, [math.degrees(r["phase"]) for r in pts], "o-", color=c, ms=3)
+        bad = [r for r in pts if r["periodic"] == 0]
+        mag.semilogx([r["frequency"] for r in bad], [db(r["gain"]) for r in bad], "x", color="k", ms=8)
+        pha.semilogx([r["frequency"] for r in bad], [math.degrees(r["phase"]) for r in bad], "x", color="k", ms=8)
+        if i == 0 and all(not math.isnan(r["linear_gain"]) for r in pts):
+            mag.semilogx(w, [db(r["linear_gain"]) for r in pts], "--", color="0.3", label="backlash 0")
+            pha.semilogx(w, [math.degrees(r["linear_phase"]) for r in pts], "--", color="0.3")
+    if any(r["periodic"] == 0 for r in rows):
+        mag.plot([], [], "x", color="k", label="not periodic")
+    mag.set_ylabel(f"gain {ratio} [dB re 1 {unit}]")
+    pha.set_ylabel("phase [deg]")
+    pha.set_xlabel("frequency ω [rad/s]")
+    mag.set_title(f"Frequency response, {channel}")
+    mag.grid(True, which="both", alpha=0.3)
+    pha.grid(True, which="both", alpha=0.3)
+    mag.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(out, dpi=100)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,437 @@
+#include "backlash_servo/frequency_response.h"
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <memory>
+#include <vector>
+
+#include "backlash_servo/command_profile.h"
+
+namespace backlash_servo
+{
+namespace
+{
+constexpr double PI = 3.14159265358979323846;
+/// Subharmonics looked for: a response repeating after up to this many periods.
+constexpr int MAX_PERIOD_MULTIPLE = 4;
+constexpr double GAUSS_NODE[8] = {-0.96028985649753623168, -0.79666647741362673959, -0.52553240991632898582,
+                                  -0.18343464249564980494, 0.18343464249564980494,  0.52553240991632898582,
+                                  0.79666647741362673959,  0.96028985649753623168};
+constexpr double GAUSS_WEIGHT[8] = {0.10122853629037625915, 0.22238103445337447054, 0.31370664587788728734,
+                                    0.36268378337836198297, 0.36268378337836198297, 0.31370664587788728734,
+                                    0.22238103445337447054, 0.10122853629037625915};
+
+bool torqueChannel(FrfChannel c)
+{
+  return c != FrfChannel::CommandToLoadPosition;
+}
+
+double outputOf(FrfChannel c, const State& s)
+{
+  switch (c)
+  {
+    case FrfChannel::CommandToLoadPosition:
+      return s.load_position;
+    case FrfChannel::TorqueToMotorVelocity:
+      return s.motor_velocity;
+    case FrfChannel::TorqueToLoadVelocity:
+      return s.load_velocity;
+  }
+  return NAN;
+}
+
+/// Records the instants where the output or its slope may jump (impacts, contacts, separations, rests) and the
+/// flank changes (the teeth crossing the backlash).
+class BreakSink : public EventSink
+{
+ public:
+  void onEvent(const Event& e) override
+  {
+    int flank = 0;
+    switch (e.type)
+    {
+      case EventType::Impact:
+        flank = e.impact.wall == Contact::Forward ? 1 : -1;
+        breaks.push_back(e.state.time);
+        break;
+      case EventType::Engagement:
+        flank = e.state.contact == Contact::Forward ? 1 : (e.state.contact == Contact::Backward ? -1 : 0);
+        breaks.push_back(e.state.time);
+        break;
+      case EventType::Separation:
+      case EventType::Rest:
+        breaks.push_back(e.state.time);
+        break;
+      default:
+        break;
+    }
+    if (flank != 0)
+    {
+      flanks.push_back(flank);
+    }
+  }
+  /// Changes of flank around the periodic window (its last flank is followed by its first).
+  long flankChanges() const
+  {
+    long n = 0;
+    for (std::size_t i = 0; i < flanks.size(); ++i)
+    {
+      n += flanks[i] != flanks[(i + 1) % flanks.size()] ? 1 : 0;
+    }
+    return n;
+  }
+  std::vector<double> breaks;
+  std::vector<int> flanks;  // the flank (+1 forward, −1 backward) of each impact or engagement, in order
+};
+
+/// The quantities compared from one period start to the next.
+struct Snapshot
+{
+  std::array<double, 2> position{};  // θ_c, ρθ_m: may advance by the same amount each period
+  std::array<double, 5> level{};     // gap, twist [rad]; ω_c, ρω_m, twist rate [rad/s]: must repeat
+};
+
+Snapshot snapshotOf(const State& s, double rho)
+{
+  Snapshot n;
+  n.position = {s.load_position, rho * s.motor_position};
+  n.level = {s.load_position - rho * s.motor_position, s.shaft_twist, s.load_velocity, rho * s.motor_velocity,
+             s.shaft_twist_rate};
+  return n;
+}
+
+/// Ranges over a period of the snapshot's quantities (from the samples): the scales of the repeat test.
+struct Ranges
+{
+  std::array<double, 7> lo, hi;
+  Ranges() { reset(); }
+  void reset()
+  {
+    lo.fill(INFINITY);
+    hi.fill(-INFINITY);
+  }
+  void add(const Snapshot& s)
+  {
+    const std::array<double, 7> v = {s.position[0], s.position[1], s.level[0], s.level[1],
+                                     s.level[2],    s.level[3],    s.level[4]};
+    for (std::size_t i = 0; i < v.size(); ++i)
+    {
+      lo[i] = std::min(lo[i], v[i]);
+      hi[i] = std::max(hi[i], v[i]);
+    }
+  }
+  double range(std::size_t i) const { return hi[i] >= lo[i] ? hi[i] - lo[i] : 0.0; }
+  /// The angle scale [rad] (positions, gap, twist) and the speed scale [rad/s].
+  double angleScale() const { return std::max({range(0), range(1), range(2), range(3)}); }
+  double speedScale() const { return std::max({range(4), range(5), range(6)}); }
+};
+
+/// Whether the period starts n − 2m, n − m, n repeat: levels equal, positions advancing by the same step, each
+/// within tol of its scale (plus the rounding of the values themselves).
+bool repeats(const std::vector<Snapshot>& s, std::size_t n, std::size_t m, double angle_scale, double speed_scale,
+             double tol)
+{
+  const Snapshot &a = s[n - 2 * m], &b = s[n - m], &c = s[n];
+  const auto close = [&](double x, double y, double scale, double magnitude) {
+    return std::fabs(x - y) <= tol * scale + 64.0 * 2.2e-16 * magnitude;
+  };
+  for (std::size_t i = 0; i < 2; ++i)
+  {
+    const double mag = std::max({std::fabs(a.position[i]), std::fabs(b.position[i]), std::fabs(c.position[i])});
+    if (!close(c.position[i] - b.position[i], b.position[i] - a.position[i], angle_scale, mag))
+    {
+      return false;
+    }
+  }
+  for (std::size_t i = 0; i < 5; ++i)
+  {
+    const double scale = i < 2 ? angle_scale : speed_scale;
+    if (!close(c.level[i], b.level[i], scale, std::max(std::fabs(b.level[i]), std::fabs(c.level[i]))))
+    {
+      return false;
+    }
+  }
+  return true;
+}
+
+}  // namespace
+
+const char* toString(FrfChannel c)
+{
+  switch (c)
+  {
+    case FrfChannel::CommandToLoadPosition:
+      return "command:load_position";
+    case FrfChannel::TorqueToMotorVelocity:
+      return "motor_torque:motor_velocity";
+    case FrfChannel::TorqueToLoadVelocity:
+      return "motor_torque:load_velocity";
+  }
+  return "?";
+}
+
+FrfChannel frfChannelFrom(const std::string& name, const std::string& key)
+{
+  for (FrfChannel c :
+       {FrfChannel::CommandToLoadPosition, FrfChannel::TorqueToMotorVelocity, FrfChannel::TorqueToLoadVelocity})
+  {
+    if (name == toString(c))
+    {
+      return c;
+    }
+  }
+  throw InvalidParameterError(key, "'" + name +
+                                       "' is not a channel: command:load_position, motor_torque:motor_velocity or "
+                                       "motor_torque:load_velocity");
+}
+
+double fastestRate(const ServoParams& p)
+{
+  const double rho2 = p.gear_ratio * p.gear_ratio;
+  double rate = std::max({p.naturalFrequency(), p.motor_friction / p.motor_inertia,
+                          p.load_friction / (p.load_inertia + (p.torsionalShaft() ? 0.0 : p.gear_inertia))});
+  if (p.compliant())
+  {
+    // The mesh couples the motor (J_m/ρ² at the load shaft) with the output gear (and the load behind a rigid shaft).
+    const double out = p.torsionalShaft() ? p.gear_inertia : p.load_inertia + p.gear_inertia;
+    const double inv_mu = rho2 / p.motor_inertia + (out > 0.0 ? 1.0 / out : 0.0);
+    rate = std::max({rate, std::sqrt(p.mesh_stiffness * inv_mu), p.mesh_damping * inv_mu});
+  }
+  if (p.torsionalShaft() && p.gear_inertia > 0.0)
+  {
+    const double inv = 1.0 / p.gear_inertia + 1.0 / p.load_inertia;
+    rate = std::max({rate, std::sqrt(p.shaft_stiffness * inv), p.shaft_damping * inv});
+  }
+  return rate;
+}
+
+FrfPoint measureFrequencyResponse(const RunConfig& config, const FrfSettings& settings, double amplitude, double omega,
+                                  const std::function<bool()>& cancelled)
+{
+  if (!(std::isfinite(amplitude) && amplitude > 0.0))
+  {
+    throw InvalidParameterError("amplitude", "must be finite and > 0 (got " + std::to_string(amplitude) + ")");
+  }
+  if (!(std::isfinite(omega) && omega > 0.0))
+  {
+    throw InvalidParameterError("frequency", "must be finite and > 0 rad/s (got " + std::to_string(omega) + ")");
+  }
+  if (!std::isfinite(settings.offset))
+  {
+    throw InvalidParameterError("offset", "must be finite");
+  }
+  if (!(settings.tolerance > 0.0 && settings.tolerance < 1.0))
+  {
+    throw InvalidParameterError("tolerance", "must be in (0, 1) (got " + std::to_string(settings.tolerance) + ")");
+  }
+  if (settings.max_periods < 3 || settings.harmonics < 1 || settings.harmonics > 1000)
+  {
+    throw InvalidParameterError("max_periods", "needs max_periods ≥ 3 and harmonics in [1, 1000]");
+  }
+  const FrfChannel channel = settings.channel;
+  const bool torque = torqueChannel(channel);
+  double rate = 0.0;
+  if (!torque)
+  {
+    if (!config.drive.sampled())
+    {
+      throw InvalidParameterError("controller_rate",
+                                  "the command channel needs a digital drive (controller_rate > 0 Hz), which samples "
+                                  "the sine exactly; the continuous law takes no sine");
+    }
+    rate = config.drive.controller_rate;
+  }
+  else
+  {
+    rate = settings.injection_rate > 0.0
+               ? settings.injection_rate
+               : (config.drive.sampled() ? config.drive.controller_rate : DEFAULT_INJECTION_RATE);
+    if (!std::isfinite(rate))
+    {
+      throw InvalidParameterError("injection_rate", "must be finite");
+    }
+  }
+  const double per_period = 2.0 * PI * rate / omega;
+  if (per_period < 3.5)
+  {
+    throw InvalidParameterError("frequency", std::to_string(omega) + " rad/s is above a quarter of the sample rate (" +
+                                                 std::to_string(rate) + " Hz): at most " +
+                                                 std::to_string(2.0 * PI * rate / 4.0) + " rad/s");
+  }
+  if (per_period > 1e9)
+  {
+    throw InvalidParameterError("frequency", std::to_string(omega) + " rad/s puts more than 1e9 samples in a period");
+  }
+  const long n_samples = std::lround(per_period);
+  FrfPoint out;
+  out.amplitude = amplitude;
+  out.requested_frequency = omega;
+  out.samples_per_period = static_cast<int>(n_samples);
+  out.frequency = 2.0 * PI * rate / static_cast<double>(n_samples);
+  const double w = out.frequency, period = static_cast<double>(n_samples) / rate;
+  const double t0 = config.initial.time, rho = config.params.gear_ratio;
+  const auto sampleTime = [&](long k) { return t0 + static_cast<double>(k) / rate; };
+  // The input at sample k, its phase from k mod N (exact however long the run).
+  const auto inputAt = [&](long k) {
+    return settings.offset + amplitude * std::sin(2.0 * PI * static_cast<double>(k % n_samples) / n_samples);
+  };
+
+  RunConfig run = config;
+  run.track_energy = false;
+  run.duration = 0.0;
+  if (!torque)
+  {
+    ProfileSegment sine;
+    sine.kind = ProfileSegment::Kind::Sine;
+    sine.time = t0;
+    sine.amplitude = amplitude;
+    sine.frequency = rate / static_cast<double>(n_samples);
+    sine.duration = period * (settings.max_periods + MAX_PERIOD_MULTIPLE + 2.0);
+    run.profile = std::make_shared<const CommandProfile>(settings.offset, std::vector<ProfileSegment>{sine});
+  }
+  Simulator sim = makeSimulator(run);
+  // Advances sim over samples [k0, k1), applying the torque input at each; `each` sees the state at every sample.
+  const auto advanceSamples = [&](Simulator& s, long k0, long k1, EventSink* sink, const auto& each) {
+    for (long k = k0; k < k1; ++k)
+    {
+      s.advanceTo(sampleTime(k), sink);
+      each(s.state());
+      if (torque)
+      {
+        s.setMotorTorque(inputAt(k), sink);
+      }
+    }
+    s.advanceTo(sampleTime(k1), sink);
+  };
+
+  // Settle: period starts compared until they repeat (every multiple up to MAX_PERIOD_MULTIPLE).
+  std::vector<Snapshot> starts;
+  std::vector<Ranges> ranges;
+  int multiple = 0;
+  long n = 0;
+  for (; n <= settings.max_periods; ++n)
+  {
+    starts.push_back(snapshotOf(sim.state(), rho));
+    for (int m = 1; m <= MAX_PERIOD_MULTIPLE && multiple == 0; ++m)
+    {
+      const std::size_t um = static_cast<std::size_t>(m), un = static_cast<std::size_t>(n);
+      if (un < 2 * um)
+      {
+        continue;
+      }
+      double angle = 0.0, speed = 0.0;
+      for (std::size_t j = un - 2 * um; j < un; ++j)
+      {
+        angle = std::max(angle, ranges[j].angleScale());
+        speed = std::max(speed, ranges[j].speedScale());
+      }
+      if (repeats(starts, un, um, angle, speed, settings.tolerance))
+      {
+        multiple = m;
+      }
+    }
+    if (multiple != 0 || n == settings.max_periods || (cancelled && cancelled()))
+    {
+      break;
+    }
+    Ranges r;
+    advanceSamples(sim, n * n_samples, (n + 1) * n_samples, nullptr,
+                   [&](const State& s) { r.add(snapshotOf(s, rho)); });
+    ranges.push_back(r);
+  }
+  out.periodic = multiple != 0;
+  out.period_multiple = multiple;
+  const int m = std::max(1, multiple);
+  // The analysed window [t_n, t_n + mT]: its breaks found on a copy, then integrated on the original, which passes
+  // through the same events bit for bit (the motion does not depend on where it is stopped).
+  const long k_begin = n * n_samples, k_end = (n + m) * n_samples;
+  out.settled_at = sampleTime(k_begin);
+  out.settled_state = sim.state();
+  BreakSink breaks;
+  {
+    Simulator probe = sim;
+    advanceSamples(probe, k_begin, k_end, &breaks, [](const State&) {});
+  }
+  out.flank_changes = static_cast<double>(breaks.flankChanges()) / m;
+  const double h_max = 0.5 / std::max(fastestRate(config.params), 1e-300);
+  const int harmonics = settings.harmonics;
+  std::vector<std::complex<double>> y(static_cast<std::size_t>(harmonics) + 1, 0.0);
+  double lo = INFINITY, hi = -INFINITY;
+  std::size_t next_break = 0;
+  for (long k = k_begin; k < k_end; ++k)
+  {
+    const double ta = sampleTime(k), tb = sampleTime(k + 1);
+    sim.advanceTo(ta);
+    const double at_sample = outputOf(channel, sim.state());
+    lo = std::min(lo, at_sample);
+    hi = std::max(hi, at_sample);
+    if (torque)
+    {
+      sim.setMotorTorque(inputAt(k));
+    }
+    // The interval's pieces: cut at its breaks, each no longer than h_max.
+    std::vector<double> cuts = {ta};
+    while (next_break < breaks.breaks.size() && breaks.breaks[next_break] <= ta)
+    {
+      ++next_break;
+    }
+    while (next_break < breaks.breaks.size() && breaks.breaks[next_break] < tb)
+    {
+      if (breaks.breaks[next_break] > cuts.back())
+      {
+        cuts.push_back(breaks.breaks[next_break]);
+      }
+      ++next_break;
+    }
+    cuts.push_back(tb);
+    const double phase0 = 2.0 * PI * static_cast<double>(k % n_samples) / static_cast<double>(n_samples);
+    for (std::size_t c = 0; c + 1 < cuts.size(); ++c)
+    {
+      const double len = cuts[c + 1] - cuts[c];
+      const long pieces = std::max(1L, static_cast<long>(std::ceil(len / h_max)));
+      const double h = len / static_cast<double>(pieces);
+      for (long p = 0; p < pieces; ++p)
+      {
+        const double a = cuts[c] + h * static_cast<double>(p);
+        for (int i = 0; i < 8; ++i)
+        {
+          const double t = a + 0.5 * h * (1.0 + GAUSS_NODE[i]);
+          sim.advanceTo(t);
+          const double v = outputOf(channel, sim.state());
+          const double theta = phase0 + w * (t - ta);
+          const double wt = GAUSS_WEIGHT[i] * 0.5 * h;
+          y[0] += wt * v;
+          for (int j = 1; j <= harmonics; ++j)
+          {
+            y[static_cast<std::size_t>(j)] += wt * v * std::polar(1.0, -j * theta);
+          }
+        }
+      }
+    }
+  }
+  sim.advanceTo(sampleTime(k_end));
+  const double span = period * m;
+  out.mean = y[0].real() / span;
+  out.peak_to_peak = hi - lo;
+  // Y_h = (2/span)∫ y e^{−jhω(t − t₀)} over the window of m periods (a subharmonic's own lines at ω/m are not read).
+  std::vector<std::complex<double>> coef(static_cast<std::size_t>(harmonics) + 1);
+  for (int j = 1; j <= harmonics; ++j)
+  {
+    coef[static_cast<std::size_t>(j)] = 2.0 / span * y[static_cast<std::size_t>(j)];
+  }
+  const std::complex<double> u1(0.0, -amplitude);
+  out.response = coef[1] / u1;
+  out.gain = std::abs(out.response);
+  out.phase = std::arg(out.response);
+  double distortion = 0.0;
+  for (int j = 2; j <= harmonics; ++j)
+  {
+    distortion += std::norm(coef[static_cast<std::size_t>(j)]);
+  }
+  out.distortion = std::abs(coef[1]) > 0.0 ? std::sqrt(distortion) / std::abs(coef[1]) : 0.0;
+  out.periods = static_cast<int>(n + m);
+  return out;
+}
+
+}  // namespace backlash_servo

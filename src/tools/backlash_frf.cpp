@@ -1,0 +1,495 @@
+// backlash_frf: the joint's frequency response by stepped sines, from the exact motion. See
+// docs/frequency_response.md.
+#include <unistd.h>
+
+#include <algorithm>
+#include <atomic>
+#include <cmath>
+#include <cstdio>
+#include <fstream>
+#include <iostream>
+#include <memory>
+#include <mutex>
+#include <sstream>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "backlash_servo/config/flag_parser.h"
+#include "backlash_servo/config/run_config_loader.h"
+#include "backlash_servo/frequency_response.h"
+#include "json_writer.h"
+#include "progress.h"
+#include "run_program.h"
+#include "safe_output.h"
+
+using namespace backlash_servo;
+
+namespace
+{
+const char* HEADER =
+    R"(usage: backlash_frf [--config FILE.yaml] [any servo, drive or initial-state flag] --amplitude A[,A...]
+                   (--frequency W[,W...] | --frequency-range LO:HI:N) [--channel CHANNEL] [--offset U0]
+                   [--injection-rate HZ] [--tolerance TOL] [--max-periods N] [--harmonics N] [--linear]
+                   [--json] [--csv FILE|-] [--png FILE.png] [--jobs N]
+The joint's frequency response as a drive's commissioning tool measures it, one sine at a time, from the exact
+motion: for each amplitude and frequency the periodic steady state is detected (a point that does not settle says
+so), then the fundamental's gain and phase, the harmonic distortion and how often the teeth cross the backlash.
+Channels: command:load_position (the command theta_R through the configured digital drive -> theta_c; the default),
+motor_torque:motor_velocity and motor_torque:load_velocity (the motor torque, the drive's loop off -> omega).
+SI units: amplitudes and offsets in rad (command) or N*m (torque), frequencies in rad/s, phases in rad.
+)";
+
+constexpr double PI = 3.14159265358979323846;
+
+struct Options
+{
+  RunConfig config;
+  FrfSettings settings;
+  std::vector<double> amplitudes, frequencies;
+  bool json = false, linear = false;
+  int jobs = 1;
+  std::string config_path, csv_path, png_path;
+};
+
+std::vector<double> numberList(const std::string& flag, const std::string& text)
+{
+  std::vector<double> out;
+  std::stringstream ss(text);
+  std::string item;
+  while (std::getline(ss, item, ','))
+  {
+    char* end = nullptr;
+    const double v = std::strtod(item.c_str(), &end);
+    if (item.empty() || end == item.c_str() || *end != '\0' || !std::isfinite(v) || !(v > 0.0))
+    {
+      throw ConfigError("--" + flag + ": '" + item + "' is not a number > 0 (in '" + text + "')");
+    }
+    out.push_back(v);
+  }
+  if (out.empty())
+  {
+    throw ConfigError("--" + flag + ": no values in '" + text + "'");
+  }
+  return out;
+}
+
+/// LO:HI:N → N frequencies spaced logarithmically from LO to HI [rad/s].
+std::vector<double> logRange(const std::string& text)
+{
+  double lo = 0.0, hi = 0.0;
+  int n = 0;
+  char tail = 0;
+  if (std::sscanf(text.c_str(), "%lf:%lf:%d%c", &lo, &hi, &n, &tail) != 3 || !(lo > 0.0) || !(hi >= lo) ||
+      !std::isfinite(hi) || n < 1 || n > 100000 || (n == 1 && hi != lo))
+  {
+    throw ConfigError("--frequency-range: '" + text +
+                      "' is not LO:HI:N with 0 < LO <= HI [rad/s] and N in [1, 100000] points (N = 1: LO = HI)");
+  }
+  std::vector<double> out;
+  for (int i = 0; i < n; ++i)
+  {
+    out.push_back(n == 1 ? lo : lo * std::pow(hi / lo, static_cast<double>(i) / (n - 1)));
+  }
+  return out;
+}
+
+Options parse(int argc, char** argv)
+{
+  FlagParser parser(
+      "backlash_frf", HEADER,
+      keysOfSections({ParamSection::Servo, ParamSection::Chart, ParamSection::Drive, ParamSection::Initial}),
+      {{"config", "FILE.yaml", "the joint's keys in snake_case (flags override it)"},
+       {"channel", "CHANNEL",
+        "command:load_position (default), motor_torque:motor_velocity, motor_torque:load_velocity"},
+       {"amplitude", "A[,A...]", "sine amplitudes [rad for the command, N*m for the torque]"},
+       {"frequency", "W[,W...]", "frequencies [rad/s]"},
+       {"frequency-range", "LO:HI:N", "N frequencies spaced logarithmically from LO to HI [rad/s]"},
+       {"offset", "U0", "the input's constant part [rad or N*m] (default 0)"},
+       {"injection-rate", "HZ",
+        "torque channels: samples per second of the injected torque (default: the drive's "
+        "controller_rate, else 10000 Hz)"},
+       {"tolerance", "TOL", "steady state: relative repeat of the state from one period to the next (default 1e-8)"},
+       {"max-periods", "N", "periods run before a point is declared not periodic (default 1000)"},
+       {"harmonics", "N", "harmonics integrated; distortion from the 2nd to the Nth (default 10)"},
+       {"linear", "", "also the response with backlash 0 at every point (always drawn on --png)"},
+       {"json", "", "one JSON object on stdout"},
+       {"csv", "FILE|-", "the points as CSV (- for stdout)"},
+       {"png", "FILE.png", "Bode chart: gain and phase against frequency, one curve per amplitude, backlash 0 dashed"},
+       {"jobs", "N", "worker threads (default: all cores)"}});
+  parser.parse(argc, argv);
+  Options o;
+  o.config_path = parser.option("config");
+  const bool torque_channel = parser.option("channel", "command:load_position") != "command:load_position";
+  o.config = runConfigFrom(parser.keys(), torque_channel ? ControlMode::Effort : ControlMode::Position);
+  o.settings.channel = frfChannelFrom(parser.option("channel", "command:load_position"), "--channel");
+  if (!parser.given("amplitude"))
+  {
+    throw ConfigError("--amplitude is required: the sine amplitudes [rad for the command, N*m for the torque]");
+  }
+  o.amplitudes = numberList("amplitude", parser.option("amplitude"));
+  if (parser.given("frequency") == parser.given("frequency-range"))
+  {
+    throw ConfigError("give exactly one of --frequency W[,W...] and --frequency-range LO:HI:N [rad/s]");
+  }
+  o.frequencies = parser.given("frequency") ? numberList("frequency", parser.option("frequency"))
+                                            : logRange(parser.option("frequency-range"));
+  o.settings.offset = parser.optionNumber("offset", 0.0);
+  o.settings.injection_rate = parser.optionNumber("injection-rate", 0.0);
+  if (parser.given("injection-rate") && !(o.settings.injection_rate > 0.0))
+  {
+    throw ConfigError("--injection-rate must be > 0 Hz");
+  }
+  if (parser.given("injection-rate") && !torque_channel)
+  {
+    throw ConfigError("--injection-rate is for the torque channels: the command is sampled by the drive");
+  }
+  o.settings.tolerance = parser.optionNumber("tolerance", 1e-8);
+  if (!(o.settings.tolerance > 0.0 && o.settings.tolerance < 1.0))
+  {
+    throw ConfigError("--tolerance must be in (0, 1)");
+  }
+  const double periods = parser.optionNumber("max-periods", 1000.0);
+  if (!(periods >= 3.0 && periods <= 1e7) || periods != std::floor(periods))
+  {
+    throw ConfigError("--max-periods must be a whole number in [3, 1e7]");
+  }
+  o.settings.max_periods = static_cast<int>(periods);
+  const double harmonics = parser.optionNumber("harmonics", 10.0);
+  if (!(harmonics >= 1.0 && harmonics <= 100.0) || harmonics != std::floor(harmonics))
+  {
+    throw ConfigError("--harmonics must be a whole number in [1, 100]");
+  }
+  o.settings.harmonics = static_cast<int>(harmonics);
+  o.linear = parser.given("linear") || parser.given("png");
+  o.json = parser.given("json");
+  o.csv_path = parser.option("csv");
+  o.png_path = parser.option("png");
+  if (parser.given("png") && (o.png_path.size() < 5 || o.png_path.compare(o.png_path.size() - 4, 4, ".png") != 0))
+  {
+    throw ConfigError("--png: '" + o.png_path + "' must end in .png");
+  }
+  if (o.json && o.csv_path == "-")
+  {
+    throw ConfigError("--json and --csv - both want stdout: write the CSV to a file");
+  }
+  const double jobs = parser.optionNumber("jobs", std::max(1u, std::thread::hardware_concurrency()));
+  if (!(jobs >= 1.0 && jobs <= 4096.0) || jobs != std::floor(jobs))
+  {
+    throw ConfigError("--jobs must be a whole number in [1, 4096]");
+  }
+  o.jobs = static_cast<int>(jobs);
+  return o;
+}
+
+struct Row
+{
+  FrfPoint point;
+  FrfPoint linear;  // backlash 0 (with --linear)
+  bool has_linear = false;
+};
+
+/// Every (amplitude, frequency) pair, amplitude-major, on `jobs` threads; progress on a terminal.
+std::vector<Row> measureAll(const Options& o)
+{
+  const std::size_t count = o.amplitudes.size() * o.frequencies.size();
+  std::vector<Row> rows(count);
+  RunConfig linear = o.config;
+  linear.params.backlash = 0.0;
+  std::atomic<std::size_t> next{0}, done{0};
+  std::atomic<bool> failed{false};
+  std::mutex lock;
+  std::string error;
+  Progress progress(isatty(2) != 0, 1.0);
+  const auto worker = [&]() {
+    for (std::size_t i = next++; i < count && !failed; i = next++)
+    {
+      try
+      {
+        const double a = o.amplitudes[i / o.frequencies.size()], w = o.frequencies[i % o.frequencies.size()];
+        const auto stop = [&]() { return failed.load(); };
+        rows[i].point = measureFrequencyResponse(o.config, o.settings, a, w, stop);
+        if (o.linear)
+        {
+          rows[i].linear = measureFrequencyResponse(linear, o.settings, a, w, stop);
+          rows[i].has_linear = true;
+        }
+        std::lock_guard<std::mutex> g(lock);
+        progress.update(++done, count);
+      }
+      catch (const std::exception& e)
+      {
+        std::lock_guard<std::mutex> g(lock);
+        if (!failed)
+        {
+          error = e.what();
+        }
+        failed = true;
+      }
+    }
+  };
+  std::vector<std::thread> threads;
+  for (int j = 0; j < std::min<int>(o.jobs, static_cast<int>(count)); ++j)
+  {
+    threads.emplace_back(worker);
+  }
+  for (std::thread& t : threads)
+  {
+    t.join();
+  }
+  progress.finish();
+  if (failed)
+  {
+    throw std::runtime_error(error);
+  }
+  return rows;
+}
+
+/// Per frequency: the smallest amplitude whose response crosses the backlash (NaN: none of them).
+std::vector<double> crossingAmplitudes(const Options& o, const std::vector<Row>& rows)
+{
+  std::vector<double> out(o.frequencies.size(), NAN);
+  for (std::size_t i = 0; i < rows.size(); ++i)
+  {
+    const std::size_t f = i % o.frequencies.size();
+    if (rows[i].point.flank_changes > 0.0 && !(rows[i].point.amplitude >= out[f]))
+    {
+      out[f] = rows[i].point.amplitude;
+    }
+  }
+  return out;
+}
+
+std::string number(double v)
+{
+  if (!std::isfinite(v))
+  {
+    return "";
+  }
+  char buf[40];
+  std::snprintf(buf, sizeof buf, "%.10g", v);
+  return buf;
+}
+
+void writeCsv(std::ostream& out, const std::vector<Row>& rows, bool linear)
+{
+  out << "amplitude,requested_frequency,frequency,gain,phase,distortion,mean,peak_to_peak,periodic,period_multiple,"
+         "periods,flank_changes";
+  if (linear)
+  {
+    out << ",linear_gain,linear_phase";
+  }
+  out << "\n";
+  for (const Row& r : rows)
+  {
+    const FrfPoint& p = r.point;
+    out << number(p.amplitude) << "," << number(p.requested_frequency) << "," << number(p.frequency) << ","
+        << number(p.gain) << "," << number(p.phase) << "," << number(p.distortion) << "," << number(p.mean) << ","
+        << number(p.peak_to_peak) << "," << (p.periodic ? 1 : 0) << "," << p.period_multiple << "," << p.periods << ","
+        << number(p.flank_changes);
+    if (linear)
+    {
+      out << "," << number(r.linear.gain) << "," << number(r.linear.phase);
+    }
+    out << "\n";
+  }
+}
+
+void writeJson(const Options& o, const std::vector<Row>& rows)
+{
+  std::ostringstream out;
+  JsonWriter w(out);
+  w.beginObject();
+  w.field("channel", std::string(toString(o.settings.channel)));
+  w.field("offset", o.settings.offset);
+  w.beginArray("points");
+  for (const Row& r : rows)
+  {
+    const FrfPoint& p = r.point;
+    w.beginObject();
+    w.field("amplitude", p.amplitude);
+    w.field("frequency", p.frequency);
+    w.field("requested_frequency", p.requested_frequency);
+    w.field("gain", p.gain);
+    w.field("phase", p.phase);
+    w.field("distortion", p.distortion);
+    w.field("mean", p.mean);
+    w.field("peak_to_peak", p.peak_to_peak);
+    w.field("periodic", p.periodic);
+    w.field("period_multiple", static_cast<double>(p.period_multiple));
+    w.field("periods", static_cast<double>(p.periods));
+    w.field("flank_changes", p.flank_changes);
+    w.field("crosses_backlash", p.flank_changes > 0.0);
+    if (r.has_linear)
+    {
+      w.field("linear_gain", r.linear.gain);
+      w.field("linear_phase", r.linear.phase);
+    }
+    w.endObject();
+  }
+  w.endArray();
+  w.beginArray("backlash_crossing");
+  const std::vector<double> crossing = crossingAmplitudes(o, rows);
+  for (std::size_t f = 0; f < o.frequencies.size(); ++f)
+  {
+    w.beginObject();
+    w.field("frequency", rows[f].point.frequency);
+    w.field("amplitude", crossing[f]);
+    w.endObject();
+  }
+  w.endArray();
+  w.endObject();
+  std::cout << out.str() << "\n";
+}
+
+void writeText(const Options& o, const std::vector<Row>& rows)
+{
+  const bool torque = o.settings.channel != FrfChannel::CommandToLoadPosition;
+  std::printf("channel %s, offset %g %s; gain in %s, phase in rad\n", toString(o.settings.channel), o.settings.offset,
+              torque ? "N*m" : "rad", torque ? "(rad/s)/(N*m)" : "rad/rad");
+  std::printf("%12s %12s %12s %12s %10s %8s %s\n", "amplitude", "w [rad/s]", "gain", "phase", "THD", "flank/T",
+              o.linear ? "steady state     linear gain / phase" : "steady state");
+  for (const Row& r : rows)
+  {
+    const FrfPoint& p = r.point;
+    char state[64];
+    if (p.periodic)
+    {
+      std::snprintf(state, sizeof state, p.period_multiple == 1 ? "periodic (%d T)" : "period %dT (%d T run)",
+                    p.period_multiple == 1 ? p.periods : p.period_multiple, p.periods);
+    }
+    else
+    {
+      std::snprintf(state, sizeof state, "NOT periodic (%d T)", p.periods);
+    }
+    std::printf("%12.6g %12.6g %12.6g %12.6g %10.3g %8.3g %-16s", p.amplitude, p.frequency, p.gain, p.phase,
+                p.distortion, p.flank_changes, state);
+    if (r.has_linear)
+    {
+      std::printf(" %12.6g %12.6g", r.linear.gain, r.linear.phase);
+    }
+    std::printf("\n");
+  }
+  const std::vector<double> crossing = crossingAmplitudes(o, rows);
+  for (std::size_t f = 0; f < o.frequencies.size(); ++f)
+  {
+    if (std::isfinite(crossing[f]))
+    {
+      std::printf("w = %.6g rad/s: the teeth cross the backlash from amplitude %.6g on (of those run)\n",
+                  rows[f].point.frequency, crossing[f]);
+    }
+    else
+    {
+      std::printf("w = %.6g rad/s: the teeth do not cross the backlash at any amplitude run\n",
+                  rows[f].point.frequency);
+    }
+  }
+}
+
+/// The Bode chart: data to a private directory, drawn there by frf_chart.py (run without a shell), moved into place.
+void drawChart(const Options& o, const std::vector<Row>& rows, const std::string& script, SafeOutput& png)
+{
+  TemporaryDirectory dir("backlash_frf");
+  {
+    std::ofstream points(dir.file("points.csv"));
+    writeCsv(points, rows, true);
+    if (!points.flush())
+    {
+      throw std::runtime_error("--png: writing the chart data to '" + dir.path() + "' failed (disk full?)");
+    }
+  }
+  std::ofstream meta(dir.file("channel.txt"));
+  meta << toString(o.settings.channel) << "\n";
+  meta.close();
+  const std::string tmp = dir.file("chart.png");
+  runChartScript(script, dir.path(), tmp);
+  copyFileInto(tmp, png);
+  std::cerr << "backlash_frf: wrote " << png.path() << "\n";
+}
+
+}  // namespace
+
+int main(int argc, char** argv)
+{
+  Options o;
+  std::unique_ptr<SafeOutput> png, csv;
+  std::string chart_script;
+  try
+  {
+    o = parse(argc, argv);
+    // Outputs are checked and their temporaries created before the runs.
+    if (!o.png_path.empty())
+    {
+      png = std::make_unique<SafeOutput>("--png", o.png_path, std::vector<std::string>{o.config_path});
+      chart_script = helperBesideExecutable("frf_chart.py");
+    }
+    if (!o.csv_path.empty() && o.csv_path != "-")
+    {
+      if (!o.png_path.empty() && (o.png_path == o.csv_path || sameFile(o.png_path, o.csv_path)))
+      {
+        throw ConfigError("--csv: '" + o.csv_path + "' is also the --png file");
+      }
+      csv = std::make_unique<SafeOutput>("--csv", o.csv_path, std::vector<std::string>{o.config_path});
+    }
+    // Every point's settings checked before any runs (a frequency beyond the sample rate, a channel the drive
+    // cannot take).
+    for (double w : o.frequencies)
+    {
+      const double rate =
+          o.settings.channel == FrfChannel::CommandToLoadPosition
+              ? o.config.drive.controller_rate
+              : (o.settings.injection_rate > 0.0
+                     ? o.settings.injection_rate
+                     : (o.config.drive.sampled() ? o.config.drive.controller_rate : DEFAULT_INJECTION_RATE));
+      if (rate > 0.0 && 2.0 * PI * rate / w < 3.5)
+      {
+        throw ConfigError("--frequency: " + number(w) + " rad/s is above a quarter of the sample rate " + number(rate) +
+                          " Hz (at most " + number(2.0 * PI * rate / 4.0) + " rad/s)");
+      }
+    }
+    if (o.settings.channel == FrfChannel::CommandToLoadPosition && !o.config.drive.sampled())
+    {
+      throw ConfigError(
+          "--channel command:load_position needs a digital drive (controller_rate > 0 Hz), which samples the sine "
+          "exactly; the continuous law takes no sine (the torque channels need no drive)");
+    }
+  }
+  catch (const std::exception& e)
+  {
+    std::cerr << "backlash_frf: error: " << e.what() << "\n";
+    return 2;
+  }
+  try
+  {
+    const std::vector<Row> rows = measureAll(o);
+    if (csv)
+    {
+      writeCsv(csv->stream(), rows, o.linear);
+      csv->commit();
+      std::cerr << "backlash_frf: wrote " << o.csv_path << "\n";
+    }
+    if (png)
+    {
+      drawChart(o, rows, chart_script, *png);
+    }
+    if (o.csv_path == "-")
+    {
+      writeCsv(std::cout, rows, o.linear);
+    }
+    else if (o.json)
+    {
+      writeJson(o, rows);
+    }
+    else
+    {
+      writeText(o, rows);
+    }
+    flushStdout();
+  }
+  catch (const std::exception& e)
+  {
+    std::cerr << "backlash_frf: error: " << e.what() << "\n";
+    return 1;
+  }
+  return 0;
+}

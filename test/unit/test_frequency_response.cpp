@@ -1,0 +1,183 @@
+// The stepped-sine frequency response against independent truth: with Δ = 0 the joint is linear, and its response is
+// the transfer function (times the hold, and the sampled loop's) written here from the equations of motion.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <complex>
+
+#include "backlash_servo/frequency_response.h"
+
+using namespace backlash_servo;
+using cd = std::complex<double>;
+
+namespace
+{
+constexpr double PI = 3.14159265358979323846;
+
+/// The thesis' D1 joint (ζ = 0.4, ω_n = 1 rad/s, ρ = 1) with the given backlash.
+RunConfig d1(double backlash)
+{
+  RunConfig c;
+  c.params.backlash = backlash;
+  c.params.restitution = 0.8;
+  return c;
+}
+
+/// The zero-order hold's gain at ω for a sample period T: the held sequence's component at ω over the sequence's.
+cd hold(double w, double t)
+{
+  return (1.0 - std::exp(cd(0.0, -w * t))) / cd(0.0, w * t);
+}
+
+}  // namespace
+
+TEST(FrequencyResponse, LockedTorqueToVelocityIsTheHeldTransferFunction)
+{
+  // Δ = 0: the teeth never part, the joint is one body on the motor shaft: J ω̇_m = T_m − F ω_m.
+  for (const double w : {0.05, 0.7, 3.0, 40.0})
+  {
+    RunConfig c = d1(0.0);
+    FrfSettings s;
+    s.channel = FrfChannel::TorqueToMotorVelocity;
+    s.injection_rate = 200.0;
+    s.tolerance = 1e-13;
+    const FrfPoint p = measureFrequencyResponse(c, s, 0.3, w);
+    ASSERT_TRUE(p.periodic) << w;
+    EXPECT_EQ(p.period_multiple, 1);
+    const double jt = c.params.totalInertia(), f = c.params.totalFriction();
+    const double wu = p.frequency;
+    EXPECT_NEAR(wu, 2.0 * PI * 200.0 / std::round(2.0 * PI * 200.0 / w), 1e-12 * wu);
+    const cd expected = 1.0 / cd(f, wu * jt) * hold(wu, 1.0 / 200.0);
+    EXPECT_LT(std::abs(p.response - expected), 1e-9 * std::abs(expected)) << w << " " << p.response << expected;
+    EXPECT_LT(p.distortion, 1e-9);
+    EXPECT_EQ(p.flank_changes, 0.0);
+  }
+}
+
+TEST(FrequencyResponse, LockedSampledLoopIsTheSampledDataTransferFunction)
+{
+  // Δ = 0 under a digital P drive at f_s: the controller sees y_k = θ_c(t_k) through the ZOH-equivalent plant
+  // G_d(z); u_k = K(r_k − y_k); the continuous output's fundamental is ρ P(jω) hold(ω) U with P(s) = 1/(s(Js + F)).
+  const double fs = 20.0, ts = 1.0 / fs;
+  for (const double w : {0.2, 1.0, 2.5, 10.0})
+  {
+    RunConfig c = d1(0.0);
+    c.drive.controller_rate = fs;
+    FrfSettings s;
+    s.tolerance = 1e-13;
+    s.max_periods = 5000;
+    const double amp = 0.01;
+    const FrfPoint p = measureFrequencyResponse(c, s, amp, w);
+    ASSERT_TRUE(p.periodic) << w;
+    const double jt = c.params.totalInertia(), f = c.params.totalFriction(), k = c.params.gain;
+    const double rho = c.params.gear_ratio, a = f / jt, e = std::exp(-a * ts);
+    // x = (θ_m, ω_m): Φ = [[1, (1 − e)/a], [0, e]], Γ = [(T/a − (1 − e)/a²)/J, ((1 − e)/a)/J].
+    const double p01 = (1.0 - e) / a, g0 = (ts / a - (1.0 - e) / (a * a)) / jt, g1 = (1.0 - e) / a / jt;
+    const cd z = std::exp(cd(0.0, p.frequency * ts));
+    // (zI − Φ)⁻¹Γ, first row: [(z − e) g0 + p01 g1] / ((z − 1)(z − e)).
+    const cd gd = rho * ((z - e) * g0 + p01 * g1) / ((z - 1.0) * (z - e));
+    const cd r(0.0, -amp);
+    const cd u = k * r / (1.0 + k * gd);
+    const cd jw(0.0, p.frequency);
+    const cd y = rho / (jw * (jt * jw + f)) * hold(p.frequency, ts) * u;
+    const cd expected = y / r;
+    EXPECT_LT(std::abs(p.response - expected), 1e-9 * std::abs(expected)) << w << " " << p.response << expected;
+    EXPECT_NEAR(p.mean, 0.0, 1e-9);
+  }
+}
+
+TEST(FrequencyResponse, TeethHeldOnOneFlankRespondLikeTheLockedJoint)
+{
+  // A load torque presses the teeth on one flank; a small sine never parts them, so the joint with backlash responds
+  // exactly as the locked one (the constant load torque only shifts where it rests).
+  for (const double w : {0.3, 2.0})
+  {
+    RunConfig c = d1(0.3);
+    c.params.load_torque = -0.5;
+    c.drive.controller_rate = 50.0;
+    RunConfig locked = c;
+    locked.params.backlash = 0.0;
+    FrfSettings s;
+    s.tolerance = 1e-12;
+    const FrfPoint p = measureFrequencyResponse(c, s, 0.01, w), q = measureFrequencyResponse(locked, s, 0.01, w);
+    ASSERT_TRUE(p.periodic && q.periodic) << w;
+    EXPECT_EQ(p.flank_changes, 0.0);
+    EXPECT_LT(std::abs(p.response - q.response), 1e-9 * std::abs(q.response)) << w;
+    EXPECT_LT(p.distortion, 1e-9);
+  }
+}
+
+TEST(FrequencyResponse, CompliantMeshPressedIsTheTwoMassTransferFunction)
+{
+  // Resilient teeth pressed by a torque offset (the joint drifts at a constant speed, the load's friction keeping the
+  // forward flank loaded) and a small sine: the linear two-mass drive. With M = J_m s + f_m, L = (J_L + J_g)s + f_L,
+  // K = c + d s (at the load shaft): ω_m/T_m = 1/(M + ρ²K L/(sL + K)), ω_c/T_m = ρK/(sL + K) · ω_m/T_m.
+  RunConfig c = d1(0.1);
+  c.params.gear_ratio = 0.5;
+  c.params.mesh_stiffness = 100.0;
+  c.params.mesh_damping = 1.0;
+  const ServoParams& p = c.params;
+  const double rate = 400.0;
+  for (const FrfChannel ch : {FrfChannel::TorqueToMotorVelocity, FrfChannel::TorqueToLoadVelocity})
+  {
+    for (const double w : {3.0, 19.0, 45.0})
+    {
+      FrfSettings s;
+      s.channel = ch;
+      s.offset = 1.0;
+      s.injection_rate = rate;
+      s.tolerance = 1e-12;
+      s.max_periods = 20000;
+      const FrfPoint r = measureFrequencyResponse(c, s, 0.02, w);
+      ASSERT_TRUE(r.periodic) << w;
+      EXPECT_EQ(r.flank_changes, 0.0);
+      const cd jw(0.0, r.frequency);
+      const cd m = p.motor_inertia * jw + p.motor_friction,
+               l = (p.load_inertia + p.gear_inertia) * jw + p.load_friction;
+      const cd k = p.mesh_stiffness + p.mesh_damping * jw;
+      const double rho = p.gear_ratio;
+      const cd motor = 1.0 / (m + rho * rho * k * l / (jw * l + k));
+      const cd expected = (ch == FrfChannel::TorqueToMotorVelocity ? motor : rho * k / (jw * l + k) * motor) *
+                          hold(r.frequency, 1.0 / rate);
+      EXPECT_LT(std::abs(r.response - expected), 1e-9 * std::abs(expected))
+          << toString(ch) << " " << w << " " << r.response << expected;
+      EXPECT_NEAR(r.mean,
+                  (ch == FrfChannel::TorqueToMotorVelocity ? 1.0 : rho) * 1.0 /
+                      (p.motor_friction + rho * rho * p.load_friction),
+                  1e-9);
+    }
+  }
+}
+
+TEST(FrequencyResponse, ARunStartedOnTheSteadyStateRepeatsAtOnce)
+{
+  // D1 with impacts under a digital P drive (memoryless law): the settled state, taken as a new start with the same
+  // excitation, repeats from its first period and gives the same response.
+  RunConfig c = d1(0.3);
+  c.drive.controller_rate = 100.0;
+  FrfSettings s;
+  s.tolerance = 1e-11;
+  const FrfPoint p = measureFrequencyResponse(c, s, 0.5, 1.0);
+  ASSERT_TRUE(p.periodic);
+  EXPECT_EQ(p.period_multiple, 1);
+  EXPECT_EQ(p.flank_changes, 2.0);  // forward and back once a period
+  EXPECT_GT(p.distortion, 1e-3);    // the impacts distort it
+  RunConfig again = c;
+  again.initial = p.settled_state;
+  const FrfPoint q = measureFrequencyResponse(again, s, 0.5, 1.0);
+  ASSERT_TRUE(q.periodic);
+  EXPECT_EQ(q.periods, 3);  // three period starts compared, then the analysed one
+  EXPECT_LT(std::abs(p.response - q.response), 1e-9 * std::abs(p.response));
+}
+
+TEST(FrequencyResponse, RefusesWhatItCannotMeasure)
+{
+  RunConfig c = d1(0.3);
+  FrfSettings s;
+  EXPECT_THROW(measureFrequencyResponse(c, s, 0.1, 1.0), InvalidParameterError);  // continuous law: no sine
+  c.drive.controller_rate = 10.0;
+  EXPECT_THROW(measureFrequencyResponse(c, s, 0.1, 20.0), InvalidParameterError);  // above f_s/4
+  EXPECT_THROW(measureFrequencyResponse(c, s, NAN, 1.0), InvalidParameterError);
+  EXPECT_THROW(measureFrequencyResponse(c, s, 0.1, -1.0), InvalidParameterError);
+  EXPECT_THROW(frfChannelFrom("torque:velocity", "channel"), InvalidParameterError);
+}
