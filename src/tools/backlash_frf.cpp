@@ -104,13 +104,13 @@ Options parse(int argc, char** argv)
         "command:load_position (default), motor_torque:motor_velocity, motor_torque:load_velocity"},
        {"amplitude", "A[,A...]", "sine amplitudes [rad for the command, N*m for the torque]"},
        {"frequency", "W[,W...]", "frequencies [rad/s]"},
-       {"frequency-range", "LO:HI:N", "N frequencies spaced logarithmically from LO to HI [rad/s]"},
+       {"frequency_range", "LO:HI:N", "N frequencies spaced logarithmically from LO to HI [rad/s]"},
        {"offset", "U0", "the input's constant part [rad or N*m] (default 0)"},
-       {"injection-rate", "HZ",
+       {"injection_rate", "HZ",
         "torque channels: samples per second of the injected torque (default: the drive's "
         "controller_rate, else 10000 Hz)"},
        {"tolerance", "TOL", "steady state: relative repeat of the state from one period to the next (default 1e-8)"},
-       {"max-periods", "N", "periods run before a point is declared not periodic (default 1000)"},
+       {"max_periods", "N", "periods run before a point is declared not periodic (default 1000)"},
        {"harmonics", "N", "harmonics integrated; distortion from the 2nd to the Nth (default 10)"},
        {"linear", "", "also the response with backlash 0 at every point (always drawn on --png)"},
        {"json", "", "one JSON object on stdout"},
@@ -128,19 +128,19 @@ Options parse(int argc, char** argv)
     throw ConfigError("--amplitude is required: the sine amplitudes [rad for the command, N*m for the torque]");
   }
   o.amplitudes = numberList("amplitude", parser.option("amplitude"));
-  if (parser.given("frequency") == parser.given("frequency-range"))
+  if (parser.given("frequency") == parser.given("frequency_range"))
   {
     throw ConfigError("give exactly one of --frequency W[,W...] and --frequency-range LO:HI:N [rad/s]");
   }
   o.frequencies = parser.given("frequency") ? numberList("frequency", parser.option("frequency"))
-                                            : logRange(parser.option("frequency-range"));
+                                            : logRange(parser.option("frequency_range"));
   o.settings.offset = parser.optionNumber("offset", 0.0);
-  o.settings.injection_rate = parser.optionNumber("injection-rate", 0.0);
-  if (parser.given("injection-rate") && !(o.settings.injection_rate > 0.0))
+  o.settings.injection_rate = parser.optionNumber("injection_rate", 0.0);
+  if (parser.given("injection_rate") && !(o.settings.injection_rate > 0.0))
   {
     throw ConfigError("--injection-rate must be > 0 Hz");
   }
-  if (parser.given("injection-rate") && !torque_channel)
+  if (parser.given("injection_rate") && !torque_channel)
   {
     throw ConfigError("--injection-rate is for the torque channels: the command is sampled by the drive");
   }
@@ -149,7 +149,7 @@ Options parse(int argc, char** argv)
   {
     throw ConfigError("--tolerance must be in (0, 1)");
   }
-  const double periods = parser.optionNumber("max-periods", 1000.0);
+  const double periods = parser.optionNumber("max_periods", 1000.0);
   if (!(periods >= 3.0 && periods <= 1e7) || periods != std::floor(periods))
   {
     throw ConfigError("--max-periods must be a whole number in [3, 1e7]");

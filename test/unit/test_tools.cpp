@@ -75,6 +75,7 @@ const std::string SIM = BACKLASH_SIM_EXE;
 const std::string DESIGN = BACKLASH_DESIGN_EXE;
 const std::string COMPARE = BACKLASH_COMPARE_EXE;
 const std::string DF = BACKLASH_DF_EXE;
+const std::string FRF = BACKLASH_FRF_EXE;
 const std::string GRID = " --zeta 0.3,0.6 --inertia-ratio 1,9 --friction-ratio 0.4 --restitution 0,0.6,1";
 }  // namespace
 
@@ -922,4 +923,87 @@ TEST(DescribingFunctionTool, SaysWhenTheClassicalDfSeesNoCycleAndRefusesOtherLaw
   const std::string txt = runCapture(DF + " --png chart.txt 2>&1", &code);
   EXPECT_EQ(code, 2);
   EXPECT_NE(txt.find("must end in .png"), std::string::npos) << txt;
+}
+
+TEST(FrequencyResponseTool, LockedJointGivesTheHeldTransferFunction)
+{
+  // Backlash 0: the joint is one body on the motor shaft, ω_m/T_m = 1/(F + jωJ) times the hold's
+  // (1 − e^{−jωT})/(jωT) (J = 1, F = 0.8 for the chart form's ζ = 0.4, ω_n = 1).
+  int code = 0;
+  const std::string json =
+      runCapture(FRF +
+                     " --backlash 0 --channel motor_torque:motor_velocity --injection-rate 200 --amplitude 0.3"
+                     " --frequency 0.7,3 --tolerance 1e-12 --linear --json",
+                 &code);
+  ASSERT_EQ(code, 0) << json;
+  EXPECT_EQ(json.find("\"channel\":\"motor_torque:motor_velocity\""), 1u) << json;
+  const std::regex point(
+      "\\{\"amplitude\":([0-9.eE+-]+),\"frequency\":([0-9.eE+-]+),\"requested_frequency\":([0-9.eE+-]+),"
+      "\"gain\":([0-9.eE+-]+),\"phase\":([0-9.eE+-]+)");
+  int found = 0;
+  for (std::sregex_iterator it(json.begin(), json.end(), point), end; it != end; ++it, ++found)
+  {
+    const std::smatch& m = *it;
+    const double w = std::stod(m[2]), t = 1.0 / 200.0;
+    const std::complex<double> hold =
+        (1.0 - std::exp(std::complex<double>(0.0, -w * t))) / std::complex<double>(0.0, w * t);
+    const std::complex<double> g = 1.0 / std::complex<double>(0.8, w) * hold;
+    EXPECT_NEAR(std::stod(m[4]), std::abs(g), 1e-9 * std::abs(g)) << json;
+    EXPECT_NEAR(std::stod(m[5]), std::arg(g), 1e-9) << json;
+    EXPECT_NEAR(w, 2.0 * 3.14159265358979 * 200.0 / std::round(2.0 * 3.14159265358979 * 200.0 / std::stod(m[3])), 1e-9);
+  }
+  EXPECT_EQ(found, 2) << json;
+  EXPECT_NEAR(jsonNumber(json, "linear_gain"), jsonNumber(json, "gain"), 1e-12) << json;
+  EXPECT_NE(json.find("\"crosses_backlash\":false"), std::string::npos) << json;
+}
+
+TEST(FrequencyResponseTool, BacklashPointsCsvChartAndRefusals)
+{
+  int code = 0;
+  // D1 under a 100 Hz P drive: a large sine crosses the backlash twice a period and settles; the CSV has a row per
+  // point; the chart is a PNG.
+  const std::string csv = testing::TempDir() + "backlash_frf_points.csv";
+  const std::string png = testing::TempDir() + "backlash_frf_chart.png";
+  std::remove(csv.c_str());
+  std::remove(png.c_str());
+  const std::string text = runCapture(FRF +
+                                          " --controller-rate 100 --restitution 0.8 --amplitude 0.5,1 --frequency "
+                                          "0.3,1 --jobs 2 --csv " +
+                                          csv + " --png " + png + " 2>&1",
+                                      &code);
+  ASSERT_EQ(code, 0) << text;
+  EXPECT_NE(text.find("the teeth cross the backlash from amplitude 0.5 on"), std::string::npos) << text;
+  std::ifstream in(csv);
+  std::string line;
+  std::getline(in, line);
+  EXPECT_EQ(line.rfind("amplitude,requested_frequency,frequency,gain,phase,", 0), 0u) << line;
+  int rows = 0;
+  while (std::getline(in, line))
+  {
+    ++rows;
+    EXPECT_NE(line.find(",1,1,"), std::string::npos) << line;  // periodic, at the excitation's period
+  }
+  EXPECT_EQ(rows, 4);
+  std::ifstream chart(png, std::ios::binary);
+  char signature[8] = {};
+  chart.read(signature, 8);
+  EXPECT_EQ(std::string(signature + 1, 3), "PNG");
+  std::remove(csv.c_str());
+  std::remove(png.c_str());
+  // Refusals, before any run.
+  const std::string continuous = runCapture(FRF + " --amplitude 0.1 --frequency 1 2>&1", &code);
+  EXPECT_EQ(code, 2);
+  EXPECT_NE(continuous.find("needs a digital drive"), std::string::npos) << continuous;
+  const std::string fast = runCapture(FRF + " --controller-rate 10 --amplitude 0.1 --frequency 20 2>&1", &code);
+  EXPECT_EQ(code, 2);
+  EXPECT_NE(fast.find("above a quarter of the sample rate"), std::string::npos) << fast;
+  const std::string none = runCapture(FRF + " --controller-rate 10 --frequency 1 2>&1", &code);
+  EXPECT_EQ(code, 2);
+  EXPECT_NE(none.find("--amplitude is required"), std::string::npos) << none;
+  const std::string channel = runCapture(FRF + " --channel torque --amplitude 1 --frequency 1 2>&1", &code);
+  EXPECT_EQ(code, 2);
+  EXPECT_NE(channel.find("'torque' is not a channel"), std::string::npos) << channel;
+  const std::string range = runCapture(FRF + " --controller-rate 10 --amplitude 1 --frequency-range 2:1:5 2>&1", &code);
+  EXPECT_EQ(code, 2);
+  EXPECT_NE(range.find("--frequency-range"), std::string::npos) << range;
 }
