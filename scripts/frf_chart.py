@@ -24,6 +24,20 @@ def number(text):
     return float(text) if text != "" else math.nan
 
 
+def unwrapped(phases, settled=None):
+    """Phases [rad] → degrees, continued across ±180°: each within 180° of the last settled one before it (a point
+    that did not settle follows its neighbours but does not lead them)."""
+    out, ref = [], None
+    for i, p in enumerate(phases):
+        d = math.degrees(p)
+        if ref is not None and not math.isnan(d):
+            d += 360.0 * round((ref - d) / 360.0)
+        out.append(d)
+        if settled is None or settled[i]:
+            ref = d
+    return out
+
+
 def main():
     if len(sys.argv) != 3:
         sys.exit(__doc__)
@@ -45,13 +59,14 @@ def main():
         c = colours[i % len(colours)]
         w = [r["frequency"] for r in pts]
         mag.semilogx(w, [db(r["gain"]) for r in pts], "o-", color=c, ms=3, label=f"A = {a:.4g}")
-        pha.semilogx(w, [math.degrees(r["phase"]) for r in pts], "o-", color=c, ms=3)
-        bad = [r for r in pts if r["periodic"] == 0]
-        mag.semilogx([r["frequency"] for r in bad], [db(r["gain"]) for r in bad], "x", color="k", ms=8)
-        pha.semilogx([r["frequency"] for r in bad], [math.degrees(r["phase"]) for r in bad], "x", color="k", ms=8)
+        phase = unwrapped([r["phase"] for r in pts], [r["periodic"] == 1 for r in pts])
+        pha.semilogx(w, phase, "o-", color=c, ms=3)
+        bad = [i for i, r in enumerate(pts) if r["periodic"] == 0]
+        mag.semilogx([w[i] for i in bad], [db(pts[i]["gain"]) for i in bad], "x", color="k", ms=8)
+        pha.semilogx([w[i] for i in bad], [phase[i] for i in bad], "x", color="k", ms=8)
         if i == 0 and all(not math.isnan(r["linear_gain"]) for r in pts):
             mag.semilogx(w, [db(r["linear_gain"]) for r in pts], "--", color="0.3", label="backlash 0")
-            pha.semilogx(w, [math.degrees(r["linear_phase"]) for r in pts], "--", color="0.3")
+            pha.semilogx(w, unwrapped([r["linear_phase"] for r in pts]), "--", color="0.3")
     if any(r["periodic"] == 0 for r in rows):
         mag.plot([], [], "x", color="k", label="not periodic")
     mag.set_ylabel(f"gain {ratio} [dB re 1 {unit}]")

@@ -15,8 +15,9 @@
  * **Steady state.** The state is compared at the starts of successive periods: velocities, gap and shaft twist must
  * repeat and positions advance by the same amount each period (a torque input may drift at a constant mean speed),
  * each within `tolerance` of that quantity's range over the period. Repeating only after m = 2…4 periods is a
- * subharmonic response (period_multiple = m, the fundamental still read at ω). Not settled after `max_periods`: the
- * point is reported not periodic and its figures are those of the last period.
+ * subharmonic response (period_multiple = m, the fundamental still read at ω). Not settled after `max_periods` (by
+ * default enough to cover 40 of the joint's slowest time constants): the point is reported not periodic and its
+ * figures are those of the last period.
  *
  * **Fourier integrals.** Over the settled period [t_n, t_n + mT] the coefficients Y_h = (2/mT)∫ y(t) e^{−jhω(t − t₀)}
  * dt (h = 1 … harmonics) are integrated by 8-point Gauss–Legendre on pieces cut at every sample and every event that
@@ -57,10 +58,15 @@ struct FrfSettings
   /// DEFAULT_INJECTION_RATE). The command is sampled by the drive at its controller_rate.
   double injection_rate = 0.0;
   double tolerance = 1e-8;  ///< steady state: relative repeat of the state from one period to the next [-]
-  int max_periods = 1000;   ///< periods run before a point is declared not periodic
-  int harmonics = 10;       ///< harmonics integrated (distortion from 2 … harmonics)
+  /// Periods run before a point is declared not periodic; 0 = enough to cover AUTO_SETTLING_SCALES of the joint's
+  /// slowest time constant (its bodies' viscous decay J/f, the drive's integral time, and for the command 1/ω_n),
+  /// and at least 1000.
+  int max_periods = 0;
+  int harmonics = 10;  ///< harmonics integrated (distortion from 2 … harmonics)
 };
 
+/// Automatic max_periods: this many of the slowest time constant (a transient decays by e^{−40} ≈ 4e-18).
+constexpr double AUTO_SETTLING_SCALES = 40.0;
 /// The torque injection's rate [Hz] when neither the settings nor the drive give one.
 constexpr double DEFAULT_INJECTION_RATE = 10000.0;
 
@@ -80,6 +86,7 @@ struct FrfPoint
   int period_multiple = 0;           ///< 1: periodic at T; m = 2…4: subharmonic (repeats after mT); 0: not periodic
   int periods = 0;                   ///< periods simulated
   double flank_changes = 0.0;        ///< the teeth changed flank (crossed the backlash) this often per period [1]
+  double separations = 0.0;          ///< the teeth came apart (a contact ended) this often per period [1]
   double settled_at = 0.0;           ///< sim time where the analysed period began [s]
   State settled_state;               ///< the joint's state there (with a memoryless drive law, a run started on it at
                                      ///< that time with the same excitation is periodic from its first period)

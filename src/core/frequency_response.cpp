@@ -60,6 +60,9 @@ class BreakSink : public EventSink
         breaks.push_back(e.state.time);
         break;
       case EventType::Separation:
+        ++separations;
+        breaks.push_back(e.state.time);
+        break;
       case EventType::Rest:
         breaks.push_back(e.state.time);
         break;
@@ -82,6 +85,7 @@ class BreakSink : public EventSink
     return n;
   }
   std::vector<double> breaks;
+  long separations = 0;
   std::vector<int> flanks;  // the flank (+1 forward, −1 backward) of each impact or engagement, in order
 };
 
@@ -225,9 +229,9 @@ FrfPoint measureFrequencyResponse(const RunConfig& config, const FrfSettings& se
   {
     throw InvalidParameterError("tolerance", "must be in (0, 1) (got " + std::to_string(settings.tolerance) + ")");
   }
-  if (settings.max_periods < 3 || settings.harmonics < 1 || settings.harmonics > 1000)
+  if ((settings.max_periods != 0 && settings.max_periods < 3) || settings.harmonics < 1 || settings.harmonics > 1000)
   {
-    throw InvalidParameterError("max_periods", "needs max_periods ≥ 3 and harmonics in [1, 1000]");
+    throw InvalidParameterError("max_periods", "needs max_periods 0 (automatic) or ≥ 3 and harmonics in [1, 1000]");
   }
   const FrfChannel channel = settings.channel;
   const bool torque = torqueChannel(channel);
@@ -271,6 +275,14 @@ FrfPoint measureFrequencyResponse(const RunConfig& config, const FrfSettings& se
   out.frequency = 2.0 * PI * rate / static_cast<double>(n_samples);
   const double w = out.frequency, period = static_cast<double>(n_samples) / rate;
   const double t0 = config.initial.time, rho = config.params.gear_ratio;
+  long max_periods = settings.max_periods;
+  if (max_periods == 0)
+  {
+    const double slowest = std::max(
+        {plantTimeScale(config.params), driveTimeScale(config), torque ? 0.0 : 1.0 / config.params.naturalFrequency()});
+    max_periods =
+        static_cast<long>(std::min(1e7, std::max(1000.0, std::ceil(AUTO_SETTLING_SCALES * slowest / period))));
+  }
   const auto sampleTime = [&](long k) { return t0 + static_cast<double>(k) / rate; };
   // The input at sample k, its phase from k mod N (exact however long the run).
   const auto inputAt = [&](long k) {
@@ -287,7 +299,7 @@ FrfPoint measureFrequencyResponse(const RunConfig& config, const FrfSettings& se
     sine.time = t0;
     sine.amplitude = amplitude;
     sine.frequency = rate / static_cast<double>(n_samples);
-    sine.duration = period * (settings.max_periods + MAX_PERIOD_MULTIPLE + 2.0);
+    sine.duration = period * (static_cast<double>(max_periods) + MAX_PERIOD_MULTIPLE + 2.0);
     run.profile = std::make_shared<const CommandProfile>(settings.offset, std::vector<ProfileSegment>{sine});
   }
   Simulator sim = makeSimulator(run);
@@ -310,7 +322,7 @@ FrfPoint measureFrequencyResponse(const RunConfig& config, const FrfSettings& se
   std::vector<Ranges> ranges;
   int multiple = 0;
   long n = 0;
-  for (; n <= settings.max_periods; ++n)
+  for (; n <= max_periods; ++n)
   {
     starts.push_back(snapshotOf(sim.state(), rho));
     for (int m = 1; m <= MAX_PERIOD_MULTIPLE && multiple == 0; ++m)
@@ -331,7 +343,7 @@ FrfPoint measureFrequencyResponse(const RunConfig& config, const FrfSettings& se
         multiple = m;
       }
     }
-    if (multiple != 0 || n == settings.max_periods || (cancelled && cancelled()))
+    if (multiple != 0 || n == max_periods || (cancelled && cancelled()))
     {
       break;
     }
@@ -354,6 +366,7 @@ FrfPoint measureFrequencyResponse(const RunConfig& config, const FrfSettings& se
     advanceSamples(probe, k_begin, k_end, &breaks, [](const State&) {});
   }
   out.flank_changes = static_cast<double>(breaks.flankChanges()) / m;
+  out.separations = static_cast<double>(breaks.separations) / m;
   const double h_max = 0.5 / std::max(fastestRate(config.params), 1e-300);
   const int harmonics = settings.harmonics;
   std::vector<std::complex<double>> y(static_cast<std::size_t>(harmonics) + 1, 0.0);

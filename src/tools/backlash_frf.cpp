@@ -110,7 +110,9 @@ Options parse(int argc, char** argv)
         "torque channels: samples per second of the injected torque (default: the drive's "
         "controller_rate, else 10000 Hz)"},
        {"tolerance", "TOL", "steady state: relative repeat of the state from one period to the next (default 1e-8)"},
-       {"max_periods", "N", "periods run before a point is declared not periodic (default 1000)"},
+       {"max_periods", "N",
+        "periods run before a point is declared not periodic (default: 40 of the joint's slowest time constants, at "
+        "least 1000)"},
        {"harmonics", "N", "harmonics integrated; distortion from the 2nd to the Nth (default 10)"},
        {"linear", "", "also the response with backlash 0 at every point (always drawn on --png)"},
        {"json", "", "one JSON object on stdout"},
@@ -149,8 +151,8 @@ Options parse(int argc, char** argv)
   {
     throw ConfigError("--tolerance must be in (0, 1)");
   }
-  const double periods = parser.optionNumber("max_periods", 1000.0);
-  if (!(periods >= 3.0 && periods <= 1e7) || periods != std::floor(periods))
+  const double periods = parser.optionNumber("max_periods", 0.0);
+  if (parser.given("max_periods") && (!(periods >= 3.0 && periods <= 1e7) || periods != std::floor(periods)))
   {
     throw ConfigError("--max-periods must be a whole number in [3, 1e7]");
   }
@@ -274,7 +276,7 @@ std::string number(double v)
 void writeCsv(std::ostream& out, const std::vector<Row>& rows, bool linear)
 {
   out << "amplitude,requested_frequency,frequency,gain,phase,distortion,mean,peak_to_peak,periodic,period_multiple,"
-         "periods,flank_changes";
+         "periods,flank_changes,separations";
   if (linear)
   {
     out << ",linear_gain,linear_phase";
@@ -286,7 +288,7 @@ void writeCsv(std::ostream& out, const std::vector<Row>& rows, bool linear)
     out << number(p.amplitude) << "," << number(p.requested_frequency) << "," << number(p.frequency) << ","
         << number(p.gain) << "," << number(p.phase) << "," << number(p.distortion) << "," << number(p.mean) << ","
         << number(p.peak_to_peak) << "," << (p.periodic ? 1 : 0) << "," << p.period_multiple << "," << p.periods << ","
-        << number(p.flank_changes);
+        << number(p.flank_changes) << "," << number(p.separations);
     if (linear)
     {
       out << "," << number(r.linear.gain) << "," << number(r.linear.phase);
@@ -320,6 +322,7 @@ void writeJson(const Options& o, const std::vector<Row>& rows)
     w.field("periods", static_cast<double>(p.periods));
     w.field("flank_changes", p.flank_changes);
     w.field("crosses_backlash", p.flank_changes > 0.0);
+    w.field("separations", p.separations);
     if (r.has_linear)
     {
       w.field("linear_gain", r.linear.gain);
@@ -347,8 +350,8 @@ void writeText(const Options& o, const std::vector<Row>& rows)
   const bool torque = o.settings.channel != FrfChannel::CommandToLoadPosition;
   std::printf("channel %s, offset %g %s; gain in %s, phase in rad\n", toString(o.settings.channel), o.settings.offset,
               torque ? "N*m" : "rad", torque ? "(rad/s)/(N*m)" : "rad/rad");
-  std::printf("%12s %12s %12s %12s %10s %8s %s\n", "amplitude", "w [rad/s]", "gain", "phase", "THD", "flank/T",
-              o.linear ? "steady state     linear gain / phase" : "steady state");
+  std::printf("%12s %12s %12s %12s %10s %8s %8s %s\n", "amplitude", "w [rad/s]", "gain", "phase", "THD", "flank/T",
+              "apart/T", o.linear ? "steady state           linear gain / phase" : "steady state");
   for (const Row& r : rows)
   {
     const FrfPoint& p = r.point;
@@ -362,8 +365,8 @@ void writeText(const Options& o, const std::vector<Row>& rows)
     {
       std::snprintf(state, sizeof state, "NOT periodic (%d T)", p.periods);
     }
-    std::printf("%12.6g %12.6g %12.6g %12.6g %10.3g %8.3g %-16s", p.amplitude, p.frequency, p.gain, p.phase,
-                p.distortion, p.flank_changes, state);
+    std::printf("%12.6g %12.6g %12.6g %12.6g %10.3g %8.3g %8.3g %-22s", p.amplitude, p.frequency, p.gain, p.phase,
+                p.distortion, p.flank_changes, p.separations, state);
     if (r.has_linear)
     {
       std::printf(" %12.6g %12.6g", r.linear.gain, r.linear.phase);
