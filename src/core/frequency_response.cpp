@@ -7,6 +7,7 @@
 #include <vector>
 
 #include "backlash_servo/command_profile.h"
+#include "gauss_legendre.h"
 
 namespace backlash_servo
 {
@@ -15,12 +16,6 @@ namespace
 constexpr double PI = 3.14159265358979323846;
 /// Subharmonics looked for: a response repeating after up to this many periods.
 constexpr int MAX_PERIOD_MULTIPLE = 4;
-constexpr double GAUSS_NODE[8] = {-0.96028985649753623168, -0.79666647741362673959, -0.52553240991632898582,
-                                  -0.18343464249564980494, 0.18343464249564980494,  0.52553240991632898582,
-                                  0.79666647741362673959,  0.96028985649753623168};
-constexpr double GAUSS_WEIGHT[8] = {0.10122853629037625915, 0.22238103445337447054, 0.31370664587788728734,
-                                    0.36268378337836198297, 0.36268378337836198297, 0.31370664587788728734,
-                                    0.22238103445337447054, 0.10122853629037625915};
 
 bool torqueChannel(FrfChannel c)
 {

@@ -1,6 +1,7 @@
 #include "backlash_servo/modes.h"
 
 #include "event_search.h"
+#include "gauss_legendre.h"
 
 #include <algorithm>
 #include <cmath>
@@ -877,13 +878,6 @@ double BasicFreeMotion<Poly>::restTime(bool motor, double sign, double horizon) 
 
 namespace
 {
-/// 8-point Gauss–Legendre rule on [−1, 1]: exact for polynomials of degree ≤ 15.
-constexpr double GAUSS_NODE[8] = {-0.96028985649753623168, -0.79666647741362673959, -0.52553240991632898582,
-                                  -0.18343464249564980494, 0.18343464249564980494,  0.52553240991632898582,
-                                  0.79666647741362673959,  0.96028985649753623168};
-constexpr double GAUSS_WEIGHT[8] = {0.10122853629037625915, 0.22238103445337447054, 0.31370664587788728734,
-                                    0.36268378337836198297, 0.36268378337836198297, 0.31370664587788728734,
-                                    0.22238103445337447054, 0.10122853629037625915};
 /// Most panels of the energy quadrature (beyond it, the closed form's integrals are kept).
 constexpr int MAX_ENERGY_PANELS = 512;
 /// The closed form's product integrals are replaced when their terms exceed the flows' size by more than this.
