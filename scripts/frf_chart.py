@@ -1,7 +1,8 @@
 #!/usr/bin/python3
 """Bode chart of a backlash_frf measurement: gain (dB) and phase (deg) against frequency, one curve per amplitude,
-the response with backlash 0 dashed; points that did not settle into a periodic response are marked with a cross.
-Called by backlash_frf --png FILE with the directory of its points.csv and channel.txt.
+the response with backlash 0 dashed. Stepped sines (points.csv): points that did not settle into a periodic
+response are marked with a cross. Broadband (lines.csv): the H1 estimate per DFT line and a third panel with the
+coherence. Called by backlash_frf --png FILE with the directory of its points.csv or lines.csv and channel.txt.
 usage: frf_chart.py DIR OUT.png"""
 import csv
 import math
@@ -42,13 +43,21 @@ def main():
     if len(sys.argv) != 3:
         sys.exit(__doc__)
     directory, out = sys.argv[1], sys.argv[2]
-    with open(os.path.join(directory, "points.csv"), newline="") as f:
+    broadband = os.path.exists(os.path.join(directory, "lines.csv"))
+    with open(os.path.join(directory, "lines.csv" if broadband else "points.csv"), newline="") as f:
         rows = [{k: number(v) for k, v in r.items()} for r in csv.DictReader(f)]
+    for r in rows:
+        r.setdefault("periodic", 1.0)
     with open(os.path.join(directory, "channel.txt")) as f:
-        channel = f.read().strip()
+        meta = f.read().split()
+    channel = meta[0]
+    excitation = meta[1] if len(meta) > 1 else "stepped sines"
     ratio, unit = UNITS.get(channel, ("gain", ""))
     amplitudes = sorted({r["amplitude"] for r in rows})
-    fig, (mag, pha) = plt.subplots(2, 1, sharex=True, figsize=(8, 7))
+    if broadband:
+        fig, (mag, pha, coh) = plt.subplots(3, 1, sharex=True, figsize=(8, 9), gridspec_kw={"height_ratios": [3, 3, 1.5]})
+    else:
+        fig, (mag, pha) = plt.subplots(2, 1, sharex=True, figsize=(8, 7))
     colours = plt.rcParams["axes.prop_cycle"].by_key()["color"]
 
     def db(g):
@@ -58,9 +67,14 @@ def main():
         pts = sorted((r for r in rows if r["amplitude"] == a), key=lambda r: r["frequency"])
         c = colours[i % len(colours)]
         w = [r["frequency"] for r in pts]
-        mag.semilogx(w, [db(r["gain"]) for r in pts], "o-", color=c, ms=3, label=f"A = {a:.4g}")
-        phase = unwrapped([r["phase"] for r in pts], [r["periodic"] == 1 for r in pts])
-        pha.semilogx(w, phase, "o-", color=c, ms=3)
+        mark = "-" if broadband else "o-"
+        mag.semilogx(w, [db(r["gain"]) for r in pts], mark, color=c, ms=3, label=f"A = {a:.4g}")
+        # Phase continued only through settled points (stepped sines) or coherent lines (broadband).
+        trusted = [r["coherence"] >= 0.5 if broadband else r["periodic"] == 1 for r in pts]
+        phase = unwrapped([r["phase"] for r in pts], trusted)
+        pha.semilogx(w, phase, mark, color=c, ms=3)
+        if broadband:
+            coh.semilogx(w, [r["coherence"] for r in pts], "-", color=c)
         bad = [i for i, r in enumerate(pts) if r["periodic"] == 0]
         mag.semilogx([w[i] for i in bad], [db(pts[i]["gain"]) for i in bad], "x", color="k", ms=8)
         pha.semilogx([w[i] for i in bad], [phase[i] for i in bad], "x", color="k", ms=8)
@@ -71,8 +85,14 @@ def main():
         mag.plot([], [], "x", color="k", label="not periodic")
     mag.set_ylabel(f"gain {ratio} [dB re 1 {unit}]")
     pha.set_ylabel("phase [deg]")
-    pha.set_xlabel("frequency ω [rad/s]")
-    mag.set_title(f"Frequency response, {channel}")
+    if broadband:
+        coh.set_ylabel("coherence γ²")
+        coh.set_ylim(0.0, 1.05)
+        coh.grid(True, which="both", alpha=0.3)
+        coh.set_xlabel("frequency ω [rad/s]")
+    else:
+        pha.set_xlabel("frequency ω [rad/s]")
+    mag.set_title(f"Frequency response, {channel} ({'H1 from ' + excitation if broadband else excitation})")
     mag.grid(True, which="both", alpha=0.3)
     pha.grid(True, which="both", alpha=0.3)
     mag.legend(fontsize=8)

@@ -92,6 +92,15 @@ struct FrfPoint
                                      ///< that time with the same excitation is periodic from its first period)
 };
 
+/// The rate [Hz] at which the channel's input is sampled and held: the drive's controller_rate for the command
+/// (InvalidParameterError without a digital drive), else `injection_rate` (> 0), the drive's controller_rate, or
+/// DEFAULT_INJECTION_RATE.
+double excitationRate(const RunConfig& config, FrfChannel channel, double injection_rate);
+/// The channel's output in a state: θ_c [rad], ω_m or ω_c [rad/s].
+double frfOutput(FrfChannel channel, const State& state);
+/// True for the channels whose input is the motor torque (effort mode).
+inline bool torqueInput(FrfChannel channel) { return channel != FrfChannel::CommandToLoadPosition; }
+
 /// The joint's fastest own rate [1/s] under the configuration (natural frequencies of the loop, the contact, the
 /// mesh and shaft springs; viscous and damper rates): the Fourier pieces are no longer than half its inverse.
 double fastestRate(const ServoParams& params);

@@ -17,25 +17,6 @@ constexpr double PI = 3.14159265358979323846;
 /// Subharmonics looked for: a response repeating after up to this many periods.
 constexpr int MAX_PERIOD_MULTIPLE = 4;
 
-bool torqueChannel(FrfChannel c)
-{
-  return c != FrfChannel::CommandToLoadPosition;
-}
-
-double outputOf(FrfChannel c, const State& s)
-{
-  switch (c)
-  {
-    case FrfChannel::CommandToLoadPosition:
-      return s.load_position;
-    case FrfChannel::TorqueToMotorVelocity:
-      return s.motor_velocity;
-    case FrfChannel::TorqueToLoadVelocity:
-      return s.load_velocity;
-  }
-  return NAN;
-}
-
 /// Records the instants where the output or its slope may jump (impacts, contacts, separations, rests) and the
 /// flank changes (the teeth crossing the backlash).
 class BreakSink : public EventSink
@@ -185,6 +166,42 @@ FrfChannel frfChannelFrom(const std::string& name, const std::string& key)
                                        "motor_torque:load_velocity");
 }
 
+double excitationRate(const RunConfig& config, FrfChannel channel, double injection_rate)
+{
+  if (!torqueInput(channel))
+  {
+    if (!config.drive.sampled())
+    {
+      throw InvalidParameterError("controller_rate",
+                                  "the command channel needs a digital drive (controller_rate > 0 Hz), which samples "
+                                  "the excitation exactly; the continuous law takes no sine");
+    }
+    return config.drive.controller_rate;
+  }
+  const double rate = injection_rate > 0.0
+                          ? injection_rate
+                          : (config.drive.sampled() ? config.drive.controller_rate : DEFAULT_INJECTION_RATE);
+  if (!std::isfinite(rate))
+  {
+    throw InvalidParameterError("injection_rate", "must be finite");
+  }
+  return rate;
+}
+
+double frfOutput(FrfChannel c, const State& s)
+{
+  switch (c)
+  {
+    case FrfChannel::CommandToLoadPosition:
+      return s.load_position;
+    case FrfChannel::TorqueToMotorVelocity:
+      return s.motor_velocity;
+    case FrfChannel::TorqueToLoadVelocity:
+      return s.load_velocity;
+  }
+  return NAN;
+}
+
 double fastestRate(const ServoParams& p)
 {
   const double rho2 = p.gear_ratio * p.gear_ratio;
@@ -229,28 +246,8 @@ FrfPoint measureFrequencyResponse(const RunConfig& config, const FrfSettings& se
     throw InvalidParameterError("max_periods", "needs max_periods 0 (automatic) or ≥ 3 and harmonics in [1, 1000]");
   }
   const FrfChannel channel = settings.channel;
-  const bool torque = torqueChannel(channel);
-  double rate = 0.0;
-  if (!torque)
-  {
-    if (!config.drive.sampled())
-    {
-      throw InvalidParameterError("controller_rate",
-                                  "the command channel needs a digital drive (controller_rate > 0 Hz), which samples "
-                                  "the sine exactly; the continuous law takes no sine");
-    }
-    rate = config.drive.controller_rate;
-  }
-  else
-  {
-    rate = settings.injection_rate > 0.0
-               ? settings.injection_rate
-               : (config.drive.sampled() ? config.drive.controller_rate : DEFAULT_INJECTION_RATE);
-    if (!std::isfinite(rate))
-    {
-      throw InvalidParameterError("injection_rate", "must be finite");
-    }
-  }
+  const bool torque = torqueInput(channel);
+  const double rate = excitationRate(config, channel, settings.injection_rate);
   const double per_period = 2.0 * PI * rate / omega;
   if (per_period < 3.5)
   {
@@ -371,7 +368,7 @@ FrfPoint measureFrequencyResponse(const RunConfig& config, const FrfSettings& se
   {
     const double ta = sampleTime(k), tb = sampleTime(k + 1);
     sim.advanceTo(ta);
-    const double at_sample = outputOf(channel, sim.state());
+    const double at_sample = frfOutput(channel, sim.state());
     lo = std::min(lo, at_sample);
     hi = std::max(hi, at_sample);
     if (torque)
@@ -406,7 +403,7 @@ FrfPoint measureFrequencyResponse(const RunConfig& config, const FrfSettings& se
         {
           const double t = a + 0.5 * h * (1.0 + GAUSS_NODE[i]);
           sim.advanceTo(t);
-          const double v = outputOf(channel, sim.state());
+          const double v = frfOutput(channel, sim.state());
           const double theta = phase0 + w * (t - ta);
           const double wt = GAUSS_WEIGHT[i] * 0.5 * h;
           y[0] += wt * v;

@@ -15,9 +15,11 @@
 #include <thread>
 #include <vector>
 
+#include "backlash_servo/broadband_response.h"
 #include "backlash_servo/config/flag_parser.h"
 #include "backlash_servo/config/run_config_loader.h"
 #include "backlash_servo/frequency_response.h"
+#include "frf/broadband_report.h"
 #include "json_writer.h"
 #include "progress.h"
 #include "run_program.h"
@@ -32,11 +34,15 @@ const char* HEADER =
                    (--frequency W[,W...] | --frequency-range LO:HI:N) [--channel CHANNEL] [--offset U0]
                    [--injection-rate HZ] [--tolerance TOL] [--max-periods N] [--harmonics N] [--linear]
                    [--json] [--csv FILE|-] [--png FILE.png] [--jobs N]
+       backlash_frf ... --excitation prbs|chirp --amplitude A[,A...] [--prbs-order N] [--prbs-hold H]
+                   [--chirp LO:HI] [--chirp-samples N] [--periods P] [--settle-periods S]
 The joint's frequency response as a drive's commissioning tool measures it, one sine at a time, from the exact
 motion: for each amplitude and frequency the periodic steady state is detected (a point that does not settle says
 so), then the fundamental's gain and phase, the harmonic distortion and how often the teeth cross the backlash.
 Channels: command:load_position (the command theta_R through the configured digital drive -> theta_c; the default),
 motor_torque:motor_velocity and motor_torque:load_velocity (the motor torque, the drive's loop off -> omega).
+With --excitation prbs or chirp: one periodic broadband excitation instead, recorded at the samples, and the H1
+estimate with its coherence per DFT line - what a drive's commissioning tool shows.
 SI units: amplitudes and offsets in rad (command) or N*m (torque), frequencies in rad/s, phases in rad.
 )";
 
@@ -47,6 +53,8 @@ struct Options
   RunConfig config;
   FrfSettings settings;
   std::vector<double> amplitudes, frequencies;
+  std::string excitation = "sine";  // sine | prbs | chirp
+  BroadbandSettings broadband;
   bool json = false, linear = false;
   int jobs = 1;
   std::string config_path, csv_path, png_path;
@@ -118,7 +126,14 @@ Options parse(int argc, char** argv)
        {"json", "", "one JSON object on stdout"},
        {"csv", "FILE|-", "the points as CSV (- for stdout)"},
        {"png", "FILE.png", "Bode chart: gain and phase against frequency, one curve per amplitude, backlash 0 dashed"},
-       {"jobs", "N", "worker threads (default: all cores)"}});
+       {"jobs", "N", "worker threads (default: all cores)"},
+       {"excitation", "KIND", "sine (stepped sines, the default), prbs or chirp (broadband: H1 and coherence)"},
+       {"prbs_order", "N", "prbs: a maximum-length sequence of 2^N - 1 bits, N in [3, 20] (default 10)"},
+       {"prbs_hold", "H", "prbs: samples each bit is held (default 1)"},
+       {"chirp", "LO:HI", "chirp: the sweep's frequencies [rad/s] (default: 0.01 to 0.25 of the sample rate)"},
+       {"chirp_samples", "N", "chirp: samples a period (default 4096)"},
+       {"periods", "P", "broadband: periods recorded and averaged (default 8)"},
+       {"settle_periods", "S", "broadband: periods run first for the transient to decay (default 2)"}});
   parser.parse(argc, argv);
   Options o;
   o.config_path = parser.option("config");
@@ -130,12 +145,71 @@ Options parse(int argc, char** argv)
     throw ConfigError("--amplitude is required: the sine amplitudes [rad for the command, N*m for the torque]");
   }
   o.amplitudes = numberList("amplitude", parser.option("amplitude"));
-  if (parser.given("frequency") == parser.given("frequency_range"))
+  o.excitation = parser.option("excitation", "sine");
+  if (o.excitation != "sine" && o.excitation != "prbs" && o.excitation != "chirp")
+  {
+    throw ConfigError("--excitation: '" + o.excitation + "' is not sine, prbs or chirp");
+  }
+  const bool sine = o.excitation == "sine";
+  for (const char* flag : {"prbs_order", "prbs_hold", "chirp", "chirp_samples", "periods", "settle_periods"})
+  {
+    const std::string f = flag;
+    const bool belongs =
+        !sine && (f.rfind("prbs", 0) == 0 ? o.excitation == "prbs"
+                                          : (f.rfind("chirp", 0) == 0 ? o.excitation == "chirp" : true));
+    if (parser.given(f) && !belongs)
+    {
+      std::string shown = "--" + f;
+      std::replace(shown.begin(), shown.end(), '_', '-');
+      throw ConfigError(shown + " does not apply to --excitation " + o.excitation);
+    }
+  }
+  if (!sine)
+  {
+    if (parser.given("frequency") || parser.given("frequency_range") || parser.given("tolerance") ||
+        parser.given("max_periods") || parser.given("harmonics") || parser.given("jobs"))
+    {
+      throw ConfigError("--excitation " + o.excitation +
+                        " sets its own frequencies: --frequency, --frequency-range, --tolerance, --max-periods, "
+                        "--harmonics and --jobs are for stepped sines");
+    }
+    BroadbandSettings& b = o.broadband;
+    b.kind = o.excitation == "prbs" ? BroadbandKind::Prbs : BroadbandKind::Chirp;
+    const auto whole = [&](const char* flag, int fallback, int lo, int hi) {
+      const double v = parser.optionNumber(flag, fallback);
+      if (!(v >= lo && v <= hi) || v != std::floor(v))
+      {
+        std::string shown = std::string("--") + flag;
+        std::replace(shown.begin(), shown.end(), '_', '-');
+        throw ConfigError(shown + " must be a whole number in [" + std::to_string(lo) + ", " + std::to_string(hi) +
+                          "]");
+      }
+      return static_cast<int>(v);
+    };
+    b.prbs_order = whole("prbs_order", 10, 3, 20);
+    b.prbs_hold = whole("prbs_hold", 1, 1, 1000);
+    b.chirp_samples = whole("chirp_samples", 4096, 16, 1 << 20);
+    b.periods = whole("periods", 8, 1, 10000);
+    b.settle_periods = whole("settle_periods", 2, 1, 10000);
+    if (parser.given("chirp"))
+    {
+      char tail = 0;
+      if (std::sscanf(parser.option("chirp").c_str(), "%lf:%lf%c", &b.chirp_low, &b.chirp_high, &tail) != 2 ||
+          !(b.chirp_low > 0.0) || !(b.chirp_high > b.chirp_low) || !std::isfinite(b.chirp_high))
+      {
+        throw ConfigError("--chirp: '" + parser.option("chirp") + "' is not LO:HI with 0 < LO < HI [rad/s]");
+      }
+    }
+  }
+  else if (parser.given("frequency") == parser.given("frequency_range"))
   {
     throw ConfigError("give exactly one of --frequency W[,W...] and --frequency-range LO:HI:N [rad/s]");
   }
-  o.frequencies = parser.given("frequency") ? numberList("frequency", parser.option("frequency"))
-                                            : logRange(parser.option("frequency_range"));
+  if (sine)
+  {
+    o.frequencies = parser.given("frequency") ? numberList("frequency", parser.option("frequency"))
+                                              : logRange(parser.option("frequency_range"));
+  }
   o.settings.offset = parser.optionNumber("offset", 0.0);
   o.settings.injection_rate = parser.optionNumber("injection_rate", 0.0);
   if (parser.given("injection_rate") && !(o.settings.injection_rate > 0.0))
@@ -181,6 +255,9 @@ Options parse(int argc, char** argv)
     throw ConfigError("--jobs must be a whole number in [1, 4096]");
   }
   o.jobs = static_cast<int>(jobs);
+  o.broadband.channel = o.settings.channel;
+  o.broadband.offset = o.settings.offset;
+  o.broadband.injection_rate = o.settings.injection_rate;
   return o;
 }
 
@@ -410,6 +487,79 @@ void drawChart(const Options& o, const std::vector<Row>& rows, const std::string
   std::cerr << "backlash_frf: wrote " << png.path() << "\n";
 }
 
+/// The broadband path: one estimate per amplitude (and its backlash-0 twin), written as asked.
+int runBroadband(const Options& o, SafeOutput* csv, SafeOutput* png, const std::string& chart_script)
+{
+  BroadbandSettings b = o.broadband;
+  const double rate = excitationRate(o.config, b.channel, b.injection_rate);
+  if (b.kind == BroadbandKind::Chirp && !(b.chirp_low > 0.0))
+  {
+    b.chirp_low = 0.01 * 2.0 * PI * rate;
+    b.chirp_high = 0.25 * 2.0 * PI * rate;
+  }
+  RunConfig linear = o.config;
+  linear.params.backlash = 0.0;
+  std::vector<BroadbandEstimate> estimates;
+  Progress progress(isatty(2) != 0, 1.0);
+  const double runs = static_cast<double>(o.amplitudes.size()) * (o.linear ? 2.0 : 1.0);
+  double done = 0.0;
+  const auto step = [&](double f) { progress.update((done + f) / runs); };
+  for (double a : o.amplitudes)
+  {
+    BroadbandEstimate e;
+    e.amplitude = a;
+    e.response = measureBroadband(o.config, b, a, step);
+    done += 1.0;
+    if (o.linear)
+    {
+      e.linear = measureBroadband(linear, b, a, step);
+      e.has_linear = true;
+      done += 1.0;
+    }
+    estimates.push_back(std::move(e));
+  }
+  progress.finish();
+  const std::string channel = toString(o.settings.channel);
+  if (csv)
+  {
+    writeBroadbandCsv(csv->stream(), estimates, o.linear);
+    csv->commit();
+    std::cerr << "backlash_frf: wrote " << csv->path() << "\n";
+  }
+  if (png)
+  {
+    TemporaryDirectory dir("backlash_frf");
+    {
+      std::ofstream lines(dir.file("lines.csv"));
+      writeBroadbandCsv(lines, estimates, true);
+      std::ofstream meta(dir.file("channel.txt"));
+      meta << channel << "\n" << o.excitation << "\n";
+      if (!lines.flush() || !meta.flush())
+      {
+        throw std::runtime_error("--png: writing the chart data to '" + dir.path() + "' failed (disk full?)");
+      }
+    }
+    const std::string tmp = dir.file("chart.png");
+    runChartScript(chart_script, dir.path(), tmp);
+    copyFileInto(tmp, *png);
+    std::cerr << "backlash_frf: wrote " << png->path() << "\n";
+  }
+  if (o.csv_path == "-")
+  {
+    writeBroadbandCsv(std::cout, estimates, o.linear);
+  }
+  else if (o.json)
+  {
+    writeBroadbandJson(std::cout, channel, o.excitation, o.settings.offset, estimates);
+  }
+  else
+  {
+    writeBroadbandText(std::cout, channel, o.excitation, estimates, 25);
+  }
+  flushStdout();
+  return 0;
+}
+
 }  // namespace
 
 int main(int argc, char** argv)
@@ -453,7 +603,8 @@ int main(int argc, char** argv)
     if (o.settings.channel == FrfChannel::CommandToLoadPosition && !o.config.drive.sampled())
     {
       throw ConfigError(
-          "--channel command:load_position needs a digital drive (controller_rate > 0 Hz), which samples the sine "
+          "--channel command:load_position needs a digital drive (controller_rate > 0 Hz), which samples the "
+          "excitation "
           "exactly; the continuous law takes no sine (the torque channels need no drive)");
     }
   }
@@ -464,6 +615,10 @@ int main(int argc, char** argv)
   }
   try
   {
+    if (o.excitation != "sine")
+    {
+      return runBroadband(o, csv.get(), png.get(), chart_script);
+    }
     const std::vector<Row> rows = measureAll(o);
     if (csv)
     {

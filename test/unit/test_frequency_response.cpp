@@ -5,6 +5,7 @@
 #include <cmath>
 #include <complex>
 
+#include "backlash_servo/broadband_response.h"
 #include "backlash_servo/frequency_response.h"
 
 using namespace backlash_servo;
@@ -180,4 +181,117 @@ TEST(FrequencyResponse, RefusesWhatItCannotMeasure)
   EXPECT_THROW(measureFrequencyResponse(c, s, NAN, 1.0), InvalidParameterError);
   EXPECT_THROW(measureFrequencyResponse(c, s, 0.1, -1.0), InvalidParameterError);
   EXPECT_THROW(frfChannelFrom("torque:velocity", "channel"), InvalidParameterError);
+}
+
+TEST(BroadbandResponse, MaximumLengthSequencesHaveTwoValuedAutocorrelation)
+{
+  // An m-sequence of length L = 2ⁿ − 1: autocorrelation L at lag 0 and −1 at every other lag; one more +1 than −1.
+  for (int order = 3; order <= 12; ++order)
+  {
+    const std::vector<int> s = maximumLengthSequence(order);
+    const std::size_t length = s.size();
+    ASSERT_EQ(length, (std::size_t{1} << order) - 1);
+    long sum = 0;
+    for (int v : s)
+    {
+      sum += v;
+    }
+    EXPECT_EQ(sum, 1) << order;
+    for (std::size_t lag = 1; lag < length; ++lag)
+    {
+      long ac = 0;
+      for (std::size_t i = 0; i < length; ++i)
+      {
+        ac += s[i] * s[(i + lag) % length];
+      }
+      ASSERT_EQ(ac, -1) << order << " " << lag;
+    }
+  }
+  EXPECT_THROW(maximumLengthSequence(2), InvalidParameterError);
+}
+
+TEST(BroadbandResponse, LockedJointGivesTheSampledTransferFunctionWithUnitCoherence)
+{
+  // Backlash 0. Torque → motor speed sampled at the hold's instants: ω_{k+1} = e ω_k + b u_k, e = e^{−(F/J)T},
+  // b = (1 − e)/F, so H(z) = b/(z − e). Command → load position under a sampled P drive: the closed loop
+  // K G_d/(1 + K G_d) with G_d the ZOH-equivalent plant (as in the stepped-sine test). PRBS and chirp alike.
+  const RunConfig c = d1(0.0);
+  const double jt = c.params.totalInertia(), f = c.params.totalFriction(), k = c.params.gain;
+  for (const BroadbandKind kind : {BroadbandKind::Prbs, BroadbandKind::Chirp})
+  {
+    BroadbandSettings s;
+    s.kind = kind;
+    s.prbs_order = 8;
+    s.chirp_samples = 512;
+    s.chirp_low = 0.2;
+    s.chirp_high = 30.0;
+    s.settle_periods = 8;  // the slowest transient (ζω_n = 0.4 /s) decays below 1e-12 over 8 periods
+    s.periods = 2;
+    {
+      s.channel = FrfChannel::TorqueToMotorVelocity;
+      s.injection_rate = 50.0;
+      const BroadbandResponse r = measureBroadband(c, s, 0.5);
+      ASSERT_GT(r.lines.size(), 50u);
+      const double ts = 1.0 / 50.0, e = std::exp(-f / jt * ts), b = (1.0 - e) / f;
+      for (const BroadbandLine& l : r.lines)
+      {
+        const cd z = std::exp(cd(0.0, l.frequency * ts));
+        const cd expected = b / (z - e);
+        EXPECT_LT(std::abs(l.h1 - expected), 1e-9 * std::abs(expected)) << l.frequency;
+        EXPECT_NEAR(l.coherence, 1.0, 1e-9);
+      }
+    }
+    {
+      RunConfig loop = c;
+      loop.drive.controller_rate = 20.0;
+      s.channel = FrfChannel::CommandToLoadPosition;
+      s.chirp_high = 15.0;
+      const BroadbandResponse r = measureBroadband(loop, s, 0.01);
+      ASSERT_GT(r.lines.size(), 50u);
+      const double ts = 1.0 / 20.0, a = f / jt, e = std::exp(-a * ts);
+      const double p01 = (1.0 - e) / a, g0 = (ts / a - (1.0 - e) / (a * a)) / jt, g1 = (1.0 - e) / a / jt;
+      for (const BroadbandLine& l : r.lines)
+      {
+        const cd z = std::exp(cd(0.0, l.frequency * ts));
+        const cd gd = c.params.gear_ratio * ((z - e) * g0 + p01 * g1) / ((z - 1.0) * (z - e));
+        const cd expected = k * gd / (1.0 + k * gd);
+        EXPECT_LT(std::abs(l.h1 - expected), 1e-9 * std::abs(expected)) << l.frequency;
+        EXPECT_NEAR(l.coherence, 1.0, 1e-9);
+      }
+    }
+  }
+}
+
+TEST(BroadbandResponse, TeethHeldOnOneFlankMatchTheLockedJointAndFreePlayLowersCoherence)
+{
+  // A load torque keeps the teeth on one flank under a small PRBS: the estimate is the locked joint's, coherent.
+  RunConfig c = d1(0.3);
+  c.params.load_torque = -0.5;
+  c.drive.controller_rate = 20.0;
+  RunConfig locked = c;
+  locked.params.backlash = 0.0;
+  BroadbandSettings s;
+  s.prbs_order = 7;
+  s.settle_periods = 12;
+  s.periods = 2;
+  const BroadbandResponse r = measureBroadband(c, s, 0.005), q = measureBroadband(locked, s, 0.005);
+  ASSERT_EQ(r.lines.size(), q.lines.size());
+  for (std::size_t i = 0; i < r.lines.size(); ++i)
+  {
+    EXPECT_LT(std::abs(r.lines[i].h1 - q.lines[i].h1), 1e-9 * std::abs(q.lines[i].h1)) << r.lines[i].frequency;
+    EXPECT_NEAR(r.lines[i].coherence, 1.0, 1e-9);
+  }
+  // Without the load torque the teeth cross the free play and the joint's own limit cycle beats with the PRBS: the
+  // output no longer repeats period to period, and the coherence falls (it stays a fraction in [0, 1]).
+  c.params.load_torque = 0.0;
+  s.periods = 8;
+  const BroadbandResponse free = measureBroadband(c, s, 0.05);
+  double mean = 0.0;
+  for (const BroadbandLine& l : free.lines)
+  {
+    EXPECT_GE(l.coherence, 0.0);
+    EXPECT_LE(l.coherence, 1.0 + 1e-12);
+    mean += l.coherence / static_cast<double>(free.lines.size());
+  }
+  EXPECT_LT(mean, 0.5);
 }
