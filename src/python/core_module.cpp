@@ -22,12 +22,14 @@
 #include <thread>
 #include <vector>
 
+#include "backlash_servo/broadband_response.h"
 #include "backlash_servo/config/compare_config.h"
 #include "backlash_servo/config/key_values.h"
 #include "backlash_servo/config/run_config_loader.h"
 #include "backlash_servo/config/safe_input.h"
 #include "backlash_servo/describing_function.h"
 #include "backlash_servo/drive.h"
+#include "backlash_servo/frequency_response.h"
 #include "backlash_servo/gear_mesh.h"
 #include "backlash_servo/param_table.h"
 #include "backlash_servo/simulator.h"
@@ -174,6 +176,101 @@ py::object run(const py::object& config)
     writeRunJson(out, c, r, tracking, rate, wall);
   }
   return parseJson(out.str());
+}
+
+/// The configuration for a frequency-response channel: the torque channels drive the joint in effort mode.
+RunConfig frfConfigOf(const py::object& config, FrfChannel channel)
+{
+  InlineYaml inline_yaml;
+  return runConfigFrom(keyValuesOf(config, &inline_yaml),
+                       torqueInput(channel) ? ControlMode::Effort : ControlMode::Position);
+}
+
+py::dict frequencyResponse(const py::object& config, double amplitude, double frequency, const std::string& channel,
+                           double offset, double injection_rate, double tolerance, int max_periods, int harmonics)
+{
+  FrfSettings s;
+  s.channel = frfChannelFrom(channel, "channel");
+  s.offset = offset;
+  s.injection_rate = injection_rate;
+  s.tolerance = tolerance;
+  s.max_periods = max_periods;
+  s.harmonics = harmonics;
+  const RunConfig c = frfConfigOf(config, s.channel);
+  FrfPoint p;
+  {
+    py::gil_scoped_release release;
+    p = measureFrequencyResponse(c, s, amplitude, frequency);
+  }
+  py::dict d;
+  d["amplitude"] = p.amplitude;
+  d["frequency"] = p.frequency;
+  d["requested_frequency"] = p.requested_frequency;
+  d["response"] = p.response;
+  d["gain"] = p.gain;
+  d["phase"] = p.phase;
+  d["distortion"] = p.distortion;
+  d["mean"] = p.mean;
+  d["peak_to_peak"] = p.peak_to_peak;
+  d["periodic"] = p.periodic;
+  d["period_multiple"] = p.period_multiple;
+  d["periods"] = p.periods;
+  d["flank_changes"] = p.flank_changes;
+  d["separations"] = p.separations;
+  d["samples_per_period"] = p.samples_per_period;
+  return d;
+}
+
+py::dict broadbandResponse(const py::object& config, double amplitude, const std::string& excitation,
+                           const std::string& channel, double offset, double injection_rate, int prbs_order,
+                           int prbs_hold, const py::object& chirp, int chirp_samples, int periods, int settle_periods)
+{
+  BroadbandSettings s;
+  s.channel = frfChannelFrom(channel, "channel");
+  if (excitation != "prbs" && excitation != "chirp")
+  {
+    throw InvalidParameterError("excitation", "'" + excitation + "' is not prbs or chirp");
+  }
+  s.kind = excitation == "prbs" ? BroadbandKind::Prbs : BroadbandKind::Chirp;
+  s.offset = offset;
+  s.injection_rate = injection_rate;
+  s.prbs_order = prbs_order;
+  s.prbs_hold = prbs_hold;
+  s.chirp_samples = chirp_samples;
+  s.periods = periods;
+  s.settle_periods = settle_periods;
+  const RunConfig c = frfConfigOf(config, s.channel);
+  if (s.kind == BroadbandKind::Chirp)
+  {
+    const double rate = excitationRate(c, s.channel, injection_rate);
+    const auto range = chirp.is_none() ? std::pair<double, double>{0.01 * 2.0 * M_PI * rate, 0.25 * 2.0 * M_PI * rate}
+                                       : chirp.cast<std::pair<double, double>>();
+    s.chirp_low = range.first;
+    s.chirp_high = range.second;
+  }
+  BroadbandResponse r;
+  {
+    py::gil_scoped_release release;
+    r = measureBroadband(c, s, amplitude);
+  }
+  const std::size_t n = r.lines.size();
+  py::array_t<double> frequency(n), coherence(n), power(n);
+  py::array_t<std::complex<double>> h1(n);
+  for (std::size_t i = 0; i < n; ++i)
+  {
+    frequency.mutable_at(i) = r.lines[i].frequency;
+    h1.mutable_at(i) = r.lines[i].h1;
+    coherence.mutable_at(i) = r.lines[i].coherence;
+    power.mutable_at(i) = r.lines[i].input_power;
+  }
+  py::dict d;
+  d["frequency"] = frequency;
+  d["h1"] = h1;
+  d["coherence"] = coherence;
+  d["input_power"] = power;
+  d["sample_rate"] = r.sample_rate;
+  d["samples_per_period"] = r.samples_per_period;
+  return d;
 }
 
 /// The sweep's CSV as `backlash_sweep` writes it (header and rows, in grid order).
@@ -449,6 +546,20 @@ PYBIND11_MODULE(core, m)
       "The solutions of G(jω)·N(A) = −1 for the classical backlash DF with ω in [omega_lo, omega_hi] [rad/s]: g is "
       "a callable ω → complex G(jω) (from the element's output back to its input). A list of dicts amplitude [rad], "
       "frequency [rad/s], stable (Loeb), in order of frequency.");
+  m.def("frequency_response", &frequencyResponse, py::arg("config") = py::none(), py::kw_only(), py::arg("amplitude"),
+        py::arg("frequency"), py::arg("channel") = "command:load_position", py::arg("offset") = 0.0,
+        py::arg("injection_rate") = 0.0, py::arg("tolerance") = 1e-8, py::arg("max_periods") = 0,
+        py::arg("harmonics") = 10,
+        "One stepped-sine point as `backlash_frf` measures it: amplitude [rad or N·m] at frequency [rad/s] on the "
+        "channel; a dict with the frequency used, the complex response, gain, phase [rad], distortion, periodic, "
+        "flank_changes, … (docs/frequency_response.md).");
+  m.def("broadband_response", &broadbandResponse, py::arg("config") = py::none(), py::kw_only(), py::arg("amplitude"),
+        py::arg("excitation") = "prbs", py::arg("channel") = "command:load_position", py::arg("offset") = 0.0,
+        py::arg("injection_rate") = 0.0, py::arg("prbs_order") = 10, py::arg("prbs_hold") = 1,
+        py::arg("chirp") = py::none(), py::arg("chirp_samples") = 4096, py::arg("periods") = 8,
+        py::arg("settle_periods") = 2,
+        "The H1 estimate and coherence of a PRBS or chirp excitation (`backlash_frf --excitation`): numpy arrays "
+        "frequency [rad/s], h1 (complex), coherence, input_power; chirp = (low, high) [rad/s].");
   py::class_<PySimulator>(m, "Simulator", "A joint stepped from Python (the configured plant and drive).")
       .def(py::init<const py::object&>(), py::arg("config") = py::none())
       .def("advance", &PySimulator::advance, py::arg("t_end"), "Advances exactly to t_end [s].")

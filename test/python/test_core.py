@@ -3,9 +3,11 @@
 Run with Debian's /usr/bin/python3 after `source build/devel/setup.bash` (scripts/run_tests.sh does):
     /usr/bin/python3 -m pytest test/python
 """
+import cmath
 import csv
 import io
 import json
+import math
 import os
 import subprocess
 import threading
@@ -205,3 +207,30 @@ def test_describing_functions_and_harmonic_balance():
     assert 0.15 < found[0]["amplitude"] < found[1]["amplitude"]
     with pytest.raises(ValueError, match="backlash"):
         core.harmonic_balance(g, 0.0, 1e-3, 1e3)
+
+
+def test_frequency_response_of_the_locked_joint_is_the_held_transfer_function():
+    # Backlash 0: torque to motor speed is 1/(F + jwJ) times the hold's (1 - e^{-jwT})/(jwT) (J = 1, F = 0.8).
+    p = core.frequency_response({"backlash": 0.0}, amplitude=0.3, frequency=3.0, channel="motor_torque:motor_velocity",
+                                injection_rate=200.0, tolerance=1e-12)
+    w, t = p["frequency"], 1.0 / 200.0
+    expected = 1.0 / complex(0.8, w) * (1.0 - cmath.exp(-1j * w * t)) / (1j * w * t)
+    assert p["periodic"]
+    assert abs(p["response"] - expected) < 1e-9 * abs(expected)
+    assert p["gain"] == pytest.approx(abs(expected), rel=1e-9)
+    with pytest.raises(ValueError, match="digital drive"):
+        core.frequency_response({}, amplitude=0.1, frequency=1.0)
+
+
+def test_broadband_response_of_the_locked_joint_is_coherent():
+    r = core.broadband_response({"backlash": 0.0}, amplitude=0.5, channel="motor_torque:motor_velocity",
+                                injection_rate=50.0, prbs_order=7, settle_periods=12, periods=2)
+    t = 1.0 / 50.0
+    e = math.exp(-0.8 * t)
+    b = (1.0 - e) / 0.8
+    z = np.exp(1j * r["frequency"] * t)
+    assert len(r["frequency"]) == 63
+    assert np.max(np.abs(r["h1"] - b / (z - e)) / np.abs(b / (z - e))) < 1e-9
+    assert np.max(np.abs(r["coherence"] - 1.0)) < 1e-9
+    with pytest.raises(ValueError, match="excitation"):
+        core.broadband_response({}, amplitude=1.0, excitation="noise", channel="motor_torque:motor_velocity")
