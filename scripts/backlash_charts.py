@@ -77,12 +77,25 @@ def edges(centers, log=False):
     return 10.0 ** e if log else e
 
 
+def classical_df_critical_zeta():
+    """The largest ζ at which the classical describing function of backlash (hysteresis, d = Δ/2, r = d/A in (0, 1))
+    predicts a limit cycle of the thesis' loop G = ω_n²/(s² + 2ζω_n s): the balance N(A) = −1/G(jω) = ω² − 2jζω (ω in units
+    of ω_n) needs N_R = ω², N_I = −2ζω, i.e. ζ = −N_I/(2√N_R); a cycle exists iff ζ is below that ratio's maximum
+    over the amplitude. The same for every inertia split, friction split, restitution and backlash."""
+    r = np.linspace(1e-7, 1.0 - 1e-7, 400001)
+    n_r = 0.5 + (np.arcsin(1.0 - 2.0 * r) + 2.0 * (1.0 - 2.0 * r) * np.sqrt(r * (1.0 - r))) / math.pi
+    n_i = -(4.0 / math.pi) * r * (1.0 - r)
+    return float(np.max(-n_i / (2.0 * np.sqrt(n_r))))
+
+
 def existence(rows, outdir, lattice=None):
     """Per e, a map of the boundary damping: each cell coloured by the smallest ζ of the sweep from which every
     larger ζ converges (no limit cycle); dark red where even the largest ζ limit-cycles. Conservative: a run that
     did not converge (limit cycle, irregular, undecided) counts as a cycle. White × marks cells where the verdict is
     not monotone in ζ (a cycle at some larger ζ after convergence at a smaller one: islands). Black dots: the
-    thesis' lattice points (lattice = rows of the thesis preset sweep)."""
+    thesis' lattice points (lattice = rows of the thesis preset sweep). The classical describing function's boundary
+    is ζ* on the whole map: each panel counts the cells where the exact joint cycles above it, and a dashed white
+    line marks where the exact boundary crosses it (if it does on the map)."""
     from matplotlib.colors import BoundaryNorm, ListedColormap
 
     es = sorted({r["e"] for r in rows})
@@ -91,6 +104,7 @@ def existence(rows, outdir, lattice=None):
     irs = sorted({r["ir"] for r in rows})
     cycle = {(r["e"], r["zeta"], r["ir"], r["fr"]): r["verdict"] != "converged" for r in rows}
     n = len(zetas)
+    zstar = classical_df_critical_zeta()
     colors = list(plt.get_cmap("viridis")(np.linspace(0.95, 0.15, n))) + [(0.55, 0.05, 0.05, 1.0)]
     cmap = ListedColormap(colors)
     norm = BoundaryNorm(np.arange(-0.5, n + 1.0), cmap.N)
@@ -114,6 +128,18 @@ def existence(rows, outdir, lattice=None):
                 if any(not f for f in flags[:k]):
                     islands.append((fr, ir))
         mesh = ax.pcolormesh(fe, ie, z, cmap=cmap, norm=norm, shading="flat", rasterized=True)
+        # The classical DF's boundary is ζ* on every cell: where a cycle was seen at a ζ above it, the DF misses it.
+        below = sum(1 for zeta in zetas if zeta < zstar)
+        known = np.isfinite(z)
+        missed = int(np.sum(z[known] > below))
+        ax.text(0.98, 0.02, f"classical DF: no cycle above ζ* = {zstar:.4f};\nexact cycles above it in {missed} of "
+                f"{int(known.sum())} cells", transform=ax.transAxes, ha="right", va="bottom", fontsize=7,
+                color="white", bbox={"facecolor": "black", "alpha": 0.45, "pad": 2, "edgecolor": "none"})
+        if np.nanmin(z) < below - 0.5 < np.nanmax(z):
+            # Where the exact boundary crosses ζ* (only where the map has cells on both sides of it).
+            ax.contour(frs, irs, np.ma.masked_invalid(z), levels=[below - 0.5], colors="white", linestyles="--",
+                       linewidths=1.2)
+            ax.plot([], [], "--", color="white", label=f"exact boundary = classical DF's ζ* = {zstar:.4f}")
         if islands:
             size = 10 if len(frs) <= 40 else 3  # fine grids: small marks
             ax.scatter(*zip(*islands), marker="x", s=size, c="white", linewidths=0.6, label="not monotone in ζ",
@@ -252,9 +278,12 @@ def surface(rows, outdir):
         fine = len(frs) > 40  # no cell edges on fine grids (they would blacken the surface)
         ax.plot_surface(fx, iy, z, cmap="viridis", edgecolor="none" if fine else "k", linewidth=0.0 if fine else 0.2,
                         alpha=0.9, rasterized=True)
+        # The classical describing function's boundary: a plane at ζ* whatever the design.
+        ax.plot_surface(fx, iy, np.full_like(z, classical_df_critical_zeta()), color="white", alpha=0.35,
+                        edgecolor="none", rasterized=True)
         ax.set_xlabel("ρ²f_L/F_T")
         ax.set_ylabel("log10 ρ²J_L/J_m")
-        ax.set_zlabel("ζ boundary")
+        ax.set_zlabel("ζ boundary (white plane: classical DF)")
         ax.set_title(f"e = {e:g}: limit cycle below the surface")
     fig.suptitle("Limit-cycle existence surface (the thesis' unfinished Fig. 27)")
     save(fig, outdir, "existence_surface")

@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <atomic>
 #include <cmath>
+#include <cstdint>
 #include <cstdio>
 #include <fstream>
 #include <iostream>
@@ -36,6 +37,7 @@ const char* HEADER =
                    [--json] [--csv FILE|-] [--png FILE.png] [--jobs N]
        backlash_frf ... --excitation prbs|chirp --amplitude A[,A...] [--prbs-order N] [--prbs-hold H]
                    [--chirp LO:HI] [--chirp-samples N] [--periods P] [--settle-periods S]
+       backlash_frf ... --shard K/N --csv PART.csv        backlash_frf --merge PART... --csv FILE
 The joint's frequency response as a drive's commissioning tool measures it, one sine at a time, from the exact
 motion: for each amplitude and frequency the periodic steady state is detected (a point that does not settle says
 so), then the fundamental's gain and phase, the harmonic distortion and how often the teeth cross the backlash.
@@ -53,9 +55,11 @@ struct Options
   RunConfig config;
   FrfSettings settings;
   std::vector<double> amplitudes, frequencies;
-  std::string excitation = "sine";  // sine | prbs | chirp
+  std::string excitation = "sine";       // sine | prbs | chirp
+  std::size_t shard_k = 1, shard_n = 1;  // --shard K/N
+  std::string fingerprint;               // of the run's arguments (what parts of one run share)
   BroadbandSettings broadband;
-  bool json = false, linear = false;
+  bool json = false, linear = false, dry_run = false;
   int jobs = 1;
   std::string config_path, csv_path, png_path;
 };
@@ -133,7 +137,14 @@ Options parse(int argc, char** argv)
        {"chirp", "LO:HI", "chirp: the sweep's frequencies [rad/s] (default: 0.01 to 0.25 of the sample rate)"},
        {"chirp_samples", "N", "chirp: samples a period (default 4096)"},
        {"periods", "P", "broadband: periods recorded and averaged (default 8)"},
-       {"settle_periods", "S", "broadband: periods run first for the transient to decay (default 2)"}});
+       {"settle_periods", "S", "broadband: periods run first for the transient to decay (default 2)"},
+       {"shard", "K/N",
+        "stepped sines: compute only part K of N (contiguous points, amplitude-major) into the --csv "
+        "part file, for --merge"},
+       {"dry_run", "", "check every argument and point, compute and write nothing"},
+       {"merge", "PART...",
+        "join the part files of one sharded run (any order) into --csv FILE: exactly the CSV of "
+        "an unsharded run"}});
   parser.parse(argc, argv);
   Options o;
   o.config_path = parser.option("config");
@@ -255,6 +266,27 @@ Options parse(int argc, char** argv)
     throw ConfigError("--jobs must be a whole number in [1, 4096]");
   }
   o.jobs = static_cast<int>(jobs);
+  if (parser.given("shard"))
+  {
+    unsigned long long k = 0, n = 0;
+    char tail = 0;
+    if (std::sscanf(parser.option("shard").c_str(), "%llu/%llu%c", &k, &n, &tail) != 2 || n < 1 || k < 1 || k > n ||
+        n > 100000)
+    {
+      throw ConfigError("--shard: expected K/N with 1 <= K <= N <= 100000 (got '" + parser.option("shard") + "')");
+    }
+    if (!sine)
+    {
+      throw ConfigError("--shard is for stepped sines: a broadband estimate is one run");
+    }
+    if (o.csv_path.empty() || o.csv_path == "-" || o.json || parser.given("png"))
+    {
+      throw ConfigError("--shard writes its points to a part file: give --csv PART.csv (and no --json or --png)");
+    }
+    o.shard_k = k;
+    o.shard_n = n;
+  }
+  o.dry_run = parser.given("dry_run");
   o.broadband.channel = o.settings.channel;
   o.broadband.offset = o.settings.offset;
   o.broadband.injection_rate = o.settings.injection_rate;
@@ -271,7 +303,8 @@ struct Row
 /// Every (amplitude, frequency) pair, amplitude-major, on `jobs` threads; progress on a terminal.
 std::vector<Row> measureAll(const Options& o)
 {
-  const std::size_t count = o.amplitudes.size() * o.frequencies.size();
+  const std::size_t total = o.amplitudes.size() * o.frequencies.size();
+  const std::size_t first = (o.shard_k - 1) * total / o.shard_n, count = o.shard_k * total / o.shard_n - first;
   std::vector<Row> rows(count);
   RunConfig linear = o.config;
   linear.params.backlash = 0.0;
@@ -285,7 +318,8 @@ std::vector<Row> measureAll(const Options& o)
     {
       try
       {
-        const double a = o.amplitudes[i / o.frequencies.size()], w = o.frequencies[i % o.frequencies.size()];
+        const std::size_t at = first + i;  // the point's index in the whole run
+        const double a = o.amplitudes[at / o.frequencies.size()], w = o.frequencies[at % o.frequencies.size()];
         const auto stop = [&]() { return failed.load(); };
         rows[i].point = measureFrequencyResponse(o.config, o.settings, a, w, stop);
         if (o.linear)
@@ -322,6 +356,139 @@ std::vector<Row> measureAll(const Options& o)
     throw std::runtime_error(error);
   }
   return rows;
+}
+
+/// FNV-1a (64 bits) of the run's arguments without --shard, --csv and --jobs (and their values): the parts of one
+/// sharded run share it, so parts of different runs never merge.
+std::string fingerprintOf(int argc, char** argv)
+{
+  std::uint64_t h = 1469598103934665603ULL;
+  for (int i = 1; i < argc; ++i)
+  {
+    const std::string a = argv[i];
+    if (a == "--shard" || a == "--csv" || a == "--jobs")
+    {
+      ++i;  // and its value
+      continue;
+    }
+    if (a.rfind("--shard=", 0) == 0 || a.rfind("--csv=", 0) == 0 || a.rfind("--jobs=", 0) == 0)
+    {
+      continue;
+    }
+    for (unsigned char c : a + '\0')
+    {
+      h = (h ^ c) * 1099511628211ULL;
+    }
+  }
+  char buf[20];
+  std::snprintf(buf, sizeof buf, "%016llx", static_cast<unsigned long long>(h));
+  return buf;
+}
+
+/// The first line of a part file.
+std::string partLine(std::size_t k, std::size_t n, std::size_t points, const std::string& fingerprint)
+{
+  return "# backlash_frf part " + std::to_string(k) + "/" + std::to_string(n) + " of " + std::to_string(points) +
+         " points, run " + fingerprint;
+}
+
+/// `--merge PART... --csv FILE`: the parts of one sharded run, checked (one run, every part once), joined in order.
+int merge(int argc, char** argv)
+{
+  std::vector<std::string> parts;
+  std::string output;
+  for (int i = 1; i < argc; ++i)
+  {
+    const std::string arg = argv[i];
+    if (arg == "--merge")
+    {
+      continue;
+    }
+    if (arg == "--csv" && i + 1 < argc)
+    {
+      output = argv[++i];
+    }
+    else if (arg.rfind("--", 0) == 0)
+    {
+      std::cerr << "backlash_frf: error: --merge takes only part files and --csv FILE (got " << arg << ")\n";
+      return 2;
+    }
+    else
+    {
+      parts.push_back(arg);
+    }
+  }
+  try
+  {
+    if (output.empty() || output == "-" || parts.empty())
+    {
+      throw ConfigError("--merge needs part files and --csv FILE");
+    }
+    SafeOutput file("--csv", output, parts);  // checked before the parts are read
+    std::size_t n = 0, points = 0;
+    std::string run, header;
+    std::vector<std::string> bodies;
+    std::vector<bool> seen;
+    for (const std::string& path : parts)
+    {
+      std::ifstream in(path);
+      std::string first, head;
+      unsigned long long k = 0, nn = 0, pp = 0;
+      char id[40] = {};
+      if (!in || !std::getline(in, first) || !std::getline(in, head) ||
+          std::sscanf(first.c_str(), "# backlash_frf part %llu/%llu of %llu points, run %39s", &k, &nn, &pp, id) != 4 ||
+          k < 1 || k > nn)
+      {
+        throw ConfigError("--merge: '" + path + "' is not a backlash_frf part file");
+      }
+      if (bodies.empty())
+      {
+        n = nn;
+        points = pp;
+        run = id;
+        header = head;
+        bodies.assign(n, "");
+        seen.assign(n, false);
+      }
+      else if (nn != n || pp != points || run != id || head != header)
+      {
+        throw ConfigError("--merge: '" + path + "' is a part of another run (other arguments)");
+      }
+      if (seen[k - 1])
+      {
+        throw ConfigError("--merge: part " + std::to_string(k) + " given twice ('" + path + "')");
+      }
+      seen[k - 1] = true;
+      std::ostringstream rest;
+      rest << in.rdbuf();
+      bodies[k - 1] = rest.str();
+    }
+    for (std::size_t k = 0; k < n; ++k)
+    {
+      if (!seen[k])
+      {
+        throw ConfigError("--merge: part " + std::to_string(k + 1) + "/" + std::to_string(n) + " is missing");
+      }
+    }
+    file.stream() << header << "\n";
+    for (const std::string& b : bodies)
+    {
+      file.stream() << b;
+    }
+    file.commit();
+    std::fprintf(stderr, "backlash_frf: merged %zu parts into '%s'\n", parts.size(), output.c_str());
+  }
+  catch (const ConfigError& e)
+  {
+    std::cerr << "backlash_frf: error: " << e.what() << "\n";
+    return 2;
+  }
+  catch (const std::exception& e)
+  {
+    std::cerr << "backlash_frf: error: " << e.what() << "\n";
+    return 1;
+  }
+  return 0;
 }
 
 /// Per frequency: the smallest amplitude whose response crosses the backlash (NaN: none of them).
@@ -564,12 +731,20 @@ int runBroadband(const Options& o, SafeOutput* csv, SafeOutput* png, const std::
 
 int main(int argc, char** argv)
 {
+  for (int i = 1; i < argc; ++i)
+  {
+    if (std::string(argv[i]) == "--merge")
+    {
+      return merge(argc, argv);
+    }
+  }
   Options o;
   std::unique_ptr<SafeOutput> png, csv;
   std::string chart_script;
   try
   {
     o = parse(argc, argv);
+    o.fingerprint = fingerprintOf(argc, argv);
     // Outputs are checked and their temporaries created before the runs.
     if (!o.png_path.empty())
     {
@@ -613,6 +788,10 @@ int main(int argc, char** argv)
     std::cerr << "backlash_frf: error: " << e.what() << "\n";
     return 2;
   }
+  if (o.dry_run)
+  {
+    return 0;  // (the outputs' temporaries are removed unwritten)
+  }
   try
   {
     if (o.excitation != "sine")
@@ -620,11 +799,20 @@ int main(int argc, char** argv)
       return runBroadband(o, csv.get(), png.get(), chart_script);
     }
     const std::vector<Row> rows = measureAll(o);
+    if (o.shard_n > 1 || o.shard_k > 1)
+    {
+      csv->stream() << partLine(o.shard_k, o.shard_n, o.amplitudes.size() * o.frequencies.size(), o.fingerprint)
+                    << "\n";
+    }
     if (csv)
     {
       writeCsv(csv->stream(), rows, o.linear);
       csv->commit();
       std::cerr << "backlash_frf: wrote " << o.csv_path << "\n";
+      if (o.shard_n > 1)
+      {
+        return 0;  // a part file only
+      }
     }
     if (png)
     {

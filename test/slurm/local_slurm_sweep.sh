@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # A real single-node Slurm (slurmctld + slurmd + munge on this host, private state in a temporary directory, started
 # and stopped here), a small sweep run through scripts/slurm_sweep.sh as an array job plus its dependent merge job,
-# and the merged CSV compared byte for byte with an unsharded run. Bounded: gives up after 240 s.
+# and the merged CSV compared byte for byte with an unsharded run; then the same for a stepped-sine backlash_frf
+# (scripts/slurm_frf.sh). Bounded: gives up after 240 s.
 # usage: bash test/slurm/local_slurm_sweep.sh [PARTS]      exit 0 = equal
 set -euo pipefail
 here=$(cd "$(dirname "$0")/../.." && pwd)
@@ -76,11 +77,28 @@ while squeue -h -j "$merge_id" 2>/dev/null | grep -q .; do
   sleep 0.5
 done
 "$sweep" "${args[@]}" --jobs 1 --output "$dir/single.csv" 2>/dev/null
-if cmp -s "$dir/merged.csv" "$dir/single.csv"; then
-  echo "local_slurm_sweep: $parts-part array job + merge job = the unsharded CSV ($(($(wc -l < "$dir/single.csv") - 1)) rows)"
-  exit 0
+if ! cmp -s "$dir/merged.csv" "$dir/single.csv"; then
+  echo "local_slurm_sweep: merged CSV differs from the unsharded run" >&2
+  ls -la "$dir/parts" >&2 || true
+  cat "$dir/parts/merge.log" >&2 || true
+  exit 1
 fi
-echo "local_slurm_sweep: merged CSV differs from the unsharded run" >&2
-ls -la "$dir/parts" >&2 || true
-cat "$dir/parts/merge.log" >&2 || true
-exit 1
+echo "local_slurm_sweep: $parts-part array job + merge job = the unsharded CSV ($(($(wc -l < "$dir/single.csv") - 1)) rows)"
+# The same for the stepped-sine frequency response (scripts/slurm_frf.sh).
+frf=$here/build/devel/lib/backlash_servo/backlash_frf
+frf_args=(--controller-rate 100 --restitution 0.8 --amplitude 0.5,1 --frequency 0.3,1,2)
+ids=$(bash "$here/scripts/slurm_frf.sh" -n 3 -o "$dir/frf_merged.csv" -d "$dir/frf_parts" -- "${frf_args[@]}" | tail -1)
+merge_id=${ids#* }
+while squeue -h -j "$merge_id" 2>/dev/null | grep -q .; do
+  [ $SECONDS -lt $deadline ] || { echo "local_slurm_sweep: timed out waiting for merge job $merge_id" >&2; squeue >&2; exit 1; }
+  sleep 0.5
+done
+"$frf" "${frf_args[@]}" --jobs 1 --csv "$dir/frf_single.csv" >/dev/null 2>&1
+if ! cmp -s "$dir/frf_merged.csv" "$dir/frf_single.csv"; then
+  echo "local_slurm_sweep: backlash_frf's merged CSV differs from the unsharded run" >&2
+  ls -la "$dir/frf_parts" >&2 || true
+  cat "$dir/frf_parts/merge.log" "$dir/frf_parts"/part_*.log >&2 || true
+  exit 1
+fi
+echo "local_slurm_sweep: 3-part backlash_frf array job + merge job = the unsharded CSV ($(($(wc -l < "$dir/frf_single.csv") - 1)) rows)"
+exit 0

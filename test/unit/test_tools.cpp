@@ -398,14 +398,15 @@ TEST(Design, ConfigFileEqualsTheFlags)
 }
 
 // A real single-node Slurm (slurmctld, slurmd, munge started and stopped by the script): scripts/slurm_sweep.sh's
-// array job and dependent merge job write exactly the CSV of an unsharded run.
+// and scripts/slurm_frf.sh's array jobs and dependent merge jobs write exactly the CSV of an unsharded run.
 TEST(Slurm, ArrayJobPlusMergeEqualsTheUnshardedSweep)
 {
   int code = 0;
   const std::string log =
       runCapture("timeout 300 bash " + std::string(SOURCE_DIR) + "/test/slurm/local_slurm_sweep.sh 4 2>&1", &code);
   EXPECT_EQ(code, 0) << log;
-  EXPECT_NE(log.find("= the unsharded CSV"), std::string::npos) << log;
+  EXPECT_NE(log.find("4-part array job + merge job = the unsharded CSV"), std::string::npos) << log;
+  EXPECT_NE(log.find("3-part backlash_frf array job + merge job = the unsharded CSV"), std::string::npos) << log;
 }
 
 // The workbench's numbers against backlash_sim runs of the same flags: verdict and cycle error, and the RMS
@@ -1006,6 +1007,52 @@ TEST(FrequencyResponseTool, BacklashPointsCsvChartAndRefusals)
   const std::string range = runCapture(FRF + " --controller-rate 10 --amplitude 1 --frequency-range 2:1:5 2>&1", &code);
   EXPECT_EQ(code, 2);
   EXPECT_NE(range.find("--frequency-range"), std::string::npos) << range;
+}
+
+TEST(FrequencyResponseTool, ShardsMergeIntoTheUnshardedCsv)
+{
+  // Three parts computed in any order and merged = the CSV of one run; a missing part or a part of another run is
+  // refused; --dry-run computes and writes nothing.
+  const std::string dir = testing::TempDir() + "backlash_frf_shards/";
+  std::string mkdir = "rm -rf " + dir + " && mkdir -p " + dir;
+  ASSERT_EQ(std::system(mkdir.c_str()), 0);
+  const std::string args = " --controller-rate 100 --restitution 0.8 --amplitude 0.5,1 --frequency 0.3,1,2";
+  int code = 0;
+  runCapture(FRF + args + " --csv " + dir + "whole.csv 2>&1", &code);
+  ASSERT_EQ(code, 0);
+  for (const char* k : {"3", "1", "2"})
+  {
+    runCapture(FRF + args + " --jobs 1 --shard " + k + "/3 --csv " + dir + "p" + k + ".csv 2>&1", &code);
+    ASSERT_EQ(code, 0) << k;
+  }
+  const std::string merged = runCapture(
+      FRF + " --merge " + dir + "p2.csv " + dir + "p3.csv " + dir + "p1.csv --csv " + dir + "m.csv 2>&1", &code);
+  ASSERT_EQ(code, 0) << merged;
+  const auto read = [](const std::string& path) {
+    std::ifstream in(path);
+    std::ostringstream text;
+    text << in.rdbuf();
+    return text.str();
+  };
+  const std::string whole = read(dir + "whole.csv");
+  EXPECT_EQ(read(dir + "m.csv"), whole);
+  EXPECT_EQ(std::count(whole.begin(), whole.end(), '\n'), 7);  // the header and six points
+  const std::string missing =
+      runCapture(FRF + " --merge " + dir + "p1.csv " + dir + "p2.csv --csv " + dir + "x.csv 2>&1", &code);
+  EXPECT_EQ(code, 2);
+  EXPECT_NE(missing.find("part 3/3 is missing"), std::string::npos) << missing;
+  runCapture(FRF + " --controller-rate 100 --amplitude 1 --frequency 1 --shard 1/3 --csv " + dir + "q1.csv 2>&1",
+             &code);
+  const std::string other = runCapture(
+      FRF + " --merge " + dir + "q1.csv " + dir + "p2.csv " + dir + "p3.csv --csv " + dir + "y.csv 2>&1", &code);
+  EXPECT_EQ(code, 2);
+  EXPECT_NE(other.find("another run"), std::string::npos) << other;
+  runCapture(FRF + args + " --dry-run --csv " + dir + "dry.csv 2>&1", &code);
+  EXPECT_EQ(code, 0);
+  EXPECT_FALSE(std::ifstream(dir + "dry.csv").good());
+  const std::string bad = runCapture(FRF + args + " --shard 4/3 --csv " + dir + "z.csv 2>&1", &code);
+  EXPECT_EQ(code, 2);
+  EXPECT_NE(bad.find("--shard"), std::string::npos) << bad;
 }
 
 TEST(FrequencyResponseTool, BroadbandPrbsGivesTheSampledTransferFunctionAndRefusesStrayFlags)
