@@ -125,7 +125,9 @@ class CompliantJoint
   void setState(const Eigen::VectorXd& x, double t = 0.0);
   /// New parameters (same shaft model: a torsional shaft cannot appear or vanish) from now on, state kept.
   void setParams(const ServoParams& params);
-  /// A new motor-torque law from now on.
+  /// A new motor-torque law from now on. Its wave A sin(ω(t − t₀) + φ) [N·m], if any, is exact too: the modes
+  /// carry an oscillator (ż_c = −ωz_s, ż_s = ωz_c, z = (cos, sin) of the wave's angle) as two more states — order
+  /// 6 or 8 —, so every motion stays the closed form of a linear mode with constant input.
   void setLaw(const MotorInput& law);
   /// advanceTo() stops where θ_c leaves [lo, hi] [rad]; ±inf: none.
   void setWatch(double lo, double hi);
@@ -143,7 +145,7 @@ class CompliantJoint
   bool advanceTo(double t_end, const Observer& observer = {});
   double time() const { return time_; }
   /// The state: (θ_m, ω_m, θ_c, ω_c) with a rigid shaft, (θ_m, ω_m, θ_o, ω_o, θ_c, ω_c) with a torsional one.
-  const Eigen::VectorXd& state() const { return x_; }
+  Eigen::VectorXd state() const { return x_.head(size()); }
   /// Index of θ_c (and ω_c after it) in state().
   int loadIndex() const { return torsional_ ? 4 : 2; }
   MeshMode mode() const { return mode_; }
@@ -181,7 +183,7 @@ class CompliantJoint
   /// How a body with dry friction moves: 0 stuck, ±1 sliding that way (a body without dry friction: always 1, it
   /// never sticks).
   int slide(Body b) const { return slide_[static_cast<int>(b)]; }
-  /// Both bodies stuck with a rigid shaft: nothing moves until the motor torque leaves heldMotorTorque().
+  /// Both bodies stuck with a rigid shaft and no wave: nothing moves until the motor torque leaves heldMotorTorque().
   bool held() const;
   /// While held(): the motor torques [N·m] that keep it so, [ρQ − T_sm, ρQ + T_sm] (the load's holding torque
   /// Q + T_ext does not depend on the motor torque while the motor stands).
@@ -215,6 +217,12 @@ class CompliantJoint
     long pieces_done = 0;
   };
   int out() const { return 2; }  // index of θ_o, the mesh's output-side angle (θ_c itself with a rigid shaft)
+  /// The law has a wave: the modes carry its oscillator.
+  bool forced() const { return law_.wave.active(); }
+  /// The modes' order: size(), and the oscillator's two states (cos, sin of the wave's angle) when forced.
+  int dim() const { return size() + (forced() ? 2 : 0); }
+  /// x_ sized dim() around the physical state `phys`, the oscillator's states exact at time_.
+  void setModeState(const Eigen::VectorXd& phys);
   /// A and u of mesh mode m with the bodies' slides (0 stuck: its rows zeroed; ±1: −T_c·slide folded into u).
   void modeMatrices(MeshMode m, const std::array<int, 2>& slide, ModeMatrix* a, ModeVector* u) const;
   /// Indices of a body's angle (its velocity follows) and its inertia [kg·m²]; its Coulomb and static levels [N·m].
@@ -255,7 +263,7 @@ class CompliantJoint
   double watch_lo_ = -INFINITY, watch_hi_ = INFINITY;
   double horizon_ = INFINITY;
   double time_ = 0.0;
-  Eigen::VectorXd x_;
+  Eigen::VectorXd x_;  // the state, then (forced) the oscillator's cos and sin of the wave's angle
   MeshMode mode_ = MeshMode::Forward;
   std::optional<Segment> segment_;
   std::vector<std::shared_ptr<const ModeBasis>> bases_;  // most recently used last

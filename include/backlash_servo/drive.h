@@ -138,8 +138,11 @@ class ProportionalDrive : public Drive
   std::unique_ptr<Drive> clone() const override { return std::make_unique<ProportionalDrive>(*this); }
 
   double command() const { return command_; }
-  /// A step of the set-point θ_R [rad] (finite); call reevaluate() with the state after it.
+  /// A step of the set-point θ_R [rad] (finite); call reevaluate() with the state after it. Ends a command wave.
   void setCommand(double command);
+  /// θ_R = command + A sin(ω(t − t₀) + φ) [rad] from now on (`wave` in rad): the law gains the torque wave K·A
+  /// sin(…). The linear law only (no torque limit, compensation or dither): InvalidParameterError otherwise.
+  void setCommandWave(double command, const Sinusoid& wave);
 
  private:
   /// The linear band [θ_R − (T_max − c)/K, θ_R + (T_max + c)/K] [rad], c = F_ff + A s of the present piece.
@@ -156,6 +159,7 @@ class ProportionalDrive : public Drive
   double gain_;
   double command_;
   double limit_;
+  Sinusoid wave_;  // the command's wave [rad] (amplitude 0: none)
   Region region_ = Region::Linear;
   double friction_ = 0.0;   // F [N·m] (0: no feed-forward)
   double width_ = 0.0;      // w [rad]
@@ -170,19 +174,21 @@ class ProportionalDrive : public Drive
 class EffortDrive : public Drive
 {
  public:
-  explicit EffortDrive(double torque);
+  /// T_m = torque + wave(t) [N·m] (wave: none by default; finite, frequency > 0 when active).
+  explicit EffortDrive(double torque, const Sinusoid& wave = Sinusoid());
   ControlMode mode() const override { return ControlMode::Effort; }
-  MotorInput law() const override { return {torque_, 0.0}; }
+  MotorInput law() const override { return {torque_, 0.0, wave_}; }
   std::unique_ptr<Drive> clone() const override { return std::make_unique<EffortDrive>(*this); }
 
   double torque() const { return torque_; }
   /// An external controller may change the torque at any time: never steady.
   bool steady() const override { return false; }
-  /// New torque u [N·m] (finite) from now on.
+  /// New torque u [N·m] (finite) from now on (ends a wave).
   void setTorque(double torque);
 
  private:
   double torque_;
+  Sinusoid wave_;
 };
 
 /**

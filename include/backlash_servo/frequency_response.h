@@ -57,6 +57,9 @@ struct FrfSettings
   /// Samples per second of the torque injection [Hz] (torque channels; 0 = the drive's controller_rate, else
   /// DEFAULT_INJECTION_RATE). The command is sampled by the drive at its controller_rate.
   double injection_rate = 0.0;
+  /// Torque channels: the sine itself, T_m = u₀ + A sin(ω(t − t₀)), instead of sampled and held (a compliant mesh
+  /// only). The command channel takes the sine itself under the continuous P law (a compliant mesh only).
+  bool continuous = false;
   double tolerance = 1e-8;  ///< steady state: relative repeat of the state from one period to the next [-]
   /// Periods run before a point is declared not periodic; 0 = enough to cover AUTO_SETTLING_SCALES of the joint's
   /// slowest time constant (its bodies' viscous decay J/f, the drive's integral time, and for the command 1/ω_n),
@@ -99,7 +102,10 @@ double excitationRate(const RunConfig& config, FrfChannel channel, double inject
 /// The channel's output in a state: θ_c [rad], ω_m or ω_c [rad/s].
 double frfOutput(FrfChannel channel, const State& state);
 /// True for the channels whose input is the motor torque (effort mode).
-inline bool torqueInput(FrfChannel channel) { return channel != FrfChannel::CommandToLoadPosition; }
+inline bool torqueInput(FrfChannel channel)
+{
+  return channel != FrfChannel::CommandToLoadPosition;
+}
 
 /// The joint's fastest own rate [1/s] under the configuration (natural frequencies of the loop, the contact, the
 /// mesh and shaft springs; viscous and damper rates): the Fourier pieces are no longer than half its inverse.

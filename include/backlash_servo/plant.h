@@ -231,7 +231,8 @@ class Plant
   bool advanceTo(double t_end, EventSink* sink);
 
   double gap() const { return mesh_.gap(state_.load_position, state_.motor_position); }
-  double motorTorque() const { return law_.torque(state_.load_position); }
+  /// T_m [N·m] now (the law's wave included).
+  double motorTorque() const { return law_.torque(state_.load_position, state_.time); }
   double meshTorque() const;
   double kineticEnergy() const;
   const EnergyLedger& energy() const { return energy_; }

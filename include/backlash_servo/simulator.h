@@ -38,6 +38,13 @@ class Simulator
   /// finite.
   void setCommand(double command, EventSink* sink = nullptr);
   /**
+   * The continuous P law with θ_R = command + A sin(ω(t − t₀) + φ) [rad] (`wave` in rad) from now on, exactly: the
+   * motor torque gains the wave K·A sin(…), which a compliant mesh's modes carry as an oscillator. Ends a profile.
+   * InvalidParameterError with rigid teeth (a digital drive samples sines instead), or when the law is not the
+   * linear continuous one (a digital drive, a torque limit, compensation).
+   */
+  void setCommandWave(double command, const Sinusoid& wave, EventSink* sink = nullptr);
+  /**
    * Position mode: θ_R follows the profile (times [s] of sim time) from now on. A digital drive samples it at its
    * instants. The continuous law takes steps and points as exact command steps at their known instants (advanceTo
    * stops there) and ramps exactly in the frame moving with the ramp: there y_c = θ_c − v(t − t_a), y_m = θ_m −
@@ -53,6 +60,9 @@ class Simulator
   const std::shared_ptr<const CommandProfile>& profile() const { return profile_; }
   /// Effort mode, T_m = torque [N·m] from now on (the internal P loop is off). Must be finite.
   void setMotorTorque(double torque, EventSink* sink = nullptr);
+  /// Effort mode, T_m = torque + A sin(ω(t − t₀) + φ) [N·m] exactly (a compliant mesh only: InvalidParameterError
+  /// with rigid teeth).
+  void setMotorTorque(double torque, const Sinusoid& wave, EventSink* sink = nullptr);
   /// Replaces the drive (its law applies from now on).
   void setDrive(std::unique_ptr<Drive> drive, EventSink* sink = nullptr);
   /// New settings for the digital drive in place, without a bump (SampledDrive::retune); false when the drive is

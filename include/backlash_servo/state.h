@@ -4,6 +4,8 @@
  */
 #pragma once
 
+#include <cmath>
+
 #include <string>
 
 namespace backlash_servo
@@ -43,15 +45,36 @@ enum class ControlMode
   Effort     ///< T_m supplied directly by the caller (external controller)
 };
 
+/// A sinusoidal torque A sin(ω(t − t₀) + φ) [N·m] (amplitude 0: none).
+struct Sinusoid
+{
+  double amplitude = 0.0;  ///< A [N·m]
+  double frequency = 0.0;  ///< ω [rad/s]
+  double phase = 0.0;      ///< φ [rad]
+  double origin = 0.0;     ///< t₀ [s]
+  bool active() const { return amplitude != 0.0; }
+  /// The argument ω(t − t₀) + φ [rad] at time t [s].
+  double angle(double t) const { return frequency * (t - origin) + phase; }
+  double at(double t) const { return amplitude * std::sin(angle(t)); }
+};
+
 /**
- * The motor torque as an affine function of the load position: \f$ T_m = a - k\,\theta_c \f$.
+ * The motor torque as an affine function of the load position: \f$ T_m = a - k\,\theta_c \f$, plus an optional
+ * sinusoid of time (`wave`: a sine on the command through the continuous law, or a sine torque in effort mode; a
+ * compliant mesh only).
  * Position mode: a = K θ_R, k = K. Effort mode: a = u, k = 0.
  */
 struct MotorInput
 {
+  MotorInput() = default;
+  MotorInput(double a, double k, const Sinusoid& w = Sinusoid()) : offset(a), stiffness(k), wave(w) {}
   double offset = 0.0;     ///< a [N·m]
   double stiffness = 0.0;  ///< k [N·m/rad]
+  Sinusoid wave;           ///< + A sin(ω(t − t₀) + φ) [N·m]
+  /// a − kθ_c [N·m], the law without its wave.
   double torque(double load_position) const { return offset - stiffness * load_position; }
+  /// a − kθ_c + wave(t) [N·m] at time t [s].
+  double torque(double load_position, double t) const { return torque(load_position) + wave.at(t); }
 };
 
 }  // namespace backlash_servo

@@ -66,7 +66,7 @@ void CompliantJoint::setParams(const ServoParams& params)
   const std::uint64_t contacts = contacts_, reengagements = reengagements_;
   s_ = params;
   msl_ = params.mesh_law == "msl_elastobacklash";
-  setState(x_, time_);
+  setState(state(), time_);
   energy_ = kept;
   contacts_ = contacts;
   reengagements_ = reengagements;
@@ -76,7 +76,9 @@ void CompliantJoint::setParams(const ServoParams& params)
 
 void CompliantJoint::setLaw(const MotorInput& law)
 {
+  const Eigen::VectorXd phys = x_.head(size());
   law_ = law;
+  setModeState(phys);
   segment_.reset();
   if (fresh_)
   {
@@ -97,14 +99,27 @@ void CompliantJoint::setWatch(double lo, double hi)
   segment_.reset();
 }
 
+void CompliantJoint::setModeState(const Eigen::VectorXd& phys)
+{
+  const int n = size();
+  x_.resize(dim());
+  x_.head(n) = phys;
+  if (forced())
+  {
+    const double angle = law_.wave.angle(time_);
+    x_(n) = std::cos(angle);
+    x_(n + 1) = std::sin(angle);
+  }
+}
+
 void CompliantJoint::setState(const Eigen::VectorXd& x, double t)
 {
   if (x.size() != size() || !x.allFinite() || !std::isfinite(t))
   {
     throw std::invalid_argument("CompliantJoint::setState: expected " + std::to_string(size()) + " finite entries");
   }
-  x_ = x;
   time_ = t;
+  setModeState(x);
   for (int b = 0; b < 2; ++b)
   {
     // A body with dry friction at rest starts stuck: the segment's start applies the rest rule (it breaks away when
@@ -191,7 +206,8 @@ void CompliantJoint::integrate(const Segment& seg, double a, double b, Compliant
     const double w = half * WEIGHT[i % 4];
     const ModeVector x = seg.motion.state(s);
     const double wm = x(1), wc = x(l + 1);
-    sum.input += w * (law_.offset - law_.stiffness * x(l)) * wm;
+    const double wave = forced() ? law_.wave.amplitude * x(size() + 1) : 0.0;  // A sin of the oscillator's angle
+    sum.input += w * (law_.offset - law_.stiffness * x(l) + wave) * wm;
     sum.motor_friction += w * s_.motor_friction * wm * wm;
     sum.load_friction += w * s_.load_friction * wc * wc;
     sum.load_work += w * s_.load_torque * wc;
@@ -232,7 +248,7 @@ Eigen::VectorXcd CompliantJoint::eigenvalues() const
   ModeMatrix a;
   ModeVector u;
   modeMatrices(mode_, slide_, &a, &u);
-  return a.eigenvalues();
+  return a.topLeftCorner(size(), size()).eigenvalues();  // (not the wave's oscillator, ±jω)
 }
 
 double CompliantJoint::inertiaOf(int body) const
@@ -264,7 +280,7 @@ int CompliantJoint::restSlide(int body) const
 
 bool CompliantJoint::held() const
 {
-  if (torsional_ || !dry_[0] || !dry_[1] || slide_[0] != 0 || slide_[1] != 0)
+  if (torsional_ || forced() || !dry_[0] || !dry_[1] || slide_[0] != 0 || slide_[1] != 0)
   {
     return false;
   }
@@ -273,7 +289,7 @@ bool CompliantJoint::held() const
 
 void CompliantJoint::heldMotorTorque(double* lo, double* hi) const
 {
-  const double pressed = s_.gear_ratio * meshTorque(), now = law_.torque(x_(loadIndex()));
+  const double pressed = s_.gear_ratio * meshTorque(), now = law_.torque(x_(loadIndex()), time_);
   const auto inside = [now](double end) { return end - 1e-9 * (end - now); };  // pulled towards the torque now
   *lo = inside(pressed - s_.motor_static_friction);
   *hi = inside(pressed + s_.motor_static_friction);
@@ -305,7 +321,7 @@ double CompliantJoint::meshTorque() const
 void CompliantJoint::penetration(int sigma, ModeVector* w, double* w0) const
 {
   // y = σ(ρθ_m − θ_o) − δ, δ = 0 forward, Δ backward.
-  *w = ModeVector::Zero(size());
+  *w = ModeVector::Zero(dim());
   (*w)(0) = sigma * s_.gear_ratio;
   (*w)(out()) = -sigma;
   *w0 = sigma > 0 ? 0.0 : -s_.backlash;
@@ -314,7 +330,7 @@ void CompliantJoint::penetration(int sigma, ModeVector* w, double* w0) const
 void CompliantJoint::flankTorque(int sigma, double ky, double kv, ModeVector* w, double* w0) const
 {
   // ky y + kv ẏ with ẏ = σ(ρω_m − ω_o).
-  *w = ModeVector::Zero(size());
+  *w = ModeVector::Zero(dim());
   (*w)(0) = sigma * ky * s_.gear_ratio;
   (*w)(out()) = -sigma * ky;
   (*w)(1) = sigma * kv * s_.gear_ratio;
@@ -324,7 +340,7 @@ void CompliantJoint::flankTorque(int sigma, double ky, double kv, ModeVector* w,
 
 void CompliantJoint::modeMatrices(MeshMode m, const std::array<int, 2>& slide, ModeMatrix* a, ModeVector* u) const
 {
-  const int k = size(), o = out(), l = loadIndex();
+  const int k = dim(), o = out(), l = loadIndex();
   *a = ModeMatrix::Zero(k, k);
   *u = ModeVector::Zero(k);
   const double rho = s_.gear_ratio, jm = s_.motor_inertia;
@@ -337,6 +353,14 @@ void CompliantJoint::modeMatrices(MeshMode m, const std::array<int, 2>& slide, M
   A(1, 1) = -s_.motor_friction / jm;
   A(1, l) = -law_.stiffness / jm;
   U(1) = law_.offset / jm;
+  if (forced())
+  {
+    // The wave's oscillator z = (cos, sin) of its angle, and A sin on the motor.
+    const int z = size();
+    A(z, z + 1) = -law_.wave.frequency;
+    A(z + 1, z) = law_.wave.frequency;
+    A(1, z + 1) = law_.wave.amplitude / jm;
+  }
   if (m != MeshMode::Free)
   {
     // Q = k(ρθ_m − θ_o) + k_d(ρω_m − ω_o) − σ k δ_σ (δ = 0 forward, Δ backward).
@@ -479,6 +503,10 @@ void CompliantJoint::beginSegment()
 {
   const double c = s_.mesh_stiffness, d = s_.mesh_damping;
   const int l = loadIndex();
+  if (forced())
+  {
+    setModeState(state());  // the oscillator exact at the segment's start (a function of time alone)
+  }
   ModeMatrix a;
   ModeVector u;
   modeMatrices(mode_, slide_, &a, &u);
@@ -543,18 +571,18 @@ void CompliantJoint::beginSegment()
     }
     else
     {
-      w = ModeVector::Zero(size());
+      w = ModeVector::Zero(dim());
       w(angleIndex(b) + 1) = slide_[b];  // slide·ω falling through 0
       watches.push_back({w, 0.0, -1, MeshEvent::Stop, b});
     }
   }
   if (slide_[1] != 0)  // (a stuck load has no turning points and cannot leave the watched interval)
   {
-    w = ModeVector::Zero(size());
+    w = ModeVector::Zero(dim());
     w(l + 1) = 1.0;
     watches.push_back({w, 0.0, -1, MeshEvent::Maximum, 0});
     watches.push_back({w, 0.0, +1, MeshEvent::Minimum, 0});
-    w = ModeVector::Zero(size());
+    w = ModeVector::Zero(dim());
     w(l) = 1.0;
     if (std::isfinite(watch_hi_))
     {

@@ -69,7 +69,8 @@ MotorInput ProportionalDrive::law() const
     case Region::Low:
       return {-limit_, 0.0};
     default:
-      return {feedforward_ == 0 && dither_sign_ == 0 ? gain_ * command_ : gain_ * command_ + added(), gain_};
+      return {feedforward_ == 0 && dither_sign_ == 0 ? gain_ * command_ : gain_ * command_ + added(), gain_,
+              Sinusoid{gain_ * wave_.amplitude, wave_.frequency, wave_.phase, wave_.origin}};
   }
 }
 
@@ -160,17 +161,47 @@ void ProportionalDrive::setCommand(double command)
 {
   requireFinite("command", command);
   command_ = command;
+  wave_ = Sinusoid();
 }
 
-EffortDrive::EffortDrive(double torque) : torque_(0.0)
+namespace
+{
+/// A wave's numbers finite, its frequency > 0 when it is active.
+void requireWave(const std::string& key, const Sinusoid& w)
+{
+  if (!std::isfinite(w.amplitude) || !std::isfinite(w.frequency) || !std::isfinite(w.phase) ||
+      !std::isfinite(w.origin) || (w.active() && !(w.frequency > 0.0)))
+  {
+    throw InvalidParameterError(key, "a sine needs a finite amplitude, phase and origin and a frequency > 0 rad/s");
+  }
+}
+}  // namespace
+
+void ProportionalDrive::setCommandWave(double command, const Sinusoid& wave)
+{
+  requireWave("command", wave);
+  if (wave.active() && (limit_ > 0.0 || friction_ != 0.0 || amplitude_ != 0.0))
+  {
+    throw InvalidParameterError("command",
+                                "a sine under the continuous law needs its linear law (no torque_limit or "
+                                "compensation): use a digital drive (controller_rate > 0), which samples it");
+  }
+  setCommand(command);
+  wave_ = wave;
+}
+
+EffortDrive::EffortDrive(double torque, const Sinusoid& wave) : torque_(0.0)
 {
   setTorque(torque);
+  requireWave("motor_torque", wave);
+  wave_ = wave;
 }
 
 void EffortDrive::setTorque(double torque)
 {
   requireFinite("motor_torque", torque);
   torque_ = torque;
+  wave_ = Sinusoid();
 }
 
 void DriveParams::validate(ControlMode mode) const

@@ -14,6 +14,8 @@ namespace backlash_servo
 namespace
 {
 constexpr double PI = 3.14159265358979323846;
+/// An exact sine's period is observed at this many instants (the steady-state test, the Fourier pieces' cuts).
+constexpr int CONTINUOUS_POINTS = 64;
 /// Subharmonics looked for: a response repeating after up to this many periods.
 constexpr int MAX_PERIOD_MULTIPLE = 4;
 
@@ -247,8 +249,19 @@ FrfPoint measureFrequencyResponse(const RunConfig& config, const FrfSettings& se
   }
   const FrfChannel channel = settings.channel;
   const bool torque = torqueInput(channel);
-  const double rate = excitationRate(config, channel, settings.injection_rate);
-  const double per_period = 2.0 * PI * rate / omega;
+  // The sine itself (a compliant mesh): the command under the continuous law, or the torque when asked for. Its
+  // period is then observed at CONTINUOUS_POINTS instants (the steady-state test and the Fourier pieces' cuts).
+  const bool continuous = torque ? settings.continuous : !config.drive.sampled();
+  if (continuous && !config.params.compliant())
+  {
+    throw InvalidParameterError(torque ? "continuous" : "controller_rate",
+                                "an exact sine (not sampled and held) needs a compliant mesh (mesh_stiffness > 0); "
+                                "with rigid teeth the sine is applied sampled and held" +
+                                    std::string(torque ? "" : " by a digital drive (controller_rate > 0)"));
+  }
+  const double rate =
+      continuous ? CONTINUOUS_POINTS * omega / (2.0 * PI) : excitationRate(config, channel, settings.injection_rate);
+  const double per_period = continuous ? CONTINUOUS_POINTS : 2.0 * PI * rate / omega;
   if (per_period < 3.5)
   {
     throw InvalidParameterError("frequency", std::to_string(omega) + " rad/s is above a quarter of the sample rate (" +
@@ -264,7 +277,7 @@ FrfPoint measureFrequencyResponse(const RunConfig& config, const FrfSettings& se
   out.amplitude = amplitude;
   out.requested_frequency = omega;
   out.samples_per_period = static_cast<int>(n_samples);
-  out.frequency = 2.0 * PI * rate / static_cast<double>(n_samples);
+  out.frequency = continuous ? omega : 2.0 * PI * rate / static_cast<double>(n_samples);
   const double w = out.frequency, period = static_cast<double>(n_samples) / rate;
   const double t0 = config.initial.time, rho = config.params.gear_ratio;
   long max_periods = settings.max_periods;
@@ -284,7 +297,7 @@ FrfPoint measureFrequencyResponse(const RunConfig& config, const FrfSettings& se
   RunConfig run = config;
   run.track_energy = false;
   run.duration = 0.0;
-  if (!torque)
+  if (!torque && !continuous)
   {
     ProfileSegment sine;
     sine.kind = ProfileSegment::Kind::Sine;
@@ -295,13 +308,19 @@ FrfPoint measureFrequencyResponse(const RunConfig& config, const FrfSettings& se
     run.profile = std::make_shared<const CommandProfile>(settings.offset, std::vector<ProfileSegment>{sine});
   }
   Simulator sim = makeSimulator(run);
-  // Advances sim over samples [k0, k1), applying the torque input at each; `each` sees the state at every sample.
+  const bool held = torque && !continuous;  // the torque set sample by sample
+  if (continuous)
+  {
+    const Sinusoid wave{amplitude, w, 0.0, t0};
+    torque ? sim.setMotorTorque(settings.offset, wave) : sim.setCommandWave(settings.offset, wave);
+  }
+  // Advances sim over samples [k0, k1), applying a held torque input at each; `each` sees the state at every sample.
   const auto advanceSamples = [&](Simulator& s, long k0, long k1, EventSink* sink, const auto& each) {
     for (long k = k0; k < k1; ++k)
     {
       s.advanceTo(sampleTime(k), sink);
       each(s.state());
-      if (torque)
+      if (held)
       {
         s.setMotorTorque(inputAt(k), sink);
       }
@@ -371,7 +390,7 @@ FrfPoint measureFrequencyResponse(const RunConfig& config, const FrfSettings& se
     const double at_sample = frfOutput(channel, sim.state());
     lo = std::min(lo, at_sample);
     hi = std::max(hi, at_sample);
-    if (torque)
+    if (held)
     {
       sim.setMotorTorque(inputAt(k));
     }

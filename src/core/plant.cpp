@@ -192,6 +192,13 @@ void Plant::setState(const State& s)
 
 void Plant::setLaw(const MotorInput& law)
 {
+  if (law.wave.active() && !compliant_.joint)
+  {
+    throw InvalidParameterError("mesh_stiffness",
+                                "a sinusoidal motor torque (a sine under the continuous law, or in effort mode) is "
+                                "exact with a compliant mesh only (mesh_stiffness > 0); with rigid teeth a digital "
+                                "drive samples it (controller_rate > 0)");
+  }
   law_ = law;
   flight_model_.reset();
   if (compliant_.joint)

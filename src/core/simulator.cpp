@@ -342,6 +342,40 @@ void Simulator::setMotorTorque(double torque, EventSink* sink)
   setDrive(std::make_unique<EffortDrive>(torque), sink);
 }
 
+void Simulator::setMotorTorque(double torque, const Sinusoid& wave, EventSink* sink)
+{
+  if (wave.active() && !plant_.params().compliant())
+  {
+    throw InvalidParameterError("motor_torque",
+                                "a sine torque is exact with a compliant mesh only (mesh_stiffness > "
+                                "0); with rigid teeth apply it sampled and held");
+  }
+  setDrive(std::make_unique<EffortDrive>(torque, wave), sink);
+}
+
+void Simulator::setCommandWave(double command, const Sinusoid& wave, EventSink* sink)
+{
+  requireFinite("command", command);
+  if (wave.active() && !plant_.params().compliant())
+  {
+    throw InvalidParameterError("command",
+                                "a sine command under the continuous law is exact with a compliant mesh "
+                                "only (mesh_stiffness > 0); with rigid teeth a digital drive samples it");
+  }
+  auto* proportional = dynamic_cast<ProportionalDrive*>(drive_.get());
+  if (proportional == nullptr)
+  {
+    throw InvalidParameterError("command",
+                                "a sine command needs the continuous law (a digital drive samples a sine "
+                                "profile; in effort mode set a sine torque)");
+  }
+  setCommand(command, sink);  // ends a profile or a ramp's frame
+  proportional = dynamic_cast<ProportionalDrive*>(drive_.get());
+  proportional->setCommandWave(command, wave);
+  proportional->reevaluate(plant_.state());
+  applyDriveLaw();
+}
+
 void Simulator::setParams(const ServoParams& params, EventSink* sink)
 {
   params.validate();

@@ -295,3 +295,64 @@ TEST(BroadbandResponse, TeethHeldOnOneFlankMatchTheLockedJointAndFreePlayLowersC
   }
   EXPECT_LT(mean, 0.5);
 }
+
+TEST(FrequencyResponse, ExactSineOnAPressedCompliantMeshIsTheTwoMassTransferFunction)
+{
+  // The sine itself (no hold): the two-mass drive's G(jω) with nothing else, on both torque channels; and the command
+  // under the continuous P law, the teeth pressed by a load torque: the closed loop solved here from
+  //   (J_m s² + f_m s + ρ²K_m) Θ_m + (K − ρK_m) Θ_c = K R,   −ρK_m Θ_m + (J_L s² + f_L s + K_m) Θ_c = 0,
+  // K_m = c + d s the mesh at the load shaft, K the law's gain.
+  RunConfig c = d1(0.1);
+  c.params.gear_ratio = 0.5;
+  c.params.mesh_stiffness = 100.0;
+  c.params.mesh_damping = 1.0;
+  const ServoParams& p = c.params;
+  const double rho = p.gear_ratio;
+  for (const double w : {3.0, 19.0, 45.0})
+  {
+    const cd jw(0.0, w);
+    const cd m = p.motor_inertia * jw + p.motor_friction, l = p.load_inertia * jw + p.load_friction;
+    const cd km = p.mesh_stiffness + p.mesh_damping * jw;
+    for (const FrfChannel ch : {FrfChannel::TorqueToMotorVelocity, FrfChannel::TorqueToLoadVelocity})
+    {
+      FrfSettings s;
+      s.channel = ch;
+      s.continuous = true;
+      s.offset = 1.0;
+      s.tolerance = 1e-12;
+      const FrfPoint r = measureFrequencyResponse(c, s, 0.02, w);
+      ASSERT_TRUE(r.periodic) << w;
+      EXPECT_EQ(r.frequency, w);
+      EXPECT_EQ(r.flank_changes, 0.0);
+      const cd motor = 1.0 / (m + rho * rho * km * l / (jw * l + km));
+      const cd expected = ch == FrfChannel::TorqueToMotorVelocity ? motor : rho * km / (jw * l + km) * motor;
+      EXPECT_LT(std::abs(r.response - expected), 1e-9 * std::abs(expected)) << toString(ch) << " " << w;
+      EXPECT_LT(r.distortion, 1e-8);  // (harmonics at the rounding of the speeds)
+    }
+    RunConfig loop = c;
+    loop.params.load_torque = -0.5;
+    FrfSettings s;
+    s.tolerance = 1e-13;  // (above the resonance the load barely moves: its response settles last)
+    const FrfPoint r = measureFrequencyResponse(loop, s, 0.1, w);  // (the teeth stay pressed: flank_changes 0)
+    ASSERT_TRUE(r.periodic) << w;
+    EXPECT_EQ(r.flank_changes, 0.0);
+    EXPECT_EQ(r.separations, 0.0);
+    const cd s2 = jw * jw, k = p.gain;
+    const cd a11 = p.motor_inertia * s2 + p.motor_friction * jw + rho * rho * km, a12 = k - rho * km;
+    const cd a21 = -rho * km, a22 = p.load_inertia * s2 + p.load_friction * jw + km;
+    const cd expected = -a21 * k / (a11 * a22 - a12 * a21);  // Θ_c/R by Cramer's rule
+    EXPECT_LT(std::abs(r.response - expected), 1e-9 * std::abs(expected)) << "command " << w;
+  }
+}
+
+TEST(FrequencyResponse, ExactSinesNeedACompliantMesh)
+{
+  RunConfig c = d1(0.3);
+  FrfSettings s;
+  s.channel = FrfChannel::TorqueToMotorVelocity;
+  s.continuous = true;
+  EXPECT_THROW(measureFrequencyResponse(c, s, 0.1, 1.0), InvalidParameterError);
+  Simulator sim(c.params, State(), 0.0);
+  EXPECT_THROW(sim.setMotorTorque(0.0, Sinusoid{1.0, 1.0, 0.0, 0.0}), InvalidParameterError);
+  EXPECT_THROW(sim.setCommandWave(0.0, Sinusoid{1.0, 1.0, 0.0, 0.0}), InvalidParameterError);
+}
