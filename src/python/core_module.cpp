@@ -187,9 +187,11 @@ RunConfig frfConfigOf(const py::object& config, FrfChannel channel)
 }
 
 py::dict frequencyResponse(const py::object& config, double amplitude, double frequency, const std::string& channel,
-                           double offset, double injection_rate, double tolerance, int max_periods, int harmonics)
+                           double offset, double injection_rate, double tolerance, int max_periods, int harmonics,
+                           bool continuous)
 {
   FrfSettings s;
+  s.continuous = continuous;
   s.channel = frfChannelFrom(channel, "channel");
   s.offset = offset;
   s.injection_rate = injection_rate;
@@ -549,10 +551,11 @@ PYBIND11_MODULE(core, m)
   m.def("frequency_response", &frequencyResponse, py::arg("config") = py::none(), py::kw_only(), py::arg("amplitude"),
         py::arg("frequency"), py::arg("channel") = "command:load_position", py::arg("offset") = 0.0,
         py::arg("injection_rate") = 0.0, py::arg("tolerance") = 1e-8, py::arg("max_periods") = 0,
-        py::arg("harmonics") = 10,
+        py::arg("harmonics") = 10, py::arg("continuous") = false,
         "One stepped-sine point as `backlash_frf` measures it: amplitude [rad or N·m] at frequency [rad/s] on the "
         "channel; a dict with the frequency used, the complex response, gain, phase [rad], distortion, periodic, "
-        "flank_changes, … (docs/frequency_response.md).");
+        "flank_changes, … (docs/frequency_response.md). continuous=True: the torque's sine itself (a compliant "
+        "mesh); the command takes the sine itself under the continuous law.");
   m.def("broadband_response", &broadbandResponse, py::arg("config") = py::none(), py::kw_only(), py::arg("amplitude"),
         py::arg("excitation") = "prbs", py::arg("channel") = "command:load_position", py::arg("offset") = 0.0,
         py::arg("injection_rate") = 0.0, py::arg("prbs_order") = 10, py::arg("prbs_hold") = 1,

@@ -142,6 +142,7 @@ Options parse(int argc, char** argv)
         "stepped sines: compute only part K of N (contiguous points, amplitude-major) into the --csv "
         "part file, for --merge"},
        {"dry_run", "", "check every argument and point, compute and write nothing"},
+       {"continuous", "", "torque channels: the sine itself, not sampled and held (a compliant mesh only)"},
        {"merge", "PART...",
         "join the part files of one sharded run (any order) into --csv FILE: exactly the CSV of "
         "an unsharded run"}});
@@ -222,6 +223,14 @@ Options parse(int argc, char** argv)
                                               : logRange(parser.option("frequency_range"));
   }
   o.settings.offset = parser.optionNumber("offset", 0.0);
+  o.settings.continuous = parser.given("continuous");
+  if (o.settings.continuous &&
+      (!torque_channel || parser.given("injection_rate") || parser.option("excitation", "sine") != "sine"))
+  {
+    throw ConfigError(
+        "--continuous is for stepped sines on the torque channels, without --injection-rate (the "
+        "command takes the sine itself under the continuous law)");
+  }
   o.settings.injection_rate = parser.optionNumber("injection_rate", 0.0);
   if (parser.given("injection_rate") && !(o.settings.injection_rate > 0.0))
   {
@@ -761,26 +770,24 @@ int main(int argc, char** argv)
     }
     // Every point's settings checked before any runs (a frequency beyond the sample rate, a channel the drive
     // cannot take).
+    const bool torque = torqueInput(o.settings.channel);
+    const bool exact = torque ? o.settings.continuous : !o.config.drive.sampled();
+    if (exact && !o.config.params.compliant())
+    {
+      throw ConfigError(torque ? "--continuous: an exact sine torque needs a compliant mesh (mesh_stiffness > 0); "
+                                 "with rigid teeth it is applied sampled and held (--injection-rate)"
+                               : "--channel command:load_position: with rigid teeth the sine is sampled by a digital "
+                                 "drive (controller_rate > 0 Hz); the continuous law takes the sine itself with a "
+                                 "compliant mesh only (mesh_stiffness > 0)");
+    }
     for (double w : o.frequencies)
     {
-      const double rate =
-          o.settings.channel == FrfChannel::CommandToLoadPosition
-              ? o.config.drive.controller_rate
-              : (o.settings.injection_rate > 0.0
-                     ? o.settings.injection_rate
-                     : (o.config.drive.sampled() ? o.config.drive.controller_rate : DEFAULT_INJECTION_RATE));
+      const double rate = exact ? 0.0 : excitationRate(o.config, o.settings.channel, o.settings.injection_rate);
       if (rate > 0.0 && 2.0 * PI * rate / w < 3.5)
       {
         throw ConfigError("--frequency: " + number(w) + " rad/s is above a quarter of the sample rate " + number(rate) +
                           " Hz (at most " + number(2.0 * PI * rate / 4.0) + " rad/s)");
       }
-    }
-    if (o.settings.channel == FrfChannel::CommandToLoadPosition && !o.config.drive.sampled())
-    {
-      throw ConfigError(
-          "--channel command:load_position needs a digital drive (controller_rate > 0 Hz), which samples the "
-          "excitation "
-          "exactly; the continuous law takes no sine (the torque channels need no drive)");
     }
   }
   catch (const std::exception& e)

@@ -234,3 +234,15 @@ def test_broadband_response_of_the_locked_joint_is_coherent():
     assert np.max(np.abs(r["coherence"] - 1.0)) < 1e-9
     with pytest.raises(ValueError, match="excitation"):
         core.broadband_response({}, amplitude=1.0, excitation="noise", channel="motor_torque:motor_velocity")
+
+
+def test_frequency_response_of_a_pressed_compliant_joint_under_an_exact_sine():
+    # The sine itself on a compliant mesh pressed by a torque offset: the two-mass drive's w_m/T_m, no hold.
+    cfg = {"backlash": 0.1, "gear_ratio": 0.5, "mesh_stiffness": 100.0, "mesh_damping": 1.0}
+    p = core.frequency_response(cfg, amplitude=0.02, frequency=19.0, channel="motor_torque:motor_velocity",
+                                offset=1.0, continuous=True, tolerance=1e-12)
+    s = 19.0j
+    m, l, k = 0.1 * s + 0.48, 0.9 * s + 0.32, 100.0 + 1.0 * s
+    expected = 1.0 / (m + 0.25 * k * l / (s * l + k))
+    assert p["periodic"] and p["frequency"] == 19.0
+    assert abs(p["response"] - expected) < 1e-9 * abs(expected)

@@ -994,7 +994,7 @@ TEST(FrequencyResponseTool, BacklashPointsCsvChartAndRefusals)
   // Refusals, before any run.
   const std::string continuous = runCapture(FRF + " --amplitude 0.1 --frequency 1 2>&1", &code);
   EXPECT_EQ(code, 2);
-  EXPECT_NE(continuous.find("needs a digital drive"), std::string::npos) << continuous;
+  EXPECT_NE(continuous.find("sampled by a digital drive"), std::string::npos) << continuous;
   const std::string fast = runCapture(FRF + " --controller-rate 10 --amplitude 0.1 --frequency 20 2>&1", &code);
   EXPECT_EQ(code, 2);
   EXPECT_NE(fast.find("above a quarter of the sample rate"), std::string::npos) << fast;
@@ -1089,4 +1089,36 @@ TEST(FrequencyResponseTool, BroadbandPrbsGivesTheSampledTransferFunctionAndRefus
       runCapture(FRF + " --controller-rate 20 --excitation prbs --frequency 1 --amplitude 1 2>&1", &code);
   EXPECT_EQ(code, 2);
   EXPECT_NE(sine_flag.find("sets its own frequencies"), std::string::npos) << sine_flag;
+}
+
+TEST(FrequencyResponseTool, ExactSinesOnACompliantMesh)
+{
+  // --continuous: the sine torque itself on a compliant mesh pressed by a torque offset gives the two-mass transfer
+  // function with no hold: ω_m/T_m = 1/(M + ρ²K L/(sL + K)) (M = J_m s + f_m, L = J_L s + f_L, K = c + ds).
+  int code = 0;
+  const std::string json = runCapture(FRF +
+                                          " --backlash 0.1 --gear-ratio 0.5 --mesh-stiffness 100 --mesh-damping 1"
+                                          " --channel motor_torque:motor_velocity --continuous --offset 1"
+                                          " --amplitude 0.02 --frequency 19 --tolerance 1e-12 --json",
+                                      &code);
+  ASSERT_EQ(code, 0) << json;
+  const std::complex<double> s(0.0, 19.0), m = 0.1 * s + 0.48, l = 0.9 * s + 0.32, k = 100.0 + 1.0 * s;
+  const std::complex<double> g = 1.0 / (m + 0.25 * k * l / (s * l + k));
+  EXPECT_NEAR(jsonNumber(json, "gain"), std::abs(g), 1e-9 * std::abs(g)) << json;
+  EXPECT_NEAR(jsonNumber(json, "phase"), std::arg(g), 1e-9) << json;
+  EXPECT_EQ(jsonNumber(json, "frequency"), 19.0);
+  // The command under the continuous law takes the sine itself on a compliant joint; rigid teeth are refused.
+  const std::string law = runCapture(FRF + " --config " + std::string(SOURCE_DIR) +
+                                         "/config/compliant_d1.yaml --amplitude 1 --frequency 1 "
+                                         "--json",
+                                     &code);
+  ASSERT_EQ(code, 0) << law;
+  EXPECT_EQ(jsonNumber(law, "frequency"), 1.0);
+  EXPECT_NE(law.find("\"periodic\":true"), std::string::npos) << law;
+  const std::string rigid = runCapture(FRF +
+                                           " --channel motor_torque:motor_velocity --continuous --amplitude 1 "
+                                           "--frequency 1 2>&1",
+                                       &code);
+  EXPECT_EQ(code, 2);
+  EXPECT_NE(rigid.find("needs a compliant mesh"), std::string::npos) << rigid;
 }
