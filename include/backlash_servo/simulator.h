@@ -63,6 +63,14 @@ class Simulator
   /// Effort mode, T_m = torque + A sin(ω(t − t₀) + φ) [N·m] exactly (a compliant mesh only: InvalidParameterError
   /// with rigid teeth).
   void setMotorTorque(double torque, const Sinusoid& wave, EventSink* sink = nullptr);
+  /**
+   * The caller will change the input again at time t [s] (e.g. a torque held over the samples of an external
+   * controller): events need not be searched beyond it, which spares a compliant joint's event search the stretch
+   * after it. A hint only — the motion agrees with the unhinted one to rounding (the search windows move, so an event
+   * refined to its last bit may land a bit apart); it must depend only on the caller's schedule (not on where
+   * advanceTo() is called) for runs to stay chunk-independent. Cleared by the next input change; +inf: none.
+   */
+  void setInputHorizon(double t) { input_horizon_ = t; }
   /// Replaces the drive (its law applies from now on).
   void setDrive(std::unique_ptr<Drive> drive, EventSink* sink = nullptr);
   /// New settings for the digital drive in place, without a bump (SampledDrive::retune); false when the drive is
@@ -128,6 +136,7 @@ class Simulator
  private:
   /// The drive's current law and watch interval to the plant.
   void applyDriveLaw();
+  double input_horizon_ = INFINITY;  // setInputHorizon [s]
   /// A stick phase under a digital drive: the drive takes its samples before t_end [s] in one block while the held
   /// torque keeps the joint held (Plant::heldTorqueRange); false when the fast path does not apply.
   bool holdSamples(double t_end);

@@ -176,6 +176,7 @@ BroadbandResponse measureBroadband(const RunConfig& config, const BroadbandSetti
       if (torque)
       {
         sim.setMotorTorque(u[j]);
+        sim.setInputHorizon(sampleTime(k + 1));
       }
     }
     if (p >= s.settle_periods)

@@ -323,6 +323,7 @@ FrfPoint measureFrequencyResponse(const RunConfig& config, const FrfSettings& se
       if (held)
       {
         s.setMotorTorque(inputAt(k), sink);
+        s.setInputHorizon(sampleTime(k + 1));
       }
     }
     s.advanceTo(sampleTime(k1), sink);
@@ -393,6 +394,7 @@ FrfPoint measureFrequencyResponse(const RunConfig& config, const FrfSettings& se
     if (held)
     {
       sim.setMotorTorque(inputAt(k));
+      sim.setInputHorizon(tb);
     }
     // The interval's pieces: cut at its breaks, each no longer than h_max.
     std::vector<double> cuts = {ta};

@@ -33,7 +33,9 @@ Simulator::Simulator(const Simulator& other)
       event_budget_(other.event_budget_),
       samples_(other.samples_),
       sample_observer_(other.sample_observer_)
-{}
+{
+  input_horizon_ = other.input_horizon_;
+}
 
 Simulator& Simulator::operator=(const Simulator& other)
 {
@@ -53,6 +55,7 @@ Simulator& Simulator::operator=(const Simulator& other)
     event_budget_ = other.event_budget_;
     samples_ = other.samples_;
     sample_observer_ = other.sample_observer_;
+    input_horizon_ = other.input_horizon_;
   }
   return *this;
 }
@@ -247,6 +250,7 @@ void Simulator::applyDriveLaw()
 
 void Simulator::setDrive(std::unique_ptr<Drive> drive, EventSink* sink)
 {
+  input_horizon_ = INFINITY;
   leaveFrame();
   profile_.reset();
   stepped_ = false;
@@ -440,7 +444,7 @@ void Simulator::advanceDriveTo(double t_end, EventSink* sink)
       }
       continue;
     }
-    plant_.setSearchHorizon(next);
+    plant_.setSearchHorizon(input_horizon_ > plant_.state().time ? std::min(next, input_horizon_) : next);
     if (plant_.advanceTo(sample_due ? next : t_end, sink))
     {
       drive_->reevaluate(plant_.state());  // the load left the law's interval: switch (saturation)
