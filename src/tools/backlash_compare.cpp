@@ -18,6 +18,7 @@
 #include "backlash_servo/param_table.h"
 #include "compare/compare_metrics.h"
 #include "json_writer.h"
+#include "part_files.h"
 #include "progress.h"
 #include "run_program.h"
 #include "safe_output.h"
@@ -99,17 +100,6 @@ std::string cell(double v)
   }
   char buf[32];
   std::snprintf(buf, sizeof buf, "%.4g", v);
-  return buf;
-}
-
-std::string csvNumber(double v)
-{
-  if (std::isnan(v))
-  {
-    return "";
-  }
-  char buf[40];
-  std::snprintf(buf, sizeof buf, "%.10g", v);
   return buf;
 }
 

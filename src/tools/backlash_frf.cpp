@@ -22,6 +22,7 @@
 #include "backlash_servo/frequency_response.h"
 #include "frf/broadband_report.h"
 #include "json_writer.h"
+#include "part_files.h"
 #include "progress.h"
 #include "run_program.h"
 #include "safe_output.h"
@@ -406,26 +407,9 @@ int merge(int argc, char** argv)
 {
   std::vector<std::string> parts;
   std::string output;
-  for (int i = 1; i < argc; ++i)
+  if (!readMergeArguments(argc, argv, "backlash_frf", "--csv", &parts, &output))
   {
-    const std::string arg = argv[i];
-    if (arg == "--merge")
-    {
-      continue;
-    }
-    if (arg == "--csv" && i + 1 < argc)
-    {
-      output = argv[++i];
-    }
-    else if (arg.rfind("--", 0) == 0)
-    {
-      std::cerr << "backlash_frf: error: --merge takes only part files and --csv FILE (got " << arg << ")\n";
-      return 2;
-    }
-    else
-    {
-      parts.push_back(arg);
-    }
+    return 2;
   }
   try
   {
@@ -517,13 +501,7 @@ std::vector<double> crossingAmplitudes(const Options& o, const std::vector<Row>&
 
 std::string number(double v)
 {
-  if (!std::isfinite(v))
-  {
-    return "";
-  }
-  char buf[40];
-  std::snprintf(buf, sizeof buf, "%.10g", v);
-  return buf;
+  return csvNumber(v);
 }
 
 void writeCsv(std::ostream& out, const std::vector<Row>& rows, bool linear)

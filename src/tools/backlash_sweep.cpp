@@ -14,6 +14,7 @@
 
 #include "backlash_servo/config/flag_parser.h"
 #include "backlash_servo/config/safe_input.h"
+#include "part_files.h"
 #include "progress.h"
 #include "safe_output.h"
 #include "sweep/sweep_csv.h"
@@ -141,26 +142,9 @@ int merge(int argc, char** argv)
 {
   std::vector<std::string> parts;
   std::string output;
-  for (int i = 1; i < argc; ++i)
+  if (!readMergeArguments(argc, argv, "backlash_sweep", "--output", &parts, &output))
   {
-    const std::string arg = argv[i];
-    if (arg == "--merge")
-    {
-      continue;
-    }
-    if (arg == "--output" && i + 1 < argc)
-    {
-      output = argv[++i];
-    }
-    else if (arg.rfind("--", 0) == 0)
-    {
-      std::cerr << "backlash_sweep: error: --merge takes only part files and --output FILE (got " << arg << ")\n";
-      return 2;
-    }
-    else
-    {
-      parts.push_back(arg);
-    }
+    return 2;
   }
   try
   {

@@ -5,6 +5,7 @@
 #include <sstream>
 
 #include "json_writer.h"
+#include "part_files.h"
 
 namespace backlash_servo
 {
@@ -12,13 +13,7 @@ namespace
 {
 std::string number(double v)
 {
-  if (!std::isfinite(v))
-  {
-    return "";
-  }
-  char buf[40];
-  std::snprintf(buf, sizeof buf, "%.10g", v);
-  return buf;
+  return csvNumber(v);
 }
 }  // namespace
 
