@@ -1,0 +1,84 @@
+/**
+ * @file identification.h
+ * @brief The joint identified from a recording of its own motion: the start of a fit — backlash, inertias, viscous and
+ *        Coulomb friction and the load torque estimated from the data alone, by linear least squares on the phases
+ *        where the equations of motion are linear in the parameters. No ROS dependency.
+ *
+ * **Recording.** Samples at a uniform period h: time t_k [s], motor torque u_k [N·m] (held over [t_k, t_{k+1}), as a
+ * drive applies it), motor angle θ_m,k and load angle θ_c,k [rad] on their own shafts; the gear ratio ρ is known.
+ *
+ * **Derivatives.** ω_k = (θ_{k+1} − θ_{k−1})/(2h), α_k = (θ_{k+1} − 2θ_k + θ_{k−1})/h²: the second difference
+ * averages the acceleration over [t_{k−1}, t_{k+1}], where the held torque was u_{k−1} then u_k, so it is regressed
+ * on ū_k = (u_{k−1} + u_k)/2 (exact for a body without friction; O(h) otherwise).
+ *
+ * **Phases.** The gap g = θ_c − ρθ_m lies in [g₀, g₀ + Δ] (g₀: where the encoders' zeros put the forward flank):
+ * Δ̂ = max g − min g and ĝ₀ = min g once the recording touched both flanks. A sample is in **contact** when its gap and
+ * those of its two neighbours on each side lie within `contact_band` of one flank (no impact in its stencil), **apart**
+ * when all five lie clear of both flanks by max(1e-3 Δ̂, 4 contact_band) (a chatter of short flights near a flank is
+ * neither); samples where a body stands (|ω| below `still_speed`) are left out
+ * (the sign of its dry friction is unknown).
+ * - contact (one body on the motor shaft): ū = J α_m + F ω_m + C sgn(ω_m) + b, J = J_m + ρ²J_L, F = f_m + ρ²f_L,
+ *   C = T_cm + ρT_cL, b = −ρT_ext;
+ * - apart, the motor alone: ū = J_m α_m + f_m ω_m + T_cm sgn(ω_m);
+ * so J_L = (J − J_m)/ρ², f_L = (F − f_m)/ρ², T_cL = (C − T_cm)/ρ, T_ext = −b/ρ. Each least-squares fit gives its
+ * parameters' standard errors σ√diag((XᵀX)⁻¹) (σ² the residual variance), carried to the derived ones.
+ *
+ * Restitution, static friction and a compliant mesh are not estimated here (they need the simulator as the model: a
+ * fit over windows of the recording).
+ */
+#pragma once
+
+#include <string>
+#include <vector>
+
+namespace backlash_servo
+{
+/// A recording of the joint (SI): equal lengths, uniform time steps.
+struct Recording
+{
+  std::vector<double> time;            ///< t_k [s]
+  std::vector<double> motor_torque;    ///< u_k [N·m], held over [t_k, t_{k+1})
+  std::vector<double> motor_position;  ///< θ_m [rad] on the motor shaft
+  std::vector<double> load_position;   ///< θ_c [rad] on the load shaft
+};
+
+/// One estimated quantity.
+struct Estimate
+{
+  double value = 0.0;           ///< [its unit]
+  double standard_error = 0.0;  ///< [its unit]; NaN when the data do not inform it
+};
+
+struct InitialEstimates
+{
+  Estimate backlash;                ///< Δ [rad]
+  double zero_offset = 0.0;         ///< g₀: the gap the encoders read on the forward flank [rad]
+  Estimate motor_inertia;           ///< J_m [kg·m²]
+  Estimate load_inertia;            ///< J_L [kg·m²]
+  Estimate motor_friction;          ///< f_m [N·m·s/rad]
+  Estimate load_friction;           ///< f_L [N·m·s/rad]
+  Estimate motor_coulomb_friction;  ///< T_cm [N·m]
+  Estimate load_coulomb_friction;   ///< T_cL [N·m]
+  Estimate load_torque;             ///< T_ext [N·m]
+  std::size_t contact_samples = 0, apart_samples = 0;
+  double contact_rms_residual = 0.0;  ///< [N·m]
+  double apart_rms_residual = 0.0;    ///< [N·m]
+};
+
+struct IdentificationSettings
+{
+  double gear_ratio = 1.0;  ///< ρ [-] (known)
+  double contact_band = 0.0;  ///< [rad]; 0 = 1e-8 Δ̂ (noise-free data: a contact keeps the gap to rounding, a chatter of
+                              ///< short flights does not) — give the encoders' resolution for measured data
+  double still_speed = 0.0;  ///< [rad/s]; 0 = 1e-6 of the largest motor speed
+};
+
+/**
+ * The initial estimates from the recording. Throws InvalidParameterError naming what is missing: too few samples,
+ * non-uniform or non-increasing times, non-finite values, a recording that never touches both flanks (no backlash
+ * to measure: reversals that cross it are needed), or too few samples in contact or apart to fit (each phase needs
+ * motion in both directions).
+ */
+InitialEstimates estimateInitial(const Recording& data, const IdentificationSettings& settings);
+
+}  // namespace backlash_servo

@@ -1,0 +1,206 @@
+#include "backlash_servo/identification.h"
+
+#include <Eigen/Dense>
+#include <algorithm>
+#include <cmath>
+
+#include "backlash_servo/params.h"
+
+namespace backlash_servo
+{
+namespace
+{
+/// Samples on each side of a sample whose gap must stay in its phase (the difference stencil, and one more).
+constexpr int STENCIL = 2;
+
+/// A least-squares fit's parameters and standard errors.
+struct Fit
+{
+  Eigen::VectorXd p, se;
+  double rms = 0.0;
+};
+
+Fit plainLeastSquares(const Eigen::MatrixXd& x, const Eigen::VectorXd& y)
+{
+  Fit f;
+  // Columns scaled to unit norm for the conditioning of the normal equations' inverse.
+  const Eigen::VectorXd scale = x.colwise().norm().transpose().cwiseMax(1e-300);
+  const Eigen::MatrixXd xs = x * scale.cwiseInverse().asDiagonal();
+  const Eigen::ColPivHouseholderQR<Eigen::MatrixXd> qr(xs);
+  const Eigen::VectorXd ps = qr.solve(y);
+  f.p = ps.cwiseQuotient(scale);
+  const Eigen::VectorXd r = y - x * f.p;
+  const double dof = static_cast<double>(x.rows() - x.cols());
+  const double sigma2 = r.squaredNorm() / std::max(dof, 1.0);
+  f.rms = std::sqrt(r.squaredNorm() / static_cast<double>(x.rows()));
+  const Eigen::MatrixXd cov = (xs.transpose() * xs).inverse() * sigma2;
+  f.se = cov.diagonal().cwiseSqrt().cwiseQuotient(scale);
+  return f;
+}
+
+/// Least squares robust to the samples an impact between two samples spoils (a short flight inside a sample interval
+/// leaves no trace in the gap but jumps the velocity): fitted, then refitted without the residuals beyond
+/// TRIM_FACTOR robust standard deviations (1.4826 × the median absolute residual), until none is dropped (at most 5
+/// rounds; the rows kept are written back to *kept).
+Fit leastSquares(const Eigen::MatrixXd& x, const Eigen::VectorXd& y, std::size_t* kept)
+{
+  constexpr double TRIM_FACTOR = 5.0;
+  Eigen::MatrixXd xs = x;
+  Eigen::VectorXd ys = y;
+  Fit f = plainLeastSquares(xs, ys);
+  for (int round = 0; round < 5; ++round)
+  {
+    const Eigen::VectorXd r = (y - x * f.p).cwiseAbs();
+    std::vector<double> sorted(r.data(), r.data() + r.size());
+    std::nth_element(sorted.begin(), sorted.begin() + static_cast<long>(sorted.size() / 2), sorted.end());
+    const double limit = TRIM_FACTOR * 1.4826 * sorted[sorted.size() / 2];
+    std::vector<Eigen::Index> rows;
+    for (Eigen::Index i = 0; i < r.size(); ++i)
+    {
+      if (r(i) <= limit)
+      {
+        rows.push_back(i);
+      }
+    }
+    if (static_cast<Eigen::Index>(rows.size()) == xs.rows() || rows.size() < static_cast<std::size_t>(x.cols()) + 2)
+    {
+      break;
+    }
+    xs = x(rows, Eigen::all);
+    ys = y(rows);
+    f = plainLeastSquares(xs, ys);
+  }
+  *kept = static_cast<std::size_t>(xs.rows());
+  return f;
+}
+
+void need(bool ok, const std::string& key, const std::string& what)
+{
+  if (!ok)
+  {
+    throw InvalidParameterError(key, what);
+  }
+}
+
+}  // namespace
+
+InitialEstimates estimateInitial(const Recording& d, const IdentificationSettings& s)
+{
+  const std::size_t n = d.time.size();
+  need(n >= 50, "data", "needs at least 50 samples (got " + std::to_string(n) + ")");
+  need(d.motor_torque.size() == n && d.motor_position.size() == n && d.load_position.size() == n, "data",
+       "the columns time, motor_torque, motor_position and load_position must have equal lengths");
+  need(std::isfinite(s.gear_ratio) && s.gear_ratio > 0.0, "gear_ratio", "must be known and > 0 (give it in the prior)");
+  const double h = (d.time.back() - d.time.front()) / static_cast<double>(n - 1);
+  need(h > 0.0 && std::isfinite(h), "time", "must increase");
+  for (std::size_t k = 0; k < n; ++k)
+  {
+    need(std::isfinite(d.time[k]) && std::isfinite(d.motor_torque[k]) && std::isfinite(d.motor_position[k]) &&
+             std::isfinite(d.load_position[k]),
+         "data", "row " + std::to_string(k + 1) + " has a value that is not a finite number");
+    if (k > 0)
+    {
+      need(std::fabs(d.time[k] - d.time[k - 1] - h) <= 1e-6 * h, "time",
+           "samples must be uniform in time (row " + std::to_string(k + 1) + " is " +
+               std::to_string(d.time[k] - d.time[k - 1]) + " s after the one before, the mean step is " +
+               std::to_string(h) + " s)");
+    }
+  }
+  const double rho = s.gear_ratio;
+  std::vector<double> gap(n);
+  for (std::size_t k = 0; k < n; ++k)
+  {
+    gap[k] = d.load_position[k] - rho * d.motor_position[k];
+  }
+  InitialEstimates out;
+  const auto [lo, hi] = std::minmax_element(gap.begin(), gap.end());
+  const double backlash = *hi - *lo;
+  out.zero_offset = *lo;
+  const double band = s.contact_band > 0.0 ? s.contact_band : 1e-8 * backlash;
+  // Apart means clear of both flanks: a chatter of short flights (a few µrad) between samples is neither phase.
+  const double margin = std::max(1e-3 * backlash, 4.0 * band);
+  need(backlash > 4.0 * std::max(band, 1e-3 * backlash) && backlash > 0.0, "data",
+       "the gap θ_c − ρθ_m never spans the backlash: the recording needs reversals that carry the motor across the "
+       "free play to both flanks");
+  // Derivatives, and each sample's phase (0 apart, +1 forward flank, −1 backward flank, 2 mixed).
+  std::vector<double> wm(n, 0.0), am(n, 0.0), ubar(n, 0.0);
+  double fastest = 0.0;
+  for (std::size_t k = 1; k + 1 < n; ++k)
+  {
+    wm[k] = (d.motor_position[k + 1] - d.motor_position[k - 1]) / (2.0 * h);
+    am[k] = (d.motor_position[k + 1] - 2.0 * d.motor_position[k] + d.motor_position[k - 1]) / (h * h);
+    ubar[k] = 0.5 * (d.motor_torque[k - 1] + d.motor_torque[k]);
+    fastest = std::max(fastest, std::fabs(wm[k]));
+  }
+  const double still = s.still_speed > 0.0 ? s.still_speed : 1e-6 * fastest;
+  std::vector<int> phase(n);
+  for (std::size_t k = 0; k < n; ++k)
+  {
+    const double df = gap[k] - *lo, db = *hi - gap[k];
+    phase[k] = df <= band ? 1 : db <= band ? -1 : (df > margin && db > margin) ? 0 : 2;
+  }
+  std::vector<std::size_t> contact, apart;
+  for (std::size_t k = STENCIL; k + STENCIL < n; ++k)
+  {
+    bool same = true;
+    for (std::size_t j = k - STENCIL; j <= k + STENCIL; ++j)
+    {
+      same = same && phase[j] == phase[k];
+    }
+    if (!same || phase[k] == 2 || std::fabs(wm[k]) <= still)
+    {
+      continue;
+    }
+    (phase[k] == 0 ? apart : contact).push_back(k);
+  }
+  out.contact_samples = contact.size();
+  out.apart_samples = apart.size();
+  need(contact.size() >= 20, "data",
+       "too few samples with the teeth in contact and moving (" + std::to_string(contact.size()) +
+           "): the recording needs motion while the motor drives the load");
+  need(apart.size() >= 20, "data",
+       "too few samples with the teeth apart and the motor moving (" + std::to_string(apart.size()) +
+           "): the recording needs the motor to cross the free play");
+  // Contact: ū = J α + F ω + C sgn ω + b.
+  Eigen::MatrixXd xc(static_cast<Eigen::Index>(contact.size()), 4);
+  Eigen::VectorXd yc(static_cast<Eigen::Index>(contact.size()));
+  bool both_ways = false;
+  for (std::size_t i = 0; i < contact.size(); ++i)
+  {
+    const std::size_t k = contact[i];
+    const double sg = wm[k] > 0.0 ? 1.0 : -1.0;
+    both_ways = both_ways || sg != (wm[contact[0]] > 0.0 ? 1.0 : -1.0);
+    xc.row(static_cast<Eigen::Index>(i)) << am[k], wm[k], sg, 1.0;
+    yc(static_cast<Eigen::Index>(i)) = ubar[k];
+  }
+  need(both_ways, "data",
+       "in contact the joint moved one way only: Coulomb friction and the load torque cannot be told apart (the "
+       "recording needs contact motion in both directions)");
+  // Apart: ū = J_m α + f_m ω + T_cm sgn ω.
+  Eigen::MatrixXd xa(static_cast<Eigen::Index>(apart.size()), 3);
+  Eigen::VectorXd ya(static_cast<Eigen::Index>(apart.size()));
+  for (std::size_t i = 0; i < apart.size(); ++i)
+  {
+    const std::size_t k = apart[i];
+    xa.row(static_cast<Eigen::Index>(i)) << am[k], wm[k], wm[k] > 0.0 ? 1.0 : -1.0;
+    ya(static_cast<Eigen::Index>(i)) = ubar[k];
+  }
+  std::size_t contact_kept = 0, apart_kept = 0;
+  const Fit c = leastSquares(xc, yc, &contact_kept), a = leastSquares(xa, ya, &apart_kept);
+  out.contact_samples = contact_kept;
+  out.apart_samples = apart_kept;
+  const auto combined = [](double x, double y) { return std::sqrt(x * x + y * y); };
+  out.backlash = {backlash, band};
+  out.motor_inertia = {a.p(0), a.se(0)};
+  out.motor_friction = {a.p(1), a.se(1)};
+  out.motor_coulomb_friction = {a.p(2), a.se(2)};
+  out.load_inertia = {(c.p(0) - a.p(0)) / (rho * rho), combined(c.se(0), a.se(0)) / (rho * rho)};
+  out.load_friction = {(c.p(1) - a.p(1)) / (rho * rho), combined(c.se(1), a.se(1)) / (rho * rho)};
+  out.load_coulomb_friction = {(c.p(2) - a.p(2)) / rho, combined(c.se(2), a.se(2)) / rho};
+  out.load_torque = {-c.p(3) / rho, c.se(3) / rho};
+  out.contact_rms_residual = c.rms;
+  out.apart_rms_residual = a.rms;
+  return out;
+}
+
+}  // namespace backlash_servo

@@ -1,0 +1,92 @@
+// The initial estimates recover a joint from its own simulated recording (the exact motion is the truth): a torque
+// excitation held over 1 kHz samples in effort mode, the angles recorded at the samples.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdio>
+
+#include "backlash_servo/identification.h"
+#include "backlash_servo/simulator.h"
+
+using namespace backlash_servo;
+
+namespace
+{
+/// u(t) = a Σ sines: reversals that carry the motor across the free play, contact motion both ways.
+Recording record(const ServoParams& p, double seconds, double rate, double a)
+{
+  Simulator sim(p, State(), 0.0);
+  Recording r;
+  const long n = static_cast<long>(seconds * rate);
+  for (long k = 0; k <= n; ++k)
+  {
+    const double t = static_cast<double>(k) / rate;
+    sim.advanceTo(t);
+    const double u = a * (1.5 * std::sin(1.3 * t) + 0.8 * std::sin(4.1 * t + 0.5) + 0.3 * std::sin(11.0 * t));
+    sim.setMotorTorque(u);
+    r.time.push_back(t);
+    r.motor_torque.push_back(u);
+    r.motor_position.push_back(sim.state().motor_position);
+    r.load_position.push_back(sim.state().load_position);
+  }
+  return r;
+}
+
+void expectClose(const Estimate& e, double truth, double rel, double abs, const char* what)
+{
+  EXPECT_NEAR(e.value, truth, std::max(rel * std::fabs(truth), abs)) << what << " ± " << e.standard_error;
+}
+}  // namespace
+
+TEST(Identification, InitialEstimatesRecoverARigidJointFromItsRecording)
+{
+  for (const double rho : {1.0, 0.5})
+  {
+    SCOPED_TRACE(rho);
+    ServoParams p;
+    p.gear_ratio = rho;
+    p.restitution = 0.5;
+    p.motor_coulomb_friction = p.motor_static_friction = 0.05;
+    p.load_coulomb_friction = p.load_static_friction = 0.1;
+    p.load_torque = 0.2;
+    const Recording r = record(p, 60.0, 1000.0, rho < 1.0 ? 0.6 : 1.0);
+    IdentificationSettings s;
+    s.gear_ratio = rho;
+    const InitialEstimates e = estimateInitial(r, s);
+    EXPECT_NEAR(e.backlash.value, p.backlash, 1e-9);
+    EXPECT_NEAR(e.zero_offset, 0.0, 1e-9);
+    // Exact data: the O(h) error of regressing the second difference on the mean held torque stays far below 1e-3.
+    expectClose(e.motor_inertia, p.motor_inertia, 1e-3, 0.0, "J_m");
+    expectClose(e.load_inertia, p.load_inertia, 1e-3, 0.0, "J_L");
+    expectClose(e.motor_friction, p.motor_friction, 1e-3, 0.0, "f_m");
+    expectClose(e.load_friction, p.load_friction, 1e-3, 0.0, "f_L");
+    expectClose(e.motor_coulomb_friction, p.motor_coulomb_friction, 1e-3, 1e-5, "T_cm");
+    expectClose(e.load_coulomb_friction, p.load_coulomb_friction, 1e-3, 1e-5, "T_cL");
+    expectClose(e.load_torque, p.load_torque, 1e-3, 1e-5, "T_ext");
+    EXPECT_GT(e.contact_samples, 10000u);
+    EXPECT_GT(e.apart_samples, 10000u);
+    // The standard errors are honest: the truth within a few of them (model error included).
+    EXPECT_LT(std::fabs(e.load_inertia.value - p.load_inertia),
+              1e-3 * p.load_inertia + 10.0 * e.load_inertia.standard_error);
+  }
+}
+
+TEST(Identification, RefusesARecordingThatDoesNotCrossTheBacklash)
+{
+  ServoParams p;
+  p.load_torque = -0.5;  // the teeth stay pressed on the forward flank under a small excitation
+  const Recording r = record(p, 20.0, 1000.0, 0.05);
+  IdentificationSettings s;
+  try
+  {
+    estimateInitial(r, s);
+    FAIL() << "accepted a recording without reversals across the backlash";
+  }
+  catch (const InvalidParameterError& e)
+  {
+    EXPECT_NE(std::string(e.what()).find("reversals"), std::string::npos) << e.what();
+  }
+  Recording bad = r;
+  bad.time[10] += 1e-4;
+  EXPECT_THROW(estimateInitial(bad, s), InvalidParameterError);
+}
