@@ -456,6 +456,8 @@ class PySimulator
     sim_.setCommand(command);
   }
 
+  void setMotorTorque(double torque) { sim_.setMotorTorque(torque); }
+
   /// Live changes, as the node applies them: plant keys at once; drive keys retune a digital drive without a bump
   /// (or start a fresh drive for a new law). Other keys are refused.
   void set(const py::dict& changes)
@@ -571,6 +573,9 @@ PYBIND11_MODULE(core, m)
            "motor_position, motor_velocity, gap [rad, rad/s], mesh_torque, motor_torque [N·m], contact (+1 forward, "
            "−1 backward, 0 apart).")
       .def("set_command", &PySimulator::setCommand, py::arg("command"), "A new set-point θ_R [rad] from now on.")
+      .def("set_motor_torque", &PySimulator::setMotorTorque, py::arg("torque"),
+           "Effort mode: the motor torque T_m [N·m] from now on (the drive's loop off), e.g. a recorded torque "
+           "replayed sample by sample.")
       .def("set", &PySimulator::set, py::arg("changes"),
            "Live changes of plant and drive keys (a dict), applied now as the node applies them.")
       .def_property_readonly("state", &PySimulator::state,

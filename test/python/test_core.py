@@ -246,3 +246,14 @@ def test_frequency_response_of_a_pressed_compliant_joint_under_an_exact_sine():
     expected = 1.0 / (m + 0.25 * k * l / (s * l + k))
     assert p["periodic"] and p["frequency"] == 19.0
     assert abs(p["response"] - expected) < 1e-9 * abs(expected)
+
+
+def test_simulator_in_effort_mode_follows_the_motor_torque():
+    # Teeth pressed (a load torque), one body on the motor shaft: w(t) = (T/F)(1 - exp(-F t/J)), J = 1, F = 0.8,
+    # with T the motor torque less the load torque reflected (rho = 1).
+    sim = core.Simulator({"load_torque": -0.5})
+    sim.set_motor_torque(2.0)
+    sim.advance(3.0)
+    t, torque = 3.0, 2.0 - 0.5
+    assert sim.state["motor_velocity"] == pytest.approx(torque / 0.8 * (1.0 - math.exp(-0.8 * t)), rel=1e-12)
+    assert sim.motor_torque == 2.0

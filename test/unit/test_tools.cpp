@@ -76,6 +76,7 @@ const std::string DESIGN = BACKLASH_DESIGN_EXE;
 const std::string COMPARE = BACKLASH_COMPARE_EXE;
 const std::string DF = BACKLASH_DF_EXE;
 const std::string FRF = BACKLASH_FRF_EXE;
+const std::string IDENTIFY = BACKLASH_IDENTIFY_EXE;
 const std::string GRID = " --zeta 0.3,0.6 --inertia-ratio 1,9 --friction-ratio 0.4 --restitution 0,0.6,1";
 }  // namespace
 
@@ -1121,4 +1122,73 @@ TEST(FrequencyResponseTool, ExactSinesOnACompliantMesh)
                                        &code);
   EXPECT_EQ(code, 2);
   EXPECT_NE(rigid.find("needs a compliant mesh"), std::string::npos) << rigid;
+}
+
+TEST(IdentifyTool, EstimatesAJointFromItsRecordingAndWritesAModelEveryToolReads)
+{
+  // A recording made here with the simulator in effort mode (a torque held over 1 kHz samples, CRLF line ends as
+  // spreadsheets write them), identified by the tool: the estimates against the parameters it was made with.
+  backlash_servo::ServoParams p;
+  p.gear_ratio = 0.5;
+  p.restitution = 0.5;
+  p.motor_coulomb_friction = p.motor_static_friction = 0.05;
+  p.load_coulomb_friction = p.load_static_friction = 0.1;
+  backlash_servo::Simulator sim(p, backlash_servo::State(), 0.0);
+  const std::string dir = testing::TempDir() + "backlash_identify/";
+  ASSERT_EQ(std::system(("rm -rf " + dir + " && mkdir -p " + dir).c_str()), 0);
+  {
+    std::ofstream csv(dir + "recording.csv");
+    csv.precision(17);
+    csv << "time,motor_torque,motor_position,load_position,command\r\n";
+    for (int k = 0; k <= 40000; ++k)
+    {
+      const double t = k * 1e-3, u = 0.6 * (1.5 * std::sin(1.3 * t) + 0.8 * std::sin(4.1 * t + 0.5));
+      sim.advanceTo(t);
+      sim.setMotorTorque(u);
+      csv << t << "," << u << "," << sim.state().motor_position << "," << sim.state().load_position << ",0\r\n";
+    }
+  }
+  int code = 0;
+  const std::string json = runCapture(
+      IDENTIFY + " --data " + dir + "recording.csv --gear-ratio 0.5 --json --output " + dir + "model.yaml", &code);
+  ASSERT_EQ(code, 0) << json;
+  const auto estimate = [&](const std::string& key) {
+    return jsonNumber(json.substr(json.find("\"" + key + "\"")), "value");
+  };
+  EXPECT_NEAR(estimate("backlash"), p.backlash, 1e-9);
+  EXPECT_NEAR(estimate("motor_inertia"), p.motor_inertia, 1e-3 * p.motor_inertia);
+  EXPECT_NEAR(estimate("load_inertia"), p.load_inertia, 1e-3 * p.load_inertia);
+  EXPECT_NEAR(estimate("load_friction"), p.load_friction, 1e-3 * p.load_friction);
+  EXPECT_NEAR(estimate("load_coulomb_friction"), p.load_coulomb_friction, 1e-3 * p.load_coulomb_friction);
+  // The model: the same joint for backlash_sim (its echo of the parameters), static friction at the Coulomb level.
+  const std::string sim_json = runCapture(SIM + " --config " + dir + "model.yaml --json", &code);
+  ASSERT_EQ(code, 0) << sim_json;
+  EXPECT_NEAR(jsonNumber(sim_json, "load_inertia"), p.load_inertia, 1e-3 * p.load_inertia);
+  EXPECT_NEAR(jsonNumber(sim_json, "gear_ratio"), 0.5, 0.0);
+  // Refusals, naming what is missing.
+  const std::string no_ratio = runCapture(IDENTIFY + " --data " + dir + "recording.csv 2>&1", &code);
+  EXPECT_EQ(code, 2);
+  EXPECT_NE(no_ratio.find("gear ratio must be known"), std::string::npos) << no_ratio;
+  {
+    std::ofstream bad(dir + "bad.csv");
+    bad << "time,motor_torque,motor_position\n0,0,0\n";
+  }
+  const std::string missing = runCapture(IDENTIFY + " --data " + dir + "bad.csv --gear-ratio 1 2>&1", &code);
+  EXPECT_EQ(code, 2);
+  EXPECT_NE(missing.find("no column 'load_position'"), std::string::npos) << missing;
+  {
+    std::ofstream bad(dir + "nan.csv");
+    bad << "time,motor_torque,motor_position,load_position\n0,0,0,0\n0.001,x,0,0\n";
+  }
+  const std::string nan = runCapture(IDENTIFY + " --data " + dir + "nan.csv --gear-ratio 1 2>&1", &code);
+  EXPECT_EQ(code, 2);
+  EXPECT_NE(nan.find("row 3, column motor_torque: 'x'"), std::string::npos) << nan;
+  {
+    std::ofstream prior(dir + "chart.yaml");
+    prior << "zeta: 0.4\ngear_ratio: 1\n";
+  }
+  const std::string chart =
+      runCapture(IDENTIFY + " --data " + dir + "recording.csv --config " + dir + "chart.yaml 2>&1", &code);
+  EXPECT_EQ(code, 2);
+  EXPECT_NE(chart.find("physical form"), std::string::npos) << chart;
 }
