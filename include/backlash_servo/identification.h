@@ -9,7 +9,10 @@
  *
  * **Derivatives.** ω_k = (θ_{k+1} − θ_{k−1})/(2h), α_k = (θ_{k+1} − 2θ_k + θ_{k−1})/h²: the second difference
  * averages the acceleration over [t_{k−1}, t_{k+1}], where the held torque was u_{k−1} then u_k, so it is regressed
- * on ū_k = (u_{k−1} + u_k)/2 (exact for a body without friction; O(h) otherwise).
+ * on ū_k = (u_{k−1} + u_k)/2 (exact for a body without friction; O(h) otherwise). With `smoothing` r every term —
+ * the angle before its differences, ū, and sgn ω — is filtered by the same F (the centred mean over 2r + 1 samples,
+ * twice): differences commute with F, so the equations hold for the filtered terms, with quantisation and noise
+ * averaged out.
  *
  * **Phases.** The gap g = θ_c − ρθ_m lies in [g₀, g₀ + Δ] (g₀: where the encoders' zeros put the forward flank):
  * Δ̂ = max g − min g and ĝ₀ = min g once the recording touched both flanks. A sample is in **contact** when its gap and
@@ -71,6 +74,9 @@ struct IdentificationSettings
   double contact_band = 0.0;  ///< [rad]; 0 = 1e-8 Δ̂ (noise-free data: a contact keeps the gap to rounding, a chatter of
                               ///< short flights does not) — give the encoders' resolution for measured data
   double still_speed = 0.0;  ///< [rad/s]; 0 = 1e-6 of the largest motor speed
+  /// r [samples]: every term filtered by the centred mean over 2r + 1 samples, twice, before the fits (quantised or
+  /// noisy angles); a sample then needs its phase over 4r + 5 samples. 0: none (exact data).
+  int smoothing = 0;
 };
 
 /**

@@ -74,6 +74,31 @@ Fit leastSquares(const Eigen::MatrixXd& x, const Eigen::VectorXd& y, std::size_t
   return f;
 }
 
+/// The centred mean over 2r + 1 samples (the samples within r of an end keep their value: they are never used).
+std::vector<double> centredMean(const std::vector<double>& x, std::size_t r)
+{
+  if (r == 0)
+  {
+    return x;
+  }
+  std::vector<double> sum(x.size() + 1, 0.0), out = x;
+  for (std::size_t i = 0; i < x.size(); ++i)
+  {
+    sum[i + 1] = sum[i] + x[i];
+  }
+  for (std::size_t k = r; k + r < x.size(); ++k)
+  {
+    out[k] = (sum[k + r + 1] - sum[k - r]) / static_cast<double>(2 * r + 1);
+  }
+  return out;
+}
+
+/// The smoothing filter F: the centred mean over 2r + 1 samples, twice (a triangle 4r + 1 samples wide).
+std::vector<double> smoothed(const std::vector<double>& x, std::size_t r)
+{
+  return centredMean(centredMean(x, r), r);
+}
+
 void need(bool ok, const std::string& key, const std::string& what)
 {
   if (!ok)
@@ -123,15 +148,24 @@ InitialEstimates estimateInitial(const Recording& d, const IdentificationSetting
        "the gap θ_c − ρθ_m never spans the backlash: the recording needs reversals that carry the motor across the "
        "free play to both flanks");
   // Derivatives, and each sample's phase (0 apart, +1 forward flank, −1 backward flank, 2 mixed).
-  std::vector<double> wm(n, 0.0), am(n, 0.0), ubar(n, 0.0);
+  // Every term of the equations filtered by the same F (differences commute with it): D²(Fθ) = F(D²θ) against Fū
+  // and F sgn ω — quantisation and noise averaged out, the equations unchanged.
+  need(s.smoothing >= 0 && s.smoothing <= 100000, "smoothing", "must be in [0, 100000] samples");
+  const std::size_t r = static_cast<std::size_t>(s.smoothing);
+  need(n > 8 * r + 50, "smoothing", "is too wide for a recording of " + std::to_string(n) + " samples");
+  const std::vector<double> theta = smoothed(d.motor_position, r);
+  std::vector<double> wm(n, 0.0), am(n, 0.0), ubar(n, 0.0), sg(n, 0.0);
   double fastest = 0.0;
   for (std::size_t k = 1; k + 1 < n; ++k)
   {
-    wm[k] = (d.motor_position[k + 1] - d.motor_position[k - 1]) / (2.0 * h);
-    am[k] = (d.motor_position[k + 1] - 2.0 * d.motor_position[k] + d.motor_position[k - 1]) / (h * h);
+    wm[k] = (theta[k + 1] - theta[k - 1]) / (2.0 * h);
+    am[k] = (theta[k + 1] - 2.0 * theta[k] + theta[k - 1]) / (h * h);
     ubar[k] = 0.5 * (d.motor_torque[k - 1] + d.motor_torque[k]);
+    sg[k] = wm[k] > 0.0 ? 1.0 : wm[k] < 0.0 ? -1.0 : 0.0;
     fastest = std::max(fastest, std::fabs(wm[k]));
   }
+  ubar = smoothed(ubar, r);
+  sg = smoothed(sg, r);
   const double still = s.still_speed > 0.0 ? s.still_speed : 1e-6 * fastest;
   std::vector<int> phase(n);
   for (std::size_t k = 0; k < n; ++k)
@@ -139,14 +173,17 @@ InitialEstimates estimateInitial(const Recording& d, const IdentificationSetting
     const double df = gap[k] - *lo, db = *hi - gap[k];
     phase[k] = df <= band ? 1 : db <= band ? -1 : (df > margin && db > margin) ? 0 : 2;
   }
-  std::vector<std::size_t> contact, apart;
-  for (std::size_t k = STENCIL; k + STENCIL < n; ++k)
+  // A sample's phase must hold over the filter's support and the difference stencil.
+  const std::size_t reach = STENCIL + 2 * r;
+  std::vector<std::size_t> changes(n + 1, 0);  // phase changes before each sample (prefix count)
+  for (std::size_t k = 1; k < n; ++k)
   {
-    bool same = true;
-    for (std::size_t j = k - STENCIL; j <= k + STENCIL; ++j)
-    {
-      same = same && phase[j] == phase[k];
-    }
+    changes[k + 1] = changes[k] + (phase[k] != phase[k - 1] ? 1 : 0);
+  }
+  std::vector<std::size_t> contact, apart;
+  for (std::size_t k = reach; k + reach < n; ++k)
+  {
+    const bool same = changes[k + reach + 1] == changes[k - reach + 1];
     if (!same || phase[k] == 2 || std::fabs(wm[k]) <= still)
     {
       continue;
@@ -168,9 +205,8 @@ InitialEstimates estimateInitial(const Recording& d, const IdentificationSetting
   for (std::size_t i = 0; i < contact.size(); ++i)
   {
     const std::size_t k = contact[i];
-    const double sg = wm[k] > 0.0 ? 1.0 : -1.0;
-    both_ways = both_ways || sg != (wm[contact[0]] > 0.0 ? 1.0 : -1.0);
-    xc.row(static_cast<Eigen::Index>(i)) << am[k], wm[k], sg, 1.0;
+    both_ways = both_ways || (wm[k] > 0.0) != (wm[contact[0]] > 0.0);
+    xc.row(static_cast<Eigen::Index>(i)) << am[k], wm[k], sg[k], 1.0;
     yc(static_cast<Eigen::Index>(i)) = ubar[k];
   }
   need(both_ways, "data",
@@ -182,7 +218,7 @@ InitialEstimates estimateInitial(const Recording& d, const IdentificationSetting
   for (std::size_t i = 0; i < apart.size(); ++i)
   {
     const std::size_t k = apart[i];
-    xa.row(static_cast<Eigen::Index>(i)) << am[k], wm[k], wm[k] > 0.0 ? 1.0 : -1.0;
+    xa.row(static_cast<Eigen::Index>(i)) << am[k], wm[k], sg[k];
     ya(static_cast<Eigen::Index>(i)) = ubar[k];
   }
   std::size_t contact_kept = 0, apart_kept = 0;
@@ -190,7 +226,33 @@ InitialEstimates estimateInitial(const Recording& d, const IdentificationSetting
   out.contact_samples = contact_kept;
   out.apart_samples = apart_kept;
   const auto combined = [](double x, double y) { return std::sqrt(x * x + y * y); };
-  out.backlash = {backlash, band};
+  // The backlash between the flanks' typical gaps (medians over the samples in contact on each: quantisation and
+  // noise at the extremes do not widen it); the zero offset likewise.
+  std::vector<double> on_forward, on_backward;
+  for (std::size_t k = 0; k < n; ++k)
+  {
+    if (phase[k] == 1)
+    {
+      on_forward.push_back(gap[k]);
+    }
+    else if (phase[k] == -1)
+    {
+      on_backward.push_back(gap[k]);
+    }
+  }
+  const auto median = [](std::vector<double> v) {
+    std::nth_element(v.begin(), v.begin() + static_cast<long>(v.size() / 2), v.end());
+    return v[v.size() / 2];
+  };
+  if (!on_forward.empty() && !on_backward.empty())
+  {
+    out.zero_offset = median(on_forward);
+    out.backlash = {median(on_backward) - out.zero_offset, band};
+  }
+  else
+  {
+    out.backlash = {backlash, band};
+  }
   out.motor_inertia = {a.p(0), a.se(0)};
   out.motor_friction = {a.p(1), a.se(1)};
   out.motor_coulomb_friction = {a.p(2), a.se(2)};

@@ -21,8 +21,8 @@ using namespace backlash_servo;
 namespace
 {
 const char* HEADER =
-    R"(usage: backlash_identify --data FILE.csv --gear-ratio RHO | --config PRIOR.yaml [--contact-band RAD] [--json]
-                         [--output MODEL.yaml]
+    R"(usage: backlash_identify --data FILE.csv --gear-ratio RHO | --config PRIOR.yaml [--contact-band RAD]
+                         [--smoothing R] [--still-speed W] [--json] [--output MODEL.yaml]
 Estimates the joint's backlash, inertias, viscous and Coulomb friction and load torque from a recording of its own
 motion: the backlash from the range of the gap theta_c - rho*theta_m, the rest by linear least squares on the phases
 where the teeth are in contact and where they are apart. FILE.csv has the header time,motor_torque,motor_position,
@@ -35,7 +35,8 @@ struct Options
 {
   std::string data_path, config_path, output_path;
   KeyValues prior;
-  double gear_ratio = 0.0, contact_band = 0.0;
+  double gear_ratio = 0.0, contact_band = 0.0, still_speed = 0.0;
+  int smoothing = 0;
   bool json = false;
 };
 
@@ -79,6 +80,17 @@ Options parse(int argc, char** argv)
   if (parser.given("contact_band") && !(o.contact_band > 0.0))
   {
     throw ConfigError("--contact-band must be > 0 rad");
+  }
+  const double smoothing = parser.optionNumber("smoothing", 0.0);
+  if (!(smoothing >= 0.0 && smoothing <= 100000.0) || smoothing != std::floor(smoothing))
+  {
+    throw ConfigError("--smoothing must be a whole number of samples in [0, 100000]");
+  }
+  o.smoothing = static_cast<int>(smoothing);
+  o.still_speed = parser.optionNumber("still_speed", 0.0);
+  if (parser.given("still_speed") && !(o.still_speed > 0.0))
+  {
+    throw ConfigError("--still-speed must be > 0 rad/s");
   }
   return o;
 }
@@ -187,6 +199,8 @@ int main(int argc, char** argv)
     IdentificationSettings s;
     s.gear_ratio = o.gear_ratio;
     s.contact_band = o.contact_band;
+    s.smoothing = o.smoothing;
+    s.still_speed = o.still_speed;
     const InitialEstimates e = estimateInitial(data, s);
     const Row rows[] = {{"backlash", "rad", &e.backlash},
                         {"motor_inertia", "kg*m^2", &e.motor_inertia},
