@@ -26,8 +26,9 @@ const char* HEADER =
 Estimates the joint's backlash, inertias, viscous and Coulomb friction and load torque from a recording of its own
 motion: the backlash from the range of the gap theta_c - rho*theta_m, the rest by linear least squares on the phases
 where the teeth are in contact and where they are apart. FILE.csv has the header time,motor_torque,motor_position,
-load_position (SI: s, N*m, rad on each body's own shaft; other columns are ignored), uniform time steps; the motor
-torque is the one applied from each sample to the next. The gear ratio must be known (a flag or the prior YAML).
+load_position (SI: s, N*m, rad on each body's own shaft; other columns are ignored; rows with an `event` are
+skipped, so backlash_sim's --csv is a recording), uniform time steps; the motor torque is the one applied from each
+sample to the next. The gear ratio must be known (a flag or the prior YAML).
 --output writes the prior with the estimates in place: a YAML every tool and the node accept.
 )";
 
@@ -131,6 +132,9 @@ Recording readRecording(const std::string& path)
                         "' (the header needs time,motor_torque,motor_position,load_position)");
     }
   }
+  // backlash_sim's CSV has the same columns and an `event` column: its event rows (not samples) are skipped.
+  const bool events = column.count("event") != 0;
+  const std::size_t event_column = events ? column["event"] : 0;
   Recording r;
   std::vector<double>* into[4] = {&r.time, &r.motor_torque, &r.motor_position, &r.load_position};
   std::size_t row = 1;
@@ -142,6 +146,10 @@ Recording readRecording(const std::string& path)
       continue;
     }
     const std::vector<std::string> cells = splitCsvCells(line);
+    if (events && event_column < cells.size() && !cells[event_column].empty())
+    {
+      continue;
+    }
     for (std::size_t c = 0; c < need.size(); ++c)
     {
       const std::size_t i = column[need[c]];
