@@ -34,6 +34,9 @@
 #include <string>
 #include <vector>
 
+#include "backlash_servo/command_profile.h"
+#include "backlash_servo/params.h"
+
 namespace backlash_servo
 {
 /// A recording of the joint (SI): equal lengths, uniform time steps.
@@ -86,5 +89,17 @@ struct IdentificationSettings
  * motion in both directions).
  */
 InitialEstimates estimateInitial(const Recording& data, const IdentificationSettings& settings);
+
+/**
+ * An experiment that informs the initial estimates, as a command profile for the position loop (the node and
+ * backlash_sim replay it): three sines of the command about its start θ₀, one after the other, each a third of
+ * `duration` [s], amplitude `travel` [rad] (the largest excursion allowed; at least 3Δ so that every reversal carries
+ * the motor across the free play) at ω_n/8, ω_n/3 and (half the amplitude) ω_n/1.5, ω_n the loop's natural frequency
+ * under the P gain K (params.naturalFrequency()). The slow sine moves the joint in contact both ways at low
+ * acceleration (viscous and Coulomb friction, the load torque); the faster ones accelerate it (the inertias); every
+ * reversal crosses the backlash (Δ, and the motor alone while the teeth are apart). Throws InvalidParameterError for
+ * a duration ≤ 0 or a travel below 3Δ.
+ */
+std::vector<ProfileSegment> identificationExperiment(const ServoParams& params, double duration, double travel);
 
 }  // namespace backlash_servo

@@ -265,4 +265,26 @@ InitialEstimates estimateInitial(const Recording& d, const IdentificationSetting
   return out;
 }
 
+std::vector<ProfileSegment> identificationExperiment(const ServoParams& params, double duration, double travel)
+{
+  need(std::isfinite(duration) && duration > 0.0, "duration", "must be > 0 s");
+  need(std::isfinite(travel) && travel >= 3.0 * params.backlash && travel > 0.0, "travel",
+       "must be at least three times the backlash (" + std::to_string(3.0 * params.backlash) +
+           " rad): every reversal must carry the motor across the free play");
+  const double wn = params.naturalFrequency(), pi = 3.14159265358979323846;
+  const double fractions[3] = {1.0 / 8.0, 1.0 / 3.0, 1.0 / 1.5}, amplitudes[3] = {1.0, 1.0, 0.5};
+  std::vector<ProfileSegment> out;
+  for (int i = 0; i < 3; ++i)
+  {
+    ProfileSegment s;
+    s.kind = ProfileSegment::Kind::Sine;
+    s.time = duration * i / 3.0;
+    s.duration = duration / 3.0;
+    s.amplitude = travel * amplitudes[i];
+    s.frequency = fractions[i] * wn / (2.0 * pi);  // [Hz]
+    out.push_back(s);
+  }
+  return out;
+}
+
 }  // namespace backlash_servo

@@ -23,6 +23,7 @@ namespace
 const char* HEADER =
     R"(usage: backlash_identify --data FILE.csv --gear-ratio RHO | --config PRIOR.yaml [--contact-band RAD]
                          [--smoothing R] [--still-speed W] [--json] [--output MODEL.yaml]
+       backlash_identify --experiment --config PRIOR.yaml [--duration S] [--travel RAD] --output PROFILE.yaml
 Estimates the joint's backlash, inertias, viscous and Coulomb friction and load torque from a recording of its own
 motion: the backlash from the range of the gap theta_c - rho*theta_m, the rest by linear least squares on the phases
 where the teeth are in contact and where they are apart. FILE.csv has the header time,motor_torque,motor_position,
@@ -30,11 +31,16 @@ load_position (SI: s, N*m, rad on each body's own shaft; other columns are ignor
 skipped, so backlash_sim's --csv is a recording), uniform time steps; the motor torque is the one applied from each
 sample to the next. The gear ratio must be known (a flag or the prior YAML).
 --output writes the prior with the estimates in place: a YAML every tool and the node accept.
+--experiment writes instead a command profile that informs the estimates (sines at three speeds, each reversal
+across the backlash), designed from the prior's gain, inertias and backlash, for the node or backlash_sim to run.
 )";
 
 struct Options
 {
   std::string data_path, config_path, output_path;
+  bool experiment = false;
+  double duration = 60.0, travel = 0.0;
+  RunConfig prior_config;
   KeyValues prior;
   double gear_ratio = 0.0, contact_band = 0.0, still_speed = 0.0;
   int smoothing = 0;
@@ -44,21 +50,46 @@ struct Options
 Options parse(int argc, char** argv)
 {
   FlagParser parser(
-      "backlash_identify", HEADER, keysOfSections({ParamSection::Servo}),
+      "backlash_identify", HEADER,
+      keysOfSections({ParamSection::Servo, ParamSection::Drive, ParamSection::Initial, ParamSection::Run}),
       {{"config", "PRIOR.yaml", "what is known of the joint (the gear ratio at least); flags override it"},
        {"data", "FILE.csv", "the recording: time,motor_torque,motor_position,load_position"},
        {"contact_band", "RAD",
-        "a sample is in contact when its gap is this close to a flank [rad] "
-        "(default: 1e-8 of the backlash, for exact data; give the encoders' "
-        "resolution for measured data)"},
+        "a sample is in contact when its gap is this close to a flank [rad] (default: 1e-8 of the backlash, for exact "
+        "data; give the gap's quantisation for measured data)"},
+       {"smoothing", "R",
+        "for quantised or noisy angles: every term filtered by the centred mean over 2R+1 samples, twice (default 0: "
+        "none)"},
+       {"still_speed", "W",
+        "samples where the motor turns slower than this [rad/s] are left out (default 1e-6 of its fastest)"},
        {"json", "", "one JSON object on stdout"},
-       {"output", "MODEL.yaml", "the prior with the estimated keys replaced"}});
+       {"output", "MODEL.yaml", "the prior with the estimated keys replaced (with --experiment: the profile)"},
+       {"experiment", "", "write an excitation (a command profile) to --output instead of identifying"},
+       {"duration", "S", "--experiment: its length [s] (default 60)"},
+       {"travel", "RAD",
+        "--experiment: the command's largest excursion [rad] (default and least: 3 times the backlash)"}});
   parser.parse(argc, argv);
   Options o;
   o.config_path = parser.option("config");
   o.data_path = parser.option("data");
   o.output_path = parser.option("output");
   o.json = parser.given("json");
+  o.experiment = parser.given("experiment");
+  if (o.experiment)
+  {
+    if (!o.data_path.empty() || o.output_path.empty() || o.json)
+    {
+      throw ConfigError("--experiment writes a profile: give --output PROFILE.yaml (and no --data or --json)");
+    }
+    o.prior_config = runConfigFrom(parser.keys());
+    o.duration = parser.optionNumber("duration", 60.0);
+    o.travel = parser.optionNumber("travel", 3.0 * o.prior_config.params.backlash);
+    return o;
+  }
+  if (parser.given("duration") || parser.given("travel"))
+  {
+    throw ConfigError("--duration and --travel are for --experiment");
+  }
   if (o.data_path.empty())
   {
     throw ConfigError("--data FILE.csv is required: the recording to identify the joint from");
@@ -194,6 +225,27 @@ int main(int argc, char** argv)
     {
       output =
           std::make_unique<SafeOutput>("--output", o.output_path, std::vector<std::string>{o.config_path, o.data_path});
+    }
+    if (o.experiment)
+    {
+      const std::vector<ProfileSegment> segments =
+          identificationExperiment(o.prior_config.params, o.duration, o.travel);
+      std::ostream& out = output->stream();
+      out.precision(10);
+      out << "# backlash_identify --experiment: " << o.duration << " s of command about its start, for a joint with "
+          << "backlash " << o.prior_config.params.backlash << " rad and loop natural frequency "
+          << o.prior_config.params.naturalFrequency() << " rad/s.\n"
+          << "# The slow sine: contact motion both ways (friction, load torque); the faster ones: accelerations (the "
+             "inertias);\n# every reversal crosses the backlash (the motor alone while the teeth are apart). SI "
+             "units: s, rad, Hz.\n";
+      for (const ProfileSegment& seg : segments)
+      {
+        out << "- sine: {time: " << seg.time << ", amplitude: " << seg.amplitude << ", frequency: " << seg.frequency
+            << ", duration: " << seg.duration << "}\n";
+      }
+      output->commit();
+      std::cerr << "backlash_identify: wrote " << o.output_path << "\n";
+      return 0;
     }
     data = readRecording(o.data_path);
   }

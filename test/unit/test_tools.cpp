@@ -1247,3 +1247,42 @@ TEST(IdentifyTool, AnIdentifiedModelReproducesItsRecordingThroughBacklashSim)
   }
   EXPECT_LT(worst, 2e-3) << id;
 }
+
+TEST(IdentifyTool, ExperimentInformsTheEstimates)
+{
+  // --experiment writes a command profile from the prior; backlash_sim runs it on the true joint; the recording
+  // identifies that joint within 1 %. A travel that cannot cross the backlash three times over is refused.
+  const std::string dir = testing::TempDir() + "backlash_identify_experiment/";
+  ASSERT_EQ(std::system(("rm -rf " + dir + " && mkdir -p " + dir).c_str()), 0);
+  const std::string known = "controller_rate: 1000.0\ngain: 5.0\ngear_ratio: 1.0\nrestitution: 0.5\n";
+  {
+    std::ofstream prior(dir + "prior.yaml");
+    prior << known << "backlash: 0.3\n";
+    std::ofstream truth(dir + "truth.yaml");
+    truth << known << "motor_coulomb_friction: 0.05\nload_coulomb_friction: 0.1\nload_torque: 0.2\nprofile: " << dir
+          << "experiment.yaml\n";
+  }
+  int code = 0;
+  const std::string made = runCapture(
+      IDENTIFY + " --experiment --config " + dir + "prior.yaml --output " + dir + "experiment.yaml 2>&1", &code);
+  ASSERT_EQ(code, 0) << made;
+  runCapture(SIM + " --config " + dir + "truth.yaml --duration 60 --sample-rate 1000 --csv " + dir + "rec.csv", &code);
+  ASSERT_EQ(code, 0);
+  const std::string json =
+      runCapture(IDENTIFY + " --data " + dir + "rec.csv --config " + dir + "prior.yaml --json", &code);
+  ASSERT_EQ(code, 0) << json;
+  const auto estimate = [&](const std::string& key) {
+    return jsonNumber(json.substr(json.find("\"" + key + "\"")), "value");
+  };
+  EXPECT_NEAR(estimate("motor_inertia"), 0.1, 1e-3);
+  EXPECT_NEAR(estimate("load_inertia"), 0.9, 9e-3);
+  EXPECT_NEAR(estimate("load_friction"), 0.32, 3.2e-3);
+  EXPECT_NEAR(estimate("motor_coulomb_friction"), 0.05, 5e-4);
+  EXPECT_NEAR(estimate("load_coulomb_friction"), 0.1, 1e-3);
+  EXPECT_NEAR(estimate("load_torque"), 0.2, 2e-3);
+  const std::string narrow = runCapture(
+      IDENTIFY + " --experiment --config " + dir + "prior.yaml --travel 0.5 --output " + dir + "narrow.yaml 2>&1",
+      &code);
+  EXPECT_EQ(code, 2);
+  EXPECT_NE(narrow.find("travel"), std::string::npos) << narrow;
+}
