@@ -26,8 +26,8 @@
  * so J_L = (J − J_m)/ρ², f_L = (F − f_m)/ρ², T_cL = (C − T_cm)/ρ, T_ext = −b/ρ. Each least-squares fit gives its
  * parameters' standard errors σ√diag((XᵀX)⁻¹) (σ² the residual variance), carried to the derived ones.
  *
- * Restitution, static friction and a compliant mesh are not estimated here (they need the simulator as the model: a
- * fit over windows of the recording).
+ * The restitution needs the simulator as the model (fitRestitution below); static friction and a compliant mesh are
+ * not estimated yet.
  */
 #pragma once
 
@@ -89,6 +89,21 @@ struct IdentificationSettings
  * motion in both directions).
  */
 InitialEstimates estimateInitial(const Recording& data, const IdentificationSettings& settings);
+
+/**
+ * The coefficient of restitution, fitted with the simulator as the model (the initial estimates for everything else,
+ * static friction at the Coulomb level): windows of the recording that begin with the teeth apart shortly before an
+ * impact (up to `windows` of them, spread over the recording) are replayed from the measured state — angles as
+ * recorded, velocities by central differences, the gap taken relative to the estimated zero offset and clamped into
+ * [0, Δ̂] — under the recorded torque, for `window` [s] each; e minimises the summed squared difference of the load
+ * angle from the recording (golden-section search on [0, 1]: derivative-free, since an impact sequence is not smooth
+ * in e). Re-anchoring each window on the measured state keeps the replay from parting from the recording, which an
+ * impacting joint replayed open-loop over the whole recording would. Its standard error comes from the objective's
+ * curvature at the minimum and the residual variance. Throws InvalidParameterError when the recording has no impact
+ * to fit on.
+ */
+Estimate fitRestitution(const Recording& data, const IdentificationSettings& settings, const InitialEstimates& initial,
+                        double window = 0.2, int windows = 40);
 
 /**
  * An experiment that informs the initial estimates, as a command profile for the position loop (the node and

@@ -5,6 +5,7 @@
 #include <cmath>
 
 #include "backlash_servo/params.h"
+#include "backlash_servo/simulator.h"
 
 namespace backlash_servo
 {
@@ -283,6 +284,121 @@ std::vector<ProfileSegment> identificationExperiment(const ServoParams& params, 
     s.amplitude = travel * amplitudes[i];
     s.frequency = fractions[i] * wn / (2.0 * pi);  // [Hz]
     out.push_back(s);
+  }
+  return out;
+}
+
+Estimate fitRestitution(const Recording& d, const IdentificationSettings& s, const InitialEstimates& e, double window,
+                        int windows)
+{
+  const std::size_t n = d.time.size();
+  need(n >= 50 && d.load_position.size() == n && d.motor_position.size() == n && d.motor_torque.size() == n, "data",
+       "needs at least 50 samples of equal columns");
+  need(window > 0.0 && windows > 0, "window", "must be > 0 s, with at least one window");
+  const double h = (d.time.back() - d.time.front()) / static_cast<double>(n - 1), rho = s.gear_ratio;
+  const double delta = e.backlash.value, margin = 1e-3 * delta;
+  ServoParams p;
+  p.gear_ratio = rho;
+  p.backlash = delta;
+  p.motor_inertia = e.motor_inertia.value;
+  p.load_inertia = e.load_inertia.value;
+  p.motor_friction = std::max(0.0, e.motor_friction.value);
+  p.load_friction = std::max(0.0, e.load_friction.value);
+  p.motor_coulomb_friction = p.motor_static_friction = std::max(0.0, e.motor_coulomb_friction.value);
+  p.load_coulomb_friction = p.load_static_friction = std::max(0.0, e.load_coulomb_friction.value);
+  p.load_torque = e.load_torque.value;
+  // Windows: begin 20 samples before the gap reaches a flank from clear of both, while still clear.
+  const auto gapOf = [&](std::size_t k) { return d.load_position[k] - rho * d.motor_position[k] - e.zero_offset; };
+  const auto clear = [&](std::size_t k) { return gapOf(k) > margin && gapOf(k) < delta - margin; };
+  const std::size_t lead = 20, length = static_cast<std::size_t>(std::ceil(window / h));
+  std::vector<std::size_t> starts;
+  for (std::size_t k = lead + 1; k + length + 1 < n; ++k)
+  {
+    if (clear(k - 1) && !clear(k) && clear(k - lead))
+    {
+      starts.push_back(k - lead);
+      k += length;  // (windows do not overlap)
+    }
+  }
+  need(!starts.empty(), "data", "has no impact to fit the restitution on (the teeth never close across the free play)");
+  if (starts.size() > static_cast<std::size_t>(windows))
+  {
+    std::vector<std::size_t> spread;
+    for (int i = 0; i < windows; ++i)
+    {
+      spread.push_back(starts[static_cast<std::size_t>(i) * starts.size() / static_cast<std::size_t>(windows)]);
+    }
+    starts = spread;
+  }
+  std::size_t residuals = 0;
+  const auto cost = [&](double restitution) {
+    ServoParams q = p;
+    q.restitution = restitution;
+    double sum = 0.0;
+    residuals = 0;
+    for (std::size_t k0 : starts)
+    {
+      State x;
+      x.time = d.time[k0];
+      x.motor_position = d.motor_position[k0];
+      x.load_position = d.load_position[k0];
+      x.motor_velocity = (d.motor_position[k0 + 1] - d.motor_position[k0 - 1]) / (2.0 * h);
+      x.load_velocity = (d.load_position[k0 + 1] - d.load_position[k0 - 1]) / (2.0 * h);
+      // The gap relative to the estimated flank, clamped into the free play.
+      const double g = std::min(std::max(gapOf(k0), 0.0), delta);
+      x.load_position = rho * x.motor_position + g;
+      x.contact = Contact::Apart;
+      Simulator sim(q, x, 0.0);
+      sim.setEnergyTracking(false);
+      const double shift = d.load_position[k0] - x.load_position;  // the encoders' offset, put back when compared
+      for (std::size_t k = k0; k < k0 + length; ++k)
+      {
+        sim.advanceTo(d.time[k]);
+        const double r = sim.state().load_position + shift - d.load_position[k];
+        sum += r * r;
+        ++residuals;
+        sim.setMotorTorque(d.motor_torque[k]);
+      }
+    }
+    return sum;
+  };
+  // Golden-section search on [0, 1].
+  const double golden = 0.5 * (std::sqrt(5.0) - 1.0);
+  double a = 0.0, b = 1.0, c = b - golden * (b - a), dd = a + golden * (b - a);
+  double fc = cost(c), fd = cost(dd);
+  for (int i = 0; i < 40; ++i)
+  {
+    if (fc <= fd)
+    {
+      b = dd;
+      dd = c;
+      fd = fc;
+      c = b - golden * (b - a);
+      fc = cost(c);
+    }
+    else
+    {
+      a = c;
+      c = dd;
+      fc = fd;
+      dd = a + golden * (b - a);
+      fd = cost(dd);
+    }
+  }
+  Estimate out;
+  out.value = 0.5 * (a + b);
+  // Standard error from the curvature (a central second difference over a small step) and the residual variance.
+  const double step = std::min({0.01, out.value, 1.0 - out.value});
+  const double f0 = cost(out.value);
+  if (step > 1e-6)
+  {
+    const double curvature = (cost(out.value + step) - 2.0 * f0 + cost(out.value - step)) / (step * step);
+    const double sigma2 = f0 / std::max(1.0, static_cast<double>(residuals) - 1.0);
+    out.standard_error = curvature > 0.0 ? std::sqrt(2.0 * sigma2 / curvature) : NAN;
+  }
+  else
+  {
+    out.standard_error = NAN;  // at a bound of [0, 1]
   }
   return out;
 }

@@ -262,14 +262,29 @@ int main(int argc, char** argv)
     s.smoothing = o.smoothing;
     s.still_speed = o.still_speed;
     const InitialEstimates e = estimateInitial(data, s);
-    const Row rows[] = {{"backlash", "rad", &e.backlash},
-                        {"motor_inertia", "kg*m^2", &e.motor_inertia},
-                        {"load_inertia", "kg*m^2", &e.load_inertia},
-                        {"motor_friction", "N*m*s/rad", &e.motor_friction},
-                        {"load_friction", "N*m*s/rad", &e.load_friction},
-                        {"motor_coulomb_friction", "N*m", &e.motor_coulomb_friction},
-                        {"load_coulomb_friction", "N*m", &e.load_coulomb_friction},
-                        {"load_torque", "N*m", &e.load_torque}};
+    // The restitution: the simulator replayed over windows around impacts (none: not estimated, the prior's kept).
+    Estimate restitution;
+    std::string restitution_note;
+    try
+    {
+      restitution = fitRestitution(data, s, e);
+    }
+    catch (const InvalidParameterError& none)
+    {
+      restitution_note = none.what();
+    }
+    std::vector<Row> rows = {{"backlash", "rad", &e.backlash},
+                             {"motor_inertia", "kg*m^2", &e.motor_inertia},
+                             {"load_inertia", "kg*m^2", &e.load_inertia},
+                             {"motor_friction", "N*m*s/rad", &e.motor_friction},
+                             {"load_friction", "N*m*s/rad", &e.load_friction},
+                             {"motor_coulomb_friction", "N*m", &e.motor_coulomb_friction},
+                             {"load_coulomb_friction", "N*m", &e.load_coulomb_friction},
+                             {"load_torque", "N*m", &e.load_torque}};
+    if (restitution_note.empty())
+    {
+      rows.push_back({"restitution", "-", &restitution});
+    }
     if (output)
     {
       // The prior's keys, the estimated ones replaced (static friction at least the Coulomb level).
@@ -330,8 +345,9 @@ int main(int argc, char** argv)
       std::printf("%-24s %14s    %-10s %s (the gap the encoders read on the forward flank)\n", "zero_offset",
                   number(e.zero_offset).c_str(), "", "rad");
       std::printf(
-          "not estimated (the prior's values are kept): restitution, static friction (at least the Coulomb "
-          "level), a compliant mesh\n");
+          "not estimated (the prior's values are kept): %sstatic friction (at least the Coulomb level), a "
+          "compliant mesh\n",
+          restitution_note.empty() ? "" : "restitution (no impact in the recording), ");
     }
     flushStdout();
   }

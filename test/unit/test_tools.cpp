@@ -1160,6 +1160,7 @@ TEST(IdentifyTool, EstimatesAJointFromItsRecordingAndWritesAModelEveryToolReads)
   EXPECT_NEAR(estimate("load_inertia"), p.load_inertia, 1e-3 * p.load_inertia);
   EXPECT_NEAR(estimate("load_friction"), p.load_friction, 1e-3 * p.load_friction);
   EXPECT_NEAR(estimate("load_coulomb_friction"), p.load_coulomb_friction, 1e-3 * p.load_coulomb_friction);
+  EXPECT_NEAR(estimate("restitution"), p.restitution, 1e-3);
   // The model: the same joint for backlash_sim (its echo of the parameters), static friction at the Coulomb level.
   const std::string sim_json = runCapture(SIM + " --config " + dir + "model.yaml --json", &code);
   ASSERT_EQ(code, 0) << sim_json;
@@ -1198,7 +1199,8 @@ TEST(IdentifyTool, AnIdentifiedModelReproducesItsRecordingThroughBacklashSim)
   // The workflow from the command line: backlash_sim records a joint under a 1 kHz P drive following a slow sine
   // command (its --csv is a recording: event rows are skipped); backlash_identify, given a prior whose estimated keys
   // are wrong on purpose, writes the model; backlash_sim replays the same experiment on the model: the load follows
-  // the recording to within 2e-3 rad over 40 s (restitution, drive and profile come from the prior).
+  // the recording to within 2e-3 rad over 40 s (the drive and the profile come from the prior; the restitution, 0.5
+  // there, is estimated too).
   const std::string dir = testing::TempDir() + "backlash_identify_replay/";
   ASSERT_EQ(std::system(("rm -rf " + dir + " && mkdir -p " + dir).c_str()), 0);
   const std::string experiment =
