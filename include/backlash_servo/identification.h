@@ -31,6 +31,7 @@
  */
 #pragma once
 
+#include <cmath>
 #include <string>
 #include <vector>
 
@@ -66,6 +67,7 @@ struct InitialEstimates
   Estimate motor_coulomb_friction;  ///< T_cm [N·m]
   Estimate load_coulomb_friction;   ///< T_cL [N·m]
   Estimate load_torque;             ///< T_ext [N·m]
+  bool load_torque_given = false;   ///< contact motion one way only: the load torque was the settings' (not estimated)
   std::size_t contact_samples = 0, apart_samples = 0;
   double contact_rms_residual = 0.0;  ///< [N·m]
   double apart_rms_residual = 0.0;    ///< [N·m]
@@ -80,6 +82,9 @@ struct IdentificationSettings
   /// r [samples]: every term filtered by the centred mean over 2r + 1 samples, twice, before the fits (quantised or
   /// noisy angles); a sample then needs its phase over 4r + 5 samples. 0: none (exact data).
   int smoothing = 0;
+  /// [N·m]: used when the contact motion goes one way only (a limit cycle pushed from one side, say), where the
+  /// Coulomb friction and the load torque cannot be told apart; NaN: none (such a recording is then refused).
+  double load_torque_fallback = NAN;
 };
 
 /**

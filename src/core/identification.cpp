@@ -210,9 +210,18 @@ InitialEstimates estimateInitial(const Recording& d, const IdentificationSetting
     xc.row(static_cast<Eigen::Index>(i)) << am[k], wm[k], sg[k], 1.0;
     yc(static_cast<Eigen::Index>(i)) = ubar[k];
   }
-  need(both_ways, "data",
+  // Contact motion one way only: the Coulomb term and the load torque are one constant, split with the load torque
+  // given (then not estimated).
+  const bool known_load = !both_ways && std::isfinite(s.load_torque_fallback);
+  need(both_ways || known_load, "data",
        "in contact the joint moved one way only: Coulomb friction and the load torque cannot be told apart (the "
-       "recording needs contact motion in both directions)");
+       "recording needs contact motion in both directions, or give the load torque)");
+  if (known_load)
+  {
+    xc.col(3).setZero();
+    yc.array() += rho * s.load_torque_fallback;  // ū − b, b = −ρT_ext
+    xc.conservativeResize(Eigen::NoChange, 3);
+  }
   // Apart: ū = J_m α + f_m ω + T_cm sgn ω.
   Eigen::MatrixXd xa(static_cast<Eigen::Index>(apart.size()), 3);
   Eigen::VectorXd ya(static_cast<Eigen::Index>(apart.size()));
@@ -260,7 +269,8 @@ InitialEstimates estimateInitial(const Recording& d, const IdentificationSetting
   out.load_inertia = {(c.p(0) - a.p(0)) / (rho * rho), combined(c.se(0), a.se(0)) / (rho * rho)};
   out.load_friction = {(c.p(1) - a.p(1)) / (rho * rho), combined(c.se(1), a.se(1)) / (rho * rho)};
   out.load_coulomb_friction = {(c.p(2) - a.p(2)) / rho, combined(c.se(2), a.se(2)) / rho};
-  out.load_torque = {-c.p(3) / rho, c.se(3) / rho};
+  out.load_torque = known_load ? Estimate{s.load_torque_fallback, NAN} : Estimate{-c.p(3) / rho, c.se(3) / rho};
+  out.load_torque_given = known_load;
   out.contact_rms_residual = c.rms;
   out.apart_rms_residual = a.rms;
   return out;

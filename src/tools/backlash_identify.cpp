@@ -1,5 +1,6 @@
 // backlash_identify: the joint's parameters from a recording of its own motion (initial estimates by linear least
 // squares on the contact and apart phases). See docs/identification.md.
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <iostream>
@@ -260,6 +261,8 @@ int main(int argc, char** argv)
     s.gear_ratio = o.gear_ratio;
     s.contact_band = o.contact_band;
     s.smoothing = o.smoothing;
+    // Contact one way only (a limit cycle pushed from one side): the prior's load torque (default 0) splits it.
+    s.load_torque_fallback = o.prior.has("load_torque") ? o.prior.number("load_torque") : 0.0;
     s.still_speed = o.still_speed;
     const InitialEstimates e = estimateInitial(data, s);
     // The restitution: the simulator replayed over windows around impacts (none: not estimated, the prior's kept).
@@ -291,7 +294,9 @@ int main(int argc, char** argv)
       KeyValues model = o.prior;
       for (const Row& r : rows)
       {
-        model.setNumber(r.key, r.e->value);
+        // A friction level estimated below zero is zero within its scatter: the model gets 0.
+        const bool level = std::string(r.key).find("friction") != std::string::npos;
+        model.setNumber(r.key, level ? std::max(0.0, r.e->value) : r.e->value);
       }
       for (const char* body : {"motor", "load"})
       {
@@ -326,6 +331,7 @@ int main(int argc, char** argv)
       }
       w.endObject();
       w.field("zero_offset", e.zero_offset);
+      w.field("load_torque_given", e.load_torque_given);
       w.field("contact_samples", static_cast<long long>(e.contact_samples));
       w.field("apart_samples", static_cast<long long>(e.apart_samples));
       w.field("contact_rms_residual", e.contact_rms_residual);
@@ -344,6 +350,12 @@ int main(int argc, char** argv)
       }
       std::printf("%-24s %14s    %-10s %s (the gap the encoders read on the forward flank)\n", "zero_offset",
                   number(e.zero_offset).c_str(), "", "rad");
+      if (e.load_torque_given)
+      {
+        std::printf(
+            "load_torque: the prior's (the contact motion went one way only: the load torque and the Coulomb "
+            "friction cannot be told apart)\n");
+      }
       std::printf(
           "not estimated (the prior's values are kept): %sstatic friction (at least the Coulomb level), a "
           "compliant mesh\n",

@@ -31,11 +31,24 @@ class BagReport(unittest.TestCase):
                 self.assertIn("/joint_states", topics)  # absolute names
                 last = [m for _, m, _ in b.read_messages(topics=["/limit_cycle"])][-1]
                 samples = b.get_message_count("/joint_states")
-            out = subprocess.run(["/usr/bin/python3", REPORT, bag, "--json", "--png", os.path.join(d, "r.png")],
-                                 check=True, capture_output=True, text=True).stdout
+            recording = os.path.join(d, "recording.csv")
+            out = subprocess.run(["/usr/bin/python3", REPORT, bag, "--json", "--png", os.path.join(d, "r.png"),
+                                  "--recording", recording], check=True, capture_output=True, text=True).stdout
+            # The node's own recording identifies its joint (App. D1, e = 1): backlash_identify on --recording.
+            identified = json.loads(subprocess.run(["rosrun", "backlash_servo", "backlash_identify", "--data", recording,
+                                                    "--gear-ratio", "1", "--json"], check=True, capture_output=True,
+                                                   text=True).stdout)
             self.assertTrue(os.path.getsize(os.path.join(d, "r.png")) > 10000)
             torn = subprocess.run(["/usr/bin/python3", REPORT, bag + ".active"], capture_output=True, text=True)
         report = json.loads(out)
+        est = {k: v["value"] for k, v in identified["estimates"].items()}
+        self.assertAlmostEqual(est["backlash"], 0.3, delta=1e-5)
+        self.assertAlmostEqual(est["motor_inertia"], 0.1, delta=1e-3)
+        self.assertAlmostEqual(est["load_inertia"], 0.9, delta=9e-3)
+        self.assertAlmostEqual(est["motor_friction"], 0.48, delta=5e-3)
+        self.assertAlmostEqual(est["load_friction"], 0.32, delta=1e-2)  # (100 Hz samples of a continuous torque)
+        self.assertAlmostEqual(est["restitution"], 1.0, delta=1e-2)
+        self.assertTrue(identified["load_torque_given"])  # the limit cycle's contact pushes one way only
         self.assertEqual(samples, 250 * 100 + 1)  # every 100 Hz sample, none dropped
         node = report["node"]
         self.assertEqual(node["verdict"], last.verdict)
