@@ -1,5 +1,6 @@
 #!/usr/bin/python3
 """backlash_bag_report on the main job's bag agrees with the node's own limit_cycle topic and with backlash_sim."""
+import csv
 import json
 import os
 import subprocess
@@ -147,6 +148,36 @@ class BagReportInputs(unittest.TestCase):
         self.assertNotIn("Traceback", err)
         self.assertEqual(err.count("\n"), 1, err)
         self.assertIn(says, err)
+
+    def test_any_joint_states_topic_becomes_a_recording(self):
+        # A robot's bag without backlash_servo topics: --joint-states TOPIC with the motor's and load's joint names
+        # writes backlash_identify's recording (time from the first sample, the motor's effort, both positions).
+        import rospy
+        from sensor_msgs.msg import JointState
+        with tempfile.TemporaryDirectory() as d:
+            bag_path, csv_path = os.path.join(d, "robot.bag"), os.path.join(d, "recording.csv")
+            with rosbag.Bag(bag_path, "w") as bag:
+                for i in range(20):
+                    t = rospy.Time(500 + i * 0.001)
+                    js = JointState(name=["shoulder", "m1", "l1"], position=[9.0, 0.01 * i, 0.02 * i],
+                                    velocity=[0.0, 0.0, 0.0], effort=[5.0, 0.5 + i, -1.0])
+                    js.header.stamp = t
+                    bag.write("/arm/joint_states", js, t)
+            code, out, err = self.report(bag_path, "--joint-states", "/arm/joint_states", "--motor-joint", "m1",
+                                         "--load-joint", "l1", "--recording", csv_path)
+            self.assertEqual(code, 0, err)
+            self.assertIn("20 samples", out)
+            with open(csv_path) as f:
+                rows = list(csv.DictReader(f))
+            self.assertEqual(len(rows), 20)
+            self.assertAlmostEqual(float(rows[3]["time"]), 0.003, delta=2e-9)  # (ROS time: whole nanoseconds)
+            self.assertEqual(float(rows[3]["motor_torque"]), 3.5)
+            self.assertAlmostEqual(float(rows[3]["motor_position"]), 0.03, delta=1e-15)
+            self.assertAlmostEqual(float(rows[3]["load_position"]), 0.06, delta=1e-15)
+            self.assert_one_line_refusal([bag_path, "--joint-states", "/arm/joint_states", "--recording", csv_path],
+                                         "has no joint 'load_joint'")
+            self.assert_one_line_refusal([bag_path, "--joint-states", "/nowhere", "--recording", csv_path],
+                                         "no topic /nowhere")
 
     def test_damaged_foreign_and_ambiguous_bags(self):
         with tempfile.TemporaryDirectory() as d:
