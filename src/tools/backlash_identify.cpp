@@ -6,6 +6,7 @@
 #include <iostream>
 #include <map>
 #include <memory>
+#include <set>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -40,6 +41,7 @@ struct Options
 {
   std::string data_path, config_path, output_path;
   bool experiment = false;
+  std::set<std::string> fit;  // the estimates written into the model
   double duration = 60.0, travel = 0.0;
   RunConfig prior_config;
   KeyValues prior;
@@ -65,6 +67,10 @@ Options parse(int argc, char** argv)
         "samples where the motor turns slower than this [rad/s] are left out (default 1e-6 of its fastest)"},
        {"json", "", "one JSON object on stdout"},
        {"output", "MODEL.yaml", "the prior with the estimated keys replaced (with --experiment: the profile)"},
+       {"fit", "KEY[,KEY...]",
+        "the estimates written into the model (default all: backlash, motor_inertia, load_inertia, motor_friction, "
+        "load_friction, motor_coulomb_friction, load_coulomb_friction, load_torque, restitution); the others keep the "
+        "prior's values"},
        {"experiment", "", "write an excitation (a command profile) to --output instead of identifying"},
        {"duration", "S", "--experiment: its length [s] (default 60)"},
        {"travel", "RAD",
@@ -86,6 +92,28 @@ Options parse(int argc, char** argv)
     o.duration = parser.optionNumber("duration", 60.0);
     o.travel = parser.optionNumber("travel", 3.0 * o.prior_config.params.backlash);
     return o;
+  }
+  const std::vector<std::string> fittable = {
+      "backlash",      "motor_inertia",          "load_inertia",          "motor_friction",
+      "load_friction", "motor_coulomb_friction", "load_coulomb_friction", "load_torque",
+      "restitution"};
+  if (parser.given("fit"))
+  {
+    std::stringstream list(parser.option("fit"));
+    for (std::string key; std::getline(list, key, ',');)
+    {
+      if (std::find(fittable.begin(), fittable.end(), key) == fittable.end())
+      {
+        throw ConfigError("--fit: '" + key +
+                          "' is not estimated here (backlash, motor_inertia, load_inertia, motor_friction, "
+                          "load_friction, motor_coulomb_friction, load_coulomb_friction, load_torque, restitution)");
+      }
+      o.fit.insert(key);
+    }
+  }
+  else
+  {
+    o.fit.insert(fittable.begin(), fittable.end());
   }
   if (parser.given("duration") || parser.given("travel"))
   {
@@ -267,10 +295,13 @@ int main(int argc, char** argv)
     const InitialEstimates e = estimateInitial(data, s);
     // The restitution: the simulator replayed over windows around impacts (none: not estimated, the prior's kept).
     Estimate restitution;
-    std::string restitution_note;
+    std::string restitution_note = o.fit.count("restitution") ? "" : "not in --fit";
     try
     {
-      restitution = fitRestitution(data, s, e);
+      if (restitution_note.empty())
+      {
+        restitution = fitRestitution(data, s, e);
+      }
     }
     catch (const InvalidParameterError& none)
     {
@@ -294,6 +325,10 @@ int main(int argc, char** argv)
       KeyValues model = o.prior;
       for (const Row& r : rows)
       {
+        if (o.fit.count(r.key) == 0 || (std::string(r.key) == "load_torque" && e.load_torque_given))
+        {
+          continue;  // the prior's value stays
+        }
         // A friction level estimated below zero is zero within its scatter: the model gets 0.
         const bool level = std::string(r.key).find("friction") != std::string::npos;
         model.setNumber(r.key, level ? std::max(0.0, r.e->value) : r.e->value);
@@ -302,9 +337,10 @@ int main(int argc, char** argv)
       {
         const std::string coulomb = std::string(body) + "_coulomb_friction",
                           stat = std::string(body) + "_static_friction";
-        if (!model.has(stat) || model.number(stat) < model.number(coulomb))
+        const double level = model.number(coulomb, 0.0);  // (absent: the table's default, 0)
+        if (level > 0.0 && (!model.has(stat) || model.number(stat) < level))
         {
-          model.setNumber(stat, model.number(coulomb));
+          model.setNumber(stat, level);
         }
       }
       runConfigFrom(model);  // what every tool will read: refused here (naming the key) rather than there
@@ -356,10 +392,17 @@ int main(int argc, char** argv)
             "load_torque: the prior's (the contact motion went one way only: the load torque and the Coulomb "
             "friction cannot be told apart)\n");
       }
+      const char* why = restitution_note.empty()             ? ""
+                        : restitution_note == "not in --fit" ? "restitution (not in --fit), "
+                                                             : "restitution (no impact in the recording), ";
       std::printf(
           "not estimated (the prior's values are kept): %sstatic friction (at least the Coulomb level), a "
           "compliant mesh\n",
-          restitution_note.empty() ? "" : "restitution (no impact in the recording), ");
+          why);
+      if (o.fit.size() < 9)
+      {
+        std::printf("written into the model (--fit): only the listed keys; the others keep the prior's values\n");
+      }
     }
     flushStdout();
   }

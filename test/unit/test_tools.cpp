@@ -1166,6 +1166,25 @@ TEST(IdentifyTool, EstimatesAJointFromItsRecordingAndWritesAModelEveryToolReads)
   ASSERT_EQ(code, 0) << sim_json;
   EXPECT_NEAR(jsonNumber(sim_json, "load_inertia"), p.load_inertia, 1e-3 * p.load_inertia);
   EXPECT_NEAR(jsonNumber(sim_json, "gear_ratio"), 0.5, 0.0);
+  // --fit: only the listed estimates go into the model (the restitution is then not even fitted).
+  runCapture(IDENTIFY + " --data " + dir + "recording.csv --gear-ratio 0.5 --fit backlash,load_inertia --output " +
+                 dir + "some.yaml 2>&1",
+             &code);
+  ASSERT_EQ(code, 0);
+  std::ifstream some(dir + "some.yaml");
+  const std::string written((std::istreambuf_iterator<char>(some)), std::istreambuf_iterator<char>());
+  const auto value = [&](const std::string& key) {
+    const std::size_t at = written.find(key + ": ");
+    return at == std::string::npos ? NAN : std::stod(written.substr(at + key.size() + 2));
+  };
+  EXPECT_NEAR(value("load_inertia"), 0.9, 1e-3) << written;
+  EXPECT_NEAR(value("backlash"), 0.3, 1e-9) << written;
+  EXPECT_EQ(written.find("motor_inertia"), std::string::npos) << written;
+  EXPECT_EQ(written.find("restitution"), std::string::npos) << written;
+  const std::string unknown =
+      runCapture(IDENTIFY + " --data " + dir + "recording.csv --gear-ratio 1 --fit mass 2>&1", &code);
+  EXPECT_EQ(code, 2);
+  EXPECT_NE(unknown.find("--fit: 'mass'"), std::string::npos) << unknown;
   // Refusals, naming what is missing.
   const std::string no_ratio = runCapture(IDENTIFY + " --data " + dir + "recording.csv 2>&1", &code);
   EXPECT_EQ(code, 2);
