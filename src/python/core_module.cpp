@@ -31,6 +31,7 @@
 #include "backlash_servo/drive.h"
 #include "backlash_servo/frequency_response.h"
 #include "backlash_servo/gear_mesh.h"
+#include "backlash_servo/identification.h"
 #include "backlash_servo/param_table.h"
 #include "backlash_servo/simulator.h"
 #include "backlash_servo/step_response.h"
@@ -272,6 +273,62 @@ py::dict broadbandResponse(const py::object& config, double amplitude, const std
   d["input_power"] = power;
   d["sample_rate"] = r.sample_rate;
   d["samples_per_period"] = r.samples_per_period;
+  return d;
+}
+
+/// backlash_identify's estimates from arrays (time, motor_torque, motor_position, load_position).
+py::dict identify(const std::vector<double>& time, const std::vector<double>& motor_torque,
+                  const std::vector<double>& motor_position, const std::vector<double>& load_position,
+                  double gear_ratio, double contact_band, int smoothing, double still_speed, double load_torque,
+                  bool restitution)
+{
+  Recording r{time, motor_torque, motor_position, load_position};
+  IdentificationSettings s;
+  s.gear_ratio = gear_ratio;
+  s.contact_band = contact_band;
+  s.smoothing = smoothing;
+  s.still_speed = still_speed;
+  s.load_torque_fallback = load_torque;
+  InitialEstimates e;
+  Estimate fitted;
+  bool fitted_ok = false;
+  {
+    py::gil_scoped_release release;
+    e = estimateInitial(r, s);
+    if (restitution)
+    {
+      try
+      {
+        fitted = fitRestitution(r, s, e);
+        fitted_ok = true;
+      }
+      catch (const InvalidParameterError&)
+      {
+        fitted_ok = false;  // no impact: not estimated
+      }
+    }
+  }
+  py::dict d;
+  const auto put = [&d](const char* key, const Estimate& x) {
+    d[key] = x.value;
+    d[(std::string(key) + "_standard_error").c_str()] = x.standard_error;
+  };
+  put("backlash", e.backlash);
+  put("motor_inertia", e.motor_inertia);
+  put("load_inertia", e.load_inertia);
+  put("motor_friction", e.motor_friction);
+  put("load_friction", e.load_friction);
+  put("motor_coulomb_friction", e.motor_coulomb_friction);
+  put("load_coulomb_friction", e.load_coulomb_friction);
+  put("load_torque", e.load_torque);
+  if (fitted_ok)
+  {
+    put("restitution", fitted);
+  }
+  d["zero_offset"] = e.zero_offset;
+  d["load_torque_given"] = e.load_torque_given;
+  d["contact_samples"] = e.contact_samples;
+  d["apart_samples"] = e.apart_samples;
   return d;
 }
 
@@ -558,6 +615,14 @@ PYBIND11_MODULE(core, m)
         "channel; a dict with the frequency used, the complex response, gain, phase [rad], distortion, periodic, "
         "flank_changes, … (docs/frequency_response.md). continuous=True: the torque's sine itself (a compliant "
         "mesh); the command takes the sine itself under the continuous law.");
+  m.def("identify", &identify, py::arg("time"), py::arg("motor_torque"), py::arg("motor_position"),
+        py::arg("load_position"), py::kw_only(), py::arg("gear_ratio"), py::arg("contact_band") = 0.0,
+        py::arg("smoothing") = 0, py::arg("still_speed") = 0.0, py::arg("load_torque") = NAN,
+        py::arg("restitution") = true,
+        "backlash_identify's estimates from a recording given as arrays (SI; the torque held from each sample to the "
+        "next): a dict of each parameter and its `_standard_error`, `zero_offset`, sample counts "
+        "(docs/identification.md). load_torque: used only when the contact motion goes one way; restitution=True "
+        "fits it by replaying windows of the recording.");
   m.def("broadband_response", &broadbandResponse, py::arg("config") = py::none(), py::kw_only(), py::arg("amplitude"),
         py::arg("excitation") = "prbs", py::arg("channel") = "command:load_position", py::arg("offset") = 0.0,
         py::arg("injection_rate") = 0.0, py::arg("prbs_order") = 10, py::arg("prbs_hold") = 1,

@@ -257,3 +257,26 @@ def test_simulator_in_effort_mode_follows_the_motor_torque():
     t, torque = 3.0, 2.0 - 0.5
     assert sim.state["motor_velocity"] == pytest.approx(torque / 0.8 * (1.0 - math.exp(-0.8 * t)), rel=1e-12)
     assert sim.motor_torque == 2.0
+
+
+def test_identify_recovers_a_joint_from_its_recording():
+    # The simulator in effort mode records a joint under a torque excitation; identify() gets it back.
+    sim = core.Simulator({"restitution": 0.5, "load_coulomb_friction": 0.1, "load_torque": 0.2})
+    t, u, m, l = [], [], [], []
+    for k in range(30001):
+        tk = k / 1000.0
+        sim.advance(tk)
+        uk = 1.5 * math.sin(1.3 * tk) + 0.8 * math.sin(4.1 * tk + 0.5)
+        sim.set_motor_torque(uk)
+        s = sim.state
+        t.append(tk)
+        u.append(uk)
+        m.append(s["motor_position"])
+        l.append(s["load_position"])
+    e = core.identify(t, u, m, l, gear_ratio=1.0)
+    assert e["backlash"] == pytest.approx(0.3, abs=1e-9)
+    assert e["load_inertia"] == pytest.approx(0.9, rel=1e-3)
+    assert e["load_coulomb_friction"] == pytest.approx(0.1, rel=1e-3)
+    assert e["restitution"] == pytest.approx(0.5, abs=1e-3)
+    with pytest.raises(ValueError, match="gear_ratio"):
+        core.identify(t, u, m, l, gear_ratio=0.0)
