@@ -143,6 +143,8 @@ class ProportionalDrive : public Drive
   /// θ_R = command + A sin(ω(t − t₀) + φ) [rad] from now on (`wave` in rad): the law gains the torque wave K·A
   /// sin(…). The linear law only (no torque limit, compensation or dither): InvalidParameterError otherwise.
   void setCommandWave(double command, const Sinusoid& wave);
+  /// The law is linear (no torque limit, compensation or dither): it takes a command wave.
+  bool linear() const { return limit_ == 0.0 && friction_ == 0.0 && amplitude_ == 0.0; }
 
  private:
   /// The linear band [θ_R − (T_max − c)/K, θ_R + (T_max + c)/K] [rad], c = F_ff + A s of the present piece.

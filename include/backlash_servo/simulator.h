@@ -51,7 +51,8 @@ class Simulator
    * (v/ρ)(t − t_a), θ_R − θ_c = θ_R(t_a) − y_c, the gap and the impact law are unchanged, and viscous friction
    * becomes the constant torques −f_L v (load) and −f_m v/ρ (motor) — the same linear modes with constant inputs,
    * so every closed form and event search applies. Not with dry friction (|ω| is not shifted by a frame) and not
-   * sines or moves (InvalidParameterError). In the frame the plant's maxima are not θ_c's (they are not reported)
+   * moves (InvalidParameterError); sines only with a compliant mesh, whose modes carry them exactly (setCommandWave,
+   * the linear law only). In the frame the plant's maxima are not θ_c's (they are not reported)
    * and its energy ledger is the frame's (energyValid() turns false). A later setCommand, setDrive or
    * setMotorTorque ends the profile. Null: none.
    */

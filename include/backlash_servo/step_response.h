@@ -33,7 +33,8 @@ struct RunConfig
   bool short_flights = true;   ///< the chatter fast path (short_flight.h); off only to compare (bench_core)
   /// Optional set-point profile θ_R(t); the verdict is judged from its end on, against its final value (a run until
   /// settled lasts at least to its end). A digital drive samples any profile; the continuous law takes steps, points
-  /// and (without dry friction) ramps exactly (Simulator::setProfile) and refuses sines and moves
+  /// and (without dry friction) ramps exactly (Simulator::setProfile), sines with a compliant mesh, and refuses moves
+  /// and, with rigid teeth, sines
   /// (InvalidParameterError from runResponse()); after a ramp under it the energy fields are NaN (the frame's ledger).
   /// With a profile, `command` is its final value.
   std::shared_ptr<const CommandProfile> profile;

@@ -200,10 +200,14 @@ bool CommandProfile::piecewiseLinear() const
   });
 }
 
-void CommandProfile::pieceAt(double t, double* slope, double* until) const
+void CommandProfile::pieceAt(double t, double* slope, double* until, Sinusoid* wave, double* base) const
 {
   *slope = 0.0;
   *until = nextChange(t);
+  if (wave != nullptr)
+  {
+    *wave = Sinusoid();
+  }
   double value = start_;
   for (std::size_t i = 0; i < segments_.size() && t >= segments_[i].time; ++i)
   {
@@ -211,6 +215,25 @@ void CommandProfile::pieceAt(double t, double* slope, double* until) const
     const double next = i + 1 < segments_.size() ? segments_[i + 1].time : std::numeric_limits<double>::infinity();
     const double v0 = value;
     value = evaluate(s, value, std::min(t, next) - s.time);
+    if (wave != nullptr)
+    {
+      *wave = Sinusoid();
+    }
+    if (s.kind == ProfileSegment::Kind::Sine && t < next && t < s.time + s.duration)
+    {
+      // Within the sine: its centre and the sine itself, to its end (or the next segment's start).
+      *slope = 0.0;
+      if (wave != nullptr)
+      {
+        *wave = Sinusoid{s.amplitude, TWO_PI * s.frequency, 0.0, s.time};
+      }
+      if (base != nullptr)
+      {
+        *base = v0;
+      }
+      *until = std::min(*until, s.time + s.duration);
+      continue;
+    }
     if (s.kind != ProfileSegment::Kind::Ramp || t >= next)
     {
       *slope = 0.0;
@@ -229,17 +252,32 @@ void CommandProfile::pieceAt(double t, double* slope, double* until) const
   }
 }
 
-void CommandProfile::requireTakenBy(bool sampled, bool dry) const
+void CommandProfile::requireTakenBy(bool sampled, bool dry, bool compliant) const
 {
   if (sampled || piecewiseConstant())
   {
     return;
   }
-  if (!piecewiseLinear())
+  bool moves = false, sines = false;
+  for (const ProfileSegment& s : segments_)
+  {
+    moves = moves || s.kind == ProfileSegment::Kind::Move;
+    sines = sines || s.kind == ProfileSegment::Kind::Sine;
+  }
+  if (moves || (sines && !compliant))
   {
     throw InvalidParameterError("profile",
-                                "the continuous law takes step, points and ramp profiles; a sine or move is sampled "
-                                "by a digital drive: set controller_rate > 0 Hz");
+                                "the continuous law takes step, points and ramp profiles (and sines with a compliant "
+                                "mesh); a sine or move is sampled by a digital drive: set controller_rate > 0 Hz");
+  }
+  bool ramps = false;
+  for (const ProfileSegment& s : segments_)
+  {
+    ramps = ramps || s.kind == ProfileSegment::Kind::Ramp;
+  }
+  if (!ramps)
+  {
+    return;  // (steps, points and sines: no moving frame)
   }
   if (dry)
   {

@@ -480,7 +480,8 @@ std::shared_ptr<const ModeBasis> CompliantJoint::basisFor(const ModeMatrix& a)
   constexpr std::size_t KEPT = 16;
   for (auto it = bases_.rbegin(); it != bases_.rend(); ++it)
   {
-    if ((*it)->matrix() == a)
+    const ModeMatrix& m = (*it)->matrix();
+    if (m.rows() == a.rows() && m.cols() == a.cols() && m == a)  // (a wave adds two states: sizes differ)
     {
       std::shared_ptr<const ModeBasis> found = *it;
       if (it != bases_.rbegin())

@@ -158,9 +158,20 @@ void Simulator::leaveFrame()
 
 void Simulator::applyPiece(double t, EventSink* sink)
 {
-  double slope, until;
-  profile_->pieceAt(t, &slope, &until);
+  double slope, until, base = 0.0;
+  Sinusoid wave;
+  profile_->pieceAt(t, &slope, &until, &wave, &base);
   next_change_ = until;
+  if (wave.active())
+  {
+    // A sine segment under the continuous law (a compliant mesh): its centre, and the sine carried by the modes.
+    applyCommand(base, sink);
+    auto* proportional = dynamic_cast<ProportionalDrive*>(drive_.get());
+    proportional->setCommandWave(base, wave);
+    proportional->reevaluate(plant_.state());
+    applyDriveLaw();
+    return;
+  }
   applyCommand(profile_->at(t), sink);
   if (slope != 0.0)
   {
@@ -303,7 +314,14 @@ void Simulator::setProfile(std::shared_ptr<const CommandProfile> profile, EventS
   auto* sampled = dynamic_cast<SampledDrive*>(drive_.get());
   if (profile)
   {
-    profile->requireTakenBy(sampled != nullptr, params().hasDryFriction());
+    profile->requireTakenBy(sampled != nullptr, params().hasDryFriction(), params().compliant());
+    const auto* proportional = dynamic_cast<const ProportionalDrive*>(drive_.get());
+    if (sampled == nullptr && !profile->piecewiseLinear() && (proportional == nullptr || !proportional->linear()))
+    {
+      throw InvalidParameterError("profile",
+                                  "a sine under the continuous law needs its linear law (no torque_limit or "
+                                  "compensation): set controller_rate > 0 Hz for a digital drive");
+    }
   }
   leaveFrame();
   profile_ = std::move(profile);

@@ -38,7 +38,7 @@ void checkProfile(const RunConfig& config)
 {
   if (config.profile)
   {
-    config.profile->requireTakenBy(config.drive.sampled(), config.params.hasDryFriction());
+    config.profile->requireTakenBy(config.drive.sampled(), config.params.hasDryFriction(), config.params.compliant());
   }
 }
 
