@@ -144,7 +144,8 @@ class Simulator
   /// One drive sample, counted against the event budget.
   void takeSample();
   /// θ_R = command [rad] for the position law now (setCommand without ending the profile).
-  void applyCommand(double command, EventSink* sink);
+  /// θ_R = command (+ wave [rad], the continuous P law only) to the drive, from now on.
+  void applyCommand(double command, EventSink* sink, const Sinusoid& wave = Sinusoid());
   /// advanceTo without the continuous law's profile steps.
   void advanceDriveTo(double t_end, EventSink* sink);
   /// The continuous law's profile piece in force at time t: its value as the command, its ramp as a frame.

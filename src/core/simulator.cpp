@@ -165,11 +165,7 @@ void Simulator::applyPiece(double t, EventSink* sink)
   if (wave.active())
   {
     // A sine segment under the continuous law (a compliant mesh): its centre, and the sine carried by the modes.
-    applyCommand(base, sink);
-    auto* proportional = dynamic_cast<ProportionalDrive*>(drive_.get());
-    proportional->setCommandWave(base, wave);
-    proportional->reevaluate(plant_.state());
-    applyDriveLaw();
+    applyCommand(base, sink, wave);
     return;
   }
   applyCommand(profile_->at(t), sink);
@@ -291,7 +287,24 @@ bool Simulator::retuneDrive(const DriveParams& drive, EventSink* sink)
 
 void Simulator::setCommand(double command, EventSink* sink)
 {
+  setCommandWave(command, Sinusoid(), sink);
+}
+
+void Simulator::setCommandWave(double command, const Sinusoid& wave, EventSink* sink)
+{
   requireFinite("command", command);
+  if (wave.active() && !plant_.params().compliant())
+  {
+    throw InvalidParameterError("command",
+                                "a sine command under the continuous law is exact with a compliant mesh "
+                                "only (mesh_stiffness > 0); with rigid teeth a digital drive samples it");
+  }
+  if (wave.active() && dynamic_cast<ProportionalDrive*>(drive_.get()) == nullptr)
+  {
+    throw InvalidParameterError("command",
+                                "a sine command needs the continuous law (a digital drive samples a sine "
+                                "profile; in effort mode set a sine torque)");
+  }
   leaveFrame();
   if (profile_)
   {
@@ -302,7 +315,7 @@ void Simulator::setCommand(double command, EventSink* sink)
     profile_.reset();
     stepped_ = false;
   }
-  applyCommand(command, sink);
+  applyCommand(command, sink, wave);
 }
 
 void Simulator::setProfile(std::shared_ptr<const CommandProfile> profile, EventSink* sink)
@@ -338,7 +351,7 @@ void Simulator::setProfile(std::shared_ptr<const CommandProfile> profile, EventS
   }
 }
 
-void Simulator::applyCommand(double command, EventSink* sink)
+void Simulator::applyCommand(double command, EventSink* sink, const Sinusoid& wave)
 {
   command_ = command;
   if (auto* sampled = dynamic_cast<SampledDrive*>(drive_.get()))
@@ -349,7 +362,7 @@ void Simulator::applyCommand(double command, EventSink* sink)
   }
   if (auto* proportional = dynamic_cast<ProportionalDrive*>(drive_.get()))
   {
-    proportional->setCommand(command);  // keeps its torque limit
+    proportional->setCommandWave(command, wave);  // keeps its torque limit (a wave needs none)
     proportional->reevaluate(plant_.state());
     applyDriveLaw();
     plant_.emit(sink, EventType::InputChange);
@@ -373,29 +386,6 @@ void Simulator::setMotorTorque(double torque, const Sinusoid& wave, EventSink* s
                                 "0); with rigid teeth apply it sampled and held");
   }
   setDrive(std::make_unique<EffortDrive>(torque, wave), sink);
-}
-
-void Simulator::setCommandWave(double command, const Sinusoid& wave, EventSink* sink)
-{
-  requireFinite("command", command);
-  if (wave.active() && !plant_.params().compliant())
-  {
-    throw InvalidParameterError("command",
-                                "a sine command under the continuous law is exact with a compliant mesh "
-                                "only (mesh_stiffness > 0); with rigid teeth a digital drive samples it");
-  }
-  auto* proportional = dynamic_cast<ProportionalDrive*>(drive_.get());
-  if (proportional == nullptr)
-  {
-    throw InvalidParameterError("command",
-                                "a sine command needs the continuous law (a digital drive samples a sine "
-                                "profile; in effort mode set a sine torque)");
-  }
-  setCommand(command, sink);  // ends a profile or a ramp's frame
-  proportional = dynamic_cast<ProportionalDrive*>(drive_.get());
-  proportional->setCommandWave(command, wave);
-  proportional->reevaluate(plant_.state());
-  applyDriveLaw();
 }
 
 void Simulator::setParams(const ServoParams& params, EventSink* sink)
