@@ -67,7 +67,12 @@ struct InitialEstimates
   Estimate motor_coulomb_friction;  ///< T_cm [N·m]
   Estimate load_coulomb_friction;   ///< T_cL [N·m]
   Estimate load_torque;             ///< T_ext [N·m]
-  bool load_torque_given = false;   ///< contact motion one way only: the load torque was the settings' (not estimated)
+  /// T_sm [N·m] from the motor's rests with the teeth apart (NaN: none seen; standard error NaN: never seen
+  /// breaking away, the value is a lower bound).
+  Estimate motor_static_friction{NAN, NAN};
+  /// T_sL [N·m] from the pair's rests on a flank, less the motor's share (NaN: no rest of either kind).
+  Estimate load_static_friction{NAN, NAN};
+  bool load_torque_given = false;  ///< contact motion one way only: the load torque was the settings' (not estimated)
   std::size_t contact_samples = 0, apart_samples = 0;
   double contact_rms_residual = 0.0;  ///< [N·m]
   double apart_rms_residual = 0.0;    ///< [N·m]
@@ -86,6 +91,15 @@ struct IdentificationSettings
   /// Coulomb friction and the load torque cannot be told apart; NaN: none (such a recording is then refused).
   double load_torque_fallback = NAN;
 };
+
+/// The smoothing filter F of `IdentificationSettings::smoothing` r: the centred mean over 2r + 1 samples, twice (a
+/// triangle 4r + 1 samples wide); the samples within 2r of an end keep their values (they are never used).
+std::vector<double> smoothedSignal(const std::vector<double>& x, int r);
+
+/// The fewest samples a rest lasts [samples] at sample period h [s]: 10, at least the smoothing's support 4r + 5,
+/// and with measured data (a contact band given) 0.2 s — a reversal at acceleration α stays within the band for
+/// 2√(2 band/α), so only α ≤ 8 band/(0.2 s)² passes for a rest (its torque J α is then far below the friction levels).
+std::size_t minimumRest(const IdentificationSettings& settings, double h);
 
 /**
  * The initial estimates from the recording. Throws InvalidParameterError naming what is missing: too few samples,

@@ -88,8 +88,13 @@ class Simulator
 
   /// The plant's chatter fast path (Plant::setShortFlights): on by default; off only to compare with the closed form.
   void setShortFlights(bool on) { plant_.setShortFlights(on); }
-  /// Advances exactly to time t_end [s], stopping at drive events on the way; events go in order to sink.
+  /// Advances exactly to time t_end [s], stopping at drive events on the way; events go in order to sink. A digital
+  /// drive's sample due at t_end itself is left for the next call (the state at t_end is the one its controller reads).
   void advanceTo(double t_end, EventSink* sink = nullptr);
+  /// Takes a digital drive's sample due at the current time t, or within rounding after it (1e-12 max(1, |t|) s: a
+  /// grid of samples i·T and the drive's k/f differ in their last bits; one advanceTo to it first): then the motor
+  /// torque is the one applied from now on, as a drive logs it. Nothing when none is due.
+  void takeSampleDue(EventSink* sink = nullptr);
   /// Called at every sample of a digital drive, just after the controller read its sensors (state at t_k, the
   /// drive with its readings and new output) — e.g. the node's `encoder_states`. Empty: none.
   using SampleObserver = std::function<void(const State&, const Drive&)>;

@@ -5,7 +5,7 @@
 #include <cmath>
 
 #include "backlash_servo/params.h"
-#include "backlash_servo/simulator.h"
+#include "backlash_servo/replay_windows.h"
 
 namespace backlash_servo
 {
@@ -94,12 +94,6 @@ std::vector<double> centredMean(const std::vector<double>& x, std::size_t r)
   return out;
 }
 
-/// The smoothing filter F: the centred mean over 2r + 1 samples, twice (a triangle 4r + 1 samples wide).
-std::vector<double> smoothed(const std::vector<double>& x, std::size_t r)
-{
-  return centredMean(centredMean(x, r), r);
-}
-
 void need(bool ok, const std::string& key, const std::string& what)
 {
   if (!ok)
@@ -109,6 +103,20 @@ void need(bool ok, const std::string& key, const std::string& what)
 }
 
 }  // namespace
+
+std::size_t minimumRest(const IdentificationSettings& s, double h)
+{
+  constexpr std::size_t MIN_REST = 10;
+  constexpr double MEASURED_REST = 0.2;  // [s]
+  const std::size_t r = static_cast<std::size_t>(std::max(s.smoothing, 0));
+  return std::max({MIN_REST, 4 * r + 5, s.contact_band > 0.0 ? static_cast<std::size_t>(MEASURED_REST / h) : 0});
+}
+
+std::vector<double> smoothedSignal(const std::vector<double>& x, int r)
+{
+  const std::size_t w = static_cast<std::size_t>(std::max(r, 0));
+  return centredMean(centredMean(x, w), w);
+}
 
 InitialEstimates estimateInitial(const Recording& d, const IdentificationSettings& s)
 {
@@ -154,7 +162,7 @@ InitialEstimates estimateInitial(const Recording& d, const IdentificationSetting
   need(s.smoothing >= 0 && s.smoothing <= 100000, "smoothing", "must be in [0, 100000] samples");
   const std::size_t r = static_cast<std::size_t>(s.smoothing);
   need(n > 8 * r + 50, "smoothing", "is too wide for a recording of " + std::to_string(n) + " samples");
-  const std::vector<double> theta = smoothed(d.motor_position, r);
+  const std::vector<double> theta = smoothedSignal(d.motor_position, s.smoothing);
   std::vector<double> wm(n, 0.0), am(n, 0.0), ubar(n, 0.0), sg(n, 0.0);
   double fastest = 0.0;
   for (std::size_t k = 1; k + 1 < n; ++k)
@@ -165,8 +173,8 @@ InitialEstimates estimateInitial(const Recording& d, const IdentificationSetting
     sg[k] = wm[k] > 0.0 ? 1.0 : wm[k] < 0.0 ? -1.0 : 0.0;
     fastest = std::max(fastest, std::fabs(wm[k]));
   }
-  ubar = smoothed(ubar, r);
-  sg = smoothed(sg, r);
+  ubar = smoothedSignal(ubar, s.smoothing);
+  sg = smoothedSignal(sg, s.smoothing);
   const double still = s.still_speed > 0.0 ? s.still_speed : 1e-6 * fastest;
   std::vector<int> phase(n);
   for (std::size_t k = 0; k < n; ++k)
@@ -273,6 +281,79 @@ InitialEstimates estimateInitial(const Recording& d, const IdentificationSetting
   out.load_torque_given = known_load;
   out.contact_rms_residual = c.rms;
   out.apart_rms_residual = a.rms;
+  // Static friction from the rests: over a sample interval [t_k, t_k+1) the torque u_k is held, so a body at rest
+  // over it was held by its static band (|net| ≤ T_s: a lower bound) and the interval where it broke away had
+  // |net| > T_s (an upper bound). Teeth apart: the motor alone, net u_k; teeth on a flank: the pair, net u_k + ρT_ext
+  // against T_sm + ρT_sL. A rest is a run of at least minimumRest() samples, in one phase, over which the
+  // (filtered) motor angle stays within the contact band: a velocity reversal passes through slow motion too, but
+  // leaves the band (½α t² grows). The filter F starts moving 2r samples before the body does, so the
+  // breakaway interval is the one after the run's last sample, plus 2r.
+  const std::size_t min_rest = minimumRest(s, h);
+  struct Bounds
+  {
+    double low = -1.0, high = INFINITY;
+  } motor_alone, pair;
+  const double text = out.load_torque.value;
+  const auto net = [&](std::size_t k, int in) { return std::fabs(d.motor_torque[k] + (in == 0 ? 0.0 : rho * text)); };
+  for (std::size_t a = reach; a + reach + 1 < n;)
+  {
+    if (phase[a] == 2)
+    {
+      ++a;
+      continue;
+    }
+    // The run a … b−1 (samples): every angle within `band` of the others, one phase.
+    std::size_t b = a + 1;
+    double lowest = theta[a], highest = theta[a];
+    while (b + reach + 1 < n && phase[b] == phase[a] &&
+           std::max(highest, theta[b]) - std::min(lowest, theta[b]) <= band)
+    {
+      lowest = std::min(lowest, theta[b]);
+      highest = std::max(highest, theta[b]);
+      ++b;
+    }
+    if (b - a < min_rest)
+    {
+      ++a;
+      continue;
+    }
+    Bounds& bound = phase[a] == 0 ? motor_alone : pair;
+    for (std::size_t k = a; k + 1 < b; ++k)  // the intervals inside the run
+    {
+      bound.low = std::max(bound.low, net(k, phase[a]));
+    }
+    // The interval from the run's last sample broke it away (on a flank the pair must still be there after it: a
+    // motor breaking away from the load alone has a lower threshold).
+    const std::size_t away = b - 1 + 2 * r;
+    if (away + reach + 1 < n && phase[b] == phase[a] && phase[away] == phase[a] && phase[away + 1] == phase[a])
+    {
+      bound.high = std::min(bound.high, net(away, phase[a]));
+    }
+    a = b;
+  }
+  const auto level = [](const Bounds& b) {
+    if (b.low < 0.0)
+    {
+      return Estimate{NAN, NAN};  // no rest
+    }
+    if (!std::isfinite(b.high))
+    {
+      return Estimate{b.low, NAN};  // never seen breaking away: at least this
+    }
+    if (b.low > b.high)
+    {
+      return Estimate{NAN, NAN};  // held above a level that broke it away: noise, not friction — not determined
+    }
+    return Estimate{0.5 * (b.low + b.high), (b.high - b.low) / std::sqrt(12.0)};
+  };
+  out.motor_static_friction = level(motor_alone);
+  const Estimate combined_static = level(pair);
+  if (std::isfinite(out.motor_static_friction.value) && std::isfinite(combined_static.value))
+  {
+    out.load_static_friction = {
+        (combined_static.value - out.motor_static_friction.value) / rho,
+        combined(combined_static.standard_error, out.motor_static_friction.standard_error) / rho};
+  }
   return out;
 }
 
@@ -306,7 +387,7 @@ Estimate fitRestitution(const Recording& d, const IdentificationSettings& s, con
        "needs at least 50 samples of equal columns");
   need(window > 0.0 && windows > 0, "window", "must be > 0 s, with at least one window");
   const double h = (d.time.back() - d.time.front()) / static_cast<double>(n - 1), rho = s.gear_ratio;
-  const double delta = e.backlash.value, margin = 1e-3 * delta;
+  const double delta = e.backlash.value;
   ServoParams p;
   p.gear_ratio = rho;
   p.backlash = delta;
@@ -314,61 +395,29 @@ Estimate fitRestitution(const Recording& d, const IdentificationSettings& s, con
   p.load_inertia = e.load_inertia.value;
   p.motor_friction = std::max(0.0, e.motor_friction.value);
   p.load_friction = std::max(0.0, e.load_friction.value);
-  p.motor_coulomb_friction = p.motor_static_friction = std::max(0.0, e.motor_coulomb_friction.value);
-  p.load_coulomb_friction = p.load_static_friction = std::max(0.0, e.load_coulomb_friction.value);
+  // Static friction as the rests gave it (at least the Coulomb level).
+  const auto atLeast = [](double level, const Estimate& e) {
+    return std::isfinite(e.value) ? std::max(level, e.value) : level;
+  };
+  p.motor_coulomb_friction = std::max(0.0, e.motor_coulomb_friction.value);
+  p.load_coulomb_friction = std::max(0.0, e.load_coulomb_friction.value);
+  p.motor_static_friction = atLeast(p.motor_coulomb_friction, e.motor_static_friction);
+  p.load_static_friction = atLeast(p.load_coulomb_friction, e.load_static_friction);
   p.load_torque = e.load_torque.value;
-  // Windows: begin 20 samples before the gap reaches a flank from clear of both, while still clear.
-  const auto gapOf = [&](std::size_t k) { return d.load_position[k] - rho * d.motor_position[k] - e.zero_offset; };
-  const auto clear = [&](std::size_t k) { return gapOf(k) > margin && gapOf(k) < delta - margin; };
   const std::size_t lead = 20, length = static_cast<std::size_t>(std::ceil(window / h));
-  std::vector<std::size_t> starts;
-  for (std::size_t k = lead + 1; k + length + 1 < n; ++k)
-  {
-    if (clear(k - 1) && !clear(k) && clear(k - lead))
-    {
-      starts.push_back(k - lead);
-      k += length;  // (windows do not overlap)
-    }
-  }
+  const std::vector<std::size_t> starts =
+      ReplayWindows::beforeImpacts(d, rho, e.zero_offset, delta, length, lead, static_cast<std::size_t>(windows));
   need(!starts.empty(), "data", "has no impact to fit the restitution on (the teeth never close across the free play)");
-  if (starts.size() > static_cast<std::size_t>(windows))
-  {
-    std::vector<std::size_t> spread;
-    for (int i = 0; i < windows; ++i)
-    {
-      spread.push_back(starts[static_cast<std::size_t>(i) * starts.size() / static_cast<std::size_t>(windows)]);
-    }
-    starts = spread;
-  }
-  std::size_t residuals = 0;
+  const ReplayWindows replay(d, s, e.zero_offset, starts, length);
+  std::vector<double> r;
   const auto cost = [&](double restitution) {
     ServoParams q = p;
     q.restitution = restitution;
+    replay.residuals(q, &r, true);
     double sum = 0.0;
-    residuals = 0;
-    for (std::size_t k0 : starts)
+    for (double x : r)
     {
-      State x;
-      x.time = d.time[k0];
-      x.motor_position = d.motor_position[k0];
-      x.load_position = d.load_position[k0];
-      x.motor_velocity = (d.motor_position[k0 + 1] - d.motor_position[k0 - 1]) / (2.0 * h);
-      x.load_velocity = (d.load_position[k0 + 1] - d.load_position[k0 - 1]) / (2.0 * h);
-      // The gap relative to the estimated flank, clamped into the free play.
-      const double g = std::min(std::max(gapOf(k0), 0.0), delta);
-      x.load_position = rho * x.motor_position + g;
-      x.contact = Contact::Apart;
-      Simulator sim(q, x, 0.0);
-      sim.setEnergyTracking(false);
-      const double shift = d.load_position[k0] - x.load_position;  // the encoders' offset, put back when compared
-      for (std::size_t k = k0; k < k0 + length; ++k)
-      {
-        sim.advanceTo(d.time[k]);
-        const double r = sim.state().load_position + shift - d.load_position[k];
-        sum += r * r;
-        ++residuals;
-        sim.setMotorTorque(d.motor_torque[k]);
-      }
+      sum += x * x;
     }
     return sum;
   };
@@ -403,7 +452,7 @@ Estimate fitRestitution(const Recording& d, const IdentificationSettings& s, con
   if (step > 1e-6)
   {
     const double curvature = (cost(out.value + step) - 2.0 * f0 + cost(out.value - step)) / (step * step);
-    const double sigma2 = f0 / std::max(1.0, static_cast<double>(residuals) - 1.0);
+    const double sigma2 = f0 / std::max(1.0, static_cast<double>(r.size()) - 1.0);
     out.standard_error = curvature > 0.0 ? std::sqrt(2.0 * sigma2 / curvature) : NAN;
   }
   else

@@ -427,6 +427,24 @@ void Simulator::advanceTo(double t_end, EventSink* sink)
   advanceDriveTo(t_end, sink);
 }
 
+void Simulator::takeSampleDue(EventSink* sink)
+{
+  const double slack = 1e-12 * std::max(1.0, std::fabs(plant_.state().time));
+  const double next = drive_->nextEventTime(plant_.state().time);
+  if (next > plant_.state().time + slack)
+  {
+    return;
+  }
+  if (next > plant_.state().time)
+  {
+    advanceTo(next, sink);
+  }
+  if (drive_->nextEventTime(plant_.state().time) <= plant_.state().time)
+  {
+    takeSample();
+  }
+}
+
 void Simulator::advanceDriveTo(double t_end, EventSink* sink)
 {
   FrameSink framed(sink, frame_rate_, params().gear_ratio, frame_start_, motor_bias_);

@@ -271,6 +271,9 @@ RunSummary runResponse(const RunConfig& config, EventSink* sink, double sample_p
     }
     if (on_sample && sample_period > 0.0)
     {
+      // A sample on a controller update (to rounding: t_k = k/f and i·T differ in their last bits) shows the torque
+      // applied from it on, as a drive logs it — not, now and then, the one before.
+      sim.takeSampleDue(&tee);
       on_sample(sim);
     }
     monitor.check(sim.state(), sim.drive().winding(), judge_from == -INFINITY && sim.atRestForever());

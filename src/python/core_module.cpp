@@ -4,6 +4,7 @@
 // or a path to a YAML file); errors are Python exceptions carrying the tools' one-line message. The GIL is released
 // while the core computes. See docs/python.md.
 #include <pybind11/complex.h>
+#include <pybind11/eigen.h>
 #include <pybind11/functional.h>
 #include <pybind11/numpy.h>
 #include <pybind11/pybind11.h>
@@ -32,6 +33,7 @@
 #include "backlash_servo/frequency_response.h"
 #include "backlash_servo/gear_mesh.h"
 #include "backlash_servo/identification.h"
+#include "backlash_servo/identify_joint.h"
 #include "backlash_servo/param_table.h"
 #include "backlash_servo/simulator.h"
 #include "backlash_servo/step_response.h"
@@ -276,11 +278,11 @@ py::dict broadbandResponse(const py::object& config, double amplitude, const std
   return d;
 }
 
-/// backlash_identify's estimates from arrays (time, motor_torque, motor_position, load_position).
+/// backlash_identify's identification from arrays (time, motor_torque, motor_position, load_position).
 py::dict identify(const std::vector<double>& time, const std::vector<double>& motor_torque,
                   const std::vector<double>& motor_position, const std::vector<double>& load_position,
                   double gear_ratio, double contact_band, int smoothing, double still_speed, double load_torque,
-                  bool restitution)
+                  const std::string& joint_fit, const std::vector<std::string>& keys, int windows)
 {
   Recording r{time, motor_torque, motor_position, load_position};
   IdentificationSettings s;
@@ -289,46 +291,47 @@ py::dict identify(const std::vector<double>& time, const std::vector<double>& mo
   s.smoothing = smoothing;
   s.still_speed = still_speed;
   s.load_torque_fallback = load_torque;
-  InitialEstimates e;
-  Estimate fitted;
-  bool fitted_ok = false;
+  IdentifyOptions options;
+  options.keys.insert(keys.begin(), keys.end());
+  if (joint_fit != "on" && joint_fit != "off" && joint_fit != "auto")
+  {
+    throw InvalidParameterError("joint_fit", "must be 'on', 'off' or 'auto' (got '" + joint_fit + "')");
+  }
+  options.joint = joint_fit == "on" ? JointFitMode::On : joint_fit == "off" ? JointFitMode::Off : JointFitMode::Auto;
+  options.fit.windows = windows;
+  ServoParams prior;
+  prior.gear_ratio = gear_ratio;
+  JointIdentification result;
   {
     py::gil_scoped_release release;
-    e = estimateInitial(r, s);
-    if (restitution)
-    {
-      try
-      {
-        fitted = fitRestitution(r, s, e);
-        fitted_ok = true;
-      }
-      catch (const InvalidParameterError&)
-      {
-        fitted_ok = false;  // no impact: not estimated
-      }
-    }
+    result = identifyJoint(r, s, prior, options);
   }
   py::dict d;
-  const auto put = [&d](const char* key, const Estimate& x) {
-    d[key] = x.value;
-    d[(std::string(key) + "_standard_error").c_str()] = x.standard_error;
-  };
-  put("backlash", e.backlash);
-  put("motor_inertia", e.motor_inertia);
-  put("load_inertia", e.load_inertia);
-  put("motor_friction", e.motor_friction);
-  put("load_friction", e.load_friction);
-  put("motor_coulomb_friction", e.motor_coulomb_friction);
-  put("load_coulomb_friction", e.load_coulomb_friction);
-  put("load_torque", e.load_torque);
-  if (fitted_ok)
+  for (const IdentifiedParameter& p : result.parameters)
   {
-    put("restitution", fitted);
+    d[p.key.c_str()] = p.value.value;
+    d[(p.key + "_standard_error").c_str()] = p.value.standard_error;
+    d[(p.key + "_initial").c_str()] = p.initial.value;
   }
-  d["zero_offset"] = e.zero_offset;
-  d["load_torque_given"] = e.load_torque_given;
-  d["contact_samples"] = e.contact_samples;
-  d["apart_samples"] = e.apart_samples;
+  d["zero_offset"] = result.initial.zero_offset;
+  d["load_torque_given"] = result.initial.load_torque_given;
+  d["contact_samples"] = result.initial.contact_samples;
+  d["apart_samples"] = result.initial.apart_samples;
+  d["joint_fit"] = result.joint_fit;
+  if (result.joint_fit)
+  {
+    py::list fitted, informed;
+    for (const FittedParameter& f : result.fit.parameters)
+    {
+      fitted.append(f.key);
+      informed.append(f.informed);
+    }
+    d["fitted"] = fitted;
+    d["informed"] = informed;
+    d["correlation"] = result.fit.correlation;
+    d["rms_residual"] = result.fit.rms;
+    d["start_rms_residual"] = result.fit.start_rms;
+  }
   return d;
 }
 
@@ -479,6 +482,7 @@ class PySimulator
       for (long k = 0; k < n; ++k)
       {
         sim_.advanceTo(std::min(t0 + static_cast<double>(k) * period, t_end));
+        sim_.takeSampleDue();  // (the torque applied from this sample on, as the CLI's CSV has it)
         const State& s = sim_.state();
         const double values[9] = {s.time,
                                   s.load_position,
@@ -618,11 +622,12 @@ PYBIND11_MODULE(core, m)
   m.def("identify", &identify, py::arg("time"), py::arg("motor_torque"), py::arg("motor_position"),
         py::arg("load_position"), py::kw_only(), py::arg("gear_ratio"), py::arg("contact_band") = 0.0,
         py::arg("smoothing") = 0, py::arg("still_speed") = 0.0, py::arg("load_torque") = NAN,
-        py::arg("restitution") = true,
-        "backlash_identify's estimates from a recording given as arrays (SI; the torque held from each sample to the "
-        "next): a dict of each parameter and its `_standard_error`, `zero_offset`, sample counts "
-        "(docs/identification.md). load_torque: used only when the contact motion goes one way; restitution=True "
-        "fits it by replaying windows of the recording.");
+        py::arg("joint_fit") = "auto", py::arg("keys") = std::vector<std::string>{}, py::arg("windows") = 40,
+        "backlash_identify's identification from a recording given as arrays (SI; the torque held from each sample "
+        "to the next): a dict of each parameter, its `_standard_error` and `_initial` estimate, `zero_offset`, sample "
+        "counts and, when the joint fit ran, `fitted` (its keys), `informed`, `correlation` (a matrix in that order), "
+        "`rms_residual` [rad] (docs/identification.md). load_torque: used only when the contact motion goes one way; "
+        "joint_fit: 'auto', 'on' or 'off'; keys: what is estimated (default all).");
   m.def("broadband_response", &broadbandResponse, py::arg("config") = py::none(), py::kw_only(), py::arg("amplitude"),
         py::arg("excitation") = "prbs", py::arg("channel") = "command:load_position", py::arg("offset") = 0.0,
         py::arg("injection_rate") = 0.0, py::arg("prbs_order") = 10, py::arg("prbs_hold") = 1,

@@ -1,8 +1,10 @@
 // backlash_identify: the joint's parameters from a recording of its own motion (initial estimates by linear least
-// squares on the contact and apart phases). See docs/identification.md.
+// squares on the contact and apart phases, then the joint fit with the simulator as the model). See
+// docs/identification.md.
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <fstream>
 #include <iostream>
 #include <map>
 #include <memory>
@@ -11,11 +13,18 @@
 #include <string>
 #include <vector>
 
+#include <unistd.h>
+
 #include "backlash_servo/config/flag_parser.h"
 #include "backlash_servo/config/run_config_loader.h"
 #include "backlash_servo/config/safe_input.h"
 #include "backlash_servo/identification.h"
+#include "backlash_servo/identify_joint.h"
+#include "backlash_servo/param_table.h"
+#include "backlash_servo/replay_windows.h"
 #include "json_writer.h"
+#include "progress.h"
+#include "run_program.h"
 #include "safe_output.h"
 
 using namespace backlash_servo;
@@ -23,12 +32,17 @@ using namespace backlash_servo;
 namespace
 {
 const char* HEADER =
-    R"(usage: backlash_identify --data FILE.csv --gear-ratio RHO | --config PRIOR.yaml [--contact-band RAD]
-                         [--smoothing R] [--still-speed W] [--json] [--output MODEL.yaml]
+    R"(usage: backlash_identify --data FILE.csv --gear-ratio RHO | --config PRIOR.yaml [--fit KEY,...]
+                         [--contact-band RAD] [--smoothing R] [--still-speed W] [--windows N] [--window S]
+                         [--max-evaluations N] [--joint-fit on|off|auto] [--json] [--output MODEL.yaml]
+                         [--png FILE.png]
        backlash_identify --experiment --config PRIOR.yaml [--duration S] [--travel RAD] --output PROFILE.yaml
-Estimates the joint's backlash, inertias, viscous and Coulomb friction and load torque from a recording of its own
-motion: the backlash from the range of the gap theta_c - rho*theta_m, the rest by linear least squares on the phases
-where the teeth are in contact and where they are apart. FILE.csv has the header time,motor_torque,motor_position,
+Estimates the joint's backlash, inertias, viscous, Coulomb and static friction, load torque and restitution from a
+recording of its own motion. First from the data alone: the backlash from the gap theta_c - rho*theta_m, the rest
+by linear least squares on the phases where the teeth are in contact and where they are apart, the restitution by
+replaying windows around impacts. Then all of them together (the joint fit): the exact simulator replays windows of
+the recording, each restarted from the measured state, and a derivative-free least-squares search (BOBYQA) matches
+both angles; each estimate gets a standard error and its largest correlation with another. FILE.csv has the header time,motor_torque,motor_position,
 load_position (SI: s, N*m, rad on each body's own shaft; other columns are ignored; rows with an `event` are
 skipped, so backlash_sim's --csv is a recording), uniform time steps; the motor torque is the one applied from each
 sample to the next. The gear ratio must be known (a flag or the prior YAML).
@@ -39,7 +53,7 @@ across the backlash), designed from the prior's gain, inertias and backlash, for
 
 struct Options
 {
-  std::string data_path, config_path, output_path;
+  std::string data_path, config_path, output_path, png_path;
   bool experiment = false;
   std::set<std::string> fit;  // the estimates written into the model
   double duration = 60.0, travel = 0.0;
@@ -48,6 +62,8 @@ struct Options
   double gear_ratio = 0.0, contact_band = 0.0, still_speed = 0.0;
   int smoothing = 0;
   bool json = false;
+  std::string joint_fit = "auto";  // on | off | auto
+  JointFitSettings joint;
 };
 
 Options parse(int argc, char** argv)
@@ -68,9 +84,18 @@ Options parse(int argc, char** argv)
        {"json", "", "one JSON object on stdout"},
        {"output", "MODEL.yaml", "the prior with the estimated keys replaced (with --experiment: the profile)"},
        {"fit", "KEY[,KEY...]",
-        "the estimates written into the model (default all: backlash, motor_inertia, load_inertia, motor_friction, "
-        "load_friction, motor_coulomb_friction, load_coulomb_friction, load_torque, restitution); the others keep the "
-        "prior's values"},
+        "what is estimated (default all: backlash, motor_inertia, load_inertia, motor_friction, load_friction, "
+        "motor_coulomb_friction, load_coulomb_friction, motor_static_friction, load_static_friction, load_torque, "
+        "restitution); the others keep the prior's values, in the fit and in the model"},
+       {"windows", "N", "the joint fit: how many windows of the recording it replays (default 40)"},
+       {"window", "S", "the joint fit: each window's length [s] (default 0.2)"},
+       {"max_evaluations", "N", "the joint fit: at most this many replays of all windows (default 600)"},
+       {"joint_fit", "on|off|auto",
+        "the joint fit after the initial estimates: on = every estimate in --fit; auto (default) = every one on exact "
+        "angles, only backlash and restitution on measured ones (--contact-band given); off = none"},
+       {"png", "FILE.png",
+        "the recording against the fitted model replayed over the windows: load angle, gap, "
+        "residuals"},
        {"experiment", "", "write an excitation (a command profile) to --output instead of identifying"},
        {"duration", "S", "--experiment: its length [s] (default 60)"},
        {"travel", "RAD",
@@ -93,10 +118,7 @@ Options parse(int argc, char** argv)
     o.travel = parser.optionNumber("travel", 3.0 * o.prior_config.params.backlash);
     return o;
   }
-  const std::vector<std::string> fittable = {
-      "backlash",      "motor_inertia",          "load_inertia",          "motor_friction",
-      "load_friction", "motor_coulomb_friction", "load_coulomb_friction", "load_torque",
-      "restitution"};
+  const std::vector<std::string>& fittable = identifiedKeys();
   if (parser.given("fit"))
   {
     std::stringstream list(parser.option("fit"));
@@ -104,9 +126,12 @@ Options parse(int argc, char** argv)
     {
       if (std::find(fittable.begin(), fittable.end(), key) == fittable.end())
       {
-        throw ConfigError("--fit: '" + key +
-                          "' is not estimated here (backlash, motor_inertia, load_inertia, motor_friction, "
-                          "load_friction, motor_coulomb_friction, load_coulomb_friction, load_torque, restitution)");
+        std::string keys;
+        for (const std::string& k : fittable)
+        {
+          keys += (keys.empty() ? "" : ", ") + k;
+        }
+        throw ConfigError("--fit: '" + key + "' is not estimated here (" + keys + ")");
       }
       o.fit.insert(key);
     }
@@ -118,6 +143,42 @@ Options parse(int argc, char** argv)
   if (parser.given("duration") || parser.given("travel"))
   {
     throw ConfigError("--duration and --travel are for --experiment");
+  }
+  o.joint_fit = parser.given("joint_fit") ? parser.option("joint_fit") : "auto";
+  if (o.joint_fit != "on" && o.joint_fit != "off" && o.joint_fit != "auto")
+  {
+    throw ConfigError("--joint-fit must be on, off or auto (got '" + o.joint_fit + "')");
+  }
+  o.joint.keys.assign(o.fit.begin(), o.fit.end());
+  const double windows = parser.optionNumber("windows", 40.0),
+               evaluations = parser.optionNumber("max_evaluations", 600.0);
+  o.joint.window = parser.optionNumber("window", 0.2);
+  if (!(windows >= 1.0 && windows <= 100000.0) || windows != std::floor(windows))
+  {
+    throw ConfigError("--windows must be a whole number in [1, 100000]");
+  }
+  if (!(evaluations >= 1.0 && evaluations <= 1e7) || evaluations != std::floor(evaluations))
+  {
+    throw ConfigError("--max-evaluations must be a whole number in [1, 10000000]");
+  }
+  if (!(o.joint.window > 0.0 && std::isfinite(o.joint.window)))
+  {
+    throw ConfigError("--window must be > 0 s");
+  }
+  o.joint.windows = static_cast<int>(windows);
+  o.joint.max_evaluations = static_cast<int>(evaluations);
+  if (o.joint_fit == "off" && (parser.given("windows") || parser.given("window") || parser.given("max_evaluations")))
+  {
+    throw ConfigError("--windows, --window and --max-evaluations set the joint fit, which --joint-fit off skips");
+  }
+  o.png_path = parser.option("png");
+  if (parser.given("png") && (o.png_path.size() < 5 || o.png_path.compare(o.png_path.size() - 4, 4, ".png") != 0))
+  {
+    throw ConfigError("--png: '" + o.png_path + "' must end in .png");
+  }
+  if (parser.given("png") && o.joint_fit == "off")
+  {
+    throw ConfigError("--png shows the joint fit, which --joint-fit off skips");
   }
   if (o.data_path.empty())
   {
@@ -233,19 +294,56 @@ std::string number(double v)
   return buf;
 }
 
-struct Row
+std::string unitOf(const std::string& key)
 {
-  const char* key;
-  const char* unit;
-  const Estimate* e;
-};
+  const ParamSpec* spec = findParam(key);
+  return spec ? spec->unit : "";
+}
+
+/// The recording and the fitted model replayed over the fit's windows, to a private directory, drawn there by
+/// identify_chart.py (run without a shell), then moved into place through the safe-write path.
+void drawChart(const Recording& data, double rho, const ReplayWindows& windows, const JointFit& fit,
+               const std::string& script, SafeOutput& png)
+{
+  std::vector<double> motor, load;
+  windows.simulate(fit.params, &motor, &load, &fit.anchor_corrections);
+  TemporaryDirectory dir("backlash_identify");
+  {
+    std::ofstream csv(dir.file("replay.csv"));
+    csv.precision(12);
+    csv << "time,motor,load,gap,motor_fit,load_fit,gap_fit\n";
+    for (std::size_t k = 0; k < data.time.size(); ++k)
+    {
+      csv << data.time[k] << "," << rho * data.motor_position[k] << "," << data.load_position[k] << ","
+          << data.load_position[k] - rho * data.motor_position[k] << ",";
+      if (std::isfinite(load[k]))
+      {
+        csv << rho * motor[k] << "," << load[k] << "," << load[k] - rho * motor[k];
+      }
+      else
+      {
+        csv << ",,";
+      }
+      csv << "\n";
+    }
+    if (!csv.flush())
+    {
+      throw std::runtime_error("--png: writing the chart data to '" + dir.path() + "' failed (disk full?)");
+    }
+  }
+  const std::string tmp = dir.file("chart.png");
+  runChartScript(script, dir.path(), tmp);
+  copyFileInto(tmp, png);
+  std::cerr << "backlash_identify: wrote " << png.path() << "\n";
+}
 
 }  // namespace
 
 int main(int argc, char** argv)
 {
   Options o;
-  std::unique_ptr<SafeOutput> output;
+  std::unique_ptr<SafeOutput> output, png;
+  std::string chart_script;
   Recording data;
   try
   {
@@ -254,6 +352,12 @@ int main(int argc, char** argv)
     {
       output =
           std::make_unique<SafeOutput>("--output", o.output_path, std::vector<std::string>{o.config_path, o.data_path});
+    }
+    if (!o.png_path.empty())
+    {
+      png = std::make_unique<SafeOutput>("--png", o.png_path,
+                                         std::vector<std::string>{o.config_path, o.data_path, o.output_path});
+      chart_script = helperBesideExecutable("identify_chart.py");
     }
     if (o.experiment)
     {
@@ -292,46 +396,39 @@ int main(int argc, char** argv)
     // Contact one way only (a limit cycle pushed from one side): the prior's load torque (default 0) splits it.
     s.load_torque_fallback = o.prior.has("load_torque") ? o.prior.number("load_torque") : 0.0;
     s.still_speed = o.still_speed;
-    const InitialEstimates e = estimateInitial(data, s);
-    // The restitution: the simulator replayed over windows around impacts (none: not estimated, the prior's kept).
-    Estimate restitution;
-    std::string restitution_note = o.fit.count("restitution") ? "" : "not in --fit";
-    try
+    IdentifyOptions options;
+    options.keys = o.fit;
+    options.joint = o.joint_fit == "on"    ? JointFitMode::On
+                    : o.joint_fit == "off" ? JointFitMode::Off
+                                           : JointFitMode::Auto;
+    options.fit = o.joint;
+    Progress progress(isatty(2) != 0, 1.0);
+    options.fit.progress = [&progress](int done, int budget) {
+      progress.update(static_cast<std::size_t>(done), static_cast<std::size_t>(budget));
+    };
+    const JointIdentification result = identifyJoint(data, s, runConfigFrom(o.prior).params, options);
+    progress.finish();
+    const InitialEstimates& e = result.initial;
+    const std::vector<IdentifiedParameter>& rows = result.parameters;
+    const JointFit& fit = result.fit;
+    const bool joint = result.joint_fit;
+    if (png && joint)
     {
-      if (restitution_note.empty())
-      {
-        restitution = fitRestitution(data, s, e);
-      }
+      const ReplayWindows shown(data, s, e.zero_offset, fit.window_starts, fit.window_length);
+      drawChart(data, s.gear_ratio, shown, fit, chart_script, *png);
     }
-    catch (const InvalidParameterError& none)
+    if (png && !joint)
     {
-      restitution_note = none.what();
-    }
-    std::vector<Row> rows = {{"backlash", "rad", &e.backlash},
-                             {"motor_inertia", "kg*m^2", &e.motor_inertia},
-                             {"load_inertia", "kg*m^2", &e.load_inertia},
-                             {"motor_friction", "N*m*s/rad", &e.motor_friction},
-                             {"load_friction", "N*m*s/rad", &e.load_friction},
-                             {"motor_coulomb_friction", "N*m", &e.motor_coulomb_friction},
-                             {"load_coulomb_friction", "N*m", &e.load_coulomb_friction},
-                             {"load_torque", "N*m", &e.load_torque}};
-    if (restitution_note.empty())
-    {
-      rows.push_back({"restitution", "-", &restitution});
+      std::cerr << "backlash_identify: --png not drawn: it shows the joint fit, which did not run\n";
     }
     if (output)
     {
       // The prior's keys, the estimated ones replaced (static friction at least the Coulomb level).
       KeyValues model = o.prior;
-      for (const Row& r : rows)
+      for (const IdentifiedParameter& r : rows)
       {
-        if (o.fit.count(r.key) == 0 || (std::string(r.key) == "load_torque" && e.load_torque_given))
-        {
-          continue;  // the prior's value stays
-        }
-        // A friction level estimated below zero is zero within its scatter: the model gets 0.
-        const bool level = std::string(r.key).find("friction") != std::string::npos;
-        model.setNumber(r.key, level ? std::max(0.0, r.e->value) : r.e->value);
+        const bool level = r.key.find("friction") != std::string::npos;
+        model.setNumber(r.key, level ? std::max(0.0, r.value.value) : r.value.value);
       }
       for (const char* body : {"motor", "load"})
       {
@@ -358,11 +455,19 @@ int main(int argc, char** argv)
       JsonWriter w(out);
       w.beginObject();
       w.beginObject("estimates");
-      for (const Row& r : rows)
+      for (const IdentifiedParameter& r : rows)
       {
-        w.beginObject(r.key);
-        w.field("value", r.e->value);
-        w.field("standard_error", r.e->standard_error);
+        w.beginObject(r.key.c_str());
+        w.field("value", r.value.value);
+        w.field("standard_error", r.value.standard_error);
+        w.field("initial", r.initial.value);
+        w.field("initial_standard_error", r.initial.standard_error);
+        if (r.in_joint_fit)
+        {
+          w.field("informed", r.informed);
+          w.field("largest_correlation", r.largest_correlation);
+          w.field("most_correlated_with", r.most_correlated_with);
+        }
         w.endObject();
       }
       w.endObject();
@@ -372,37 +477,94 @@ int main(int argc, char** argv)
       w.field("apart_samples", static_cast<long long>(e.apart_samples));
       w.field("contact_rms_residual", e.contact_rms_residual);
       w.field("apart_rms_residual", e.apart_rms_residual);
+      if (joint)
+      {
+        w.beginObject("joint_fit");
+        w.field("windows", static_cast<long long>(fit.windows));
+        w.field("window", o.joint.window);
+        w.field("evaluations", static_cast<long long>(fit.evaluations));
+        w.field("budget_exhausted", fit.budget_exhausted);
+        w.field("start_rms_residual", fit.start_rms);
+        w.field("rms_residual", fit.rms);
+        w.field("condition", fit.condition);
+        w.beginArray("correlation");
+        for (Eigen::Index i = 0; i < fit.correlation.rows(); ++i)
+        {
+          w.beginArray();
+          for (Eigen::Index j = 0; j < fit.correlation.cols(); ++j)
+          {
+            w.field(nullptr, fit.correlation(i, j));
+          }
+          w.endArray();
+        }
+        w.endArray();
+        w.endObject();
+      }
       w.endObject();
       std::cout << out.str() << "\n";
     }
     else
     {
-      std::printf("%zu samples: %zu in contact, %zu apart used (rms residual %.3g / %.3g N*m)\n", data.time.size(),
-                  e.contact_samples, e.apart_samples, e.contact_rms_residual, e.apart_rms_residual);
-      for (const Row& r : rows)
+      std::printf(
+          "%zu samples: %zu in contact, %zu apart used by the initial estimates (rms residual %.3g / %.3g "
+          "N*m)\n",
+          data.time.size(), e.contact_samples, e.apart_samples, e.contact_rms_residual, e.apart_rms_residual);
+      if (joint)
       {
-        std::printf("%-24s %14s +- %-10s %s\n", r.key, number(r.e->value).c_str(), number(r.e->standard_error).c_str(),
-                    r.unit);
+        std::printf("joint fit: %zu windows of %g s, %d replays%s; rms residual %.3g -> %.3g rad; condition %.3g\n",
+                    fit.windows, o.joint.window, fit.evaluations,
+                    fit.budget_exhausted ? " (the budget: raise --max-evaluations)" : "", fit.start_rms, fit.rms,
+                    fit.condition);
       }
-      std::printf("%-24s %14s    %-10s %s (the gap the encoders read on the forward flank)\n", "zero_offset",
-                  number(e.zero_offset).c_str(), "", "rad");
+      std::printf("%-24s %14s %14s +- %-10s %-10s %s\n", "parameter", "initial", joint ? "fitted" : "estimate",
+                  "std error", "unit", joint ? "identifiability" : "");
+      for (const IdentifiedParameter& r : rows)
+      {
+        std::string how;
+        if (r.key.find("static") != std::string::npos)
+        {
+          how = std::isfinite(r.value.standard_error) ? "from the rests (held in the joint fit)"
+                                                      : "from the rests: at least this (never seen breaking away)";
+        }
+        else if (joint && !r.in_joint_fit)
+        {
+          how = "initial estimate (held in the joint fit)";
+        }
+        else if (joint && !r.informed)
+        {
+          how = "not informed by this recording (the start kept)";
+        }
+        else if (joint && !r.most_correlated_with.empty())
+        {
+          how =
+              "|corr| " + number(std::round(r.largest_correlation * 100.0) / 100.0) + " with " + r.most_correlated_with;
+        }
+        std::printf("%-24s %14s %14s +- %-10s %-10s %s\n", r.key.c_str(), number(r.initial.value).c_str(),
+                    number(r.value.value).c_str(), number(r.value.standard_error).c_str(), unitOf(r.key).c_str(),
+                    how.c_str());
+      }
+      std::printf("%-24s %14s %14s    %-10s %-10s %s\n", "zero_offset", "", number(e.zero_offset).c_str(), "", "rad",
+                  "(the gap the encoders read on the forward flank)");
       if (e.load_torque_given)
       {
         std::printf(
             "load_torque: the prior's (the contact motion went one way only: the load torque and the Coulomb "
             "friction cannot be told apart)\n");
       }
-      const char* why = restitution_note.empty()             ? ""
-                        : restitution_note == "not in --fit" ? "restitution (not in --fit), "
-                                                             : "restitution (no impact in the recording), ";
-      std::printf(
-          "not estimated (the prior's values are kept): %sstatic friction (at least the Coulomb level), a "
-          "compliant mesh\n",
-          why);
-      if (o.fit.size() < 9)
+      std::string kept;
+      for (const std::string& key : jointFitKeys())
       {
-        std::printf("written into the model (--fit): only the listed keys; the others keep the prior's values\n");
+        if (std::none_of(rows.begin(), rows.end(), [&key](const IdentifiedParameter& r) { return r.key == key; }))
+        {
+          kept += (kept.empty() ? "" : ", ") + key;
+        }
       }
+      if (!result.restitution_note.empty())
+      {
+        kept += " (the restitution: no impact in the recording)";
+      }
+      std::printf("not estimated (the prior's values are kept): %s%sa compliant mesh\n", kept.c_str(),
+                  kept.empty() ? "" : ", ");
     }
     flushStdout();
   }

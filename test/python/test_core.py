@@ -278,5 +278,14 @@ def test_identify_recovers_a_joint_from_its_recording():
     assert e["load_inertia"] == pytest.approx(0.9, rel=1e-3)
     assert e["load_coulomb_friction"] == pytest.approx(0.1, rel=1e-3)
     assert e["restitution"] == pytest.approx(0.5, abs=1e-3)
+    # The joint fit ran on these exact angles: every fitted key informed, a symmetric correlation matrix.
+    assert e["joint_fit"] and "load_inertia" in e["fitted"] and all(e["informed"])
+    c = e["correlation"]
+    assert c.shape == (len(e["fitted"]), len(e["fitted"]))
+    assert abs(c - c.T).max() < 1e-12 and abs(c.diagonal() - 1.0).max() < 1e-12
+    assert e["rms_residual"] < 1e-6
+    off = core.identify(t, u, m, l, gear_ratio=1.0, joint_fit="off", keys=["backlash", "load_inertia"])
+    assert not off["joint_fit"] and "fitted" not in off and "motor_inertia" not in off
+    assert off["load_inertia"] == off["load_inertia_initial"]
     with pytest.raises(ValueError, match="gear_ratio"):
         core.identify(t, u, m, l, gear_ratio=0.0)

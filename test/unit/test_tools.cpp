@@ -1153,7 +1153,7 @@ TEST(IdentifyTool, EstimatesAJointFromItsRecordingAndWritesAModelEveryToolReads)
       IDENTIFY + " --data " + dir + "recording.csv --gear-ratio 0.5 --json --output " + dir + "model.yaml", &code);
   ASSERT_EQ(code, 0) << json;
   const auto estimate = [&](const std::string& key) {
-    return jsonNumber(json.substr(json.find("\"" + key + "\"")), "value");
+    return jsonNumber(json.substr(json.find("\"" + key + "\":{")), "value");
   };
   EXPECT_NEAR(estimate("backlash"), p.backlash, 1e-9);
   EXPECT_NEAR(estimate("motor_inertia"), p.motor_inertia, 1e-3 * p.motor_inertia);
@@ -1166,21 +1166,50 @@ TEST(IdentifyTool, EstimatesAJointFromItsRecordingAndWritesAModelEveryToolReads)
   ASSERT_EQ(code, 0) << sim_json;
   EXPECT_NEAR(jsonNumber(sim_json, "load_inertia"), p.load_inertia, 1e-3 * p.load_inertia);
   EXPECT_NEAR(jsonNumber(sim_json, "gear_ratio"), 0.5, 0.0);
-  // --fit: only the listed estimates go into the model (the restitution is then not even fitted).
-  runCapture(IDENTIFY + " --data " + dir + "recording.csv --gear-ratio 0.5 --fit backlash,load_inertia --output " +
-                 dir + "some.yaml 2>&1",
-             &code);
-  ASSERT_EQ(code, 0);
+  // The joint fit's report: every fitted estimate informed, with its largest correlation; the correlation matrix
+  // symmetric with a unit diagonal; the static levels from the rests (held in the fit).
+  EXPECT_NE(json.find("\"joint_fit\":{"), std::string::npos) << json;
+  EXPECT_NE(json.find("\"most_correlated_with\""), std::string::npos) << json;
+  EXPECT_EQ(json.find("\"informed\":false"), std::string::npos) << json;
+  EXPECT_NEAR(estimate("motor_static_friction"), p.motor_static_friction, 1e-2 * p.motor_static_friction);
+  EXPECT_LT(jsonNumber(json.substr(json.find("\"joint_fit\":{")), "rms_residual"), 1e-6);
+  // --fit: only the listed keys are estimated; the others keep the prior's values, in the fit and in the model (the
+  // prior here knows them: the restitution, the friction levels).
+  {
+    std::ofstream prior(dir + "known.yaml");
+    prior << "gear_ratio: 0.5\nrestitution: 0.5\nmotor_coulomb_friction: 0.05\nmotor_static_friction: 0.05\n"
+             "load_coulomb_friction: 0.1\nload_static_friction: 0.1\n";
+  }
+  const std::string listed = runCapture(IDENTIFY + " --data " + dir + "recording.csv --config " + dir +
+                                            "known.yaml --fit backlash,load_inertia --output " + dir + "some.yaml 2>&1",
+                                        &code);
+  ASSERT_EQ(code, 0) << listed;
   std::ifstream some(dir + "some.yaml");
   const std::string written((std::istreambuf_iterator<char>(some)), std::istreambuf_iterator<char>());
   const auto value = [&](const std::string& key) {
     const std::size_t at = written.find(key + ": ");
     return at == std::string::npos ? NAN : std::stod(written.substr(at + key.size() + 2));
   };
-  EXPECT_NEAR(value("load_inertia"), 0.9, 1e-3) << written;
+  EXPECT_NEAR(value("load_inertia"), 0.9, 1e-5) << written;
   EXPECT_NEAR(value("backlash"), 0.3, 1e-9) << written;
   EXPECT_EQ(written.find("motor_inertia"), std::string::npos) << written;
-  EXPECT_EQ(written.find("restitution"), std::string::npos) << written;
+  EXPECT_NEAR(value("restitution"), 0.5, 0.0) << written;  // (the prior's, unchanged)
+  // The chart of the fit; --joint-fit off: the initial estimates alone (and no chart to draw).
+  runCapture(IDENTIFY + " --data " + dir + "recording.csv --gear-ratio 0.5 --png " + dir + "fit.png 2>&1", &code);
+  ASSERT_EQ(code, 0);
+  std::ifstream png(dir + "fit.png", std::ios::binary);
+  char magic[4] = {};
+  png.read(magic, 4);
+  EXPECT_EQ(std::string(magic + 1, 3), "PNG");
+  const std::string off =
+      runCapture(IDENTIFY + " --data " + dir + "recording.csv --gear-ratio 0.5 --joint-fit off --json", &code);
+  ASSERT_EQ(code, 0);
+  EXPECT_EQ(off.find("joint_fit"), std::string::npos) << off;
+  const std::string both = runCapture(
+      IDENTIFY + " --data " + dir + "recording.csv --gear-ratio 0.5 --joint-fit off --png " + dir + "x.png 2>&1",
+      &code);
+  EXPECT_EQ(code, 2);
+  EXPECT_NE(both.find("--joint-fit off"), std::string::npos) << both;
   const std::string unknown =
       runCapture(IDENTIFY + " --data " + dir + "recording.csv --gear-ratio 1 --fit mass 2>&1", &code);
   EXPECT_EQ(code, 2);
@@ -1293,7 +1322,7 @@ TEST(IdentifyTool, ExperimentInformsTheEstimates)
       runCapture(IDENTIFY + " --data " + dir + "rec.csv --config " + dir + "prior.yaml --json", &code);
   ASSERT_EQ(code, 0) << json;
   const auto estimate = [&](const std::string& key) {
-    return jsonNumber(json.substr(json.find("\"" + key + "\"")), "value");
+    return jsonNumber(json.substr(json.find("\"" + key + "\":{")), "value");
   };
   EXPECT_NEAR(estimate("motor_inertia"), 0.1, 1e-3);
   EXPECT_NEAR(estimate("load_inertia"), 0.9, 9e-3);

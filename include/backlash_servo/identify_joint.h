@@ -1,0 +1,67 @@
+/**
+ * @file identify_joint.h
+ * @brief The whole identification, as backlash_identify and the Python module run it: the initial estimates
+ *        (identification.h), the restitution by replays around impacts, the static friction from the rests, then the
+ *        joint fit (joint_fit.h) of the chosen estimates. No ROS dependency.
+ */
+#pragma once
+
+#include <set>
+#include <string>
+#include <vector>
+
+#include "backlash_servo/identification.h"
+#include "backlash_servo/joint_fit.h"
+
+namespace backlash_servo
+{
+/// Which estimates the joint fit adjusts.
+enum class JointFitMode
+{
+  Off,   ///< none: the initial estimates are the result
+  On,    ///< every estimate it can fit
+  Auto,  ///< every one on exact angles (no contact band given), only backlash and restitution on measured ones
+};
+
+struct IdentifyOptions
+{
+  /// The keys estimated (empty: all of identifiedKeys()); the others keep the prior's values.
+  std::set<std::string> keys;
+  JointFitMode joint = JointFitMode::Auto;
+  JointFitSettings fit;  ///< windows, budget, progress (its keys are chosen here)
+};
+
+/// One estimated parameter.
+struct IdentifiedParameter
+{
+  std::string key;
+  Estimate initial;           ///< from the data alone [its unit]
+  Estimate value;             ///< the result: the joint fit's when it fitted this key [its unit]
+  bool in_joint_fit = false;  ///< adjusted by the joint fit
+  bool informed = true;       ///< (joint fit) the recording moves the residuals with it
+  double largest_correlation = NAN;
+  std::string most_correlated_with;
+};
+
+struct JointIdentification
+{
+  InitialEstimates initial;
+  std::vector<IdentifiedParameter> parameters;  ///< in identifiedKeys() order, the ones estimated
+  bool joint_fit = false;                       ///< the joint fit ran
+  JointFit fit;                                 ///< its report (when it ran)
+  std::string restitution_note;                 ///< why the restitution was not estimated (empty: it was)
+  ServoParams model;                            ///< the prior with the estimates in place (T_s ≥ T_c kept)
+};
+
+/// What can be estimated, in the parameter table's order: the joint fit's keys and the static friction levels.
+const std::vector<std::string>& identifiedKeys();
+
+/**
+ * Identifies the rigid joint from the recording: `prior` holds what is known (the gear ratio at least; its values are
+ * kept for the keys not estimated, and start the joint fit for the others when the data give none). Throws
+ * InvalidParameterError naming what is missing (identification.h), or an unknown key.
+ */
+JointIdentification identifyJoint(const Recording& data, const IdentificationSettings& settings,
+                                  const ServoParams& prior, const IdentifyOptions& options);
+
+}  // namespace backlash_servo
