@@ -15,7 +15,7 @@ if ! dpkg-query -W -f='${Status}' libsundials-dev 2>/dev/null | grep -q "install
 fi
 mkdir -p build/release/devel/lib/python3/dist-packages
 cmake -S . -B build/release -DPYTHON_EXECUTABLE=/usr/bin/python3 -DCMAKE_BUILD_TYPE=Release >/dev/null
-make -C build/release -j"$(nproc)" bench_core bench_compliant backlash_sweep backlash_sim >/dev/null
+make -C build/release -j"$(nproc)" bench_core bench_compliant backlash_sweep backlash_sim backlash_identify >/dev/null
 bin=build/release/devel/lib/backlash_servo
 ref=$(mktemp)
 trap 'rm -f "$ref"' EXIT
@@ -28,5 +28,17 @@ echo "== scipy solve_ivp with events (python; first 200 s of each case, or 20 s 
 echo "== thesis grid (1344 points, until each verdict is settled)"
 /usr/bin/time -f "peak memory %M kB" "$bin/backlash_sweep" --preset thesis --output "$ref.sweep.csv"
 rm -f "$ref.sweep.csv"
+echo "== identification of a 60 s recording at 1 kHz (the experiment through a 1 kHz P drive; target: seconds)"
+work=$(mktemp -d)
+printf 'controller_rate: 1000.0\ngain: 5.0\ngear_ratio: 1.0\nrestitution: 0.5\nbacklash: 0.3\n' >"$work/prior.yaml"
+cp "$work/prior.yaml" "$work/truth.yaml"
+printf 'motor_coulomb_friction: 0.05\nload_coulomb_friction: 0.1\nload_torque: 0.2\nprofile: %s\n' \
+  "$work/experiment.yaml" >>"$work/truth.yaml"
+"$bin/backlash_identify" --experiment --config "$work/prior.yaml" --output "$work/experiment.yaml" 2>/dev/null
+"$bin/backlash_sim" --config "$work/truth.yaml" --duration 60 --sample-rate 1000 --csv "$work/rec.csv" >/dev/null
+/usr/bin/time -o "$work/time" -f "backlash_identify: wall %e s, peak memory %M kB" \
+  "$bin/backlash_identify" --data "$work/rec.csv" --config "$work/prior.yaml" 2>/dev/null | sed -n 2p
+cat "$work/time"
+rm -rf "$work"
 echo "== the thesis study against one scipy solution of App. D1 (issue 13's ratio; whole processes, alternately)"
 bash bench/thesis_vs_scipy.sh "$([ "${1:-}" = --quick ] && echo 1 || echo 5)" "$bin"

@@ -32,7 +32,9 @@ if cmake -S . -B build/sanitize -DPYTHON_EXECUTABLE=/usr/bin/python3 -DBACKLASH_
     fi
     tail -n 3 "build/sanitize/${name}.log"
   }
-  slow='-Compensation.TheContinuousLawTakesFeedforwardAndSquareDitherExactly'
+  # (Left out here, run in the normal build: long replays whose code the other sanitized tests cover.)
+  slow='-Compensation.TheContinuousLawTakesFeedforwardAndSquareDitherExactly:JointFit.MeasuredAnglesFromFineEncoders'
+  slow+=':Identification.RestitutionFittedByReplayingWindowsOfTheRecording'
   GTEST_TOTAL_SHARDS=2 GTEST_SHARD_INDEX=0 sanitized core-0 core --gtest_filter="$slow" &
   GTEST_TOTAL_SHARDS=2 GTEST_SHARD_INDEX=1 sanitized core-1 core --gtest_filter="$slow" &
   sanitized fuzz fuzz --gtest_filter='-Fuzz.CompliantJoints*' &  # (the compliant joint's code runs in the core tests)

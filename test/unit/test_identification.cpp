@@ -8,29 +8,15 @@
 
 #include "backlash_servo/identification.h"
 #include "backlash_servo/simulator.h"
+#include "recorded_joint.h"
 
 using namespace backlash_servo;
 
 namespace
 {
-/// u(t) = a Σ sines: reversals that carry the motor across the free play, contact motion both ways.
 Recording record(const ServoParams& p, double seconds, double rate, double a)
 {
-  Simulator sim(p, State(), 0.0);
-  Recording r;
-  const long n = static_cast<long>(seconds * rate);
-  for (long k = 0; k <= n; ++k)
-  {
-    const double t = static_cast<double>(k) / rate;
-    sim.advanceTo(t);
-    const double u = a * (1.5 * std::sin(1.3 * t) + 0.8 * std::sin(4.1 * t + 0.5) + 0.3 * std::sin(11.0 * t));
-    sim.setMotorTorque(u);
-    r.time.push_back(t);
-    r.motor_torque.push_back(u);
-    r.motor_position.push_back(sim.state().motor_position);
-    r.load_position.push_back(sim.state().load_position);
-  }
-  return r;
+  return recordJoint(p, seconds, rate, a);
 }
 
 void expectClose(const Estimate& e, double truth, double rel, double abs, const char* what)
