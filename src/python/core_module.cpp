@@ -34,6 +34,7 @@
 #include "backlash_servo/gear_mesh.h"
 #include "backlash_servo/identification.h"
 #include "backlash_servo/identify_joint.h"
+#include "backlash_servo/limit_cycle_prediction.h"
 #include "backlash_servo/param_table.h"
 #include "backlash_servo/simulator.h"
 #include "backlash_servo/step_response.h"
@@ -275,6 +276,43 @@ py::dict broadbandResponse(const py::object& config, double amplitude, const std
   d["input_power"] = power;
   d["sample_rate"] = r.sample_rate;
   d["samples_per_period"] = r.samples_per_period;
+  return d;
+}
+
+/// backlash_df's analysis: the classical DF's predictions beside the exact cycle.
+py::dict predictCycle(const py::object& config)
+{
+  const RunConfig c = runConfigOf(config);
+  LimitCyclePrediction a;
+  {
+    py::gil_scoped_release release;
+    a = predictLimitCycle(c);
+  }
+  py::dict d;
+  d["zeta"] = a.zeta;
+  d["natural_frequency"] = a.natural_frequency;
+  d["backlash"] = c.params.backlash;
+  py::list predictions;
+  for (const HarmonicBalance& h : a.predictions)
+  {
+    py::dict p;
+    p["amplitude"] = h.amplitude;
+    p["frequency"] = h.frequency;
+    p["stable"] = h.stable;
+    p["method"] = "classical";
+    p["amplitude_error"] = a.amplitudeError(h);
+    p["frequency_error"] = a.frequencyError(h);
+    predictions.append(p);
+  }
+  d["predictions"] = predictions;
+  py::dict sim;
+  sim["verdict"] = toString(a.simulated.verdict);
+  sim["amplitude"] = a.simulated.amplitude;
+  sim["peak"] = a.simulated.peak;
+  sim["frequency"] = a.simulated.frequency;
+  sim["centre"] = a.simulated.centre;
+  sim["simulated_time"] = a.simulated.simulated;
+  d["simulated"] = sim;
   return d;
 }
 
@@ -592,6 +630,11 @@ PYBIND11_MODULE(core, m)
         "centre for a full backlash Δ [rad]; 0 for A ≤ Δ/2 (docs/describing_function.md).");
   m.def("dead_zone_df", &deadZoneDescribingFunction, py::arg("amplitude"), py::arg("half_width"),
         "The describing function of a unit-slope dead zone of half-width δ [rad] at input amplitude A [rad].");
+  m.def("limit_cycle_prediction", &predictCycle, py::arg("config") = py::none(),
+        "backlash_df's analysis of a configuration (a dict or a YAML path; the continuous P law): the classical "
+        "describing function's predictions [{amplitude [rad], frequency [rad/s], stable, method, amplitude_error, "
+        "frequency_error}] beside the exact cycle {verdict, amplitude, peak, frequency, centre, simulated_time} "
+        "(docs/describing_function.md).");
   m.def(
       "harmonic_balance",
       [](const std::function<std::complex<double>(double)>& g, double backlash, double omega_lo, double omega_hi,

@@ -13,7 +13,7 @@
 
 #include "backlash_servo/config/flag_parser.h"
 #include "backlash_servo/config/run_config_loader.h"
-#include "backlash_servo/describing_function.h"
+#include "backlash_servo/limit_cycle_prediction.h"
 #include "backlash_servo/simulator.h"
 #include "json_writer.h"
 #include "run_program.h"
@@ -32,9 +32,6 @@ simulates the joint exactly beside it: the cycle's amplitude (fundamental of the
 its centre), peak and frequency, and the error of each prediction. The continuous P law (the thesis' loop) only.
 SI units: amplitudes in rad, frequencies in rad/s.
 )";
-
-constexpr double PI = 3.14159265358979323846;
-constexpr int CYCLE_SAMPLES = 4096;
 
 struct Options
 {
@@ -72,55 +69,6 @@ Options parse(int argc, char** argv)
     throw ConfigError("--backlash must be > 0: without backlash there is no describing function to balance");
   }
   return o;
-}
-
-/// The exact cycle: the fundamental of ρθ_m over one period after the run's verdict.
-struct SimulatedCycle
-{
-  Verdict verdict = Verdict::Undecided;
-  double amplitude = NAN, peak = NAN, frequency = NAN, centre = NAN;
-  double simulated = 0.0;  // [s]
-};
-
-SimulatedCycle simulate(const RunConfig& config)
-{
-  SimulatedCycle c;
-  RunConfig run = config;
-  run.track_energy = false;
-  const RunSummary r = runResponse(run);
-  c.verdict = r.status.verdict;
-  c.simulated = r.simulated;
-  if (r.status.verdict != Verdict::LimitCycle || !(r.status.period > 0.0))
-  {
-    return c;
-  }
-  // One more period from the settled state, sampled evenly: the continuous law's state is the plant's.
-  const double period = r.status.period, rho = config.params.gear_ratio;
-  Simulator sim(config.params, r.final_state, config.command);
-  const double t0 = r.final_state.time;
-  std::vector<double> x(CYCLE_SAMPLES);
-  for (int k = 0; k < CYCLE_SAMPLES; ++k)
-  {
-    sim.advanceTo(t0 + period * k / CYCLE_SAMPLES);
-    x[static_cast<std::size_t>(k)] = rho * sim.state().motor_position;
-  }
-  double mean = 0.0, b1 = 0.0, a1 = 0.0;
-  for (int k = 0; k < CYCLE_SAMPLES; ++k)
-  {
-    const double theta = 2.0 * PI * k / CYCLE_SAMPLES, v = x[static_cast<std::size_t>(k)];
-    mean += v;
-    b1 += v * std::sin(theta);
-    a1 += v * std::cos(theta);
-  }
-  c.centre = mean / CYCLE_SAMPLES;
-  c.amplitude = 2.0 / CYCLE_SAMPLES * std::hypot(a1, b1);
-  c.peak = 0.0;
-  for (double v : x)
-  {
-    c.peak = std::max(c.peak, std::fabs(v - c.centre));
-  }
-  c.frequency = 2.0 * PI / period;
-  return c;
 }
 
 /// The chart's data to a private directory, drawn there by df_chart.py (run without a shell), then moved into place
@@ -185,17 +133,19 @@ void drawChart(const std::function<std::complex<double>(double)>& g, double wn, 
   std::cerr << "backlash_df: wrote " << png.path() << "\n";
 }
 
-void report(const Options& o, const std::vector<HarmonicBalance>& predictions, const SimulatedCycle& sim)
+void report(const Options& o, const LimitCyclePrediction& a)
 {
   const ServoParams& p = o.config.params;
+  const std::vector<HarmonicBalance>& predictions = a.predictions;
+  const SimulatedCycle& sim = a.simulated;
   const bool cycle = sim.verdict == Verdict::LimitCycle && std::isfinite(sim.amplitude);
   if (o.json)
   {
     std::ostringstream out;
     JsonWriter w(out);
     w.beginObject();
-    w.field("zeta", p.dampingRatio());
-    w.field("natural_frequency", p.naturalFrequency());
+    w.field("zeta", a.zeta);
+    w.field("natural_frequency", a.natural_frequency);
     w.field("backlash", p.backlash);
     w.beginArray("predictions");
     for (const HarmonicBalance& h : predictions)
@@ -205,8 +155,8 @@ void report(const Options& o, const std::vector<HarmonicBalance>& predictions, c
       w.field("frequency", h.frequency);
       w.field("stable", h.stable);
       w.field("method", std::string("classical"));
-      w.field("amplitude_error", cycle && h.stable ? h.amplitude / sim.amplitude - 1.0 : NAN);
-      w.field("frequency_error", cycle && h.stable ? h.frequency / sim.frequency - 1.0 : NAN);
+      w.field("amplitude_error", a.amplitudeError(h));
+      w.field("frequency_error", a.frequencyError(h));
       w.endObject();
     }
     w.endArray();
@@ -240,7 +190,7 @@ void report(const Options& o, const std::vector<HarmonicBalance>& predictions, c
     if (cycle && h.stable)
     {
       std::snprintf(buf, sizeof buf, " (%+.1f %% amplitude, %+.1f %% frequency against the exact cycle)",
-                    100.0 * (h.amplitude / sim.amplitude - 1.0), 100.0 * (h.frequency / sim.frequency - 1.0));
+                    100.0 * a.amplitudeError(h), 100.0 * a.frequencyError(h));
       std::cout << buf;
     }
     std::cout << "\n";
@@ -284,17 +234,14 @@ int main(int argc, char** argv)
   }
   try
   {
+    const LimitCyclePrediction analysis = predictLimitCycle(o.config);
     const ServoParams& p = o.config.params;
-    const double wn = p.naturalFrequency(), zeta = p.dampingRatio();
-    // The linear servo seen by the backlash: x = ρθ_m driven by the error, x'' + 2ζω_n x' = ω_n²(θ_R − θ_c).
-    const auto g = [&](double w) { return wn * wn / std::complex<double>(-w * w, 2.0 * zeta * wn * w); };
-    const std::vector<HarmonicBalance> predictions = backlashHarmonicBalance(g, p.backlash, 1e-4 * wn, 1e4 * wn);
-    const SimulatedCycle sim = simulate(o.config);
     if (png)
     {
-      drawChart(g, wn, p.backlash, predictions, sim, chart_script, *png);
+      drawChart([&p](double w) { return thesisLoop(p, w); }, analysis.natural_frequency, p.backlash,
+                analysis.predictions, analysis.simulated, chart_script, *png);
     }
-    report(o, predictions, sim);
+    report(o, analysis);
     flushStdout();
   }
   catch (const std::exception& e)

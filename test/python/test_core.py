@@ -209,6 +209,34 @@ def test_describing_functions_and_harmonic_balance():
         core.harmonic_balance(g, 0.0, 1e-3, 1e3)
 
 
+def test_limit_cycle_prediction_is_backlash_dfs_analysis(tmp_path):
+    # The D1 loop at zeta = 0.1: the same predictions and exact cycle as `backlash_df --json`, the stable prediction's
+    # balance holding (G N = -1) and its error measured against the exact cycle.
+    config = {"zeta": 0.1, "inertia_ratio": 9.0, "friction_ratio": 0.4, "restitution": 1.0, "backlash": 0.3}
+    a = core.limit_cycle_prediction(config)
+    path = str(tmp_path / "loop.yaml")
+    write_yaml(path, config)
+    code, out, err = tool("backlash_df", "--config", path, "--json")
+    assert code == 0, err
+    cli = json.loads(out)
+
+    def nulls(d):  # (the JSON writes NaN as null)
+        return {k: None if isinstance(v, float) and math.isnan(v) else v for k, v in d.items()}
+
+    assert cli["predictions"] == [nulls(p) for p in a["predictions"]]
+    assert cli["simulated"] == nulls(a["simulated"])
+    assert a["simulated"]["verdict"] == "limit_cycle"
+    stable = [h for h in a["predictions"] if h["stable"]]
+    assert len(stable) == 1
+    h = stable[0]
+    wn, zeta = a["natural_frequency"], a["zeta"]
+    g = wn * wn / complex(-h["frequency"] ** 2, 2 * zeta * wn * h["frequency"])
+    assert abs(g * core.backlash_df(h["amplitude"], 0.3) + 1) < 1e-6
+    assert h["amplitude_error"] == h["amplitude"] / a["simulated"]["amplitude"] - 1
+    with pytest.raises(ValueError, match="controller_rate"):
+        core.limit_cycle_prediction(dict(config, controller_rate=100.0))
+
+
 def test_frequency_response_of_the_locked_joint_is_the_held_transfer_function():
     # Backlash 0: torque to motor speed is 1/(F + jwJ) times the hold's (1 - e^{-jwT})/(jwT) (J = 1, F = 0.8).
     p = core.frequency_response({"backlash": 0.0}, amplitude=0.3, frequency=3.0, channel="motor_torque:motor_velocity",
