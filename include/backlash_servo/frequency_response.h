@@ -113,6 +113,24 @@ inline bool torqueInput(FrfChannel channel)
 /// mesh and shaft springs; viscous and damper rates): the Fourier pieces are no longer than half its inverse.
 double fastestRate(const ServoParams& params);
 
+/// How a point's sine is applied.
+struct FrfSampling
+{
+  bool continuous = false;  ///< the sine itself (a compliant mesh), else sampled and held
+  double rate = 0.0;        ///< samples [Hz]: the hold's, or the observation points' for the sine itself
+  long samples_per_period = 0;
+  double frequency = 0.0;  ///< ω used [rad/s]: the one asked for, or placed on the sample grid 2πf_s/N
+};
+
+/**
+ * The sampling of a point at ω [rad/s] (> 0): the exact sine (the command under the continuous law, or a torque with
+ * `settings.continuous`) needs a compliant mesh; a held sine at least 4 samples a period (ω at most a quarter of the
+ * sample rate, placed on the grid ω = 2πf_s/N, N the nearest whole number); at most 1e9 samples a period. Throws
+ * InvalidParameterError naming `continuous`, `controller_rate`, `injection_rate` or `frequency` otherwise — what
+ * measureFrequencyResponse and backlash_frf's checks before any run both use.
+ */
+FrfSampling frfSampling(const RunConfig& config, const FrfSettings& settings, double omega);
+
 /**
  * One stepped-sine point: amplitude A (> 0) [rad or N·m] at ω (> 0) [rad/s]. The config's command and profile are
  * replaced by the excitation; its initial state is where the run starts. Throws InvalidParameterError for bad

@@ -224,6 +224,42 @@ double fastestRate(const ServoParams& p)
   return rate;
 }
 
+FrfSampling frfSampling(const RunConfig& config, const FrfSettings& settings, double omega)
+{
+  if (!(std::isfinite(omega) && omega > 0.0))
+  {
+    throw InvalidParameterError("frequency", "must be finite and > 0 rad/s (got " + std::to_string(omega) + ")");
+  }
+  const bool torque = torqueInput(settings.channel);
+  FrfSampling out;
+  // The sine itself (a compliant mesh): the command under the continuous law, or the torque when asked for. Its
+  // period is then observed at CONTINUOUS_POINTS instants (the steady-state test and the Fourier pieces' cuts).
+  out.continuous = torque ? settings.continuous : !config.drive.sampled();
+  if (out.continuous && !config.params.compliant())
+  {
+    throw InvalidParameterError(torque ? "continuous" : "controller_rate",
+                                "an exact sine (not sampled and held) needs a compliant mesh (mesh_stiffness > 0); "
+                                "with rigid teeth the sine is applied sampled and held" +
+                                    std::string(torque ? "" : " by a digital drive (controller_rate > 0)"));
+  }
+  out.rate = out.continuous ? CONTINUOUS_POINTS * omega / (2.0 * PI)
+                            : excitationRate(config, settings.channel, settings.injection_rate);
+  const double per_period = out.continuous ? CONTINUOUS_POINTS : 2.0 * PI * out.rate / omega;
+  if (per_period < 3.5)
+  {
+    throw InvalidParameterError("frequency", std::to_string(omega) + " rad/s is above a quarter of the sample rate (" +
+                                                 std::to_string(out.rate) + " Hz): at most " +
+                                                 std::to_string(2.0 * PI * out.rate / 4.0) + " rad/s");
+  }
+  if (per_period > 1e9)
+  {
+    throw InvalidParameterError("frequency", std::to_string(omega) + " rad/s puts more than 1e9 samples in a period");
+  }
+  out.samples_per_period = std::lround(per_period);
+  out.frequency = out.continuous ? omega : 2.0 * PI * out.rate / static_cast<double>(out.samples_per_period);
+  return out;
+}
+
 FrfPoint measureFrequencyResponse(const RunConfig& config, const FrfSettings& settings, double amplitude, double omega,
                                   const std::function<bool()>& cancelled)
 {
@@ -249,35 +285,15 @@ FrfPoint measureFrequencyResponse(const RunConfig& config, const FrfSettings& se
   }
   const FrfChannel channel = settings.channel;
   const bool torque = torqueInput(channel);
-  // The sine itself (a compliant mesh): the command under the continuous law, or the torque when asked for. Its
-  // period is then observed at CONTINUOUS_POINTS instants (the steady-state test and the Fourier pieces' cuts).
-  const bool continuous = torque ? settings.continuous : !config.drive.sampled();
-  if (continuous && !config.params.compliant())
-  {
-    throw InvalidParameterError(torque ? "continuous" : "controller_rate",
-                                "an exact sine (not sampled and held) needs a compliant mesh (mesh_stiffness > 0); "
-                                "with rigid teeth the sine is applied sampled and held" +
-                                    std::string(torque ? "" : " by a digital drive (controller_rate > 0)"));
-  }
-  const double rate =
-      continuous ? CONTINUOUS_POINTS * omega / (2.0 * PI) : excitationRate(config, channel, settings.injection_rate);
-  const double per_period = continuous ? CONTINUOUS_POINTS : 2.0 * PI * rate / omega;
-  if (per_period < 3.5)
-  {
-    throw InvalidParameterError("frequency", std::to_string(omega) + " rad/s is above a quarter of the sample rate (" +
-                                                 std::to_string(rate) + " Hz): at most " +
-                                                 std::to_string(2.0 * PI * rate / 4.0) + " rad/s");
-  }
-  if (per_period > 1e9)
-  {
-    throw InvalidParameterError("frequency", std::to_string(omega) + " rad/s puts more than 1e9 samples in a period");
-  }
-  const long n_samples = std::lround(per_period);
+  const FrfSampling sampling = frfSampling(config, settings, omega);
+  const bool continuous = sampling.continuous;
+  const double rate = sampling.rate;
+  const long n_samples = sampling.samples_per_period;
   FrfPoint out;
   out.amplitude = amplitude;
   out.requested_frequency = omega;
   out.samples_per_period = static_cast<int>(n_samples);
-  out.frequency = continuous ? omega : 2.0 * PI * rate / static_cast<double>(n_samples);
+  out.frequency = sampling.frequency;
   const double w = out.frequency, period = static_cast<double>(n_samples) / rate;
   const double t0 = config.initial.time, rho = config.params.gear_ratio;
   long max_periods = settings.max_periods;

@@ -747,25 +747,10 @@ int main(int argc, char** argv)
       csv = std::make_unique<SafeOutput>("--csv", o.csv_path, std::vector<std::string>{o.config_path});
     }
     // Every point's settings checked before any runs (a frequency beyond the sample rate, a channel the drive
-    // cannot take).
-    const bool torque = torqueInput(o.settings.channel);
-    const bool exact = torque ? o.settings.continuous : !o.config.drive.sampled();
-    if (exact && !o.config.params.compliant())
-    {
-      throw ConfigError(torque ? "--continuous: an exact sine torque needs a compliant mesh (mesh_stiffness > 0); "
-                                 "with rigid teeth it is applied sampled and held (--injection-rate)"
-                               : "--channel command:load_position: with rigid teeth the sine is sampled by a digital "
-                                 "drive (controller_rate > 0 Hz); the continuous law takes the sine itself with a "
-                                 "compliant mesh only (mesh_stiffness > 0)");
-    }
+    // cannot take), by the measurement's own rule.
     for (double w : o.frequencies)
     {
-      const double rate = exact ? 0.0 : excitationRate(o.config, o.settings.channel, o.settings.injection_rate);
-      if (rate > 0.0 && 2.0 * PI * rate / w < 3.5)
-      {
-        throw ConfigError("--frequency: " + number(w) + " rad/s is above a quarter of the sample rate " + number(rate) +
-                          " Hz (at most " + number(2.0 * PI * rate / 4.0) + " rad/s)");
-      }
+      frfSampling(o.config, o.settings, w);
     }
   }
   catch (const std::exception& e)
