@@ -40,12 +40,12 @@ const char* HEADER =
 Estimates the joint's backlash, inertias, viscous, Coulomb and static friction, load torque and restitution from a
 recording of its own motion. First from the data alone: the backlash from the gap theta_c - rho*theta_m, the rest
 by linear least squares on the phases where the teeth are in contact and where they are apart, the restitution by
-replaying windows around impacts. Then all of them together (the joint fit): the exact simulator replays windows of
-the recording, each restarted from the measured state, and a derivative-free least-squares search (BOBYQA) matches
-both angles; each estimate gets a standard error and its largest correlation with another. FILE.csv has the header time,motor_torque,motor_position,
-load_position (SI: s, N*m, rad on each body's own shaft; other columns are ignored; rows with an `event` are
-skipped, so backlash_sim's --csv is a recording), uniform time steps; the motor torque is the one applied from each
-sample to the next. The gear ratio must be known (a flag or the prior YAML).
+replaying windows around impacts, the static friction from the rests. Then together (the joint fit): the exact
+simulator replays windows of the recording, each restarted from the measured state, and a least-squares search
+(Levenberg-Marquardt) matches both angles; each estimate gets a standard error and its largest correlation with
+another. FILE.csv has the header time,motor_torque,motor_position,load_position (SI: s, N*m, rad on each body's
+own shaft; other columns are ignored; rows with an `event` are skipped, so backlash_sim's --csv is a recording),
+uniform time steps; the motor torque is the one applied from each sample to the next. The gear ratio must be known (a flag or the prior YAML).
 --output writes the prior with the estimates in place: a YAML every tool and the node accept.
 --experiment writes instead a command profile that informs the estimates (sines at three speeds, each reversal
 across the backlash), designed from the prior's gain, inertias and backlash, for the node or backlash_sim to run.
