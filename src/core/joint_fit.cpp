@@ -1,7 +1,6 @@
 #include "backlash_servo/joint_fit.h"
 
 #include <algorithm>
-#include <array>
 #include <cmath>
 #include <limits>
 #include <memory>
@@ -153,10 +152,13 @@ class Shooting
 
   Shooting(const ReplayWindows& replay, const Coordinates& coordinates, std::size_t m, double speed_scale,
            const JointFitSettings& settings, int evaluations)
-      : replay_(replay), coordinates_(coordinates), m_(m), settings_(settings), evaluations_(evaluations)
-  {
-    scales_.fill(speed_scale);
-  }
+      : replay_(replay),
+        coordinates_(coordinates),
+        m_(m),
+        speed_scale_(speed_scale),
+        settings_(settings),
+        evaluations_(evaluations)
+  {}
 
   std::size_t size() const { return m_ + C * replay_.starts().size(); }
   std::size_t parameters() const { return m_; }
@@ -166,9 +168,9 @@ class Shooting
   std::vector<double> corrections(const std::vector<double>& x) const
   {
     std::vector<double> c(x.begin() + static_cast<long>(m_), x.end());
-    for (std::size_t i = 0; i < c.size(); ++i)
+    for (double& v : c)
     {
-      c[i] *= scales_[i % C];
+      v *= speed_scale_;
     }
     return c;
   }
@@ -223,7 +225,7 @@ class Shooting
         const auto window = [&](double dx, std::vector<double>* out) {
           double cw[C];
           std::copy(c.begin() + static_cast<long>(C * w), c.begin() + static_cast<long>(C * (w + 1)), cw);
-          cw[j] += dx * scales_[j];
+          cw[j] += dx * speed_scale_;
           replay_.windowResiduals(p, w, cw, out);
         };
         window(step, &buffer_);
@@ -262,7 +264,7 @@ class Shooting
   const ReplayWindows& replay_;
   const Coordinates& coordinates_;
   std::size_t m_;
-  std::array<double, C> scales_;
+  double speed_scale_;
   const JointFitSettings& settings_;
   std::vector<double> buffer_;
   int evaluations_;
