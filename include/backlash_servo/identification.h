@@ -26,12 +26,13 @@
  * so J_L = (J − J_m)/ρ², f_L = (F − f_m)/ρ², T_cL = (C − T_cm)/ρ, T_ext = −b/ρ. Each least-squares fit gives its
  * parameters' standard errors σ√diag((XᵀX)⁻¹) (σ² the residual variance), carried to the derived ones.
  *
- * The restitution needs the simulator as the model (fitRestitution below); static friction and a compliant mesh are
- * not estimated yet.
+ * **Static friction** from the rests (estimateInitial below); the restitution needs the simulator as the model
+ * (fitRestitution below); a compliant mesh has its own estimates (identify_mesh.h).
  */
 #pragma once
 
 #include <cmath>
+#include <map>
 #include <string>
 #include <vector>
 
@@ -72,10 +73,16 @@ struct InitialEstimates
   Estimate motor_static_friction{NAN, NAN};
   /// T_sL [N·m] from the pair's rests on a flank, less the motor's share (NaN: no rest of either kind).
   Estimate load_static_friction{NAN, NAN};
+  /// A compliant mesh (identify_mesh.h): c [N·m/rad] and d [N·m·s/rad] (NaN: rigid teeth, not estimated).
+  Estimate mesh_stiffness{NAN, NAN};
+  Estimate mesh_damping{NAN, NAN};
   bool load_torque_given = false;  ///< contact motion one way only: the load torque was the settings' (not estimated)
   std::size_t contact_samples = 0, apart_samples = 0;
   double contact_rms_residual = 0.0;  ///< [N·m]
   double apart_rms_residual = 0.0;    ///< [N·m]
+
+  /// The estimates by parameter key (backlash, motor_inertia, …, load_torque; the mesh's when estimated).
+  std::map<std::string, Estimate> byKey() const;
 };
 
 struct IdentificationSettings
@@ -90,6 +97,39 @@ struct IdentificationSettings
   /// [N·m]: used when the contact motion goes one way only (a limit cycle pushed from one side, say), where the
   /// Coulomb friction and the load torque cannot be told apart; NaN: none (such a recording is then refused).
   double load_torque_fallback = NAN;
+};
+
+/// A body's motion from its recorded angle: the angle filtered by F (smoothing r), velocity and acceleration by central
+/// differences [rad, rad/s, rad/s²] (0 at the ends) and F sgn ω [-].
+struct BodyMotion
+{
+  std::vector<double> angle, velocity, acceleration, sign;
+};
+
+/// Checks the recording (at least 50 samples, equal columns, finite values, uniform increasing times, a known gear
+/// ratio, a smoothing that fits) and returns its sample period h [s]; throws InvalidParameterError naming what is
+/// wrong.
+double samplePeriod(const Recording& data, const IdentificationSettings& settings);
+
+/// The body's filtered angle and its differences (sample period h [s], smoothing r [samples]).
+BodyMotion differentiate(const std::vector<double>& angle, double h, int smoothing);
+
+/// ū_k = (u_{k−1} + u_k)/2 filtered by F [N·m]: the torque the second difference at sample k averages.
+std::vector<double> meanTorque(const Recording& data, int smoothing);
+
+/// The joint `joint` with the estimates in place (keys of the parameter table; NaN values skipped): levels bounded
+/// below by 0 (friction, the mesh's coefficients) that came out below it are 0 within their scatter, and each body's
+/// static friction is at least its Coulomb level.
+ServoParams withEstimates(ServoParams joint, const std::map<std::string, Estimate>& estimates);
+
+/// Bounds on a static friction level from rests: the largest net torque that held the body [N·m] (−1: no rest) and
+/// the smallest that broke it away (∞: never seen breaking away).
+struct RestBounds
+{
+  double low = -1.0, high = INFINITY;
+  /// The level: the middle of [low, high] with the standard error of a uniform spread over it; {low, NaN} when it
+  /// never broke away (a lower bound); NaN when there was no rest or the bounds cross (noise, not friction).
+  Estimate level() const;
 };
 
 /// The smoothing filter F of `IdentificationSettings::smoothing` r: the centred mean over 2r + 1 samples, twice (a

@@ -3,9 +3,12 @@
 #include <Eigen/Dense>
 #include <algorithm>
 #include <cmath>
+#include <variant>
 
+#include "backlash_servo/param_table.h"
 #include "backlash_servo/params.h"
 #include "backlash_servo/replay_windows.h"
+#include "least_squares.h"
 
 namespace backlash_servo
 {
@@ -13,67 +16,6 @@ namespace
 {
 /// Samples on each side of a sample whose gap must stay in its phase (the difference stencil, and one more).
 constexpr int STENCIL = 2;
-
-/// A least-squares fit's parameters and standard errors.
-struct Fit
-{
-  Eigen::VectorXd p, se;
-  double rms = 0.0;
-};
-
-Fit plainLeastSquares(const Eigen::MatrixXd& x, const Eigen::VectorXd& y)
-{
-  Fit f;
-  // Columns scaled to unit norm for the conditioning of the normal equations' inverse.
-  const Eigen::VectorXd scale = x.colwise().norm().transpose().cwiseMax(1e-300);
-  const Eigen::MatrixXd xs = x * scale.cwiseInverse().asDiagonal();
-  const Eigen::ColPivHouseholderQR<Eigen::MatrixXd> qr(xs);
-  const Eigen::VectorXd ps = qr.solve(y);
-  f.p = ps.cwiseQuotient(scale);
-  const Eigen::VectorXd r = y - x * f.p;
-  const double dof = static_cast<double>(x.rows() - x.cols());
-  const double sigma2 = r.squaredNorm() / std::max(dof, 1.0);
-  f.rms = std::sqrt(r.squaredNorm() / static_cast<double>(x.rows()));
-  const Eigen::MatrixXd cov = (xs.transpose() * xs).inverse() * sigma2;
-  f.se = cov.diagonal().cwiseSqrt().cwiseQuotient(scale);
-  return f;
-}
-
-/// Least squares robust to the samples an impact between two samples spoils (a short flight inside a sample interval
-/// leaves no trace in the gap but jumps the velocity): fitted, then refitted without the residuals beyond
-/// TRIM_FACTOR robust standard deviations (1.4826 × the median absolute residual), until none is dropped (at most 5
-/// rounds; the rows kept are written back to *kept).
-Fit leastSquares(const Eigen::MatrixXd& x, const Eigen::VectorXd& y, std::size_t* kept)
-{
-  constexpr double TRIM_FACTOR = 5.0;
-  Eigen::MatrixXd xs = x;
-  Eigen::VectorXd ys = y;
-  Fit f = plainLeastSquares(xs, ys);
-  for (int round = 0; round < 5; ++round)
-  {
-    const Eigen::VectorXd r = (y - x * f.p).cwiseAbs();
-    std::vector<double> sorted(r.data(), r.data() + r.size());
-    std::nth_element(sorted.begin(), sorted.begin() + static_cast<long>(sorted.size() / 2), sorted.end());
-    const double limit = TRIM_FACTOR * 1.4826 * sorted[sorted.size() / 2];
-    std::vector<Eigen::Index> rows;
-    for (Eigen::Index i = 0; i < r.size(); ++i)
-    {
-      if (r(i) <= limit)
-      {
-        rows.push_back(i);
-      }
-    }
-    if (static_cast<Eigen::Index>(rows.size()) == xs.rows() || rows.size() < static_cast<std::size_t>(x.cols()) + 2)
-    {
-      break;
-    }
-    xs = x(rows, Eigen::all);
-    ys = y(rows);
-    f = plainLeastSquares(xs, ys);
-  }
-  *kept = static_cast<std::size_t>(xs.rows());
-  return f;
-}
 
 /// The centred mean over 2r + 1 samples (the samples within r of an end keep their value: they are never used).
 std::vector<double> centredMean(const std::vector<double>& x, std::size_t r)
@@ -118,7 +60,7 @@ std::vector<double> smoothedSignal(const std::vector<double>& x, int r)
   return centredMean(centredMean(x, w), w);
 }
 
-InitialEstimates estimateInitial(const Recording& d, const IdentificationSettings& s)
+double samplePeriod(const Recording& d, const IdentificationSettings& s)
 {
   const std::size_t n = d.time.size();
   need(n >= 50, "data", "needs at least 50 samples (got " + std::to_string(n) + ")");
@@ -140,6 +82,99 @@ InitialEstimates estimateInitial(const Recording& d, const IdentificationSetting
                std::to_string(h) + " s)");
     }
   }
+  need(s.smoothing >= 0 && s.smoothing <= 100000, "smoothing", "must be in [0, 100000] samples");
+  need(n > 8 * static_cast<std::size_t>(s.smoothing) + 50, "smoothing",
+       "is too wide for a recording of " + std::to_string(n) + " samples");
+  return h;
+}
+
+BodyMotion differentiate(const std::vector<double>& angle, double h, int smoothing)
+{
+  const std::size_t n = angle.size();
+  BodyMotion b;
+  b.angle = smoothedSignal(angle, smoothing);
+  b.velocity.assign(n, 0.0);
+  b.acceleration.assign(n, 0.0);
+  b.sign.assign(n, 0.0);
+  for (std::size_t k = 1; k + 1 < n; ++k)
+  {
+    b.velocity[k] = (b.angle[k + 1] - b.angle[k - 1]) / (2.0 * h);
+    b.acceleration[k] = (b.angle[k + 1] - 2.0 * b.angle[k] + b.angle[k - 1]) / (h * h);
+    b.sign[k] = b.velocity[k] > 0.0 ? 1.0 : b.velocity[k] < 0.0 ? -1.0 : 0.0;
+  }
+  b.sign = smoothedSignal(b.sign, smoothing);
+  return b;
+}
+
+std::vector<double> meanTorque(const Recording& d, int smoothing)
+{
+  std::vector<double> u(d.motor_torque.size(), 0.0);
+  for (std::size_t k = 1; k < u.size(); ++k)
+  {
+    u[k] = 0.5 * (d.motor_torque[k - 1] + d.motor_torque[k]);
+  }
+  return smoothedSignal(u, smoothing);
+}
+
+Estimate RestBounds::level() const
+{
+  if (low < 0.0)
+  {
+    return Estimate{NAN, NAN};  // no rest
+  }
+  if (!std::isfinite(high))
+  {
+    return Estimate{low, NAN};  // never seen breaking away: at least this
+  }
+  if (low > high)
+  {
+    return Estimate{NAN, NAN};  // held above a level that broke it away: noise, not friction — not determined
+  }
+  return Estimate{0.5 * (low + high), (high - low) / std::sqrt(12.0)};
+}
+
+std::map<std::string, Estimate> InitialEstimates::byKey() const
+{
+  std::map<std::string, Estimate> out = {{"backlash", backlash},
+                                         {"motor_inertia", motor_inertia},
+                                         {"load_inertia", load_inertia},
+                                         {"motor_friction", motor_friction},
+                                         {"load_friction", load_friction},
+                                         {"motor_coulomb_friction", motor_coulomb_friction},
+                                         {"load_coulomb_friction", load_coulomb_friction},
+                                         {"motor_static_friction", motor_static_friction},
+                                         {"load_static_friction", load_static_friction},
+                                         {"load_torque", load_torque}};
+  if (std::isfinite(mesh_stiffness.value))
+  {
+    out["mesh_stiffness"] = mesh_stiffness;
+    out["mesh_damping"] = mesh_damping;
+  }
+  return out;
+}
+
+ServoParams withEstimates(ServoParams joint, const std::map<std::string, Estimate>& estimates)
+{
+  for (const auto& [key, x] : estimates)
+  {
+    const ParamSpec* spec = findParam(key);
+    if (!spec || !std::isfinite(x.value))
+    {
+      continue;
+    }
+    // Levels below zero (friction, the mesh's stiffness and damping) are zero within their scatter.
+    const bool level = spec->range.lower == 0.0 && key != "restitution";
+    joint.*std::get<double ServoParams::*>(spec->field) = level ? std::max(0.0, x.value) : x.value;
+  }
+  joint.motor_static_friction = std::max(joint.motor_static_friction, joint.motor_coulomb_friction);
+  joint.load_static_friction = std::max(joint.load_static_friction, joint.load_coulomb_friction);
+  return joint;
+}
+
+InitialEstimates estimateInitial(const Recording& d, const IdentificationSettings& s)
+{
+  const std::size_t n = d.time.size();
+  const double h = samplePeriod(d, s);
   const double rho = s.gear_ratio;
   std::vector<double> gap(n);
   for (std::size_t k = 0; k < n; ++k)
@@ -159,22 +194,15 @@ InitialEstimates estimateInitial(const Recording& d, const IdentificationSetting
   // Derivatives, and each sample's phase (0 apart, +1 forward flank, −1 backward flank, 2 mixed).
   // Every term of the equations filtered by the same F (differences commute with it): D²(Fθ) = F(D²θ) against Fū
   // and F sgn ω — quantisation and noise averaged out, the equations unchanged.
-  need(s.smoothing >= 0 && s.smoothing <= 100000, "smoothing", "must be in [0, 100000] samples");
   const std::size_t r = static_cast<std::size_t>(s.smoothing);
-  need(n > 8 * r + 50, "smoothing", "is too wide for a recording of " + std::to_string(n) + " samples");
-  const std::vector<double> theta = smoothedSignal(d.motor_position, s.smoothing);
-  std::vector<double> wm(n, 0.0), am(n, 0.0), ubar(n, 0.0), sg(n, 0.0);
+  const BodyMotion motor = differentiate(d.motor_position, h, s.smoothing);
+  const std::vector<double>&theta = motor.angle, &wm = motor.velocity, &am = motor.acceleration, &sg = motor.sign;
+  const std::vector<double> ubar = meanTorque(d, s.smoothing);
   double fastest = 0.0;
-  for (std::size_t k = 1; k + 1 < n; ++k)
+  for (double w : wm)
   {
-    wm[k] = (theta[k + 1] - theta[k - 1]) / (2.0 * h);
-    am[k] = (theta[k + 1] - 2.0 * theta[k] + theta[k - 1]) / (h * h);
-    ubar[k] = 0.5 * (d.motor_torque[k - 1] + d.motor_torque[k]);
-    sg[k] = wm[k] > 0.0 ? 1.0 : wm[k] < 0.0 ? -1.0 : 0.0;
-    fastest = std::max(fastest, std::fabs(wm[k]));
+    fastest = std::max(fastest, std::fabs(w));
   }
-  ubar = smoothedSignal(ubar, s.smoothing);
-  sg = smoothedSignal(sg, s.smoothing);
   const double still = s.still_speed > 0.0 ? s.still_speed : 1e-6 * fastest;
   std::vector<int> phase(n);
   for (std::size_t k = 0; k < n; ++k)
@@ -240,7 +268,7 @@ InitialEstimates estimateInitial(const Recording& d, const IdentificationSetting
     ya(static_cast<Eigen::Index>(i)) = ubar[k];
   }
   std::size_t contact_kept = 0, apart_kept = 0;
-  const Fit c = leastSquares(xc, yc, &contact_kept), a = leastSquares(xa, ya, &apart_kept);
+  const LeastSquaresFit c = leastSquares(xc, yc, &contact_kept), a = leastSquares(xa, ya, &apart_kept);
   out.contact_samples = contact_kept;
   out.apart_samples = apart_kept;
   const auto combined = [](double x, double y) { return std::sqrt(x * x + y * y); };
@@ -289,10 +317,7 @@ InitialEstimates estimateInitial(const Recording& d, const IdentificationSetting
   // leaves the band (½α t² grows). The filter F starts moving 2r samples before the body does, so the
   // breakaway interval is the one after the run's last sample, plus 2r.
   const std::size_t min_rest = minimumRest(s, h);
-  struct Bounds
-  {
-    double low = -1.0, high = INFINITY;
-  } motor_alone, pair;
+  RestBounds motor_alone, pair;
   const double text = out.load_torque.value;
   const auto net = [&](std::size_t k, int in) { return std::fabs(d.motor_torque[k] + (in == 0 ? 0.0 : rho * text)); };
   for (std::size_t a = reach; a + reach + 1 < n;)
@@ -317,7 +342,7 @@ InitialEstimates estimateInitial(const Recording& d, const IdentificationSetting
       ++a;
       continue;
     }
-    Bounds& bound = phase[a] == 0 ? motor_alone : pair;
+    RestBounds& bound = phase[a] == 0 ? motor_alone : pair;
     for (std::size_t k = a; k + 1 < b; ++k)  // the intervals inside the run
     {
       bound.low = std::max(bound.low, net(k, phase[a]));
@@ -331,23 +356,8 @@ InitialEstimates estimateInitial(const Recording& d, const IdentificationSetting
     }
     a = b;
   }
-  const auto level = [](const Bounds& b) {
-    if (b.low < 0.0)
-    {
-      return Estimate{NAN, NAN};  // no rest
-    }
-    if (!std::isfinite(b.high))
-    {
-      return Estimate{b.low, NAN};  // never seen breaking away: at least this
-    }
-    if (b.low > b.high)
-    {
-      return Estimate{NAN, NAN};  // held above a level that broke it away: noise, not friction — not determined
-    }
-    return Estimate{0.5 * (b.low + b.high), (b.high - b.low) / std::sqrt(12.0)};
-  };
-  out.motor_static_friction = level(motor_alone);
-  const Estimate combined_static = level(pair);
+  out.motor_static_friction = motor_alone.level();
+  const Estimate combined_static = pair.level();
   if (std::isfinite(out.motor_static_friction.value) && std::isfinite(combined_static.value))
   {
     out.load_static_friction = {
@@ -388,22 +398,10 @@ Estimate fitRestitution(const Recording& d, const IdentificationSettings& s, con
   need(window > 0.0 && windows > 0, "window", "must be > 0 s, with at least one window");
   const double h = (d.time.back() - d.time.front()) / static_cast<double>(n - 1), rho = s.gear_ratio;
   const double delta = e.backlash.value;
-  ServoParams p;
-  p.gear_ratio = rho;
-  p.backlash = delta;
-  p.motor_inertia = e.motor_inertia.value;
-  p.load_inertia = e.load_inertia.value;
-  p.motor_friction = std::max(0.0, e.motor_friction.value);
-  p.load_friction = std::max(0.0, e.load_friction.value);
-  // Static friction as the rests gave it (at least the Coulomb level).
-  const auto atLeast = [](double level, const Estimate& e) {
-    return std::isfinite(e.value) ? std::max(level, e.value) : level;
-  };
-  p.motor_coulomb_friction = std::max(0.0, e.motor_coulomb_friction.value);
-  p.load_coulomb_friction = std::max(0.0, e.load_coulomb_friction.value);
-  p.motor_static_friction = atLeast(p.motor_coulomb_friction, e.motor_static_friction);
-  p.load_static_friction = atLeast(p.load_coulomb_friction, e.load_static_friction);
-  p.load_torque = e.load_torque.value;
+  // The initial estimates (static friction as the rests gave it, at least the Coulomb level).
+  ServoParams base;
+  base.gear_ratio = rho;
+  const ServoParams p = withEstimates(base, e.byKey());
   const std::size_t lead = 20, length = static_cast<std::size_t>(std::ceil(window / h));
   const std::vector<std::size_t> starts =
       ReplayWindows::beforeImpacts(d, rho, e.zero_offset, delta, length, lead, static_cast<std::size_t>(windows));
