@@ -1,8 +1,9 @@
 /**
  * @file identify_joint.h
  * @brief The whole identification, as backlash_identify and the Python module run it: the initial estimates
- *        (identification.h), the restitution by replays around impacts, the static friction from the rests, then the
- *        joint fit (joint_fit.h) of the chosen estimates. No ROS dependency.
+ *        (identification.h for rigid teeth, identify_mesh.h for a compliant mesh), the restitution of rigid teeth by
+ *        replays around impacts, the static friction from the rests, then the joint fit (joint_fit.h) of the chosen
+ *        estimates. No ROS dependency.
  */
 #pragma once
 
@@ -20,12 +21,13 @@ enum class JointFitMode
 {
   Off,   ///< none: the initial estimates are the result
   On,    ///< every estimate it can fit
-  Auto,  ///< every one on exact angles (no contact band given), only backlash and restitution on measured ones
+  Auto,  ///< every one on exact angles (no contact band given); on measured ones only the backlash and the restitution
+         ///< (or the mesh's stiffness and damping)
 };
 
 struct IdentifyOptions
 {
-  /// The keys estimated (empty: all of identifiedKeys()); the others keep the prior's values.
+  /// The keys estimated (empty: all of identifiedKeysFor(prior)); the others keep the prior's values.
   std::set<std::string> keys;
   JointFitMode joint = JointFitMode::Auto;
   JointFitSettings fit;  ///< windows, budget, progress (its keys are chosen here)
@@ -55,11 +57,16 @@ struct JointIdentification
 
 /// What can be estimated, in the parameter table's order: the joint fit's keys and the static friction levels.
 const std::vector<std::string>& identifiedKeys();
+/// Those that describe `joint` (jointFitKeysFor: the restitution of rigid teeth, or a compliant mesh's stiffness and
+/// damping) and the static friction levels.
+std::vector<std::string> identifiedKeysFor(const ServoParams& joint);
 
 /**
- * Identifies the rigid joint from the recording: `prior` holds what is known (the gear ratio at least; its values are
- * kept for the keys not estimated, and start the joint fit for the others when the data give none). Throws
- * InvalidParameterError naming what is missing (identification.h), or an unknown key.
+ * Identifies the joint from the recording: `prior` holds what is known (the gear ratio at least; its values are kept
+ * for the keys not estimated, and start the joint fit for the others when the data give none) and says which model
+ * is fitted — rigid teeth, or a compliant mesh when its mesh_stiffness is > 0 (the value itself is estimated).
+ * Throws InvalidParameterError naming what is missing (identification.h, identify_mesh.h), an unknown key, a key that
+ * does not describe the prior's joint, or a torsional shaft (not identified: its gear's angle is not measured).
  */
 JointIdentification identifyJoint(const Recording& data, const IdentificationSettings& settings,
                                   const ServoParams& prior, const IdentifyOptions& options);

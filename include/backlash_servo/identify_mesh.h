@@ -21,10 +21,12 @@
  * one fit for c, d and the flanks: g₀ = b_f / c (the zero offset), Δ = (b_b − b_f) / c, their standard errors by the
  * fit's covariance carried through (first order).
  *
- * **Static friction from the rests.** With a compliant mesh each body sticks on its own: over a sample interval where
- * the motor stays within the contact band its static band held |u_k − ρτ_k| (τ_k from the gap by the law above:
- * a lower bound on T_sm), and the interval it broke away in had more (an upper bound); the load likewise with
- * |τ_k + T_ext| against T_sL (RestBounds; rests of minimumRest() samples).
+ * **Static friction from the rests.** With a compliant mesh each body sticks on its own: a run of minimumRest()
+ * samples over which its angle stays within the contact band is a rest, and the net torque on it at the samples inside
+ * — |u_k − ρτ_k| on the motor, |τ_k + T_ext| on the load, τ_k from the gap by the law above — was held by its static
+ * band (a lower bound on T_s); at the first sample after the rest it had broken away (an upper bound). The mesh's
+ * torque changes within the interval of a breakaway (it follows the other body), so the bounds may cross by that
+ * change: the level is then their middle, their distance its scatter (RestBounds otherwise).
  *
  * **What the samples must resolve.** Differences see the contact only when its natural frequency √(c/μ) (μ the
  * reduced inertia, model.md) is well below the sample rate — about a tenth of the sampling frequency in rad/s,

@@ -10,6 +10,11 @@
  * (identification.h), in coordinates scaled by each start value, within bounds from the parameter table (inertias
  * and Δ > 0, friction ≥ 0, e ∈ [0, 1]).
  *
+ * **Rigid teeth or a compliant mesh.** The model is the start's: rigid teeth with impacts (the restitution fitted),
+ * or a compliant mesh (mesh_stiffness > 0; its stiffness c and damping d fitted in place of the restitution, the
+ * replays started from the measured angles — identify_mesh.h gives the start). A torsional shaft is not fitted: its
+ * gear's angle is not measured.
+ *
  * **What is not fitted here, and why.** S is smooth in the parameters almost everywhere — an impact moves
  * continuously with Δ, e, the inertias — but not in the static friction levels: with the torque held between samples
  * a body at rest breaks away *at a sample*, so S is piecewise constant in T_s (zero derivative, and steps that stall
@@ -43,9 +48,7 @@ namespace backlash_servo
 {
 struct JointFitSettings
 {
-  /// The parameters fitted (keys of the parameter table: backlash, motor_inertia, load_inertia, motor_friction,
-  /// load_friction, motor_coulomb_friction, load_coulomb_friction, load_torque, restitution); the others stay at
-  /// the start's values.
+  /// The parameters fitted (of jointFitKeysFor(start)); the others stay at the start's values.
   std::vector<std::string> keys;
   double window = 0.2;        ///< each window's length [s]
   int windows = 40;           ///< how many, spread evenly over the recording
@@ -86,14 +89,18 @@ struct JointFit
   bool budget_exhausted = false;  ///< stopped by max_evaluations, not by the tolerance
 };
 
-/// The fittable keys, in table order.
+/// The fittable keys, in table order: backlash, motor_inertia, load_inertia, motor_friction, load_friction,
+/// motor_coulomb_friction, load_coulomb_friction, load_torque, restitution, mesh_stiffness, mesh_damping.
 const std::vector<std::string>& jointFitKeys();
+/// Those that describe `joint`: the restitution for rigid teeth, the mesh's stiffness and damping for a compliant
+/// mesh (mesh_stiffness > 0), the others for both.
+std::vector<std::string> jointFitKeysFor(const ServoParams& joint);
 
 /**
- * Fits `settings.keys` of the rigid joint `start` (its other values held) to the recording. `zero_offset` [rad] is
- * the gap the encoders read on the forward flank (InitialEstimates::zero_offset). Throws InvalidParameterError for an
- * unknown key, a compliant `start` (mesh_stiffness > 0: not fitted yet), no key, or a recording too short for one
- * window.
+ * Fits `settings.keys` of the joint `start` (rigid teeth or a compliant mesh; its other values held) to the
+ * recording. `zero_offset` [rad] is the gap the encoders read on the forward flank (InitialEstimates::zero_offset).
+ * Throws InvalidParameterError for an unknown key, a key that does not describe `start` (jointFitKeysFor), a
+ * torsional shaft (its gear is not measured), no key, or a recording too short for one window.
  */
 JointFit fitJoint(const Recording& data, const IdentificationSettings& identification, double zero_offset,
                   const ServoParams& start, const JointFitSettings& settings);

@@ -11,7 +11,8 @@
  *   central differences;
  * - the gap g = θ_c − ρθ_m − g₀ (g₀ the zero offset: the gap the encoders read on the forward flank) decides the
  *   teeth: within the contact band of 0 → forward contact, of Δ (or beyond) → backward contact, the common velocity
- *   (ω_c + ρω_m)/2; otherwise apart, g clamped into [0, Δ];
+ *   (ω_c + ρω_m)/2; otherwise apart, g clamped into [0, Δ]; with a compliant mesh (mesh_stiffness > 0) the angles and
+ *   velocities as measured, a gap beyond a flank being the mesh's penetration;
  * - the encoders' offset is put back before comparing: the residuals are simulated − measured of ρθ_m and θ_c, both
  *   on the load shaft [rad], at samples k₀+1 … k₀+length.
  */
@@ -47,7 +48,8 @@ class ReplayWindows
   /// body at rest over the anchor's stencil (its angle within the contact band) starts at rest, uncorrected.
   static constexpr std::size_t CORRECTIONS = 2;
 
-  /// The residuals of the joint `params` (rigid teeth; effort mode): per window, per sample, ρθ_m then θ_c
+  /// The residuals of the joint `params` (rigid teeth or a compliant mesh without a torsional shaft; effort mode): per
+  /// window, per sample, ρθ_m then θ_c
   /// (`load_only`: θ_c alone) [rad], with the anchors corrected by `corrections` (CORRECTIONS per window, or null).
   /// A window whose simulation refuses (a parameter out of range) throws.
   void residuals(const ServoParams& params, std::vector<double>* out, bool load_only = false,

@@ -3,9 +3,8 @@
 #include <algorithm>
 #include <cmath>
 #include <map>
-#include <variant>
 
-#include "backlash_servo/param_table.h"
+#include "backlash_servo/identify_mesh.h"
 
 namespace backlash_servo
 {
@@ -19,13 +18,29 @@ const std::vector<std::string>& identifiedKeys()
   return keys;
 }
 
+std::vector<std::string> identifiedKeysFor(const ServoParams& joint)
+{
+  const std::vector<std::string> fittable = jointFitKeysFor(joint);
+  std::vector<std::string> keys;
+  for (const std::string& key : identifiedKeys())
+  {
+    if (key.find("static_friction") != std::string::npos ||
+        std::find(fittable.begin(), fittable.end(), key) != fittable.end())
+    {
+      keys.push_back(key);
+    }
+  }
+  return keys;
+}
+
 JointIdentification identifyJoint(const Recording& data, const IdentificationSettings& s, const ServoParams& prior,
                                   const IdentifyOptions& options)
 {
+  const std::vector<std::string> meaningful = identifiedKeysFor(prior);
   std::set<std::string> keys = options.keys;
   if (keys.empty())
   {
-    keys.insert(identifiedKeys().begin(), identifiedKeys().end());
+    keys.insert(meaningful.begin(), meaningful.end());
   }
   for (const std::string& key : keys)
   {
@@ -33,53 +48,56 @@ JointIdentification identifyJoint(const Recording& data, const IdentificationSet
     {
       throw InvalidParameterError("fit", "'" + key + "' is not estimated here");
     }
+    if (std::find(meaningful.begin(), meaningful.end(), key) == meaningful.end())
+    {
+      throw InvalidParameterError("fit", "'" + key + "' does not describe this joint: " +
+                                             (prior.compliant() ? "a compliant mesh has no restitution (its damping "
+                                                                  "sets the losses of a contact)"
+                                                                : "the mesh is fitted when the prior's mesh_stiffness "
+                                                                  "is > 0 (a compliant mesh)"));
+    }
+  }
+  if (prior.torsionalShaft())
+  {
+    throw InvalidParameterError("shaft_stiffness",
+                                "a torsional shaft is not identified (its gear's angle is not "
+                                "measured): give a prior without one (shaft_stiffness 0)");
   }
   JointIdentification out;
-  const InitialEstimates& e = out.initial = estimateInitial(data, s);
-  // The restitution: the simulator replayed over windows around impacts (none: not estimated, the prior's kept).
-  Estimate restitution{NAN, NAN};
+  const InitialEstimates& e = out.initial =
+      prior.compliant() ? estimateCompliantInitial(data, s) : estimateInitial(data, s);
+  std::map<std::string, Estimate> initial = e.byKey();
+  // The restitution of rigid teeth: the simulator replayed over windows around impacts (none: not estimated, the
+  // prior's kept).
   if (keys.count("restitution"))
   {
     try
     {
-      restitution = fitRestitution(data, s, e);
+      initial["restitution"] = fitRestitution(data, s, e);
     }
     catch (const InvalidParameterError& none)
     {
       out.restitution_note = none.what();
     }
   }
-  const std::map<std::string, Estimate> initial = {{"backlash", e.backlash},
-                                                   {"motor_inertia", e.motor_inertia},
-                                                   {"load_inertia", e.load_inertia},
-                                                   {"motor_friction", e.motor_friction},
-                                                   {"load_friction", e.load_friction},
-                                                   {"motor_coulomb_friction", e.motor_coulomb_friction},
-                                                   {"load_coulomb_friction", e.load_coulomb_friction},
-                                                   {"motor_static_friction", e.motor_static_friction},
-                                                   {"load_static_friction", e.load_static_friction},
-                                                   {"load_torque", e.load_torque},
-                                                   {"restitution", restitution}};
-  const auto member = [](const std::string& key) { return std::get<double ServoParams::*>(findParam(key)->field); };
-  // The start: the prior with the initial estimates of the keys chosen (friction levels below zero are zero within
-  // their scatter; static friction at least the Coulomb level).
-  ServoParams start = prior;
+  // The start: the prior with the initial estimates of the keys chosen (a static level without rests, a restitution
+  // without impacts, a load torque the data could not tell from friction: the prior's).
+  std::map<std::string, Estimate> chosen;
   for (const std::string& key : identifiedKeys())
   {
-    const Estimate& x = initial.at(key);
-    if (keys.count(key) == 0 || (key == "load_torque" && e.load_torque_given) || !std::isfinite(x.value))
+    const auto x = initial.find(key);
+    if (keys.count(key) == 0 || x == initial.end() || (key == "load_torque" && e.load_torque_given) ||
+        !std::isfinite(x->second.value))
     {
-      continue;  // the prior's value stays (a static level without rests, a restitution without impacts)
+      continue;
     }
-    const bool level = key.find("friction") != std::string::npos;
-    start.*member(key) = level ? std::max(0.0, x.value) : x.value;
+    chosen[key] = x->second;
     IdentifiedParameter p;
     p.key = key;
-    p.initial = p.value = x;
+    p.initial = p.value = x->second;
     out.parameters.push_back(p);
   }
-  start.motor_static_friction = std::max(start.motor_static_friction, start.motor_coulomb_friction);
-  start.load_static_friction = std::max(start.load_static_friction, start.load_coulomb_friction);
+  const ServoParams start = withEstimates(prior, chosen);
   start.validate();
   // The joint fit (the static levels stay as the rests gave them). Auto: on measured angles only the impact
   // parameters — the replayed windows' anchors, read from the angles, would set the smooth ones more than the data.
@@ -90,7 +108,7 @@ JointIdentification identifyJoint(const Recording& data, const IdentificationSet
   for (IdentifiedParameter& p : out.parameters)
   {
     const bool fittable = std::find(jointFitKeys().begin(), jointFitKeys().end(), p.key) != jointFitKeys().end();
-    const bool impact = p.key == "backlash" || p.key == "restitution";
+    const bool impact = p.key == "backlash" || p.key == "restitution" || p.key.rfind("mesh_", 0) == 0;
     if (fittable &&
         (options.joint == JointFitMode::On || (options.joint == JointFitMode::Auto && (!measured || impact))))
     {

@@ -202,16 +202,24 @@ InitialEstimates estimateCompliantInitial(const Recording& d, const Identificati
         ++a;
         continue;
       }
-      for (std::size_t k = a; k + 1 < e; ++k)
+      for (std::size_t k = a + 1 + 2 * r; k + 2 < e; ++k)  // (inside: the differences at the ends see the motion)
       {
         b.low = std::max(b.low, net(k));
       }
-      const std::size_t away = e - 1 + 2 * r;  // (the filter moves 2r samples early)
-      if (away + reach + 1 < n)
+      // The torque on it grows through the interval it broke away in (the mesh's share follows the other body), so
+      // the net torque at the interval's end bounds T_s from above (the filter moves 2r samples early).
+      const std::size_t away = e + 2 * r;
+      if (away + reach < n)
       {
         b.high = std::min(b.high, net(away));
       }
       a = e;
+    }
+    if (b.low >= 0.0 && b.low > b.high)
+    {
+      // Crossed by the change of the mesh's torque within the sample interval of a breakaway (it moves with the
+      // other body): the level between them, their distance its scatter.
+      return Estimate{0.5 * (b.low + b.high), (b.low - b.high) / std::sqrt(12.0)};
     }
     return b.level();
   };

@@ -20,8 +20,8 @@ struct KeyInfo
   double ServoParams::*member;
   enum Kind
   {
-    Positive,  // inertias, the backlash (a fit needs the free play it measured): > 0
-    Level,     // friction coefficients and levels: ≥ 0
+    Positive,  // inertias, the backlash, the mesh stiffness: > 0
+    Level,     // friction coefficients and levels, the mesh damping: ≥ 0
     Free,      // the load torque
     Unit       // the restitution: [0, 1]
   } kind;
@@ -31,8 +31,9 @@ const std::vector<KeyInfo>& table()
 {
   static const std::vector<KeyInfo> t = [] {
     std::vector<KeyInfo> out;
-    for (const char* key : {"backlash", "motor_inertia", "load_inertia", "motor_friction", "load_friction",
-                            "motor_coulomb_friction", "load_coulomb_friction", "load_torque", "restitution"})
+    for (const char* key :
+         {"backlash", "motor_inertia", "load_inertia", "motor_friction", "load_friction", "motor_coulomb_friction",
+          "load_coulomb_friction", "load_torque", "restitution", "mesh_stiffness", "mesh_damping"})
     {
       const ParamSpec* spec = findParam(key);
       const ParamRange& r = spec->range;
@@ -44,8 +45,10 @@ const std::vector<KeyInfo>& table()
       }
       else if (r.lower == 0.0)
       {
-        info.kind = r.lower_open || k == "backlash" || k.find("inertia") != std::string::npos ? KeyInfo::Positive
-                                                                                              : KeyInfo::Level;
+        // (Δ > 0: a fit needs the free play it measured; c > 0: c = 0 is rigid teeth, another model)
+        info.kind = r.lower_open || k == "backlash" || k == "mesh_stiffness" || k.find("inertia") != std::string::npos
+                        ? KeyInfo::Positive
+                        : KeyInfo::Level;
       }
       out.push_back(info);
     }
@@ -81,9 +84,10 @@ class Coordinates
       double scale = std::fabs(q);
       if (!(scale > 0.0))
       {
-        scale = k->kind == KeyInfo::Unit                            ? 1.0
-                : key == "motor_friction" || key == "load_friction" ? 0.05 * torque_scale / speed_scale
-                                                                    : 0.05 * torque_scale;
+        scale = k->kind == KeyInfo::Unit ? 1.0
+                : key == "motor_friction" || key == "load_friction" || key == "mesh_damping"
+                    ? 0.05 * torque_scale / speed_scale
+                    : 0.05 * torque_scale;
       }
       scale_.push_back(scale);
       switch (k->kind)
@@ -126,9 +130,7 @@ class Coordinates
     {
       p.*(keys_[i]->member) = x[i] * scale_[i];
     }
-    p.motor_static_friction = std::max(p.motor_static_friction, p.motor_coulomb_friction);
-    p.load_static_friction = std::max(p.load_static_friction, p.load_coulomb_friction);
-    return p;
+    return withEstimates(p, {});  // (static friction at least the Coulomb level)
   }
 
   const std::vector<double>& lower() const { return lower_; }
@@ -345,14 +347,28 @@ const std::vector<std::string>& jointFitKeys()
   return keys;
 }
 
+std::vector<std::string> jointFitKeysFor(const ServoParams& joint)
+{
+  std::vector<std::string> keys;
+  for (const std::string& key : jointFitKeys())
+  {
+    const bool mesh = key.rfind("mesh_", 0) == 0;
+    if (key == "restitution" ? !joint.compliant() : !mesh || joint.compliant())
+    {
+      keys.push_back(key);
+    }
+  }
+  return keys;
+}
+
 JointFit fitJoint(const Recording& data, const IdentificationSettings& identification, double zero_offset,
                   const ServoParams& start, const JointFitSettings& settings)
 {
-  if (start.compliant())
+  if (start.torsionalShaft())
   {
-    throw InvalidParameterError("mesh_stiffness",
-                                "the joint fit replays rigid teeth; a compliant mesh (mesh_stiffness > 0) is not "
-                                "fitted yet");
+    throw InvalidParameterError("shaft_stiffness",
+                                "the joint fit replays from the measured motor and load; a torsional shaft's gear "
+                                "is not measured (fit the joint without the shaft: shaft_stiffness 0)");
   }
   if (settings.keys.empty())
   {
@@ -370,6 +386,14 @@ JointFit fitJoint(const Recording& data, const IdentificationSettings& identific
     if (it == table().end())
     {
       throw InvalidParameterError("fit", "'" + key + "' is not a parameter the joint fit estimates");
+    }
+    const std::vector<std::string> meaningful = jointFitKeysFor(start);
+    if (std::find(meaningful.begin(), meaningful.end(), key) == meaningful.end())
+    {
+      throw InvalidParameterError(key, start.compliant() ? "has no meaning for a compliant mesh (its damping sets the "
+                                                           "losses of a contact)"
+                                                         : "is fitted for a compliant mesh only (a start with "
+                                                           "mesh_stiffness > 0)");
     }
     if (it->kind == KeyInfo::Positive && !(start.*(it->member) > 0.0))
     {

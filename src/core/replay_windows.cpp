@@ -125,40 +125,40 @@ void ReplayWindows::replayWindow(const ServoParams& params, std::size_t w, const
   x.motor_position = a.motor_position;
   x.motor_velocity = a.motor_velocity + (a.motor_still ? 0.0 : c[0]);
   x.load_velocity = a.load_velocity + (a.load_still ? 0.0 : c[1]);
-  if (a.gap <= band)
+  if (params.compliant())
   {
-    x.contact = Contact::Forward;
-    x.load_position = rho_ * x.motor_position;
-  }
-  else if (a.gap >= delta - band)
-  {
-    x.contact = Contact::Backward;
-    x.load_position = rho_ * x.motor_position + delta;
+    // A compliant mesh: the angles as measured (a gap beyond a flank is the mesh's penetration), each velocity its own.
+    x.load_position = rho_ * x.motor_position + a.gap;
   }
   else
   {
-    x.contact = Contact::Apart;
-    x.load_position = rho_ * x.motor_position + a.gap;
-  }
-  if (x.contact != Contact::Apart && a.motor_still != a.load_still)
-  {
-    x.load_velocity = x.motor_velocity = 0.0;  // (in contact the pair moves as one: one of them is seen still)
-  }
-  else if (x.contact != Contact::Apart)
-  {
-    x.load_velocity = 0.5 * (x.load_velocity + rho_ * x.motor_velocity);
-    x.motor_velocity = x.load_velocity / rho_;
+    // Rigid teeth: on a flank within the band (the pair then moves as one), else apart with the gap clamped.
+    x.contact = a.gap <= band ? Contact::Forward : a.gap >= delta - band ? Contact::Backward : Contact::Apart;
+    x.load_position = rho_ * x.motor_position + (x.contact == Contact::Forward    ? 0.0
+                                                 : x.contact == Contact::Backward ? delta
+                                                                                  : a.gap);
+    if (x.contact != Contact::Apart && a.motor_still != a.load_still)
+    {
+      x.load_velocity = x.motor_velocity = 0.0;  // (one of them is seen still)
+    }
+    else if (x.contact != Contact::Apart)
+    {
+      x.load_velocity = 0.5 * (x.load_velocity + rho_ * x.motor_velocity);
+      x.motor_velocity = x.load_velocity / rho_;
+    }
   }
   Simulator sim(params, x, 0.0);
   sim.setEnergyTracking(false);
   const double shift = a.load_position - x.load_position;  // the encoders' offset, put back when compared
   const std::size_t k0 = starts_[w];
   sim.setMotorTorque(data_.motor_torque[k0]);
+  sim.setInputHorizon(data_.time[k0 + 1]);  // (held: the next change is at the next sample)
   for (std::size_t k = k0 + 1; k <= k0 + length_; ++k)
   {
     sim.advanceTo(data_.time[k]);
     visit(k, sim.state().motor_position, sim.state().load_position + shift);
     sim.setMotorTorque(data_.motor_torque[k]);
+    sim.setInputHorizon(data_.time[std::min(k + 1, data_.time.size() - 1)]);
   }
 }
 

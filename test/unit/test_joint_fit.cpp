@@ -120,7 +120,7 @@ TEST(JointFit, RecoversEveryParameterFromAPerturbedStart)
   ServoParams start = p;
   const double factors[] = {1.1, 0.8, 1.2, 0.9, 1.3, 0.85, 1.15, 0.9, 0.7};
   std::size_t i = 0;
-  for (const std::string& key : jointFitKeys())
+  for (const std::string& key : jointFitKeysFor(p))
   {
     start.*member(key) *= factors[i++];
   }
@@ -128,12 +128,12 @@ TEST(JointFit, RecoversEveryParameterFromAPerturbedStart)
   start.load_static_friction = e.load_static_friction.value;
   IdentificationSettings s;
   JointFitSettings f;
-  f.keys = jointFitKeys();
+  f.keys = jointFitKeysFor(p);
   f.windows = 30;
   const JointFit fit = fitJoint(r, s, 0.0, start, f);
   std::printf("joint fit: rms %.3g → %.3g rad over %zu windows, %d evaluations, condition %.3g\n", fit.start_rms,
               fit.rms, fit.windows, fit.evaluations, fit.condition);
-  ASSERT_EQ(fit.parameters.size(), jointFitKeys().size());
+  ASSERT_EQ(fit.parameters.size(), f.keys.size());
   for (const FittedParameter& q : fit.parameters)
   {
     const double t = p.*member(q.key);
@@ -197,8 +197,16 @@ TEST(JointFit, RefusesWhatItCannotFit)
   EXPECT_THROW(fitJoint(r, s, 0.0, p, f), InvalidParameterError);
   f.keys = {};
   EXPECT_THROW(fitJoint(r, s, 0.0, p, f), InvalidParameterError);
+  // Keys that do not describe the joint: a mesh for rigid teeth, a restitution for a compliant mesh; and a torsional
+  // shaft (its gear is not measured).
+  f.keys = {"mesh_stiffness"};
+  EXPECT_THROW(fitJoint(r, s, 0.0, p, f), InvalidParameterError);
   ServoParams compliant = p;
   compliant.mesh_stiffness = 1e4;
+  f.keys = {"restitution"};
+  EXPECT_THROW(fitJoint(r, s, 0.0, compliant, f), InvalidParameterError);
+  compliant.shaft_stiffness = 1e4;
+  compliant.gear_inertia = 0.1;
   f.keys = {"load_inertia"};
   EXPECT_THROW(fitJoint(r, s, 0.0, compliant, f), InvalidParameterError);
 }
