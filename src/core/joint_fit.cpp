@@ -67,8 +67,8 @@ double rmsOf(const std::vector<double>& v)
   return std::sqrt(s / static_cast<double>(std::max<std::size_t>(1, v.size())));
 }
 
-/// The fit's coordinates: x_i = p_i / scale_i, each scale the start's size (or, for a start at 0, one from the data:
-/// 5 % of the torques applied for a level, per the typical motor speed for a viscous coefficient).
+/// The fit's coordinates: x_i = p_i / scale_i, each scale the start's size — for a level or the load torque at least
+/// the data's typical size (5 % of the torques applied, per the typical motor speed for a viscous coefficient).
 class Coordinates
 {
  public:
@@ -81,13 +81,19 @@ class Coordinates
     {
       const double q = start.*(k->member);
       const std::string key = k->key;
+      // The data's typical size of a level: 5 % of the torques applied (per the typical motor speed for a viscous
+      // coefficient).
+      const double typical = key == "motor_friction" || key == "load_friction" || key == "mesh_damping"
+                                 ? 0.05 * torque_scale / speed_scale
+                                 : 0.05 * torque_scale;
       double scale = std::fabs(q);
-      if (!(scale > 0.0))
+      if (k->kind == KeyInfo::Level || k->kind == KeyInfo::Free)
       {
-        scale = k->kind == KeyInfo::Unit ? 1.0
-                : key == "motor_friction" || key == "load_friction" || key == "mesh_damping"
-                    ? 0.05 * torque_scale / speed_scale
-                    : 0.05 * torque_scale;
+        scale = std::max(scale, typical);  // (a start near 0 says nothing of the size: a load torque of 1e-9 N·m)
+      }
+      else if (!(scale > 0.0))
+      {
+        scale = 1.0;  // (the restitution)
       }
       scale_.push_back(scale);
       switch (k->kind)

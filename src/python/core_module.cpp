@@ -320,8 +320,28 @@ py::dict predictCycle(const py::object& config)
 py::dict identify(const std::vector<double>& time, const std::vector<double>& motor_torque,
                   const std::vector<double>& motor_position, const std::vector<double>& load_position,
                   double gear_ratio, double contact_band, int smoothing, double still_speed, double load_torque,
-                  const std::string& joint_fit, const std::vector<std::string>& keys, int windows)
+                  const std::string& joint_fit, const std::vector<std::string>& keys, int windows,
+                  const py::object& prior_config)
 {
+  // What is known of the joint: the prior's keys (its mesh_stiffness > 0: a compliant mesh), the gear ratio given.
+  ServoParams prior;
+  bool ratio_known = std::isfinite(gear_ratio);
+  if (!prior_config.is_none())
+  {
+    InlineYaml inline_yaml;
+    const KeyValues kv = keyValuesOf(prior_config, &inline_yaml);
+    prior = runConfigFrom(kv).params;
+    ratio_known = ratio_known || kv.has("gear_ratio");
+  }
+  if (!ratio_known)
+  {
+    throw InvalidParameterError("gear_ratio", "must be known: give gear_ratio= or gear_ratio in the prior");
+  }
+  if (std::isfinite(gear_ratio))
+  {
+    prior.gear_ratio = gear_ratio;
+  }
+  gear_ratio = prior.gear_ratio;
   Recording r{time, motor_torque, motor_position, load_position};
   IdentificationSettings s;
   s.gear_ratio = gear_ratio;
@@ -337,8 +357,6 @@ py::dict identify(const std::vector<double>& time, const std::vector<double>& mo
   }
   options.joint = joint_fit == "on" ? JointFitMode::On : joint_fit == "off" ? JointFitMode::Off : JointFitMode::Auto;
   options.fit.windows = windows;
-  ServoParams prior;
-  prior.gear_ratio = gear_ratio;
   JointIdentification result;
   {
     py::gil_scoped_release release;
@@ -663,14 +681,17 @@ PYBIND11_MODULE(core, m)
         "flank_changes, … (docs/frequency_response.md). continuous=True: the torque's sine itself (a compliant "
         "mesh); the command takes the sine itself under the continuous law.");
   m.def("identify", &identify, py::arg("time"), py::arg("motor_torque"), py::arg("motor_position"),
-        py::arg("load_position"), py::kw_only(), py::arg("gear_ratio"), py::arg("contact_band") = 0.0,
+        py::arg("load_position"), py::kw_only(), py::arg("gear_ratio") = NAN, py::arg("contact_band") = 0.0,
         py::arg("smoothing") = 0, py::arg("still_speed") = 0.0, py::arg("load_torque") = NAN,
         py::arg("joint_fit") = "auto", py::arg("keys") = std::vector<std::string>{}, py::arg("windows") = 40,
+        py::arg("prior") = py::none(),
         "backlash_identify's identification from a recording given as arrays (SI; the torque held from each sample "
         "to the next): a dict of each parameter, its `_standard_error` and `_initial` estimate, `zero_offset`, sample "
         "counts and, when the joint fit ran, `fitted` (its keys), `informed`, `correlation` (a matrix in that order), "
         "`rms_residual` [rad] (docs/identification.md). load_torque: used only when the contact motion goes one way; "
-        "joint_fit: 'auto', 'on' or 'off'; keys: what is estimated (default all).");
+        "joint_fit: 'auto', 'on' or 'off'; keys: what is estimated (default all that describe the joint); prior: what "
+        "is known (a dict of keys or a YAML path, like Simulator's config; mesh_stiffness > 0 fits a compliant mesh); "
+        "gear_ratio: required unless the prior gives it.");
   m.def("broadband_response", &broadbandResponse, py::arg("config") = py::none(), py::kw_only(), py::arg("amplitude"),
         py::arg("excitation") = "prbs", py::arg("channel") = "command:load_position", py::arg("offset") = 0.0,
         py::arg("injection_rate") = 0.0, py::arg("prbs_order") = 10, py::arg("prbs_hold") = 1,

@@ -14,6 +14,7 @@
 #include <vector>
 
 #include <unistd.h>
+#include <variant>
 
 #include "backlash_servo/config/flag_parser.h"
 #include "backlash_servo/config/run_config_loader.h"
@@ -40,7 +41,9 @@ const char* HEADER =
 Estimates the joint's backlash, inertias, viscous, Coulomb and static friction, load torque and restitution from a
 recording of its own motion. First from the data alone: the backlash from the gap theta_c - rho*theta_m, the rest
 by linear least squares on the phases where the teeth are in contact and where they are apart, the restitution by
-replaying windows around impacts, the static friction from the rests. Then together (the joint fit): the exact
+replaying windows around impacts, the static friction from the rests. A prior with mesh_stiffness > 0 says the
+mesh is compliant: its stiffness and damping are estimated instead of the restitution (the bodies from the torque
+balance of the whole joint, the mesh from the torque it passes to the load). Then together (the joint fit): the exact
 simulator replays windows of the recording, each restarted from the measured state, and a least-squares search
 (Levenberg-Marquardt) matches both angles; each estimate gets a standard error and its largest correlation with
 another. FILE.csv has the header time,motor_torque,motor_position,load_position (SI: s, N*m, rad on each body's
@@ -86,13 +89,15 @@ Options parse(int argc, char** argv)
        {"fit", "KEY[,KEY...]",
         "what is estimated (default all: backlash, motor_inertia, load_inertia, motor_friction, load_friction, "
         "motor_coulomb_friction, load_coulomb_friction, motor_static_friction, load_static_friction, load_torque, "
-        "restitution); the others keep the prior's values, in the fit and in the model"},
+        "and restitution for rigid teeth or mesh_stiffness, mesh_damping for a compliant mesh); the others keep the "
+        "prior's values, in the fit and in the model"},
        {"windows", "N", "the joint fit: how many windows of the recording it replays (default 40)"},
        {"window", "S", "the joint fit: each window's length [s] (default 0.2)"},
        {"max_evaluations", "N", "the joint fit: at most this many replays of all windows (default 600)"},
        {"joint_fit", "on|off|auto",
         "the joint fit after the initial estimates: on = every estimate in --fit; auto (default) = every one on exact "
-        "angles, only backlash and restitution on measured ones (--contact-band given); off = none"},
+        "angles; on measured ones (--contact-band given) only backlash and restitution, or the mesh's stiffness and "
+        "damping; off = none"},
        {"png", "FILE.png",
         "the recording against the fitted model replayed over the windows: load angle, gap, "
         "residuals"},
@@ -136,10 +141,7 @@ Options parse(int argc, char** argv)
       o.fit.insert(key);
     }
   }
-  else
-  {
-    o.fit.insert(fittable.begin(), fittable.end());
-  }
+  // (none given: every key that describes the prior's joint — identifiedKeysFor)
   if (parser.given("duration") || parser.given("travel"))
   {
     throw ConfigError("--duration and --travel are for --experiment");
@@ -423,21 +425,21 @@ int main(int argc, char** argv)
     }
     if (output)
     {
-      // The prior's keys, the estimated ones replaced (static friction at least the Coulomb level).
+      // The prior's keys, the estimated ones replaced by the model's values (and a static level the estimates
+      // raised to its Coulomb level).
       KeyValues model = o.prior;
+      const auto valueOf = [&result](const std::string& key) {
+        return result.model.*std::get<double ServoParams::*>(findParam(key)->field);
+      };
       for (const IdentifiedParameter& r : rows)
       {
-        const bool level = r.key.find("friction") != std::string::npos;
-        model.setNumber(r.key, level ? std::max(0.0, r.value.value) : r.value.value);
+        model.setNumber(r.key, valueOf(r.key));
       }
-      for (const char* body : {"motor", "load"})
+      for (const char* stat : {"motor_static_friction", "load_static_friction"})
       {
-        const std::string coulomb = std::string(body) + "_coulomb_friction",
-                          stat = std::string(body) + "_static_friction";
-        const double level = model.number(coulomb, 0.0);  // (absent: the table's default, 0)
-        if (level > 0.0 && (!model.has(stat) || model.number(stat) < level))
+        if (valueOf(stat) != model.number(stat, 0.0))  // (absent: the table's default, 0)
         {
-          model.setNumber(stat, level);
+          model.setNumber(stat, valueOf(stat));
         }
       }
       runConfigFrom(model);  // what every tool will read: refused here (naming the key) rather than there
@@ -505,10 +507,20 @@ int main(int argc, char** argv)
     }
     else
     {
-      std::printf(
-          "%zu samples: %zu in contact, %zu apart used by the initial estimates (rms residual %.3g / %.3g "
-          "N*m)\n",
-          data.time.size(), e.contact_samples, e.apart_samples, e.contact_rms_residual, e.apart_rms_residual);
+      if (result.model.compliant())
+      {
+        std::printf(
+            "%zu samples: the bodies' torque balance (rms residual %.3g N*m); the mesh pressed at %zu, free at %zu "
+            "(rms residual %.3g N*m)\n",
+            data.time.size(), e.apart_rms_residual, e.contact_samples, e.apart_samples, e.contact_rms_residual);
+      }
+      else
+      {
+        std::printf(
+            "%zu samples: %zu in contact, %zu apart used by the initial estimates (rms residual %.3g / %.3g "
+            "N*m)\n",
+            data.time.size(), e.contact_samples, e.apart_samples, e.contact_rms_residual, e.apart_rms_residual);
+      }
       if (joint)
       {
         std::printf("joint fit: %zu windows of %g s, %d replays%s; rms residual %.3g -> %.3g rad; condition %.3g\n",
@@ -552,7 +564,7 @@ int main(int argc, char** argv)
             "friction cannot be told apart)\n");
       }
       std::string kept;
-      for (const std::string& key : jointFitKeys())
+      for (const std::string& key : jointFitKeysFor(result.model))
       {
         if (std::none_of(rows.begin(), rows.end(), [&key](const IdentifiedParameter& r) { return r.key == key; }))
         {
@@ -563,8 +575,14 @@ int main(int argc, char** argv)
       {
         kept += " (the restitution: no impact in the recording)";
       }
-      std::printf("not estimated (the prior's values are kept): %s%sa compliant mesh\n", kept.c_str(),
-                  kept.empty() ? "" : ", ");
+      if (!result.model.compliant())
+      {
+        kept += std::string(kept.empty() ? "" : ", ") + "a compliant mesh";
+      }
+      if (!kept.empty())
+      {
+        std::printf("not estimated (the prior's values are kept): %s\n", kept.c_str());
+      }
     }
     flushStdout();
   }

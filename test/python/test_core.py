@@ -317,3 +317,31 @@ def test_identify_recovers_a_joint_from_its_recording():
     assert off["load_inertia"] == off["load_inertia_initial"]
     with pytest.raises(ValueError, match="gear_ratio"):
         core.identify(t, u, m, l, gear_ratio=0.0)
+    with pytest.raises(ValueError, match="gear_ratio"):
+        core.identify(t, u, m, l)
+
+
+def test_identify_a_compliant_mesh_when_the_prior_says_so():
+    # A prior with mesh_stiffness > 0 selects the compliant joint: its stiffness and damping are estimated (from a
+    # guess 5x off), the restitution is not.
+    sim = core.Simulator({"mesh_stiffness": 1000.0, "mesh_damping": 2.0, "load_torque": 0.2})
+    t, u, m, l = [], [], [], []
+    for k in range(15001):
+        tk = k / 1000.0
+        sim.advance(tk)
+        uk = 1.5 * math.sin(1.3 * tk) + 0.8 * math.sin(4.1 * tk + 0.5)
+        sim.set_motor_torque(uk)
+        s = sim.state
+        t.append(tk)
+        u.append(uk)
+        m.append(s["motor_position"])
+        l.append(s["load_position"])
+    prior = {"gear_ratio": 1.0, "mesh_stiffness": 5000.0}
+    e = core.identify(t, u, m, l, prior=prior, joint_fit="off")
+    assert e["mesh_stiffness"] == pytest.approx(1000.0, rel=1e-2)
+    assert e["mesh_damping"] == pytest.approx(2.0, rel=1e-2)
+    assert e["load_inertia"] == pytest.approx(0.9, rel=1e-4)
+    assert e["backlash"] == pytest.approx(0.3, rel=1e-4)
+    assert "restitution" not in e
+    with pytest.raises(ValueError, match="restitution"):
+        core.identify(t, u, m, l, prior=prior, keys=["restitution"])
