@@ -7,7 +7,8 @@
  * next segment starts (a later segment cuts an unfinished one):
  * - step:  θ_R = target;
  * - ramp:  θ_R = v₀ + (target − v₀) min(1, (t − time)/D), D = duration, or |target − v₀|/rate;
- * - sine:  θ_R = v₀ + A sin(2π f (t − time)) for t − time < duration, then v₀;
+ * - sine:  θ_R = v₀ + A sin(2π f (t − time)) + a_d sin(2π f_d (t − time)) for t − time < duration, then v₀ (a_d
+ *          the optional dither: a small fast sine on top, which keeps a stuck body breaking away);
  * - move:  trapezoidal point-to-point move by `distance` with |velocity| ≤ max_velocity, |acceleration| ≤
  *          max_acceleration (triangular when the distance is too short to cruise);
  * - points: set-points (time, value) held from their time on (e.g. read from a CSV).
@@ -38,6 +39,8 @@ struct ProfileSegment
   double rate = 0.0;                              ///< ramp: |dθ_R/dt| [rad/s] when no duration
   double amplitude = 0.0;                         ///< sine [rad]
   double frequency = 0.0;                         ///< sine [Hz]
+  double dither_amplitude = 0.0;                  ///< sine: a_d, the dither's amplitude [rad] (0: none)
+  double dither_frequency = 0.0;                  ///< sine: f_d, the dither's frequency [Hz]
   double distance = 0.0;                          ///< move [rad]
   double max_velocity = 0.0;                      ///< move [rad/s]
   double max_acceleration = 0.0;                  ///< move [rad/s²]
@@ -68,7 +71,7 @@ class CommandProfile
   double nextChange(double t) const;
   /// Throws InvalidParameterError("profile", …) unless a drive of this kind can take the profile: a digital drive
   /// (sampled) takes any; the continuous law steps, points, — without dry friction (`dry`) — ramps, and with a
-  /// compliant mesh (`compliant`, its modes carry a sine exactly) sines.
+  /// compliant mesh (`compliant`, its modes carry a sine exactly) sines without a dither.
   void requireTakenBy(bool sampled, bool dry, bool compliant = false) const;
   /// The same profile started dt [s] later (every segment and point time + dt).
   CommandProfile delayed(double dt) const;

@@ -171,9 +171,13 @@ Estimate fitRestitution(const Recording& data, const IdentificationSettings& set
  * the motor across the free play) at ω_n/8, ω_n/3 and (half the amplitude) ω_n/1.5, ω_n the loop's natural frequency
  * under the P gain K (params.naturalFrequency()). The slow sine moves the joint in contact both ways at low
  * acceleration (viscous and Coulomb friction, the load torque); the faster ones accelerate it (the inertias); every
- * reversal crosses the backlash (Δ, and the motor alone while the teeth are apart). Throws InvalidParameterError for
- * a duration ≤ 0 or a travel below 3Δ.
+ * reversal crosses the backlash (Δ, and the motor alone while the teeth are apart). A dither (`dither_amplitude`
+ * a_d [rad] at `dither_frequency` f_d [Hz], 0: none) rides on every sine: a torque K a_d oscillating faster than the
+ * loop follows keeps a body from sticking at the slow reversals (stick-slip hides the Coulomb level) — at the price
+ * of the rests the static levels come from. Throws InvalidParameterError for a duration ≤ 0, a travel below 3Δ, or
+ * a dither amplitude < 0 or without a frequency > 0.
  */
-std::vector<ProfileSegment> identificationExperiment(const ServoParams& params, double duration, double travel);
+std::vector<ProfileSegment> identificationExperiment(const ServoParams& params, double duration, double travel,
+                                                     double dither_amplitude = 0.0, double dither_frequency = 0.0);
 
 }  // namespace backlash_servo

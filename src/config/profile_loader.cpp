@@ -23,7 +23,7 @@ const std::map<std::string, std::vector<std::string>>& fieldsOfKinds()
   static const std::map<std::string, std::vector<std::string>> fields = {
       {"step", {"time", "target"}},
       {"ramp", {"time", "target", "duration", "rate"}},
-      {"sine", {"time", "amplitude", "frequency", "duration"}},
+      {"sine", {"time", "amplitude", "frequency", "duration", "dither_amplitude", "dither_frequency"}},
       {"move", {"time", "distance", "max_velocity", "max_acceleration"}},
       {"points", {"time", "csv"}}};
   return fields;
@@ -171,6 +171,8 @@ std::shared_ptr<const CommandProfile> profileFromYaml(const YAML::Node& list, co
       s.amplitude = yamlNumber(f, "amplitude", where, true);
       s.frequency = yamlNumber(f, "frequency", where, true);
       s.duration = yamlNumber(f, "duration", where, true);
+      s.dither_amplitude = yamlNumber(f, "dither_amplitude", where, false);
+      s.dither_frequency = yamlNumber(f, "dither_frequency", where, false);
     }
     else if (kind == "move")
     {

@@ -97,6 +97,10 @@ CommandProfile::CommandProfile(double start, std::vector<ProfileSegment> segment
         break;
       case ProfileSegment::Kind::Sine:
         need(s.frequency > 0.0 && s.duration > 0.0, "a sine needs frequency > 0 Hz and duration > 0 s");
+        need(positions.contains(s.dither_amplitude) && std::isfinite(s.dither_frequency) &&
+                 (s.dither_amplitude == 0.0 || s.dither_frequency > 0.0),
+             "a dither needs dither_frequency > 0 Hz and a finite dither_amplitude (got " +
+                 formatNumber(s.dither_amplitude) + " rad at " + formatNumber(s.dither_frequency) + " Hz)");
         break;
       case ProfileSegment::Kind::Move:
         need(s.max_velocity > 0.0 && s.max_acceleration > 0.0,
@@ -130,7 +134,9 @@ double CommandProfile::evaluate(const ProfileSegment& s, double v0, double tau) 
       return d <= 0.0 ? s.target : v0 + (s.target - v0) * std::min(1.0, tau / d);
     }
     case ProfileSegment::Kind::Sine:
-      return tau < s.duration ? v0 + s.amplitude * std::sin(TWO_PI * s.frequency * tau) : v0;
+      return tau < s.duration ? v0 + s.amplitude * std::sin(TWO_PI * s.frequency * tau) +
+                                    s.dither_amplitude * std::sin(TWO_PI * s.dither_frequency * tau)
+                              : v0;
     case ProfileSegment::Kind::Move: {
       const double sign = s.distance >= 0.0 ? 1.0 : -1.0;
       return v0 + sign * trapezoid(std::fabs(s.distance), s.max_velocity, s.max_acceleration, tau);
@@ -263,6 +269,12 @@ void CommandProfile::requireTakenBy(bool sampled, bool dry, bool compliant) cons
   {
     moves = moves || s.kind == ProfileSegment::Kind::Move;
     sines = sines || s.kind == ProfileSegment::Kind::Sine;
+    if (s.kind == ProfileSegment::Kind::Sine && s.dither_amplitude != 0.0)
+    {
+      throw InvalidParameterError("profile",
+                                  "a sine with a dither is sampled by a digital drive: set controller_rate "
+                                  "> 0 Hz");
+    }
   }
   if (moves || (sines && !compliant))
   {

@@ -367,8 +367,12 @@ InitialEstimates estimateInitial(const Recording& d, const IdentificationSetting
   return out;
 }
 
-std::vector<ProfileSegment> identificationExperiment(const ServoParams& params, double duration, double travel)
+std::vector<ProfileSegment> identificationExperiment(const ServoParams& params, double duration, double travel,
+                                                     double dither_amplitude, double dither_frequency)
 {
+  need(std::isfinite(dither_amplitude) && dither_amplitude >= 0.0, "dither", "the amplitude must be >= 0 rad");
+  need(dither_amplitude == 0.0 || (std::isfinite(dither_frequency) && dither_frequency > 0.0), "dither",
+       "the frequency must be > 0 Hz");
   need(std::isfinite(duration) && duration > 0.0, "duration", "must be > 0 s");
   need(std::isfinite(travel) && travel >= 3.0 * params.backlash && travel > 0.0, "travel",
        "must be at least three times the backlash (" + std::to_string(3.0 * params.backlash) +
@@ -384,6 +388,8 @@ std::vector<ProfileSegment> identificationExperiment(const ServoParams& params, 
     s.duration = duration / 3.0;
     s.amplitude = travel * amplitudes[i];
     s.frequency = fractions[i] * wn / (2.0 * pi);  // [Hz]
+    s.dither_amplitude = dither_amplitude;
+    s.dither_frequency = dither_amplitude > 0.0 ? dither_frequency : 0.0;
     out.push_back(s);
   }
   return out;

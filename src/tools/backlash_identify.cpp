@@ -37,7 +37,8 @@ const char* HEADER =
                          [--contact-band RAD] [--smoothing R] [--still-speed W] [--windows N] [--window S]
                          [--max-evaluations N] [--joint-fit on|off|auto] [--json] [--output MODEL.yaml]
                          [--png FILE.png]
-       backlash_identify --experiment --config PRIOR.yaml [--duration S] [--travel RAD] --output PROFILE.yaml
+       backlash_identify --experiment --config PRIOR.yaml [--duration S] [--travel RAD] [--dither RAD[,HZ]]
+                         --output PROFILE.yaml
 Estimates the joint's backlash, inertias, viscous, Coulomb and static friction, load torque and restitution from a
 recording of its own motion. First from the data alone: the backlash from the gap theta_c - rho*theta_m, the rest
 by linear least squares on the phases where the teeth are in contact and where they are apart, the restitution by
@@ -60,6 +61,7 @@ struct Options
   bool experiment = false;
   std::set<std::string> fit;  // the estimates written into the model
   double duration = 60.0, travel = 0.0;
+  double dither_amplitude = 0.0, dither_frequency = 0.0;  // [rad], [Hz]
   RunConfig prior_config;
   KeyValues prior;
   double gear_ratio = 0.0, contact_band = 0.0, still_speed = 0.0;
@@ -104,7 +106,12 @@ Options parse(int argc, char** argv)
        {"experiment", "", "write an excitation (a command profile) to --output instead of identifying"},
        {"duration", "S", "--experiment: its length [s] (default 60)"},
        {"travel", "RAD",
-        "--experiment: the command's largest excursion [rad] (default and least: 3 times the backlash)"}});
+        "--experiment: the command's largest excursion [rad] (default and least: 3 times the backlash)"},
+       {"dither", "RAD[,HZ]",
+        "--experiment: a small fast sine on the command, amplitude RAD (a torque gain*RAD) at HZ (default: 20 times "
+        "the "
+        "loop's natural frequency, at most an eighth of the controller rate), so that no body sticks at the slow "
+        "reversals"}});
   parser.parse(argc, argv);
   Options o;
   o.config_path = parser.option("config");
@@ -121,6 +128,39 @@ Options parse(int argc, char** argv)
     o.prior_config = runConfigFrom(parser.keys());
     o.duration = parser.optionNumber("duration", 60.0);
     o.travel = parser.optionNumber("travel", 3.0 * o.prior_config.params.backlash);
+    if (parser.given("dither"))
+    {
+      const std::string text = parser.option("dither");
+      const std::size_t comma = text.find(',');
+      const double rate = o.prior_config.drive.controller_rate;
+      if (!(rate > 0.0))
+      {
+        throw ConfigError(
+            "--dither: the drive must be digital (controller_rate > 0 Hz in the prior): a dither is "
+            "sampled");
+      }
+      const auto number = [&text](const std::string& item) {
+        char* end = nullptr;
+        const double v = std::strtod(item.c_str(), &end);
+        if (item.empty() || end == item.c_str() || *end != '\0' || !std::isfinite(v))
+        {
+          throw ConfigError("--dither: '" + item + "' is not a number (in '" + text + "'; RAD or RAD,HZ)");
+        }
+        return v;
+      };
+      o.dither_amplitude = number(text.substr(0, comma));
+      o.dither_frequency =
+          comma == std::string::npos
+              ? std::min(20.0 * o.prior_config.params.naturalFrequency() / (2.0 * 3.14159265358979323846), rate / 8.0)
+              : number(text.substr(comma + 1));
+      if (!(o.dither_amplitude > 0.0) || !(o.dither_frequency > 0.0) || o.dither_frequency > rate / 4.0)
+      {
+        throw ConfigError(
+            "--dither: the amplitude must be > 0 rad and the frequency > 0 Hz, at most a quarter of the "
+            "controller rate (got '" +
+            text + "')");
+      }
+    }
     return o;
   }
   const std::vector<std::string>& fittable = identifiedKeys();
@@ -142,9 +182,9 @@ Options parse(int argc, char** argv)
     }
   }
   // (none given: every key that describes the prior's joint — identifiedKeysFor)
-  if (parser.given("duration") || parser.given("travel"))
+  if (parser.given("duration") || parser.given("travel") || parser.given("dither"))
   {
-    throw ConfigError("--duration and --travel are for --experiment");
+    throw ConfigError("--duration, --travel and --dither are for --experiment");
   }
   o.joint_fit = parser.given("joint_fit") ? parser.option("joint_fit") : "auto";
   if (o.joint_fit != "on" && o.joint_fit != "off" && o.joint_fit != "auto")
@@ -364,7 +404,7 @@ int main(int argc, char** argv)
     if (o.experiment)
     {
       const std::vector<ProfileSegment> segments =
-          identificationExperiment(o.prior_config.params, o.duration, o.travel);
+          identificationExperiment(o.prior_config.params, o.duration, o.travel, o.dither_amplitude, o.dither_frequency);
       std::ostream& out = output->stream();
       out.precision(10);
       out << "# backlash_identify --experiment: " << o.duration << " s of command about its start, for a joint with "
@@ -373,10 +413,21 @@ int main(int argc, char** argv)
           << "# The slow sine: contact motion both ways (friction, load torque); the faster ones: accelerations (the "
              "inertias);\n# every reversal crosses the backlash (the motor alone while the teeth are apart). SI "
              "units: s, rad, Hz.\n";
+      if (o.dither_amplitude > 0.0)
+      {
+        out << "# A dither on every sine: " << o.dither_amplitude << " rad at " << o.dither_frequency
+            << " Hz (a torque of " << o.prior_config.params.gain * o.dither_amplitude
+            << " N*m under the gain), so that no body sticks at the slow reversals.\n";
+      }
       for (const ProfileSegment& seg : segments)
       {
         out << "- sine: {time: " << seg.time << ", amplitude: " << seg.amplitude << ", frequency: " << seg.frequency
-            << ", duration: " << seg.duration << "}\n";
+            << ", duration: " << seg.duration;
+        if (seg.dither_amplitude > 0.0)
+        {
+          out << ", dither_amplitude: " << seg.dither_amplitude << ", dither_frequency: " << seg.dither_frequency;
+        }
+        out << "}\n";
       }
       output->commit();
       std::cerr << "backlash_identify: wrote " << o.output_path << "\n";

@@ -4,13 +4,22 @@
 
 #include <cmath>
 #include <cstdio>
+#include <memory>
 #include <random>
+#include <utility>
 
+#include "backlash_servo/command_profile.h"
+#include "backlash_servo/drive.h"
 #include "backlash_servo/identification.h"
 #include "backlash_servo/simulator.h"
 #include "recorded_joint.h"
 
 using namespace backlash_servo;
+
+namespace
+{
+constexpr double PI = 3.14159265358979323846;
+}
 
 namespace
 {
@@ -140,4 +149,60 @@ TEST(Identification, RestitutionFittedByReplayingWindowsOfTheRecording)
     }
     std::printf("e %.2f: fitted %.5f ± %.2g\n", e, fitted.value, fitted.standard_error);
   }
+}
+
+TEST(Identification, TheExperimentsDitherKeepsTheBodiesFromSticking)
+{
+  // A joint whose static friction is well above its Coulomb level sticks at every slow reversal of the experiment (the
+  // Coulomb level then shows only in stick-slip). The dither — a fast sine of the command on every segment (20 ω_n),
+  // a torque K a_d above the pair's static level — keeps the bodies breaking away: the share of samples of the slow
+  // sine where the motor stands still falls tenfold, the load's threefold.
+  ServoParams p;
+  p.gain = 5.0;
+  p.restitution = 0.5;
+  p.motor_coulomb_friction = 0.05;
+  p.motor_static_friction = 0.3;
+  p.load_coulomb_friction = 0.1;
+  p.load_static_friction = 0.5;
+  DriveParams d;
+  d.controller_rate = 1000.0;
+  const double duration = 30.0, travel = 0.9, f_d = 20.0 * p.naturalFrequency() / (2.0 * PI);
+  const auto stuckShare = [&](double dither) {
+    const std::vector<ProfileSegment> experiment = identificationExperiment(p, duration, travel, dither, f_d);
+    for (const ProfileSegment& s : experiment)
+    {
+      EXPECT_EQ(s.dither_amplitude, dither);
+      EXPECT_EQ(s.dither_frequency, dither > 0.0 ? f_d : 0.0);
+    }
+    Simulator sim(p, State(), 0.0);
+    sim.setDrive(makePositionDrive(d, p.gain, p.gear_ratio, 0.0, 0.0));
+    sim.setProfile(std::make_shared<CommandProfile>(0.0, experiment));
+    int samples = 0;
+    std::pair<double, double> stuck{0.0, 0.0};
+    for (double t = 0.001; t < duration / 3.0; t += 0.001, ++samples)
+    {
+      sim.advanceTo(t);
+      stuck.first += sim.state().motor_velocity == 0.0 ? 1.0 : 0.0;
+      stuck.second += sim.state().load_velocity == 0.0 ? 1.0 : 0.0;
+    }
+    return std::make_pair(stuck.first / samples, stuck.second / samples);
+  };
+  const auto plain = stuckShare(0.0), dithered = stuckShare(0.2);
+  std::printf(
+      "at rest over the slow sine's samples: motor %.1f %%, load %.1f %% without a dither; %.1f %%, %.1f %% with "
+      "K·a_d = 1 N·m at %.3g Hz\n",
+      100.0 * plain.first, 100.0 * plain.second, 100.0 * dithered.first, 100.0 * dithered.second, f_d);
+  EXPECT_GT(plain.first, 0.1);
+  EXPECT_GT(plain.second, 0.1);
+  EXPECT_LT(dithered.first, 0.1 * plain.first);
+  EXPECT_LT(dithered.second, 0.3 * plain.second);
+  // The profile carries it: θ_R = v₀ + A sin 2πft + a_d sin 2πf_d t, checked at one instant by hand.
+  const std::vector<ProfileSegment> e = identificationExperiment(p, duration, travel, 0.1, f_d);
+  const CommandProfile profile(0.0, e);
+  const double t = 1.234;
+  EXPECT_NEAR(profile.at(t), travel * std::sin(2.0 * PI * e[0].frequency * t) + 0.1 * std::sin(2.0 * PI * f_d * t),
+              1e-14);
+  // The continuous law cannot take a dithered sine exactly (even with a compliant mesh); a dither needs a frequency.
+  EXPECT_THROW(profile.requireTakenBy(false, false, true), InvalidParameterError);
+  EXPECT_THROW(identificationExperiment(p, duration, travel, 0.1, 0.0), InvalidParameterError);
 }

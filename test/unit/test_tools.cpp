@@ -1386,3 +1386,45 @@ TEST(IdentifyTool, ExperimentInformsTheEstimates)
   EXPECT_EQ(code, 2);
   EXPECT_NE(narrow.find("travel"), std::string::npos) << narrow;
 }
+
+TEST(IdentifyTool, ADitheredExperimentOnAStickyJoint)
+{
+  // --dither puts a fast sine on every segment of the experiment (written into the profile, replayed by backlash_sim):
+  // on a joint whose static friction is six times its Coulomb level the recording still identifies the Coulomb and
+  // viscous levels within 1e-4. A dither needs a digital drive.
+  const std::string dir = testing::TempDir() + "backlash_identify_dither/";
+  ASSERT_EQ(std::system(("rm -rf " + dir + " && mkdir -p " + dir).c_str()), 0);
+  const std::string known = "controller_rate: 1000.0\ngain: 5.0\ngear_ratio: 1.0\nrestitution: 0.5\n";
+  std::ofstream(dir + "prior.yaml") << known;
+  std::ofstream(dir + "truth.yaml") << known
+                                    << "motor_coulomb_friction: 0.05\nmotor_static_friction: 0.3\n"
+                                       "load_coulomb_friction: 0.1\nload_static_friction: 0.5\nload_torque: 0.2\n"
+                                       "profile: "
+                                    << dir << "experiment.yaml\n";
+  int code = 0;
+  const std::string made = runCapture(
+      IDENTIFY + " --experiment --config " + dir + "prior.yaml --dither 0.2 --output " + dir + "experiment.yaml 2>&1",
+      &code);
+  ASSERT_EQ(code, 0) << made;
+  std::ifstream in(dir + "experiment.yaml");
+  const std::string profile((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  EXPECT_NE(profile.find("dither_amplitude: 0.2, dither_frequency: 7.11"), std::string::npos) << profile;
+  runCapture(SIM + " --config " + dir + "truth.yaml --duration 60 --sample-rate 1000 --csv " + dir + "rec.csv", &code);
+  ASSERT_EQ(code, 0);
+  const std::string json =
+      runCapture(IDENTIFY + " --data " + dir + "rec.csv --config " + dir + "prior.yaml --json", &code);
+  ASSERT_EQ(code, 0) << json;
+  const auto estimate = [&](const std::string& key) {
+    return jsonNumber(json.substr(json.find("\"" + key + "\":{")), "value");
+  };
+  EXPECT_NEAR(estimate("motor_coulomb_friction"), 0.05, 5e-6);
+  EXPECT_NEAR(estimate("load_coulomb_friction"), 0.1, 1e-5);
+  EXPECT_NEAR(estimate("motor_friction"), 0.48, 4.8e-5);
+  EXPECT_NEAR(estimate("load_friction"), 0.32, 3.2e-5);
+  std::ofstream(dir + "continuous.yaml") << "gain: 5.0\ngear_ratio: 1.0\n";
+  const std::string refused = runCapture(
+      IDENTIFY + " --experiment --config " + dir + "continuous.yaml --dither 0.2 --output " + dir + "no.yaml 2>&1",
+      &code);
+  EXPECT_EQ(code, 2);
+  EXPECT_NE(refused.find("digital"), std::string::npos) << refused;
+}
