@@ -16,7 +16,7 @@
  * **The mesh** (`mesh_law: spring_damper`, model.md). The load's equation gives the torque the mesh transmits,
  * τ = J_L α_c + f_L ω_c + T_cL sgn ω_c − T_ext. Past the forward flank (g < g₀) τ = c (g₀ − g) − d ġ, past the backward
  * one (g > g₀ + Δ) τ = −c (g − g₀ − Δ) − d ġ, so on the samples where τ clearly pushes (|τ| above a tenth of its
- * typical peak — the 99th percentile of |τ| — on the sample and its neighbours, its sign naming the flank)
+ * typical peak — the 99th percentile of |τ| — over the sample, the difference stencil and the filter's support, its sign naming the flank)
  *   τ = −c g − d ġ + b_f [forward] + b_b [backward],
  * one fit for c, d and the flanks: g₀ = b_f / c (the zero offset), Δ = (b_b − b_f) / c, their standard errors by the
  * fit's covariance carried through (first order).
@@ -26,7 +26,9 @@
  * — |u_k − ρτ_k| on the motor, |τ_k + T_ext| on the load, τ_k from the gap by the law above — was held by its static
  * band (a lower bound on T_s); at the first sample after the rest it had broken away (an upper bound). The mesh's
  * torque changes within the interval of a breakaway (it follows the other body), so the bounds may cross by that
- * change: the level is then their middle, their distance its scatter (RestBounds otherwise).
+ * change: the level is then their middle, their distance its scatter (RestBounds otherwise). With measured angles (a
+ * contact band given) the filter blurs the instant of a breakaway, while the mesh's torque moves fast: only the lower
+ * bound is kept (the level "at least"), from the samples of a rest clear of its ends by the filter's support.
  *
  * **What the samples must resolve.** Differences see the contact only when its natural frequency √(c/μ) (μ the
  * reduced inertia, model.md) is well below the sample rate — about a tenth of the sampling frequency in rad/s,

@@ -229,6 +229,21 @@ InitialEstimates estimateInitial(const Recording& d, const IdentificationSetting
   }
   out.contact_samples = contact.size();
   out.apart_samples = apart.size();
+  if (contact.size() < 20)
+  {
+    // The gap near the flanks but never held within the band: teeth that give (or angles coarser than the band).
+    std::size_t near = 0;
+    for (std::size_t k = 0; k < n; ++k)
+    {
+      near += std::min(gap[k] - *lo, *hi - gap[k]) <= 0.05 * backlash ? 1 : 0;
+    }
+    need(near < n / 10, "data",
+         "the gap θ_c − ρθ_m keeps moving near the flanks while the motor drives the load (never within the contact "
+         "band of " +
+             formatNumber(band) +
+             " rad): the mesh looks compliant — give a prior with mesh_stiffness > 0 (a guess) to identify a "
+             "compliant mesh — or, for measured angles, a contact band of their resolution");
+  }
   need(contact.size() >= 20, "data",
        "too few samples with the teeth in contact and moving (" + std::to_string(contact.size()) +
            "): the recording needs motion while the motor drives the load");

@@ -122,10 +122,17 @@ InitialEstimates estimateCompliantInitial(const Recording& d, const Identificati
   const auto side = [&](std::size_t k) { return tau[k] > threshold ? 1 : tau[k] < -threshold ? -1 : 0; };
   std::vector<std::size_t> pressed;
   std::size_t on_forward = 0, on_backward = 0, free_samples = 0;
-  for (std::size_t k = reach; k + reach < n; ++k)
+  // A sample counts when its side holds over the filter's support and the stencil (reach samples each way): the
+  // filtered law F τ = −c F g − d F ġ + b F[flank] holds there with F[flank] = 1.
+  std::vector<std::size_t> changes(n + 1, 0);  // side changes before each sample (prefix count)
+  for (std::size_t k = 1; k < n; ++k)
+  {
+    changes[k + 1] = changes[k] + (side(k) != side(k - 1) ? 1 : 0);
+  }
+  for (std::size_t k = 2 * reach; k + 2 * reach < n; ++k)
   {
     const int f = side(k);
-    if (f != 0 && side(k - 1) == f && side(k + 1) == f)
+    if (f != 0 && changes[k + reach + 1] == changes[k - reach + 1])
     {
       pressed.push_back(k);
       (f > 0 ? on_forward : on_backward) += 1;
@@ -185,6 +192,9 @@ InitialEstimates estimateCompliantInitial(const Recording& d, const Identificati
   };
   const double band = s.contact_band > 0.0 ? s.contact_band : 1e-8 * delta;
   const std::size_t min_rest = minimumRest(s, h);
+  // (Measured angles: the filter blurs the instant of a breakaway, the mesh's torque moves fast then — only the lower
+  // bounds are kept.)
+  const bool exact = !(s.contact_band > 0.0);
   const auto bounds = [&](const std::vector<double>& theta, auto net) {
     RestBounds b;
     for (std::size_t a = reach; a + reach + 1 < n;)
@@ -202,14 +212,15 @@ InitialEstimates estimateCompliantInitial(const Recording& d, const Identificati
         ++a;
         continue;
       }
-      for (std::size_t k = a + 1 + 2 * r; k + 2 < e; ++k)  // (inside: the differences at the ends see the motion)
+      // Inside: the differences at the ends see the motion, and the filter spreads a breakaway over its support.
+      for (std::size_t k = a + 1 + 2 * r; k + 2 + 4 * r < e; ++k)
       {
         b.low = std::max(b.low, net(k));
       }
       // The torque on it grows through the interval it broke away in (the mesh's share follows the other body), so
       // the net torque at the interval's end bounds T_s from above (the filter moves 2r samples early).
       const std::size_t away = e + 2 * r;
-      if (away + reach < n)
+      if (exact && away + reach < n)
       {
         b.high = std::min(b.high, net(away));
       }
