@@ -39,6 +39,14 @@ printf 'motor_coulomb_friction: 0.05\nload_coulomb_friction: 0.1\nload_torque: 0
 /usr/bin/time -o "$work/time" -f "backlash_identify: wall %e s, peak memory %M kB" \
   "$bin/backlash_identify" --data "$work/rec.csv" --config "$work/prior.yaml" 2>/dev/null | sed -n 2p
 cat "$work/time"
+echo "== the same joint with a compliant mesh (c = 1000 N*m/rad, d = 2 N*m*s/rad; the prior says compliant)"
+printf 'mesh_stiffness: 1000.0\nmesh_damping: 2.0\n' >>"$work/truth.yaml"
+printf 'mesh_stiffness: 5000.0\n' >>"$work/prior.yaml"
+sed -i '/^restitution/d' "$work/truth.yaml" "$work/prior.yaml"
+"$bin/backlash_sim" --config "$work/truth.yaml" --duration 60 --sample-rate 1000 --csv "$work/rec.csv" >/dev/null
+/usr/bin/time -o "$work/time" -f "backlash_identify: wall %e s, peak memory %M kB" \
+  "$bin/backlash_identify" --data "$work/rec.csv" --config "$work/prior.yaml" 2>/dev/null | sed -n 2p
+cat "$work/time"
 rm -rf "$work"
 echo "== the thesis study against one scipy solution of App. D1 (issue 13's ratio; whole processes, alternately)"
 bash bench/thesis_vs_scipy.sh "$([ "${1:-}" = --quick ] && echo 1 || echo 5)" "$bin"
