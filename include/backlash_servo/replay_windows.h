@@ -7,8 +7,10 @@
  * parameters (its motion is chaotic: a 1e-12 change grows to mrad), so each window starts again from the state
  * measured at its first sample k₀ and runs `length` samples under the recorded torque (effort mode, the torque held
  * from each sample to the next):
- * - angles θ_m, θ_c as recorded at k₀ (filtered by the identification's smoothing when it is set), velocities by
- *   central differences;
+ * - angles θ_m, θ_c as recorded at k₀, velocities by central differences of the recorded angles — never filtered: the
+ *   smoothing blurs an angle and its velocity across an impact, and a fit then mistakes the blur for the impact's
+ *   physics (16-bit angles with smoothing 20 in the anchors: e 0.5 fitted as 0.97); their noise is what the fitted
+ *   velocity corrections absorb;
  * - the gap g = θ_c − ρθ_m − g₀ (g₀ the zero offset: the gap the encoders read on the forward flank) decides the
  *   teeth: within the contact band of 0 → forward contact, of Δ (or beyond) → backward contact, the common velocity
  *   (ω_c + ρω_m)/2; otherwise apart, g clamped into [0, Δ]; with a compliant mesh (mesh_stiffness > 0) the angles and

@@ -38,11 +38,12 @@ ReplayWindows::ReplayWindows(const Recording& data, const IdentificationSettings
   {
     Anchor a;
     a.time = data.time[k0];
-    a.motor_position = motor[k0];
-    a.load_position = load[k0];
-    a.motor_velocity = (motor[k0 + 1] - motor[k0 - 1]) / (2.0 * h);
-    a.load_velocity = (load[k0 + 1] - load[k0 - 1]) / (2.0 * h);
-    a.gap = load[k0] - rho_ * motor[k0] - zero_offset_;
+    // As measured (a filtered angle is blurred across an impact); the filtered signals serve the still test only.
+    a.motor_position = data.motor_position[k0];
+    a.load_position = data.load_position[k0];
+    a.motor_velocity = (data.motor_position[k0 + 1] - data.motor_position[k0 - 1]) / (2.0 * h);
+    a.load_velocity = (data.load_position[k0 + 1] - data.load_position[k0 - 1]) / (2.0 * h);
+    a.gap = a.load_position - rho_ * a.motor_position - zero_offset_;
     // A body at rest over the anchor's stencil starts at rest, uncorrected: with static friction above the Coulomb
     // level a body at rest and one creeping at 1e-12 rad/s part ways (the one sticks, the other slides on).
     // (At rest: within the contact band over a rest's length centred on the anchor — identification.h.)

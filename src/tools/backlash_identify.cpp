@@ -62,6 +62,7 @@ struct Options
   std::set<std::string> fit;  // the estimates written into the model
   double duration = 60.0, travel = 0.0;
   double dither_amplitude = 0.0, dither_frequency = 0.0;  // [rad], [Hz]
+  double motor_counts = 0.0, load_counts = 0.0;  // the prior's encoder resolutions [counts/rev] (no --contact-band)
   RunConfig prior_config;
   KeyValues prior;
   double gear_ratio = 0.0, contact_band = 0.0, still_speed = 0.0;
@@ -79,8 +80,9 @@ Options parse(int argc, char** argv)
       {{"config", "PRIOR.yaml", "what is known of the joint (the gear ratio at least); flags override it"},
        {"data", "FILE.csv", "the recording: time,motor_torque,motor_position,load_position"},
        {"contact_band", "RAD",
-        "a sample is in contact when its gap is this close to a flank [rad] (default: 1e-8 of the backlash, for exact "
-        "data; give the gap's quantisation for measured data)"},
+        "a sample is in contact when its gap is this close to a flank [rad] (default: two counts of the gap when the "
+        "angles lie on the count grid of the prior's encoder resolutions, else 1e-8 of the backlash, for exact data; "
+        "give the gap's quantisation and noise for measured data)"},
        {"smoothing", "R",
         "for quantised or noisy angles: every term filtered by the centred mean over 2R+1 samples, twice (default 0: "
         "none)"},
@@ -244,6 +246,11 @@ Options parse(int argc, char** argv)
   if (parser.given("contact_band") && !(o.contact_band > 0.0))
   {
     throw ConfigError("--contact-band must be > 0 rad");
+  }
+  if (!parser.given("contact_band"))
+  {
+    o.motor_counts = checked.drive.motor_encoder_resolution;
+    o.load_counts = checked.drive.load_encoder_resolution;
   }
   const double smoothing = parser.optionNumber("smoothing", 0.0);
   if (!(smoothing >= 0.0 && smoothing <= 100000.0) || smoothing != std::floor(smoothing))
@@ -434,6 +441,22 @@ int main(int argc, char** argv)
       return 0;
     }
     data = readRecording(o.data_path);
+    // Angles on the count grid of the prior's encoders are measured ones: the gap is quantised by both counts.
+    const auto onGrid = [](const std::vector<double>& angle, double counts) {
+      const double per = counts / (2.0 * 3.14159265358979323846);
+      return counts > 0.0 && std::all_of(angle.begin(), angle.end(),
+                                         [per](double x) { return std::fabs(x * per - std::round(x * per)) <= 1e-6; });
+    };
+    const bool motor_grid = onGrid(data.motor_position, o.motor_counts),
+               load_grid = onGrid(data.load_position, o.load_counts);
+    if (motor_grid || load_grid)
+    {
+      const double two_pi = 2.0 * 3.14159265358979323846;
+      o.contact_band = 2.0 * ((motor_grid ? o.gear_ratio * two_pi / o.motor_counts : 0.0) +
+                              (load_grid ? two_pi / o.load_counts : 0.0));
+      std::cerr << "backlash_identify: the angles are the prior's encoder counts: contact band " << o.contact_band
+                << " rad (two counts of the gap)\n";
+    }
   }
   catch (const std::exception& e)
   {

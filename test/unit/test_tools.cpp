@@ -1428,3 +1428,66 @@ TEST(IdentifyTool, ADitheredExperimentOnAStickyJoint)
   EXPECT_EQ(code, 2);
   EXPECT_NE(refused.find("digital"), std::string::npos) << refused;
 }
+
+TEST(IdentifyTool, EncoderCountsFromThePriorSetTheContactBand)
+{
+  // Angles on the count grid of the prior's encoders (2^16 counts a turn on both) are measured ones: the contact band
+  // becomes two counts of the gap and the fit that of measured angles (the backlash within two counts); exact angles
+  // with the same prior keep the exact default.
+  const std::string dir = testing::TempDir() + "backlash_identify_counts/";
+  ASSERT_EQ(std::system(("rm -rf " + dir + " && mkdir -p " + dir).c_str()), 0);
+  const std::string known = "controller_rate: 1000.0\ngain: 5.0\ngear_ratio: 1.0\nrestitution: 0.5\n";
+  std::ofstream(dir + "truth.yaml")
+      << known << "load_coulomb_friction: 0.1\nload_torque: 0.2\n"
+      << "profile:\n  - sine: {time: 0.0, amplitude: 1.0, frequency: 0.1, duration: 40.0}\n";
+  std::ofstream(dir + "prior.yaml") << known << "motor_encoder_resolution: 65536\nload_encoder_resolution: 65536\n";
+  int code = 0;
+  runCapture(SIM + " --config " + dir + "truth.yaml --duration 40 --sample-rate 1000 --csv " + dir + "exact.csv",
+             &code);
+  ASSERT_EQ(code, 0);
+  // The recording read through the encoders: every angle floored to its count.
+  const double count = 2.0 * M_PI / 65536.0;
+  {
+    std::ifstream in(dir + "exact.csv");
+    std::ofstream out(dir + "counts.csv");
+    std::string line;
+    std::getline(in, line);
+    std::vector<std::string> header;
+    std::stringstream names(line);
+    for (std::string cell; std::getline(names, cell, ',');)
+    {
+      header.push_back(cell);
+    }
+    const auto column = [&header](const std::string& name) {
+      return static_cast<std::size_t>(std::find(header.begin(), header.end(), name) - header.begin());
+    };
+    out << "time,motor_torque,motor_position,load_position\n";
+    out.precision(17);
+    while (std::getline(in, line))
+    {
+      if (line.back() != ',')
+      {
+        continue;  // an event row
+      }
+      std::vector<std::string> cells;
+      std::stringstream row(line);
+      for (std::string cell; std::getline(row, cell, ',');)
+      {
+        cells.push_back(cell);
+      }
+      out << cells[column("time")] << "," << cells[column("motor_torque")] << ","
+          << count * std::floor(std::stod(cells[column("motor_position")]) / count) << ","
+          << count * std::floor(std::stod(cells[column("load_position")]) / count) << "\n";
+    }
+  }
+  const std::string measured = runCapture(
+      IDENTIFY + " --data " + dir + "counts.csv --config " + dir + "prior.yaml --smoothing 20 --json 2>&1", &code);
+  ASSERT_EQ(code, 0) << measured;
+  EXPECT_NE(measured.find("contact band 0.000383"), std::string::npos) << measured;  // 2 (ρ·count + count)
+  const std::string json = measured.substr(measured.find('{'));
+  EXPECT_NEAR(jsonNumber(json.substr(json.find("\"backlash\":{")), "value"), 0.3, 2.0 * count) << json;
+  const std::string exact =
+      runCapture(IDENTIFY + " --data " + dir + "exact.csv --config " + dir + "prior.yaml --json 2>&1", &code);
+  ASSERT_EQ(code, 0) << exact;
+  EXPECT_EQ(exact.find("contact band"), std::string::npos) << exact;
+}
