@@ -16,8 +16,9 @@
  * A free load's arrival at a flank is located without a step size: on a window the gap's second derivative lies
  * between bounds L ≤ g̈ ≤ U (the load's acceleration is monotone while it is free, the tooth's follows from the sine's
  * range), so g ≥ g_a + ġ_a τ + ½Lτ² and Δ − g ≥ Δ − g_a − ġ_a τ − ½Uτ² — a window where both quadratics stay positive
- * holds no impact; the others are halved until the gap crosses a flank at a window's end (refined by bisection to the
- * last bit) or the window is shorter than 1e-12 of the period (a graze within that tolerance is not an impact).
+ * holds no impact; the others are halved until the gap crosses a flank at a window's end by more than rounding
+ * (1e-13 (Δ + A)), refined by bisection to the last bit, or the window is shorter than 1e-12 of the period (a graze
+ * within that tolerance is not an impact).
  *
  * **The describing functions.** From rest in the middle of the free play the element is driven period after period
  * until the state at a period's start repeats (within `tolerance` of Δ and of Aω, the same phase); over the next
@@ -26,8 +27,8 @@
  *   N_θ = Θ₁/A,   N_T = T₁/A,   T₁ = (−ω² J_L + jω f_L) Θ₁ + T_cL S₁,
  * with the first harmonic y₁ of y taken so that y = A sin ωt has y₁ = A (N = (b₁ + j a₁)/A of describing_function.h)
  * and S₁ the fundamental of sgn θ̇_c (the impacts' impulses are in the −ω² J_L Θ₁ term: θ_c is continuous). Fourier
- * sums over 2¹⁶ points of the period (the load angle is continuous with corners: errors O(2⁻³²); the sign's jumps:
- * O(2⁻¹⁶)). With a massless load that friction stops at once and e = 0 the element is the classical hysteresis: N_θ →
+ * sums over 2¹² points of the period (the load angle is continuous with corners: errors O(2⁻²⁴); the sign's jumps:
+ * O(2⁻¹²)). With a massless load that friction stops at once and e = 0 the element is the classical hysteresis: N_θ →
  * backlashDescribingFunction(A, Δ).
  */
 #pragma once

@@ -16,10 +16,9 @@
  * **The mesh** (`mesh_law: spring_damper`, model.md). The load's equation gives the torque the mesh transmits,
  * τ = J_L α_c + f_L ω_c + T_cL sgn ω_c − T_ext. Past the forward flank (g < g₀) τ = c (g₀ − g) − d ġ, past the backward
  * one (g > g₀ + Δ) τ = −c (g − g₀ − Δ) − d ġ, so on the samples where τ clearly pushes (|τ| above a tenth of its
- * typical peak — the 99th percentile of |τ| — over the sample, the difference stencil and the filter's support, its sign naming the flank)
- *   τ = −c g − d ġ + b_f [forward] + b_b [backward],
- * one fit for c, d and the flanks: g₀ = b_f / c (the zero offset), Δ = (b_b − b_f) / c, their standard errors by the
- * fit's covariance carried through (first order).
+ * typical peak — the 99th percentile of |τ| — over the sample, the difference stencil and the filter's support, its
+ * sign naming the flank) τ = −c g − d ġ + b_f [forward] + b_b [backward], one fit for c, d and the flanks: g₀ = b_f / c
+ * (the zero offset), Δ = (b_b − b_f) / c, their standard errors by the fit's covariance carried through (first order).
  *
  * **Static friction from the rests.** With a compliant mesh each body sticks on its own: a run of minimumRest()
  * samples over which its angle stays within the contact band is a rest, and the net torque on it at the samples inside

@@ -8,12 +8,25 @@
  * linear servo ẍ + 2ζω_n ẋ = ω_n²(θ_R − θ_c): G(jω) = ω_n² / (−ω² + 2jζω_n ω), the element's output θ_c fed back
  * with −1.
  *
+ * **The numerical DF of the real element** (driven_backlash.h): the classical balance lumps the load into the motor's
+ * inertia and friction and takes the backlash as massless hysteresis; the real element is the load with its inertia,
+ * friction and impacts, driven by the motor's tooth. Its two describing functions — N_θ of the load angle, N_T of the
+ * torque the teeth pass to the load — balance the motor's equation J_m θ̈_m + f_m θ̇_m + T_cm sgn θ̇_m =
+ * −K θ_c − ρT (about the cycle's centre) in the fundamental, per unit amplitude A of x = ρθ_m:
+ *   E(A, ω) = (−ω² J_m + jω f_m)/ρ + j 4T_cm/(πA) + K N_θ(A, ω) + ρ N_T(A, ω) = 0,
+ * two real equations for A and ω, solved by Newton's method in (ln A, ln ω) (Jacobian by central differences, steps
+ * 1e-4) from each classical prediction. Stability by Loeb's criterion on E (E = (D/ρ)(G N + 1) near a solution in the
+ * classical limit, D/ρ ≠ 0, so the criterion carries over). Taken when there is no load torque (the element's cycle
+ * must be symmetric); a Newton that does not converge (a non-periodic element: its DFs are means) gives no prediction.
+ *
  * **The exact cycle.** The joint is run until its verdict settles (runResponse); on a limit cycle one more period
  * from the settled state is sampled at 4096 even points, and the fundamental of ρθ_m about its mean gives the
  * amplitude (peak: the largest excursion from the mean), the frequency 2π/period.
  */
 #pragma once
 
+#include <complex>
+#include <string>
 #include <vector>
 
 #include "backlash_servo/describing_function.h"
@@ -38,6 +51,8 @@ struct LimitCyclePrediction
   double zeta = 0.0;                         ///< ζ of the loop [-]
   double natural_frequency = 0.0;            ///< ω_n [rad/s]
   std::vector<HarmonicBalance> predictions;  ///< classical DF, ω in [1e-4, 1e4] ω_n
+  std::vector<HarmonicBalance> numerical;    ///< the real element's DF, one per classical prediction it converged from
+  std::string numerical_note;                ///< why there is no numerical prediction (empty: there are, or none tried)
   SimulatedCycle simulated;
   /// A prediction's relative errors against the exact cycle (NaN without a cycle or for an unstable prediction).
   double amplitudeError(const HarmonicBalance& h) const;
@@ -46,6 +61,14 @@ struct LimitCyclePrediction
 
 /// G(jω) of the loop's linear part as the backlash element sees it (see the file comment).
 std::complex<double> thesisLoop(const ServoParams& params, double omega);
+
+/// E(A, ω) of the real element's balance [N·m/rad] (see the file comment): amplitude A [rad], ω [rad/s].
+std::complex<double> elementBalance(const ServoParams& params, double amplitude, double omega);
+
+/// The real element's balance E = 0 solved from `start` (a classical prediction); false when Newton's method does not
+/// converge within 20 steps (a step below 1e-7 in ln A and ln ω, |E| below 1e-5 K) or leaves A > Δ/2, ω within 1e±4
+/// ω_n.
+bool numericalHarmonicBalance(const ServoParams& params, const HarmonicBalance& start, HarmonicBalance* out);
 
 /// The exact cycle of `config` (the continuous P law with a constant command).
 SimulatedCycle simulateCycle(const RunConfig& config);

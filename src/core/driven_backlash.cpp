@@ -31,7 +31,8 @@ class Element
         f_(p.load_friction),
         tc_(p.load_coulomb_friction),
         e_(p.restitution),
-        period_(2.0 * PI / omega)
+        period_(2.0 * PI / omega),
+        rounding_(1e-13 * (p.backlash + amplitude))
   {
     c0_ = 0.5 * delta_;  // at rest in the middle of the free play
   }
@@ -59,7 +60,7 @@ class Element
   double time() const { return t0_; }
   double position() const { return c0_; }  // (at time(): the phase is re-based at every stop)
   double velocity() const { return v0_; }
-  int impacts() const { return impacts_; }
+  long impacts() const { return impacts_; }
 
  private:
   /// The free load τ [s] after the phase's start.
@@ -191,7 +192,7 @@ class Element
       const Span s = stack.back();
       stack.pop_back();
       const double ga = gapAt(s.a), gb = gapAt(s.b);
-      if (gb < 0.0 || gb > delta_)
+      if (gb < -rounding_ || gb > delta_ + rounding_)  // (a penetration within rounding is none)
       {
         *forward = gb < 0.0;
         return refine(s.a, s.b, *forward);
@@ -223,7 +224,7 @@ class Element
         break;
       }
       const double g = gapAt(m);
-      if (forward ? g < 0.0 : g > delta_)
+      if (forward ? g < -rounding_ : g > delta_ + rounding_)
       {
         b = m;
       }
@@ -270,11 +271,19 @@ class Element
   void impact(bool forward, double v)
   {
     ++impacts_;
+    if (impacts_ > IMPACT_BUDGET)
+    {
+      throw InvalidParameterError("frequency",
+                                  "the driven element chattered beyond " + std::to_string(IMPACT_BUDGET) + " impacts");
+    }
+    // A chatter: impacts in a row, each within 1e-9 of a period of the one before.
+    chatter_ = t0_ - last_impact_ < 1e-9 * period_ ? chatter_ + 1 : 0;
+    last_impact_ = t0_;
     const double wall = xd(t0_), offset = forward ? 0.0 : delta_;
     c0_ = x(t0_) + offset;
     const double after = wall - e_ * (v - wall);
     const double sign = forward ? 1.0 : -1.0;
-    if (e_ == 0.0 || std::fabs(after - wall) <= 1e-10 * a_ * w_)
+    if (e_ == 0.0 || std::fabs(after - wall) <= 1e-10 * a_ * w_ || chatter_ > 64)
     {
       if (sign * needed(t0_) >= 0.0)
       {
@@ -350,9 +359,13 @@ class Element
   }
 
   double a_, w_, delta_, j_, f_, tc_, e_, period_;
+  double rounding_;                        // [rad]: a gap beyond a flank by less is rounding, not an impact
   double t0_ = 0.0, c0_ = 0.0, v0_ = 0.0;  // the phase's start (re-based at every event and advance)
   Phase phase_ = Phase::Free;
-  int impacts_ = 0;
+  long impacts_ = 0;
+  long chatter_ = 0;
+  double last_impact_ = -INFINITY;
+  static constexpr long IMPACT_BUDGET = 100000;
 };
 
 void need(bool ok, const std::string& key, const std::string& what)
@@ -404,10 +417,10 @@ DrivenBacklash drivenBacklash(const ServoParams& params, double amplitude, doubl
   out.periods = std::min(k, max_periods);
   // The next period (or, not periodic, the mean over the next ANALYSED periods), sampled: the fundamentals of θ_c and
   // sgn θ̇_c.
-  constexpr int M = 1 << 16, ANALYSED = 16;
+  constexpr int M = 1 << 12, ANALYSED = 16;
   const int analysed = out.periodic ? 1 : ANALYSED;
   const double start = out.periods * period;
-  const int impacts_before = element.impacts();
+  const long impacts_before = element.impacts();
   std::complex<double> position(0.0, 0.0), sign(0.0, 0.0);
   for (int p = 0; p < analysed; ++p)
   {
@@ -422,7 +435,7 @@ DrivenBacklash drivenBacklash(const ServoParams& params, double amplitude, doubl
     }
   }
   element.advanceTo(start + analysed * period);
-  out.impacts = (element.impacts() - impacts_before) / analysed;
+  out.impacts = static_cast<int>((element.impacts() - impacts_before) / analysed);
   const std::complex<double> j(0.0, 1.0);
   // y₁ = (2/T)∫ y e^{−jωt} dt, N = j y₁ / A (y = A sin ωt → N = 1).
   const double scale = 2.0 / (static_cast<double>(M) * analysed);

@@ -2,6 +2,7 @@
 
 #include <cmath>
 
+#include "backlash_servo/driven_backlash.h"
 #include "backlash_servo/params.h"
 #include "backlash_servo/simulator.h"
 
@@ -29,6 +30,74 @@ std::complex<double> thesisLoop(const ServoParams& p, double w)
 {
   const double wn = p.naturalFrequency(), zeta = p.dampingRatio();
   return wn * wn / std::complex<double>(-w * w, 2.0 * zeta * wn * w);
+}
+
+std::complex<double> elementBalance(const ServoParams& p, double a, double w)
+{
+  const DrivenBacklash d = drivenBacklash(p, a, w);
+  const double rho = p.gear_ratio;
+  return std::complex<double>(-w * w * p.motor_inertia, w * p.motor_friction) / rho +
+         std::complex<double>(0.0, 4.0 * p.motor_coulomb_friction / (PI * a)) + p.gain * d.position + rho * d.torque;
+}
+
+bool numericalHarmonicBalance(const ServoParams& p, const HarmonicBalance& start, HarmonicBalance* out)
+{
+  // Newton in (u, v) = (ln A, ln ω) on (Re E, Im E) / K.
+  double u = std::log(start.amplitude), v = std::log(start.frequency);
+  const auto e = [&p](double uu, double vv) { return elementBalance(p, std::exp(uu), std::exp(vv)) / p.gain; };
+  try
+  {
+    constexpr double STEP = 1e-4;
+    const auto jacobian = [&](double uu, double vv, double m[2][2]) {
+      const std::complex<double> du = (e(uu + STEP, vv) - e(uu - STEP, vv)) / (2.0 * STEP),
+                                 dv = (e(uu, vv + STEP) - e(uu, vv - STEP)) / (2.0 * STEP);
+      m[0][0] = du.real();
+      m[0][1] = dv.real();
+      m[1][0] = du.imag();
+      m[1][1] = dv.imag();
+    };
+    for (int iteration = 0; iteration < 20; ++iteration)
+    {
+      const std::complex<double> f = e(u, v);
+      double m[2][2];
+      jacobian(u, v, m);
+      const double det = m[0][0] * m[1][1] - m[0][1] * m[1][0];
+      if (!(std::fabs(det) > 0.0) || !std::isfinite(det))
+      {
+        return false;
+      }
+      double du = -(m[1][1] * f.real() - m[0][1] * f.imag()) / det,
+             dv = -(-m[1][0] * f.real() + m[0][0] * f.imag()) / det;
+      // Converged: the step is below 1e-7 in ln A and ln ω (the DFs' Fourier sums leave a floor near 1e-8 in E).
+      if (std::max(std::fabs(du), std::fabs(dv)) < 1e-7 && std::abs(f) < 1e-5)
+      {
+        out->amplitude = std::exp(u + du);
+        out->frequency = std::exp(v + dv);
+        out->stable = det > 0.0;  // Loeb: ∂U/∂A ∂V/∂ω − ∂U/∂ω ∂V/∂A > 0 (A, ω > 0 scale it by Aω)
+        return true;
+      }
+      const double longest = std::max(std::fabs(du), std::fabs(dv));
+      if (longest > 0.5)  // (a damped step: at most a factor e^0.5 in A or ω)
+      {
+        du *= 0.5 / longest;
+        dv *= 0.5 / longest;
+      }
+      u += du;
+      v += dv;
+      // Within the classical search's band of frequencies, and beyond the half-backlash (a sine-driven element from
+      // rest never reaches the load below it).
+      if (!std::isfinite(u) || !std::isfinite(v) || std::exp(u) <= 0.5 * p.backlash * (1.0 + 1e-9) ||
+          std::fabs(v - std::log(p.naturalFrequency())) > std::log(1e4))
+      {
+        return false;
+      }
+    }
+  }
+  catch (const InvalidParameterError&)
+  {
+    return false;  // the element chattered beyond its budget on the way: no prediction from this start
+  }
+  return false;
 }
 
 SimulatedCycle simulateCycle(const RunConfig& config)
@@ -91,6 +160,26 @@ LimitCyclePrediction predictLimitCycle(const RunConfig& config)
   const double wn = out.natural_frequency;
   out.predictions =
       backlashHarmonicBalance([&p](double w) { return thesisLoop(p, w); }, p.backlash, 1e-4 * wn, 1e4 * wn);
+  if (p.load_torque != 0.0)
+  {
+    out.numerical_note = "no numerical DF: with a load torque the element's cycle is not symmetric";
+  }
+  else
+  {
+    for (const HarmonicBalance& h : out.predictions)
+    {
+      HarmonicBalance n;
+      if (numericalHarmonicBalance(p, h, &n))
+      {
+        out.numerical.push_back(n);
+      }
+    }
+    if (out.numerical.empty() && !out.predictions.empty())
+    {
+      out.numerical_note =
+          "no numerical DF: the real element's balance did not converge from the classical predictions";
+    }
+  }
   out.simulated = simulateCycle(config);
   return out;
 }

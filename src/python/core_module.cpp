@@ -30,6 +30,7 @@
 #include "backlash_servo/config/safe_input.h"
 #include "backlash_servo/describing_function.h"
 #include "backlash_servo/drive.h"
+#include "backlash_servo/driven_backlash.h"
 #include "backlash_servo/frequency_response.h"
 #include "backlash_servo/gear_mesh.h"
 #include "backlash_servo/identification.h"
@@ -279,7 +280,7 @@ py::dict broadbandResponse(const py::object& config, double amplitude, const std
   return d;
 }
 
-/// backlash_df's analysis: the classical DF's predictions beside the exact cycle.
+/// backlash_df's analysis: the classical and numerical DFs' predictions beside the exact cycle.
 py::dict predictCycle(const py::object& config)
 {
   const RunConfig c = runConfigOf(config);
@@ -293,18 +294,22 @@ py::dict predictCycle(const py::object& config)
   d["natural_frequency"] = a.natural_frequency;
   d["backlash"] = c.params.backlash;
   py::list predictions;
-  for (const HarmonicBalance& h : a.predictions)
+  for (const auto* list : {&a.predictions, &a.numerical})
   {
-    py::dict p;
-    p["amplitude"] = h.amplitude;
-    p["frequency"] = h.frequency;
-    p["stable"] = h.stable;
-    p["method"] = "classical";
-    p["amplitude_error"] = a.amplitudeError(h);
-    p["frequency_error"] = a.frequencyError(h);
-    predictions.append(p);
+    for (const HarmonicBalance& h : *list)
+    {
+      py::dict p;
+      p["amplitude"] = h.amplitude;
+      p["frequency"] = h.frequency;
+      p["stable"] = h.stable;
+      p["method"] = list == &a.predictions ? "classical" : "numerical";
+      p["amplitude_error"] = a.amplitudeError(h);
+      p["frequency_error"] = a.frequencyError(h);
+      predictions.append(p);
+    }
   }
   d["predictions"] = predictions;
+  d["numerical_note"] = a.numerical_note;
   py::dict sim;
   sim["verdict"] = toString(a.simulated.verdict);
   sim["amplitude"] = a.simulated.amplitude;
@@ -649,10 +654,27 @@ PYBIND11_MODULE(core, m)
   m.def("dead_zone_df", &deadZoneDescribingFunction, py::arg("amplitude"), py::arg("half_width"),
         "The describing function of a unit-slope dead zone of half-width δ [rad] at input amplitude A [rad].");
   m.def("limit_cycle_prediction", &predictCycle, py::arg("config") = py::none(),
-        "backlash_df's analysis of a configuration (a dict or a YAML path; the continuous P law): the classical "
-        "describing function's predictions [{amplitude [rad], frequency [rad/s], stable, method, amplitude_error, "
-        "frequency_error}] beside the exact cycle {verdict, amplitude, peak, frequency, centre, simulated_time} "
-        "(docs/describing_function.md).");
+        "backlash_df's analysis of a configuration (a dict or a YAML path; the continuous P law): the classical and "
+        "the real element's numerical describing functions' predictions [{amplitude [rad], frequency [rad/s], stable, "
+        "method ('classical' | 'numerical'), amplitude_error, frequency_error}], numerical_note, beside the exact "
+        "cycle {verdict, amplitude, peak, frequency, centre, simulated_time} (docs/describing_function.md).");
+  m.def(
+      "driven_backlash",
+      [](const py::object& config, double amplitude, double frequency) {
+        const DrivenBacklash e = drivenBacklash(runConfigOf(config).params, amplitude, frequency);
+        py::dict d;
+        d["position"] = e.position;
+        d["torque"] = e.torque;
+        d["periodic"] = e.periodic;
+        d["periods"] = e.periods;
+        d["impacts"] = e.impacts;
+        return d;
+      },
+      py::arg("config") = py::none(), py::kw_only(), py::arg("amplitude"), py::arg("frequency"),
+      "The real backlash element of a configuration (its load, backlash and restitution) driven by ρθ_m = A sin ωt "
+      "(amplitude [rad], frequency ω [rad/s]): its describing functions from the exact periodic steady state — "
+      "position N_θ [-] and torque N_T [N·m/rad] (complex), periodic, periods, impacts a period "
+      "(docs/describing_function.md).");
   m.def(
       "harmonic_balance",
       [](const std::function<std::complex<double>(double)>& g, double backlash, double omega_lo, double omega_hi,

@@ -28,7 +28,8 @@ const char* HEADER =
                   [--png FILE.png]
 Predicts the joint's limit cycle by harmonic balance with the classical describing function of backlash (hysteresis
 in the feedback of the linear servo G(s) = w_n²/(s² + 2 zeta w_n s)) — every intersection with its stability — and
-simulates the joint exactly beside it: the cycle's amplitude (fundamental of the backlash input rho*theta_m about
+from each, with the numerical describing function of the real element (the load's inertia, friction and impacts,
+driven by an exact sine); and simulates the joint exactly beside them: the cycle's amplitude (fundamental of the backlash input rho*theta_m about
 its centre), peak and frequency, and the error of each prediction. The continuous P law (the thesis' loop) only.
 SI units: amplitudes in rad, frequencies in rad/s.
 )";
@@ -148,18 +149,22 @@ void report(const Options& o, const LimitCyclePrediction& a)
     w.field("natural_frequency", a.natural_frequency);
     w.field("backlash", p.backlash);
     w.beginArray("predictions");
-    for (const HarmonicBalance& h : predictions)
+    for (const auto* list : {&predictions, &a.numerical})
     {
-      w.beginObject();
-      w.field("amplitude", h.amplitude);
-      w.field("frequency", h.frequency);
-      w.field("stable", h.stable);
-      w.field("method", std::string("classical"));
-      w.field("amplitude_error", a.amplitudeError(h));
-      w.field("frequency_error", a.frequencyError(h));
-      w.endObject();
+      for (const HarmonicBalance& h : *list)
+      {
+        w.beginObject();
+        w.field("amplitude", h.amplitude);
+        w.field("frequency", h.frequency);
+        w.field("stable", h.stable);
+        w.field("method", std::string(list == &predictions ? "classical" : "numerical"));
+        w.field("amplitude_error", a.amplitudeError(h));
+        w.field("frequency_error", a.frequencyError(h));
+        w.endObject();
+      }
     }
     w.endArray();
+    w.field("numerical_note", a.numerical_note);
     w.beginObject("simulated");
     w.field("verdict", std::string(toString(sim.verdict)));
     w.field("amplitude", sim.amplitude);
@@ -182,18 +187,26 @@ void report(const Options& o, const LimitCyclePrediction& a)
   {
     std::cout << "predicted: no limit cycle (G(jw) never meets -1/N(A))\n";
   }
-  for (const HarmonicBalance& h : predictions)
+  for (const auto* list : {&predictions, &a.numerical})
   {
-    std::snprintf(buf, sizeof buf, "predicted (classical): %s cycle, amplitude %.6g rad, frequency %.6g rad/s",
-                  h.stable ? "stable" : "unstable", h.amplitude, h.frequency);
-    std::cout << buf;
-    if (cycle && h.stable)
+    for (const HarmonicBalance& h : *list)
     {
-      std::snprintf(buf, sizeof buf, " (%+.1f %% amplitude, %+.1f %% frequency against the exact cycle)",
-                    100.0 * a.amplitudeError(h), 100.0 * a.frequencyError(h));
+      std::snprintf(buf, sizeof buf, "predicted (%s): %s cycle, amplitude %.6g rad, frequency %.6g rad/s",
+                    list == &predictions ? "classical" : "numerical DF of the real element",
+                    h.stable ? "stable" : "unstable", h.amplitude, h.frequency);
       std::cout << buf;
+      if (cycle && h.stable)
+      {
+        std::snprintf(buf, sizeof buf, " (%+.1f %% amplitude, %+.1f %% frequency against the exact cycle)",
+                      100.0 * a.amplitudeError(h), 100.0 * a.frequencyError(h));
+        std::cout << buf;
+      }
+      std::cout << "\n";
     }
-    std::cout << "\n";
+  }
+  if (!a.numerical_note.empty())
+  {
+    std::cout << a.numerical_note << "\n";
   }
   if (cycle)
   {

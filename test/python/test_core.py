@@ -226,8 +226,9 @@ def test_limit_cycle_prediction_is_backlash_dfs_analysis(tmp_path):
     assert cli["predictions"] == [nulls(p) for p in a["predictions"]]
     assert cli["simulated"] == nulls(a["simulated"])
     assert a["simulated"]["verdict"] == "limit_cycle"
-    stable = [h for h in a["predictions"] if h["stable"]]
+    stable = [h for h in a["predictions"] if h["stable"] and h["method"] == "classical"]
     assert len(stable) == 1
+    assert cli["numerical_note"] == a["numerical_note"]
     h = stable[0]
     wn, zeta = a["natural_frequency"], a["zeta"]
     g = wn * wn / complex(-h["frequency"] ** 2, 2 * zeta * wn * h["frequency"])
