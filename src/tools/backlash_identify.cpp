@@ -49,7 +49,8 @@ simulator replays windows of the recording, each restarted from the measured sta
 (Levenberg-Marquardt) matches both angles; each estimate gets a standard error and its largest correlation with
 another. FILE.csv has the header time,motor_torque,motor_position,load_position (SI: s, N*m, rad on each body's
 own shaft; other columns are ignored; rows with an `event` are skipped, so backlash_sim's --csv is a recording),
-uniform time steps; the motor torque is the one applied from each sample to the next. The gear ratio must be known (a flag or the prior YAML).
+uniform time steps; the motor torque is the one applied from each sample to the next. FILE.bag is converted by
+backlash_bag_report --recording. The gear ratio must be known (a flag or the prior YAML).
 --output writes the prior with the estimates in place: a YAML every tool and the node accept.
 --experiment writes instead a command profile that informs the estimates (sines at three speeds, each reversal
 across the backlash), designed from the prior's gain, inertias and backlash, for the node or backlash_sim to run.
@@ -63,6 +64,7 @@ struct Options
   double duration = 60.0, travel = 0.0;
   double dither_amplitude = 0.0, dither_frequency = 0.0;  // [rad], [Hz]
   double motor_counts = 0.0, load_counts = 0.0;  // the prior's encoder resolutions [counts/rev] (no --contact-band)
+  std::string joint_states_topic, motor_joint, load_joint;  // a bag's JointState topic and joint names
   RunConfig prior_config;
   KeyValues prior;
   double gear_ratio = 0.0, contact_band = 0.0, still_speed = 0.0;
@@ -78,7 +80,14 @@ Options parse(int argc, char** argv)
       "backlash_identify", HEADER,
       keysOfSections({ParamSection::Servo, ParamSection::Drive, ParamSection::Initial, ParamSection::Run}),
       {{"config", "PRIOR.yaml", "what is known of the joint (the gear ratio at least); flags override it"},
-       {"data", "FILE.csv", "the recording: time,motor_torque,motor_position,load_position"},
+       {"data", "FILE.csv|FILE.bag",
+        "the recording: a CSV time,motor_torque,motor_position,load_position, or a bag (the node's, or any with a "
+        "sensor_msgs/JointState topic: see --joint-states)"},
+       {"joint_states", "TOPIC",
+        "a bag's sensor_msgs/JointState topic carrying both joints and the motor's effort "
+        "(default: the node's joint_states)"},
+       {"motor_joint", "NAME", "the motor's name in a bag's joint states (default motor_joint)"},
+       {"load_joint", "NAME", "the load's name in a bag's joint states (default load_joint)"},
        {"contact_band", "RAD",
         "a sample is in contact when its gap is this close to a flank [rad] (default: two counts of the gap when the "
         "angles lie on the count grid of the prior's encoder resolutions, else 1e-8 of the backlash, for exact data; "
@@ -118,6 +127,14 @@ Options parse(int argc, char** argv)
   Options o;
   o.config_path = parser.option("config");
   o.data_path = parser.option("data");
+  o.joint_states_topic = parser.option("joint_states");
+  o.motor_joint = parser.option("motor_joint");
+  o.load_joint = parser.option("load_joint");
+  const bool bag = o.data_path.size() > 4 && o.data_path.compare(o.data_path.size() - 4, 4, ".bag") == 0;
+  if (!bag && (parser.given("joint_states") || parser.given("motor_joint") || parser.given("load_joint")))
+  {
+    throw ConfigError("--joint-states, --motor-joint and --load-joint read a bag: give --data FILE.bag");
+  }
   o.output_path = parser.option("output");
   o.json = parser.given("json");
   o.experiment = parser.given("experiment");
@@ -440,7 +457,39 @@ int main(int argc, char** argv)
       std::cerr << "backlash_identify: wrote " << o.output_path << "\n";
       return 0;
     }
-    data = readRecording(o.data_path);
+    if (o.data_path.size() > 4 && o.data_path.compare(o.data_path.size() - 4, 4, ".bag") == 0)
+    {
+      // A bag: its joint_states converted by backlash_bag_report --recording (run without a shell) into a private
+      // directory, then read as a CSV.
+      TemporaryDirectory dir("backlash_identify_bag");
+      const std::string csv = dir.file("recording.csv");
+      std::vector<std::string> argv = {"/usr/bin/python3", helperBesideExecutable("backlash_bag_report.py"),
+                                       o.data_path, "--recording", csv};
+      for (const auto& [flag, value] : {std::make_pair(std::string("--joint-states"), o.joint_states_topic),
+                                        std::make_pair(std::string("--motor-joint"), o.motor_joint),
+                                        std::make_pair(std::string("--load-joint"), o.load_joint)})
+      {
+        if (!value.empty())
+        {
+          argv.insert(argv.end(), {flag, value});
+        }
+      }
+      if (o.joint_states_topic.empty())
+      {
+        argv.push_back("--json");  // (its report goes to stderr as one line: only the recording is wanted)
+      }
+      const int status = runProgram(argv);
+      if (status != 0)
+      {
+        throw ConfigError("--data: backlash_bag_report could not convert " + o.data_path + " (exit status " +
+                          std::to_string(status) + "; its message is above)");
+      }
+      data = readRecording(csv);
+    }
+    else
+    {
+      data = readRecording(o.data_path);
+    }
     // Angles on the count grid of the prior's encoders are measured ones: the gap is quantised by both counts.
     const auto onGrid = [](const std::vector<double>& angle, double counts) {
       const double per = counts / (2.0 * 3.14159265358979323846);

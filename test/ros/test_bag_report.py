@@ -39,6 +39,10 @@ class BagReport(unittest.TestCase):
             identified = json.loads(subprocess.run(["rosrun", "backlash_servo", "backlash_identify", "--data", recording,
                                                     "--gear-ratio", "1", "--json"], check=True, capture_output=True,
                                                    text=True).stdout)
+            # The bag itself as --data: converted by the same converter, identified the same.
+            direct = json.loads(subprocess.run(["rosrun", "backlash_servo", "backlash_identify", "--data", bag,
+                                                "--gear-ratio", "1", "--json"], check=True, capture_output=True,
+                                               text=True).stdout)
             self.assertTrue(os.path.getsize(os.path.join(d, "r.png")) > 10000)
             torn = subprocess.run(["/usr/bin/python3", REPORT, bag + ".active"], capture_output=True, text=True)
         report = json.loads(out)
@@ -50,6 +54,7 @@ class BagReport(unittest.TestCase):
         self.assertAlmostEqual(est["load_friction"], 0.32, delta=1e-2)  # (100 Hz samples of a continuous torque)
         self.assertAlmostEqual(est["restitution"], 1.0, delta=1e-2)
         self.assertTrue(identified["load_torque_given"])  # the limit cycle's contact pushes one way only
+        self.assertEqual({k: v["value"] for k, v in direct["estimates"].items()}, est)
         self.assertEqual(samples, 250 * 100 + 1)  # every 100 Hz sample, none dropped
         node = report["node"]
         self.assertEqual(node["verdict"], last.verdict)

@@ -1491,3 +1491,19 @@ TEST(IdentifyTool, EncoderCountsFromThePriorSetTheContactBand)
   ASSERT_EQ(code, 0) << exact;
   EXPECT_EQ(exact.find("contact band"), std::string::npos) << exact;
 }
+
+TEST(IdentifyTool, ABagIsConvertedByTheBagReport)
+{
+  // --data FILE.bag runs the bag report's converter (its identification is checked against the CSV route in
+  // bag_report.test); the bag's options need a bag, and a bag that cannot be read is refused naming it.
+  int code = 0;
+  const std::string csv = testing::TempDir() + "backlash_identify_not_a_bag.csv";
+  std::ofstream(csv) << "time,motor_torque,motor_position,load_position\n";
+  const std::string flags = runCapture(IDENTIFY + " --data " + csv + " --gear-ratio 1 --joint-states /js 2>&1", &code);
+  EXPECT_EQ(code, 2);
+  EXPECT_NE(flags.find("give --data FILE.bag"), std::string::npos) << flags;
+  const std::string missing = testing::TempDir() + "backlash_identify_missing.bag";
+  const std::string none = runCapture(IDENTIFY + " --data " + missing + " --gear-ratio 1 2>&1", &code);
+  EXPECT_EQ(code, 2);
+  EXPECT_NE(none.find("could not convert " + missing), std::string::npos) << none;
+}
