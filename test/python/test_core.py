@@ -288,11 +288,12 @@ def test_simulator_in_effort_mode_follows_the_motor_torque():
     assert sim.motor_torque == 2.0
 
 
-def test_identify_recovers_a_joint_from_its_recording():
-    # The simulator in effort mode records a joint under a torque excitation; identify() gets it back.
-    sim = core.Simulator({"restitution": 0.5, "load_coulomb_friction": 0.1, "load_torque": 0.2})
+def record_joint(config, samples):
+    """The simulator in effort mode as the joint: a torque excitation held over 1 kHz samples, both angles recorded
+    (time, motor_torque, motor_position, load_position)."""
+    sim = core.Simulator(config)
     t, u, m, l = [], [], [], []
-    for k in range(30001):
+    for k in range(samples):
         tk = k / 1000.0
         sim.advance(tk)
         uk = 1.5 * math.sin(1.3 * tk) + 0.8 * math.sin(4.1 * tk + 0.5)
@@ -302,6 +303,12 @@ def test_identify_recovers_a_joint_from_its_recording():
         u.append(uk)
         m.append(s["motor_position"])
         l.append(s["load_position"])
+    return t, u, m, l
+
+
+def test_identify_recovers_a_joint_from_its_recording():
+    # The simulator in effort mode records a joint under a torque excitation; identify() gets it back.
+    t, u, m, l = record_joint({"restitution": 0.5, "load_coulomb_friction": 0.1, "load_torque": 0.2}, 30001)
     e = core.identify(t, u, m, l, gear_ratio=1.0)
     assert e["backlash"] == pytest.approx(0.3, abs=1e-9)
     assert e["load_inertia"] == pytest.approx(0.9, rel=1e-3)
@@ -325,18 +332,7 @@ def test_identify_recovers_a_joint_from_its_recording():
 def test_identify_a_compliant_mesh_when_the_prior_says_so():
     # A prior with mesh_stiffness > 0 selects the compliant joint: its stiffness and damping are estimated (from a
     # guess 5x off), the restitution is not.
-    sim = core.Simulator({"mesh_stiffness": 1000.0, "mesh_damping": 2.0, "load_torque": 0.2})
-    t, u, m, l = [], [], [], []
-    for k in range(15001):
-        tk = k / 1000.0
-        sim.advance(tk)
-        uk = 1.5 * math.sin(1.3 * tk) + 0.8 * math.sin(4.1 * tk + 0.5)
-        sim.set_motor_torque(uk)
-        s = sim.state
-        t.append(tk)
-        u.append(uk)
-        m.append(s["motor_position"])
-        l.append(s["load_position"])
+    t, u, m, l = record_joint({"mesh_stiffness": 1000.0, "mesh_damping": 2.0, "load_torque": 0.2}, 15001)
     prior = {"gear_ratio": 1.0, "mesh_stiffness": 5000.0}
     e = core.identify(t, u, m, l, prior=prior, joint_fit="off")
     assert e["mesh_stiffness"] == pytest.approx(1000.0, rel=1e-2)

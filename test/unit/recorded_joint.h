@@ -10,6 +10,19 @@
 
 namespace backlash_servo
 {
+/// The test joints: the thesis' D1 with dry friction on both bodies (static above the Coulomb level) and a load
+/// torque.
+inline ServoParams dryFrictionJoint()
+{
+  ServoParams p;
+  p.motor_coulomb_friction = 0.05;
+  p.motor_static_friction = 0.12;
+  p.load_coulomb_friction = 0.1;
+  p.load_static_friction = 0.25;
+  p.load_torque = 0.2;
+  return p;
+}
+
 /// u(t) = a (1.5 sin 1.3t + 0.8 sin(4.1t + 0.5) + 0.3 sin 11t) [N·m]: reversals that carry the motor across the free
 /// play, contact motion both ways. `pauses`: times a slow envelope max(0, sin 0.7t) + 0.3, so the bodies come to rest
 /// now and then and must break away (static friction).

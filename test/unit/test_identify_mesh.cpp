@@ -22,14 +22,9 @@ namespace
 {
 ServoParams compliantTruth()
 {
-  ServoParams p;
+  ServoParams p = dryFrictionJoint();
   p.mesh_stiffness = 1000.0;  // contact frequency √(c/μ) = 105 rad/s, μ = 0.09 kg·m²: resolved at 1 kHz
   p.mesh_damping = 2.0;       // ζ_c ≈ 0.1
-  p.motor_coulomb_friction = 0.05;
-  p.motor_static_friction = 0.12;
-  p.load_coulomb_friction = 0.1;
-  p.load_static_friction = 0.25;
-  p.load_torque = 0.2;
   return p;
 }
 }  // namespace

@@ -23,13 +23,8 @@ Recording record(const ServoParams& p, double seconds, double rate, double a)
 
 ServoParams truth()
 {
-  ServoParams p;
+  ServoParams p = dryFrictionJoint();
   p.restitution = 0.5;
-  p.motor_coulomb_friction = 0.05;
-  p.motor_static_friction = 0.12;
-  p.load_coulomb_friction = 0.1;
-  p.load_static_friction = 0.25;
-  p.load_torque = 0.2;
   return p;
 }
 
