@@ -12,7 +12,8 @@
  *   F(t) = J_L ẍ + f_L ẋ + T_cL sgn ẋ, has the flank's sign (≥ 0 forward, ≤ 0 backward); it separates where F changes
  *   sign — F = R sin(ωt + φ) + const between the tooth's reversals, so its zeros are in closed form;
  * - **impacts**: a free load reaching a flank leaves it with θ̇_c = ẋ − e(θ̇_c − ẋ) (the tooth's velocity is not
- *   changed); a chatter of bounces ends on the flank once the relative speed is below 1e-10 Aω.
+ *   changed); a chatter of bounces ends on the flank once the speed of arrival is below what an arrival found within
+ *   the rounding tolerance ε gives, 4√(ε|F|/J_L), or 1e-10 Aω.
  * A free load's arrival at a flank is located without a step size: on a window the gap's second derivative lies
  * between bounds L ≤ g̈ ≤ U (the load's acceleration is monotone while it is free, the tooth's follows from the sine's
  * range), so g ≥ g_a + ġ_a τ + ½Lτ² and Δ − g ≥ Δ − g_a − ġ_a τ − ½Uτ² — a window where both quadratics stay positive

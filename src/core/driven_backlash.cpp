@@ -283,7 +283,10 @@ class Element
     c0_ = x(t0_) + offset;
     const double after = wall - e_ * (v - wall);
     const double sign = forward ? 1.0 : -1.0;
-    if (e_ == 0.0 || std::fabs(after - wall) <= 1e-10 * a_ * w_ || chatter_ > 64)
+    // The chatter ends on the flank once the bounce is slower than what an arrival found within the rounding
+    // tolerance (a penetration ε under the relative acceleration |F|/J_L gives 2√(ε|F|/J_L)) or 1e-10 Aω.
+    const double floor_speed = std::max(1e-10 * a_ * w_, 4.0 * std::sqrt(rounding_ * std::fabs(needed(t0_)) / j_));
+    if (e_ == 0.0 || std::fabs(v - wall) <= floor_speed || chatter_ > 64)
     {
       if (sign * needed(t0_) >= 0.0)
       {
