@@ -9,6 +9,7 @@
 #include "backlash_servo/params.h"
 #include "backlash_servo/replay_windows.h"
 #include "least_squares.h"
+#include "rest_runs.h"
 
 namespace backlash_servo
 {
@@ -335,28 +336,9 @@ InitialEstimates estimateInitial(const Recording& d, const IdentificationSetting
   RestBounds motor_alone, pair;
   const double text = out.load_torque.value;
   const auto net = [&](std::size_t k, int in) { return std::fabs(d.motor_torque[k] + (in == 0 ? 0.0 : rho * text)); };
-  for (std::size_t a = reach; a + reach + 1 < n;)
-  {
-    if (phase[a] == 2)
-    {
-      ++a;
-      continue;
-    }
-    // The run a … b−1 (samples): every angle within `band` of the others, one phase.
-    std::size_t b = a + 1;
-    double lowest = theta[a], highest = theta[a];
-    while (b + reach + 1 < n && phase[b] == phase[a] &&
-           std::max(highest, theta[b]) - std::min(lowest, theta[b]) <= band)
-    {
-      lowest = std::min(lowest, theta[b]);
-      highest = std::max(highest, theta[b]);
-      ++b;
-    }
-    if (b - a < min_rest)
-    {
-      ++a;
-      continue;
-    }
+  // (A run in one phase, never the mixed one.)
+  const auto together = [&phase](std::size_t a, std::size_t k) { return phase[a] != 2 && phase[k] == phase[a]; };
+  forEachRest(theta, band, reach, n - reach - 1, min_rest, together, [&](std::size_t a, std::size_t b) {
     RestBounds& bound = phase[a] == 0 ? motor_alone : pair;
     for (std::size_t k = a; k + 1 < b; ++k)  // the intervals inside the run
     {
@@ -369,8 +351,7 @@ InitialEstimates estimateInitial(const Recording& d, const IdentificationSetting
     {
       bound.high = std::min(bound.high, net(away, phase[a]));
     }
-    a = b;
-  }
+  });
   out.motor_static_friction = motor_alone.level();
   const Estimate combined_static = pair.level();
   if (std::isfinite(out.motor_static_friction.value) && std::isfinite(combined_static.value))

@@ -6,6 +6,7 @@
 
 #include "backlash_servo/params.h"
 #include "least_squares.h"
+#include "rest_runs.h"
 
 namespace backlash_servo
 {
@@ -197,21 +198,8 @@ InitialEstimates estimateCompliantInitial(const Recording& d, const Identificati
   const bool exact = !(s.contact_band > 0.0);
   const auto bounds = [&](const std::vector<double>& theta, auto net) {
     RestBounds b;
-    for (std::size_t a = reach; a + reach + 1 < n;)
-    {
-      std::size_t e = a + 1;  // the run a … e−1: every angle within the band of the others
-      double lowest = theta[a], highest = theta[a];
-      while (e + reach + 1 < n && std::max(highest, theta[e]) - std::min(lowest, theta[e]) <= band)
-      {
-        lowest = std::min(lowest, theta[e]);
-        highest = std::max(highest, theta[e]);
-        ++e;
-      }
-      if (e - a < min_rest)
-      {
-        ++a;
-        continue;
-      }
+    const auto always = [](std::size_t, std::size_t) { return true; };
+    forEachRest(theta, band, reach, n - reach - 1, min_rest, always, [&](std::size_t a, std::size_t e) {
       // Inside: the differences at the ends see the motion, and the filter spreads a breakaway over its support.
       for (std::size_t k = a + 1 + 2 * r; k + 2 + 4 * r < e; ++k)
       {
@@ -224,8 +212,7 @@ InitialEstimates estimateCompliantInitial(const Recording& d, const Identificati
       {
         b.high = std::min(b.high, net(away));
       }
-      a = e;
-    }
+    });
     if (b.low >= 0.0 && b.low > b.high)
     {
       // Crossed by the change of the mesh's torque within the sample interval of a breakaway (it moves with the
