@@ -13,9 +13,15 @@
  * angles it started at, which grow without bound over a run:
  *   x(τ) = x₀ + D V τ φ₁(Λτ) g,  g = V⁻¹D⁻¹v₀,  φ₁(z) = (e^z − 1)/z (φ₁(0) = 1),
  * a sum of damped sinusoids and exponentials at the mode's own frequencies plus the drift of its zero eigenvalues
- * (a free body under constant torque), O(n²) per evaluation. Otherwise (a zero eigenvalue without a full eigenspace:
- * a body without viscous friction, or a free body whose position drives the motor through the drive law, gives
- * polynomial terms) δ is its Taylor series in the balanced basis, δ̂(a + r) = Σ_j k_j r^j (k_0 = δ̂(a),
+ * (a free body under constant torque), O(n²) per evaluation. A zero eigenvalue without a full eigenspace (a body
+ * without viscous friction, a free body whose position drives the motor through the drive law, two bodies joined
+ * only by a spring) splits the space into invariant parts, ℝⁿ = range Â^K ⊕ ker Â^K (K the eigenvalue's index, both
+ * found by SVD of the powers of Â; exact structural zeros only, 1e-12 of the largest singular value): on the range
+ * Â is diagonalised as above, on the kernel it is a nilpotent block N (N^m = 0, m = dim ker Â^K), whose coordinates
+ * y obey ẏ = N y + g_N, y(0) = 0, so that
+ *   δ̂(τ) = Σ_{λ_k ≠ 0} V_k τ φ₁(λ_kτ) g_k + V_N Σ_{j<m} Nʲ g_N τ^{j+1}/(j + 1)!,
+ * damped sinusoids plus a polynomial of degree m, as cheap to evaluate. Otherwise (a defective eigenvalue that is not
+ * zero: a critically damped pair) δ is its Taylor series in the balanced basis, δ̂(a + r) = Σ_j k_j r^j (k_0 = δ̂(a),
  * k_1 = Âδ̂(a) + v̂₀, k_j = Âk_{j−1}/j), summed to rounding (TAYLOR_TERMS terms) from anchors a at multiples of
  * TAYLOR_STEP/‖Â‖₂ from the start, each anchor from the one before — exact to rounding, and a pure function of τ.
  * (The caller re-anchors long motions: CompliantJoint starts a new one every 4096 fast time scales without events.)
@@ -24,7 +30,8 @@
  *   s(a + t) = s(a) + s'(a) t + R(t),  |R(t)| ≤ ½ M t²,  M ≥ max |s''| on the window:
  * modally s''(τ) = Σ_k (wᵀDv_k) λ_k g_k e^{λ_k τ}, so M = Σ_k |(wᵀDv_k) λ_k g_k| e^{Re λ_k τ*}
  * with τ* the window's end where that mode's term is largest (tight: a single mode's amplitude times ω², the rigid
- * body's drift adding nothing); otherwise M = ‖(Dw)ᵀÂ‖₂ ‖D⁻¹ẋ(a)‖₂ e^{‖Â‖₂ h} (s'' = wᵀ A exp(A t) ẋ(a) in the
+ * body's drift adding nothing), plus Σ_{j≥1} |(Dw)·P_j| (j + 1) j τ_end^{j−1} for the polynomial part Σ_j P_j τ^{j+1};
+ * otherwise M = ‖(Dw)ᵀÂ‖₂ ‖D⁻¹ẋ(a)‖₂ e^{‖Â‖₂ h} (s'' = wᵀ A exp(A t) ẋ(a) in the
  * balanced basis x = D x̂, Â = D⁻¹AD, D a diagonal of powers of 2 (Parlett–Reinsch) so that ‖Â‖₂ is near the mode's
  * fastest frequency; ‖exp(Â t)‖₂ ≤ e^{‖Â‖₂ t}). A window on which the
  * linear part keeps one sign farther from 0 than ½ M h² plus the rounding of an evaluated output holds no zero. A
@@ -73,6 +80,8 @@ class ModeBasis
   const ModeMatrix& matrix() const { return a_; }
   /// Whether motions are evaluated modally (else by their Taylor series).
   bool modal() const { return modal_; }
+  /// The order of the modal form's polynomial part (0: none; see the file comment).
+  int polynomialOrder() const { return nil_; }
   /// ‖Â‖₂ [1/s] of the balanced matrix: the mode's fastest time scale is its inverse.
   double norm() const { return norm_a_; }
   /// The eigenvalues of A [1/s].
@@ -88,9 +97,15 @@ class ModeBasis
   double norm_a_ = 0.0;  // ‖Â‖₂
   bool modal_ = false;
   double rounding_ = 0.0;
-  ModeMatrixC v_;       // eigenvectors of Â (modal)
-  ModeVectorC lambda_;  // eigenvalues (modal)
-  ModeMatrixC v_inv_;   // V⁻¹ (modal)
+  ModeMatrixC v_;         // eigenvectors of Â (modal), then a real basis of the nilpotent block's subspace
+  ModeVectorC lambda_;    // eigenvalues (modal; 0 for the nilpotent block's coordinates)
+  ModeMatrixC v_inv_;     // V⁻¹ (modal)
+  int nil_ = 0;           // the order of the nilpotent block (the last nil_ columns of V)
+  ModeMatrix nilpotent_;  // N: Â restricted to ker Â^K in those coordinates (N^nil_ = 0)
+  /// Takes V, Λ (and a nilpotent block of that order in V's last columns) if V is well-conditioned.
+  bool useBasis(const Eigen::MatrixXcd& v, const Eigen::VectorXcd& lambda, int nilpotent_order);
+  /// The modal form with a polynomial part where Â's zero eigenvalue lacks eigenvectors (see the file comment).
+  void splitNilpotent(const Eigen::MatrixXd& b);
 };
 
 class LinearMode
@@ -133,6 +148,8 @@ class LinearMode
 
   /// Whether the closed form is the modal one (else the Taylor series).
   bool modal() const { return basis_->modal(); }
+  /// The order of its polynomial part (a zero eigenvalue without a full eigenspace), 0 if none.
+  int polynomialOrder() const { return basis_->polynomialOrder(); }
   /// The eigenvalues of A [1/s].
   Eigen::VectorXcd eigenvalues() const { return basis_->eigenvalues(); }
   /// ‖Â‖₂ [1/s] of the balanced matrix Â = D⁻¹AD: the mode's fastest time scale is its inverse.
@@ -144,6 +161,7 @@ class LinearMode
   struct Curvature
   {
     ModeVector beta, rate;
+    ModeVector poly;  // |(Dw)·P_j| (j + 1) j: the polynomial part's s'' = Σ_j ± poly_j τ^{j−1}
     double wa = 0.0;
   };
   Curvature curvature(const ModeVector& w) const;
@@ -166,6 +184,8 @@ class LinearMode
   ModeVector v0_;  // ẋ(0) = Ax₀ + u: the input of the deviation δ = x − x₀ the motion is solved for
   ModeVectorC g_;  // V⁻¹D⁻¹v₀ (modal)
   ModeVectorC g_over_lambda_;  // g/λ (modal)
+  ModeMatrix poly_;            // P_j = V_N Nʲ g_N / (j + 1)!: the polynomial part Σ_j P_j τ^{j+1} of δ̂ (modal)
+  unsigned moving_ = 0;        // bit i: coordinate i moves (with a polynomial part; see the constructor)
   // Without a modal basis: the anchors x̂ at multiples of step_ (all of the first DENSE_ANCHORS, then every
   // CHECKPOINT-th, and the farthest reached), and the Taylor coefficients of the anchors last used.
   double step_ = 0.0;

@@ -94,19 +94,106 @@ ModeBasis::ModeBasis(const Eigen::MatrixXd& a) : a_(a)
   const double eps = std::numeric_limits<double>::epsilon();
   rounding_ = 256.0 * eps;  // the Taylor steps' (a few ulps per step, over the steps of a long motion)
   const Eigen::EigenSolver<Eigen::MatrixXd> solver(b);
-  if (solver.info() == Eigen::Success)
+  if (solver.info() == Eigen::Success && useBasis(solver.eigenvectors(), solver.eigenvalues(), 0))
   {
-    const Eigen::MatrixXcd v = solver.eigenvectors();
-    const Eigen::JacobiSVD<Eigen::MatrixXcd> svd(v);
+    return;
+  }
+  splitNilpotent(b);
+}
+
+bool ModeBasis::useBasis(const Eigen::MatrixXcd& v, const Eigen::VectorXcd& lambda, int nilpotent_order)
+{
+  const Eigen::JacobiSVD<Eigen::MatrixXcd> svd(v);
+  const auto& sv = svd.singularValues();
+  if (!(sv(sv.size() - 1) > 0.0) || !(sv(0) / sv(sv.size() - 1) <= MAX_EIGENBASIS_CONDITION))
+  {
+    return false;
+  }
+  v_ = v;
+  lambda_ = lambda;
+  v_inv_ = v.inverse();
+  nil_ = nilpotent_order;
+  modal_ = true;
+  rounding_ = 64.0 * std::numeric_limits<double>::epsilon() * sv(0) / sv(sv.size() - 1);
+  return true;
+}
+
+void ModeBasis::splitNilpotent(const Eigen::MatrixXd& b)
+{
+  // Â's zero eigenvalue without a full eigenspace (a body's position, on which nothing depends or which only the
+  // drive law reads): ℝⁿ = ker Â^K ⊕ range Â^K for the index K of that eigenvalue, both invariant. On the range Â is
+  // invertible and diagonalised as usual; on the kernel it is nilpotent, so there the motion is a polynomial.
+  const Eigen::Index n = b.rows();
+  if (!(norm_a_ > 0.0))
+  {
+    return;
+  }
+  Eigen::MatrixXd power = Eigen::MatrixXd::Identity(n, n);
+  Eigen::MatrixXd kernel, range;
+  for (Eigen::Index k = 1; k <= n; ++k)
+  {
+    power = (b * power).eval();
+    const Eigen::JacobiSVD<Eigen::MatrixXd> svd(power, Eigen::ComputeFullU | Eigen::ComputeFullV);
     const auto& sv = svd.singularValues();
-    if (sv(sv.size() - 1) > 0.0 && sv(0) / sv(sv.size() - 1) <= MAX_EIGENBASIS_CONDITION)
+    // Exact zeros of a structurally singular Â (the case this is for) stay within a few ulps of its largest
+    // singular value's; anything larger is an eigenvalue that is merely small and is left to the check below.
+    Eigen::Index rank = 0;
+    while (rank < n && sv(rank) > 1e-12 * sv(0))
     {
-      v_ = v;
-      lambda_ = solver.eigenvalues();
-      v_inv_ = v.inverse();
-      modal_ = true;
-      rounding_ = 64.0 * eps * sv(0) / sv(sv.size() - 1);
+      ++rank;
     }
+    if (n - rank == kernel.cols())
+    {
+      break;  // ker Â^k no longer grows: the index is k − 1
+    }
+    kernel = svd.matrixV().rightCols(n - rank);
+    range = svd.matrixU().leftCols(rank);
+  }
+  const Eigen::Index m = kernel.cols(), r = n - m;
+  if (m == 0)
+  {
+    return;  // no zero eigenvalue: defective elsewhere (a critically damped pair), the Taylor series
+  }
+  Eigen::MatrixXd t(n, n);
+  t << range, kernel;
+  const Eigen::FullPivLU<Eigen::MatrixXd> lu(t);
+  if (!lu.isInvertible())
+  {
+    return;
+  }
+  const Eigen::MatrixXd blocks = lu.solve(b * t);
+  const Eigen::MatrixXd nil = blocks.bottomRightCorner(m, m);
+  Eigen::MatrixXd nil_power = Eigen::MatrixXd::Identity(m, m);
+  for (Eigen::Index k = 0; k < m; ++k)
+  {
+    nil_power = (nil * nil_power).eval();
+  }
+  // Both subspaces invariant and the kernel's block nilpotent, to rounding; else the Taylor series.
+  const double tol = 1e-10 * norm_a_;
+  if (blocks.topRightCorner(r, m).norm() > tol || blocks.bottomLeftCorner(m, r).norm() > tol ||
+      nil_power.norm() > 1e-10 * std::pow(norm_a_, static_cast<double>(m)))
+  {
+    return;
+  }
+  Eigen::MatrixXcd v(n, n);
+  Eigen::VectorXcd lambda = Eigen::VectorXcd::Zero(n);
+  if (r > 0)
+  {
+    const Eigen::EigenSolver<Eigen::MatrixXd> solver(blocks.topLeftCorner(r, r));
+    if (solver.info() != Eigen::Success)
+    {
+      return;
+    }
+    v << range * solver.eigenvectors(), kernel.cast<std::complex<double>>();
+    lambda.head(r) = solver.eigenvalues();
+  }
+  else
+  {
+    v = kernel.cast<std::complex<double>>();
+  }
+  if (useBasis(v, lambda, static_cast<int>(m)))
+  {
+    nilpotent_ = nil;
   }
 }
 
@@ -152,6 +239,49 @@ LinearMode::LinearMode(std::shared_ptr<const ModeBasis> basis, const ModeVector&
     {
       const std::complex<double> l = basis_->lambda_(k);
       g_over_lambda_(k) = l == 0.0 ? 0.0 : g_(k) / l;
+    }
+    // The nilpotent block's coordinates y (ẏ = N y + g_N, y(0) = 0): y(τ) = Σ_j Nʲ g_N τ^{j+1}/(j + 1)!, a polynomial.
+    const int m = basis_->nil_;
+    if (m > 0)
+    {
+      // The split's bases mix the coordinates, so a coordinate that does not move (δ_i = Σ_k (A^k v₀)_i τ^{k+1}/(k+1)!
+      // with every (A^k v₀)_i = 0, k < n: a body at rest that nothing acts on) would show rounding crumbs; those
+      // stay exactly where they are.
+      ModeVector krylov = v0_;
+      for (Eigen::Index k = 0; k < n; ++k)
+      {
+        for (Eigen::Index i = 0; i < n; ++i)
+        {
+          moving_ |= krylov(i) != 0.0 ? 1u << i : 0u;
+        }
+        krylov = affine(basis_->a_, krylov, ModeVector::Zero(n));
+      }
+    }
+    else
+    {
+      moving_ = ~0u;
+    }
+    poly_.resize(n, m);
+    ModeVector c(m);
+    for (int i = 0; i < m; ++i)
+    {
+      c(i) = g_(n - m + i).real();
+    }
+    for (int j = 0; j < m; ++j)
+    {
+      if (j > 0)
+      {
+        c = (basis_->nilpotent_ * c / static_cast<double>(j + 1)).eval();
+      }
+      for (Eigen::Index i = 0; i < n; ++i)
+      {
+        double sum = 0.0;
+        for (int l = 0; l < m; ++l)
+        {
+          sum += basis_->v_(i, n - m + l).real() * c(l);
+        }
+        poly_(i, j) = sum;
+      }
     }
   }
   else
@@ -283,8 +413,9 @@ ModeVector LinearMode::evaluate(double tau) const
   {
     // δ = D Σ_k v_k τ φ₁(λ_k τ) g_k: τφ₁(λτ) g = (e^{λτ} − 1) g/λ, by φ₁'s series where that would cancel.
     const ModeVectorC& lambda = basis_->lambda_;
-    ModeVectorC e(n);
-    for (Eigen::Index k = 0; k < n; ++k)
+    const Eigen::Index r = n - basis_->nil_;
+    ModeVectorC e(r);
+    for (Eigen::Index k = 0; k < r; ++k)
     {
       const std::complex<double> z = lambda(k) * tau;
       if (std::norm(z) < 0.01)
@@ -303,14 +434,23 @@ ModeVector LinearMode::evaluate(double tau) const
       }
     }
     ModeVector x = x0_;
+    const Eigen::Index m = basis_->nil_;
     for (Eigen::Index i = 0; i < n; ++i)
     {
       double sum = 0.0;
-      for (Eigen::Index k = 0; k < n; ++k)
+      for (Eigen::Index k = 0; k < r; ++k)
       {
         sum += basis_->v_(i, k).real() * e(k).real() - basis_->v_(i, k).imag() * e(k).imag();
       }
-      x(i) += sum * basis_->bal_(i);
+      double p = 0.0;  // Σ_j P_j τ^{j+1} (Horner)
+      for (Eigen::Index j = m - 1; j >= 0; --j)
+      {
+        p = (p + poly_(i, j)) * tau;
+      }
+      if (moving_ & (1u << i))
+      {
+        x(i) += (sum + p) * basis_->bal_(i);
+      }
     }
     return x;
   }
@@ -349,9 +489,9 @@ LinearMode::Curvature LinearMode::curvature(const ModeVector& w) const
   if (basis_->modal_)
   {
     // s''(τ) = Σ_k (wᵀD v_k) λ_k g_k e^{λ_k τ}: the drift of a zero eigenvalue has no curvature.
-    const Eigen::Index n = x0_.size();
-    ModeVectorC wv(n);
-    for (Eigen::Index k = 0; k < n; ++k)
+    const Eigen::Index n = x0_.size(), m = basis_->nil_, r = n - m;
+    ModeVectorC wv(r);
+    for (Eigen::Index k = 0; k < r; ++k)
     {
       std::complex<double> sum = 0.0;
       for (Eigen::Index i = 0; i < n; ++i)
@@ -360,13 +500,19 @@ LinearMode::Curvature LinearMode::curvature(const ModeVector& w) const
       }
       wv(k) = sum;
     }
-    k.beta.resize(n);
-    k.rate.resize(n);
-    for (Eigen::Index i = 0; i < n; ++i)
+    k.beta.resize(r);
+    k.rate.resize(r);
+    for (Eigen::Index i = 0; i < r; ++i)
     {
       const std::complex<double> l = basis_->lambda_(i);
       k.beta(i) = std::abs(wv(i) * l * g_(i));
       k.rate(i) = l.real();
+    }
+    // The polynomial part: s'' = Σ_{j ≥ 1} (Dw)·P_j (j + 1) j τ^{j−1}.
+    k.poly = ModeVector::Zero(m);
+    for (Eigen::Index j = 1; j < m; ++j)
+    {
+      k.poly(j) = std::fabs(w.cwiseProduct(basis_->bal_).dot(poly_.col(j))) * static_cast<double>((j + 1) * j);
     }
   }
   else
@@ -386,7 +532,13 @@ double LinearMode::curvatureBound(const Curvature& k, const ModeVector& x, doubl
     {
       m += k.beta(i) * std::exp(k.rate(i) * lo + std::max(0.0, k.rate(i) * h));
     }
-    return m * (1.0 + 64.0 * std::numeric_limits<double>::epsilon());
+    // The polynomial part's terms are largest at the window's end (τ ≥ 0).
+    double p = 0.0;
+    for (Eigen::Index j = k.poly.size() - 1; j >= 1; --j)
+    {
+      p = p * (lo + h) + k.poly(j);
+    }
+    return (m + p) * (1.0 + 64.0 * std::numeric_limits<double>::epsilon());
   }
   // ‖(Dw)ᵀÂ‖₂ ‖D⁻¹ẋ(lo)‖₂ e^{‖Â‖₂ h}.
   const ModeVector xd = affine(basis_->a_, x, u_);

@@ -47,7 +47,8 @@ TEST(LinearMode, TheSecondOrderStepIsItsClosedForm)
   EXPECT_NEAR(m.firstCrossing(vec({0.0, 1.0}), 0.0, -1, 10.0), M_PI / wd, 1e-14 * M_PI / wd);
 }
 
-// Two inertias joined by a spring c, nothing else (a free–free two-mass drive, A defective: the Taylor path): the
+// Two inertias joined by a spring c, nothing else (a free–free two-mass drive, A defective: the oscillation plus a
+// polynomial part of order 2 for the common drift): the
 // relative angle rings at ω² = c(1/J₁ + 1/J₂) as r₀ cos ωt, momentum is zero and the energy constant.
 TEST(LinearMode, ATwoMassDriveRingsAtItsAntiresonance)
 {
@@ -60,13 +61,14 @@ TEST(LinearMode, ATwoMassDriveRingsAtItsAntiresonance)
   a(3, 0) = c / j2;
   a(3, 2) = -c / j2;
   const LinearMode m(a, VectorXd::Zero(4), vec({r0, 0.0, 0.0, 0.0}));
-  EXPECT_FALSE(m.modal());
+  EXPECT_TRUE(m.modal());
+  EXPECT_EQ(m.polynomialOrder(), 2);
   const double w = std::sqrt(c * (1.0 / j1 + 1.0 / j2));
   const double e0 = 0.5 * c * r0 * r0;
   for (double t : {1e-4, 3e-3, 0.05, 1.0})
   {
     const VectorXd x = m.state(t);
-    EXPECT_NEAR(x(0) - x(2), r0 * std::cos(w * t), 1e-10 * r0) << t;  // (Taylor anchors over up to 8000 rad of phase)
+    EXPECT_NEAR(x(0) - x(2), r0 * std::cos(w * t), 1e-10 * r0) << t;
     EXPECT_NEAR(j1 * x(1) + j2 * x(3), 0.0, 1e-12 * j1 * r0 * w) << t;
     const double e = 0.5 * j1 * x(1) * x(1) + 0.5 * j2 * x(3) * x(3) + 0.5 * c * (x(0) - x(2)) * (x(0) - x(2));
     EXPECT_NEAR(e, e0, 1e-10 * e0) << t;
@@ -76,39 +78,73 @@ TEST(LinearMode, ATwoMassDriveRingsAtItsAntiresonance)
   EXPECT_NEAR(m.firstCrossing(rel, 0.0, +1, 1.0), 1.5 * M_PI / w, 1e-13);
 }
 
-// A body without friction under a constant torque (A = [[0, 1], [0, 0]], a Jordan block: no eigenbasis) is its
-// parabola θ₀ + ω₀τ + ½ατ² over a thousand seconds (two thousand Taylor anchors) and 1e5 s, and it reaches a level at
-// the root of that quadratic.
+// A body without friction under a constant torque (A = [[0, 1], [0, 0]], a Jordan block: no eigenbasis, A nilpotent
+// as a whole) is its parabola θ₀ + ω₀τ + ½ατ² — the polynomial part alone — at any τ, and it reaches a level at the
+// root of that quadratic.
 TEST(LinearMode, ADefectiveModeIsItsPolynomial)
 {
   MatrixXd a(2, 2);
   a << 0.0, 1.0, 0.0, 0.0;
   const double th0 = 0.3, w0 = -2.0, alpha = 0.01;
   const LinearMode m(a, vec({0.0, alpha}), vec({th0, w0}));
-  EXPECT_FALSE(m.modal());
-  for (double t : {1e-3, 0.7, 12.5, 399.0, 1000.0})
+  EXPECT_TRUE(m.modal());
+  EXPECT_EQ(m.polynomialOrder(), 2);
+  for (double t : {1e-3, 0.7, 12.5, 399.0, 1000.0, 3.3e4, 1e5})
   {
     const double th = th0 + w0 * t + 0.5 * alpha * t * t;
-    EXPECT_NEAR(m.state(t)(0), th, 1e-13 * (std::fabs(th) + std::fabs(w0 * t) + 1.0)) << t;
-    EXPECT_NEAR(m.state(t)(1), w0 + alpha * t, 1e-13 * (std::fabs(w0) + alpha * t)) << t;
+    EXPECT_NEAR(m.state(t)(0), th, 1e-14 * (std::fabs(th) + std::fabs(w0 * t) + 1.0)) << t;
+    EXPECT_NEAR(m.state(t)(1), w0 + alpha * t, 1e-14 * (std::fabs(w0) + alpha * t)) << t;
   }
-  // Far on (2e5 anchors: beyond those all kept) and back (between kept ones): the same parabola, and the same bits
-  // asked again after going back — a pure function of τ.
-  const VectorXd far = m.state(1e5);
-  for (double t : {4e4 + 0.3, 1e5, 3.3e4, 9e4 + 0.1})
-  {
-    const double th = th0 + w0 * t + 0.5 * alpha * t * t;
-    EXPECT_NEAR(m.state(t)(0), th, 1e-10 * std::fabs(th)) << t;
-  }
-  EXPECT_EQ(m.state(1e5), far);
   // θ = 50 upward: ½ατ² + ω₀τ + θ₀ − 50 = 0, the larger root.
   const double c = th0 - 50.0, root = (-w0 + std::sqrt(w0 * w0 - 2.0 * alpha * c)) / alpha;
   EXPECT_NEAR(m.firstCrossing(vec({1.0, 0.0}), -50.0, +1, 1e4), root, 1e-12 * root);
 }
 
+// A defective eigenvalue that is not zero (a critically damped pair under a constant force, A = [[0, 1], [−ω², −2ω]])
+// has no modal form: its Taylor series from anchors, against x_∞ + (d₀ + (v₀ + ωd₀)τ)e^{−ωτ} (d₀ = x₀ − x_∞), over
+// a thousand time scales and far beyond (8e4 anchors: past those all kept) and back — the same bits asked again after
+// going back, a pure function of τ — and its crossing of a level against a dense scan of that closed form.
+TEST(LinearMode, ACriticallyDampedModeIsItsTaylorSeries)
+{
+  const double w = 2.0, f = 3.0, x0 = 0.4, v0 = 5.0;
+  MatrixXd a(2, 2);
+  a << 0.0, 1.0, -w * w, -2.0 * w;
+  const LinearMode m(a, vec({0.0, f}), vec({x0, v0}));
+  EXPECT_FALSE(m.modal());
+  const double xinf = f / (w * w), d0 = x0 - xinf;
+  const auto exact = [&](double t) { return xinf + (d0 + (v0 + w * d0) * t) * std::exp(-w * t); };
+  for (double t : {1e-3, 0.7, 3.0, 12.5, 399.0})
+  {
+    EXPECT_NEAR(m.state(t)(0), exact(t), 1e-13) << t;
+  }
+  const VectorXd far = m.state(2e4);
+  for (double t : {1.2e4 + 0.3, 2e4, 8e3, 1.8e4 + 0.1})
+  {
+    EXPECT_NEAR(m.state(t)(0), xinf, 1e-13) << t;
+  }
+  EXPECT_EQ(m.state(2e4), far);
+  // x rises from 0.4 over its peak and falls back through 1.0 once: the falling crossing.
+  double lo = 0.0, hi = 0.0;
+  for (double t = 1e-4;; t += 1e-4)
+  {
+    if (exact(t - 1e-4) >= 1.0 && exact(t) < 1.0)
+    {
+      lo = t - 1e-4;
+      hi = t;
+      break;
+    }
+  }
+  for (int i = 0; i < 60; ++i)
+  {
+    const double mid = 0.5 * (lo + hi);
+    (exact(mid) >= 1.0 ? lo : hi) = mid;
+  }
+  EXPECT_NEAR(m.firstCrossing(vec({1.0, 0.0}), -1.0, -1, 100.0), hi, 1e-12);
+}
+
 // The free mode of a joint under the continuous law: the motor driven by the free load's position
-// (J_m ω̇_m = a − kθ_c − f_m ω_m, J_L ω̇_c = −f_L ω_c; two zero eigenvalues, one eigenvector: no eigenbasis) against
-// RK4 on the same equations with a step of 1e-4 s.
+// (J_m ω̇_m = a − kθ_c − f_m ω_m, J_L ω̇_c = −f_L ω_c; two zero eigenvalues, one eigenvector: no eigenbasis, the modal
+// form with a polynomial part) against RK4 on the same equations with a step of 1e-4 s.
 TEST(LinearMode, TheDriveLawsFreeModeAgainstRK4)
 {
   const double jm = 0.1, jl = 0.9, fm = 0.48, fl = 0.32, k = 1.0, off = 1.0;
@@ -121,7 +157,8 @@ TEST(LinearMode, TheDriveLawsFreeModeAgainstRK4)
   const VectorXd u = vec({0.0, off / jm, 0.0, 0.0});
   const VectorXd x0 = vec({0.2, -0.5, 0.1, 1.5});
   const LinearMode m(a, u, x0);
-  EXPECT_FALSE(m.modal());
+  EXPECT_TRUE(m.modal());
+  EXPECT_EQ(m.polynomialOrder(), 2);
   VectorXd x = x0;
   const double h = 1e-4;
   long step = 0;
