@@ -36,8 +36,9 @@
  * fastest frequency; ‖exp(Â t)‖₂ ≤ e^{‖Â‖₂ t}). A window on which the
  * linear part keeps one sign farther from 0 than ½ M h² plus the rounding of an evaluated output holds no zero. A
  * window where |s'(a)| > M h has a derivative of one sign, so s is monotone there: one zero at most, bracketed by the
- * signs at its ends and refined to the last representable bit (the ITP method: regula falsi made two-sided and
- * never slower than bisection). Any other window is halved, earliest half
+ * signs at its ends and refined until both ends are adjacent doubles or within a few ulps of the output's terms,
+ * where the sign of s means nothing more (the ITP method: regula falsi made two-sided and never slower than
+ * bisection); the end past the crossing is the event. Any other window is halved, earliest half
  * first. Windows start as long as the exclusion is likely to pass (h = √(|s(a)|/M), at most 1/‖Â‖₂); halving stops at
  * the floor h_min = FLOOR_FRACTION / ‖Â‖₂ — only near a turning point of s that lies within h_min·|s'| of zero — where
  * a sign change in the asked direction is the crossing and none is a **grazing**, reported as no crossing. That is the
@@ -100,6 +101,7 @@ class ModeBasis
   ModeMatrixC v_;         // eigenvectors of Â (modal), then a real basis of the nilpotent block's subspace
   ModeVectorC lambda_;    // eigenvalues (modal; 0 for the nilpotent block's coordinates)
   ModeMatrixC v_inv_;     // V⁻¹ (modal)
+  ModeVector weight_;     // per eigenvalue: 1, or 2 and 0 for a complex pair (only the first evaluated, doubled)
   int nil_ = 0;           // the order of the nilpotent block (the last nil_ columns of V)
   ModeMatrix nilpotent_;  // N: Â restricted to ker Â^K in those coordinates (N^nil_ = 0)
   /// Takes V, Λ (and a nilpotent block of that order in V's last columns) if V is well-conditioned.
@@ -175,8 +177,8 @@ class LinearMode
   double noise(const ModeVector& w, double w0, const ModeVector& x) const;
   /// What rounding can do to w·v of a rate v = A x + u (or a higher derivative) computed from an evaluated state.
   double rateNoise(const ModeVector& w, const ModeVector& v) const;
-  /// The bracketed crossing in (lo, hi] (direction·s(lo) ≤ 0 < direction·s(hi)) refined to adjacent doubles (ITP);
-  /// returns the end past it.
+  /// The bracketed crossing in (lo, hi] (direction·s(lo) ≤ 0 < direction·s(hi)) refined to adjacent doubles or to a
+  /// few ulps of the output's terms (ITP); returns the end past it.
   double refine(const ModeVector& w, double w0, int direction, double lo, double hi) const;
 
   std::shared_ptr<const ModeBasis> basis_;

@@ -342,7 +342,9 @@ TEST(FrequencyResponse, ExactSineOnAPressedCompliantMeshIsTheTwoMassTransferFunc
     const cd a11 = p.motor_inertia * s2 + p.motor_friction * jw + rho * rho * km, a12 = k - rho * km;
     const cd a21 = -rho * km, a22 = p.load_inertia * s2 + p.load_friction * jw + km;
     const cd expected = -a21 * k / (a11 * a22 - a12 * a21);  // Θ_c/R by Cramer's rule
-    EXPECT_LT(std::abs(r.response - expected), 1e-9 * std::abs(expected)) << "command " << w;
+    // (Above the anti-resonance the load moves 2e-5 rad about angles near 1 rad: its response is resolved to the
+    // rounding those angles carry through the run's segments, ~1e-13 rad per rad of command, 6e-9 of it at 45 rad/s.)
+    EXPECT_LT(std::abs(r.response - expected), std::max(1e-9 * std::abs(expected), 1e-12)) << "command " << w;
   }
 }
 
