@@ -2,7 +2,8 @@
  * @file limit_cycle_prediction.h
  * @brief The describing-function analysis of the thesis' loop beside the exact cycle, as backlash_df and the Python
  *        module run it: harmonic balance of the classical DF of backlash (describing_function.h) with the linear
- *        servo, and the exact simulated cycle's fundamental. No ROS dependency.
+ *        servo (the continuous law, or a digital P/PID drive), and the exact simulated cycle's fundamental. No ROS
+ *        dependency.
  *
  * **The loop.** Under the continuous P law the backlash element's input is x = ρθ_m, driven by the error through the
  * linear servo ẍ + 2ζω_n ẋ = ω_n²(θ_R − θ_c): G(jω) = ω_n² / (−ω² + 2jζω_n ω), the element's output θ_c fed back
@@ -18,6 +19,14 @@
  * 1e-4) from each classical prediction. Stability by Loeb's criterion on E (E = (D/ρ)(G N + 1) near a solution in the
  * classical limit, D/ρ ≠ 0, so the criterion carries over). Taken when there is no load torque (the element's cycle
  * must be symmetric); a Newton that does not converge (a non-periodic element: its DFs are means) gives no prediction.
+ *
+ * **A digital drive** (P or PID on the load's angle, sampled at f_s = 1/T, held; optionally one sample late): its
+ * torque's fundamental per unit of the load angle's is
+ *   K(jω) = C(e^{jωT}) (1 − e^{−jωT})/(jωT) [e^{−jωT}],  C(z) = K + K_i T/(1 − z⁻¹) + K_d (1 − z⁻¹)/T
+ * (the drive's recurrence: backward-rectangle integral, derivative of the measurement; the hold's fundamental; the
+ * delay), and replaces K in both balances: G(jω) = thesisLoop · K(jω)/K, and K N_θ in E. An approximation beyond the
+ * DF's own: the sampled harmonics of θ_c alias onto the fundamental — small while the cycle is slow against the
+ * sampling, and the search stops at the Nyquist frequency π f_s.
  *
  * **The exact cycle.** The joint is run until its verdict settles (runResponse); on a limit cycle one more period
  * from the settled state is sampled at 4096 even points, and the fundamental of ρθ_m about its mean gives the
@@ -59,24 +68,34 @@ struct LimitCyclePrediction
   double frequencyError(const HarmonicBalance& h) const;
 };
 
-/// G(jω) of the loop's linear part as the backlash element sees it (see the file comment).
+/// G(jω) of the loop's linear part under the continuous P law, as the backlash element sees it (see the file comment).
 std::complex<double> thesisLoop(const ServoParams& params, double omega);
 
+/// K(jω) [N·m/rad]: the drive law's torque per unit of the load angle's error, in the fundamental at ω [rad/s] (see
+/// the file comment; K for the continuous law).
+std::complex<double> lawGain(const ServoParams& params, const DriveParams& drive, double omega);
+
+/// G(jω) of the loop with the configured law: thesisLoop · K(jω)/K.
+std::complex<double> loopResponse(const ServoParams& params, const DriveParams& drive, double omega);
+
 /// E(A, ω) of the real element's balance [N·m/rad] (see the file comment): amplitude A [rad], ω [rad/s].
-std::complex<double> elementBalance(const ServoParams& params, double amplitude, double omega);
+std::complex<double> elementBalance(const ServoParams& params, double amplitude, double omega,
+                                    const DriveParams& drive = DriveParams());
 
 /// The real element's balance E = 0 solved from `start` (a classical prediction); false when Newton's method does not
 /// converge within 20 steps (a step below 1e-7 in ln A and ln ω, |E| below 1e-5 K) or leaves A > Δ/2, ω within 1e±4
 /// ω_n.
-bool numericalHarmonicBalance(const ServoParams& params, const HarmonicBalance& start, HarmonicBalance* out);
+bool numericalHarmonicBalance(const ServoParams& params, const HarmonicBalance& start, HarmonicBalance* out,
+                              const DriveParams& drive = DriveParams());
 
-/// The exact cycle of `config` (the continuous P law with a constant command).
+/// The exact cycle of `config` (a constant command; the continuous law or a digital drive).
 SimulatedCycle simulateCycle(const RunConfig& config);
 
-/**
- * The whole analysis. Throws InvalidParameterError for a configuration other than the continuous P law with a
- * constant command (no controller_rate, torque_limit, compensation or profile) or without backlash.
- */
+/// Throws InvalidParameterError, naming the key, for what the analysis does not take: a profile, a torque limit, a
+/// compensator, a digital law other than P or PID, motor feedback, load encoder counts, or no backlash.
+void requireDescribable(const RunConfig& config);
+
+/// The whole analysis (requireDescribable first).
 LimitCyclePrediction predictLimitCycle(const RunConfig& config);
 
 }  // namespace backlash_servo

@@ -1,5 +1,6 @@
 #include "backlash_servo/limit_cycle_prediction.h"
 
+#include <algorithm>
 #include <cmath>
 
 #include "backlash_servo/driven_backlash.h"
@@ -32,19 +33,49 @@ std::complex<double> thesisLoop(const ServoParams& p, double w)
   return wn * wn / std::complex<double>(-w * w, 2.0 * zeta * wn * w);
 }
 
-std::complex<double> elementBalance(const ServoParams& p, double a, double w)
+std::complex<double> lawGain(const ServoParams& p, const DriveParams& d, double w)
+{
+  if (!d.sampled())
+  {
+    return p.gain;
+  }
+  const double t = 1.0 / d.controller_rate;
+  const std::complex<double> back = 1.0 - std::exp(std::complex<double>(0.0, -w * t));  // 1 − z⁻¹ at z = e^{jωT}
+  std::complex<double> c = p.gain;
+  if (d.control_law == "pid")
+  {
+    c += d.integral_gain * t / back + d.derivative_gain * back / t;
+  }
+  std::complex<double> k = c * back / std::complex<double>(0.0, w * t);  // the hold's fundamental
+  if (d.controller_delay > 0.0)
+  {
+    k *= std::exp(std::complex<double>(0.0, -w * t));
+  }
+  return k;
+}
+
+std::complex<double> loopResponse(const ServoParams& p, const DriveParams& d, double w)
+{
+  return thesisLoop(p, w) * (lawGain(p, d, w) / p.gain);
+}
+
+std::complex<double> elementBalance(const ServoParams& p, double a, double w, const DriveParams& drive)
 {
   const DrivenBacklash d = drivenBacklash(p, a, w);
   const double rho = p.gear_ratio;
   return std::complex<double>(-w * w * p.motor_inertia, w * p.motor_friction) / rho +
-         std::complex<double>(0.0, 4.0 * p.motor_coulomb_friction / (PI * a)) + p.gain * d.position + rho * d.torque;
+         std::complex<double>(0.0, 4.0 * p.motor_coulomb_friction / (PI * a)) + lawGain(p, drive, w) * d.position +
+         rho * d.torque;
 }
 
-bool numericalHarmonicBalance(const ServoParams& p, const HarmonicBalance& start, HarmonicBalance* out)
+bool numericalHarmonicBalance(const ServoParams& p, const HarmonicBalance& start, HarmonicBalance* out,
+                              const DriveParams& drive)
 {
   // Newton in (u, v) = (ln A, ln ω) on (Re E, Im E) / K.
   double u = std::log(start.amplitude), v = std::log(start.frequency);
-  const auto e = [&p](double uu, double vv) { return elementBalance(p, std::exp(uu), std::exp(vv)) / p.gain; };
+  const auto e = [&p, &drive](double uu, double vv) {
+    return elementBalance(p, std::exp(uu), std::exp(vv), drive) / p.gain;
+  };
   try
   {
     constexpr double STEP = 1e-4;
@@ -112,54 +143,106 @@ SimulatedCycle simulateCycle(const RunConfig& config)
   {
     return c;
   }
-  // One more period from the settled state, sampled evenly: the continuous law's state is the plant's.
+  // One more period from the settled state, sampled evenly: the continuous law's state is the plant's; a digital
+  // drive's (its integral, the torque it holds) is not, so that run is repeated up to there (it is deterministic).
   const double period = r.status.period, rho = config.params.gear_ratio;
-  Simulator sim(config.params, r.final_state, config.command);
   const double t0 = r.final_state.time;
+  Simulator sim = config.drive.sampled() ? makeSimulator(run) : Simulator(config.params, r.final_state, config.command);
+  sim.advanceTo(t0);
   std::vector<double> x(CYCLE_SAMPLES);
   for (int k = 0; k < CYCLE_SAMPLES; ++k)
   {
     sim.advanceTo(t0 + period * k / CYCLE_SAMPLES);
     x[static_cast<std::size_t>(k)] = rho * sim.state().motor_position;
   }
-  double mean = 0.0, b1 = 0.0, a1 = 0.0;
-  for (int k = 0; k < CYCLE_SAMPLES; ++k)
+  // The fundamental: the strongest of the period's first four harmonics (a digital loop's cycle repeats to rounding
+  // only after a few of its swings when they do not span whole samples: the monitor's period is then that multiple).
+  double mean = 0.0;
+  for (double v : x)
   {
-    const double theta = 2.0 * PI * k / CYCLE_SAMPLES, v = x[static_cast<std::size_t>(k)];
     mean += v;
-    b1 += v * std::sin(theta);
-    a1 += v * std::cos(theta);
   }
   c.centre = mean / CYCLE_SAMPLES;
-  c.amplitude = 2.0 / CYCLE_SAMPLES * std::hypot(a1, b1);
+  int harmonic = 1;
+  c.amplitude = 0.0;
+  for (int m = 1; m <= 4; ++m)
+  {
+    double a1 = 0.0, b1 = 0.0;
+    for (int k = 0; k < CYCLE_SAMPLES; ++k)
+    {
+      const double theta = 2.0 * PI * m * k / CYCLE_SAMPLES, v = x[static_cast<std::size_t>(k)];
+      b1 += v * std::sin(theta);
+      a1 += v * std::cos(theta);
+    }
+    const double amplitude = 2.0 / CYCLE_SAMPLES * std::hypot(a1, b1);
+    if (amplitude > c.amplitude)
+    {
+      c.amplitude = amplitude;
+      harmonic = m;
+    }
+  }
   c.peak = 0.0;
   for (double v : x)
   {
     c.peak = std::max(c.peak, std::fabs(v - c.centre));
   }
-  c.frequency = 2.0 * PI / period;
+  c.frequency = 2.0 * PI * harmonic / period;
   return c;
+}
+
+void requireDescribable(const RunConfig& config)
+{
+  const DriveParams& d = config.drive;
+  const auto refuse = [](const char* key, const std::string& why) {
+    throw InvalidParameterError(key,
+                                "the describing-function analysis takes a linear loop around the backlash: " + why);
+  };
+  if (config.profile)
+  {
+    refuse("profile", "a constant command, not a profile");
+  }
+  if (d.torque_limit != 0.0)
+  {
+    refuse("torque_limit", "no torque limit (a saturation is a second non-linearity)");
+  }
+  if (d.compensation != "none")
+  {
+    refuse("compensation", "no compensator");
+  }
+  if (d.sampled())
+  {
+    if (d.control_law != "proportional" && d.control_law != "pid")
+    {
+      refuse("control_law", "the P or PID law (not '" + d.control_law + "')");
+    }
+    if (d.feedback != "load")
+    {
+      refuse("feedback", "the load's angle fed back, the backlash inside the loop (not '" + d.feedback + "')");
+    }
+    if (d.load_encoder_resolution > 0.0)
+    {
+      refuse("load_encoder_resolution", "an ideal load encoder (counts are a second non-linearity)");
+    }
+  }
+  if (!(config.params.backlash > 0.0))
+  {
+    throw InvalidParameterError("backlash", "must be > 0: without backlash there is no describing function to balance");
+  }
 }
 
 LimitCyclePrediction predictLimitCycle(const RunConfig& config)
 {
-  if (!config.drive.thesisLaw() || config.profile)
-  {
-    throw InvalidParameterError("controller_rate",
-                                "the describing-function analysis takes the continuous P law with a constant command "
-                                "(no controller_rate, torque_limit, compensation or profile)");
-  }
+  requireDescribable(config);
   const ServoParams& p = config.params;
-  if (!(p.backlash > 0.0))
-  {
-    throw InvalidParameterError("backlash", "must be > 0: without backlash there is no describing function to balance");
-  }
+  const DriveParams& drive = config.drive;
   LimitCyclePrediction out;
   out.zeta = p.dampingRatio();
   out.natural_frequency = p.naturalFrequency();
   const double wn = out.natural_frequency;
+  // (A sampled loop's fundamental is its own only below the Nyquist frequency π f_s.)
+  const double top = drive.sampled() ? std::min(1e4 * wn, PI * drive.controller_rate) : 1e4 * wn;
   out.predictions =
-      backlashHarmonicBalance([&p](double w) { return thesisLoop(p, w); }, p.backlash, 1e-4 * wn, 1e4 * wn);
+      backlashHarmonicBalance([&](double w) { return loopResponse(p, drive, w); }, p.backlash, 1e-4 * wn, top);
   if (p.load_torque != 0.0)
   {
     out.numerical_note = "no numerical DF: with a load torque the element's cycle is not symmetric";
@@ -169,7 +252,7 @@ LimitCyclePrediction predictLimitCycle(const RunConfig& config)
     for (const HarmonicBalance& h : out.predictions)
     {
       HarmonicBalance n;
-      if (numericalHarmonicBalance(p, h, &n))
+      if (numericalHarmonicBalance(p, h, &n, drive))
       {
         out.numerical.push_back(n);
       }

@@ -29,9 +29,11 @@ const char* HEADER =
 Predicts the joint's limit cycle by harmonic balance with the classical describing function of backlash (hysteresis
 in the feedback of the linear servo G(s) = w_n²/(s² + 2 zeta w_n s)) — every intersection with its stability — and
 from each, with the numerical describing function of the real element (the load's inertia, friction and impacts,
-driven by an exact sine); and simulates the joint exactly beside them: the cycle's amplitude (fundamental of the backlash input rho*theta_m about
-its centre), peak and frequency, and the error of each prediction. The continuous P law (the thesis' loop) only.
-SI units: amplitudes in rad, frequencies in rad/s.
+driven by an exact sine); and simulates the joint exactly beside them: the cycle's amplitude (fundamental of the
+backlash input rho*theta_m about its centre), peak and frequency, and the error of each prediction. The continuous P
+law (the thesis' loop), or a digital P or PID law on the load's angle (--controller-rate, --control-law pid, optional
+--controller-delay 1): its sampled-and-held fundamental K(jw) takes the place of K. SI units: amplitudes in rad,
+frequencies in rad/s.
 )";
 
 struct Options
@@ -59,16 +61,7 @@ Options parse(int argc, char** argv)
   {
     throw ConfigError("--png: '" + o.png_path + "' must end in .png");
   }
-  if (!o.config.drive.thesisLaw() || o.config.profile)
-  {
-    throw ConfigError(
-        "backlash_df analyses the continuous P law with a constant command (no controller_rate, "
-        "torque_limit, compensation or profile)");
-  }
-  if (!(o.config.params.backlash > 0.0))
-  {
-    throw ConfigError("--backlash must be > 0: without backlash there is no describing function to balance");
-  }
+  requireDescribable(o.config);  // (refused before any run, with the key named)
   return o;
 }
 
@@ -183,6 +176,16 @@ void report(const Options& o, const LimitCyclePrediction& a)
                 "the linear servo)\n",
                 p.dampingRatio(), p.naturalFrequency(), p.backlash);
   std::cout << buf;
+  const DriveParams& d = o.config.drive;
+  if (d.sampled())
+  {
+    std::snprintf(buf, sizeof buf,
+                  "law: digital %s at %.6g Hz%s, its fundamental K(jw) in place of K (aliasing neglected; "
+                  "frequencies below pi*f_s = %.6g rad/s)\n",
+                  d.control_law == "pid" ? "PID" : "P", d.controller_rate,
+                  d.controller_delay > 0.0 ? ", one sample late" : "", 3.14159265358979323846 * d.controller_rate);
+    std::cout << buf;
+  }
   if (predictions.empty())
   {
     std::cout << "predicted: no limit cycle (G(jw) never meets -1/N(A))\n";
@@ -251,7 +254,8 @@ int main(int argc, char** argv)
     const ServoParams& p = o.config.params;
     if (png)
     {
-      drawChart([&p](double w) { return thesisLoop(p, w); }, analysis.natural_frequency, p.backlash,
+      const DriveParams& d = o.config.drive;
+      drawChart([&p, &d](double w) { return loopResponse(p, d, w); }, analysis.natural_frequency, p.backlash,
                 analysis.predictions, analysis.simulated, chart_script, *png);
     }
     report(o, analysis);

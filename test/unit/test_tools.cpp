@@ -897,7 +897,8 @@ TEST(DescribingFunctionTool, PredictsByHarmonicBalanceAndMeasuresTheExactCycle)
   std::remove(csv_path.c_str());
 }
 
-// D1 (ζ = 0.4) limit-cycles, yet the classical DF predicts no cycle: said, not hidden; other laws are refused.
+// D1 (ζ = 0.4) limit-cycles, yet the classical DF predicts no cycle: said, not hidden; laws the analysis does not
+// take are refused naming the key; a digital P law is analysed.
 TEST(DescribingFunctionTool, SaysWhenTheClassicalDfSeesNoCycleAndRefusesOtherLaws)
 {
   int code = 0;
@@ -906,12 +907,21 @@ TEST(DescribingFunctionTool, SaysWhenTheClassicalDfSeesNoCycleAndRefusesOtherLaw
   ASSERT_EQ(code, 0) << json;
   EXPECT_NE(json.find("\"predictions\":[]"), std::string::npos) << json;
   EXPECT_EQ(jsonText(json, "verdict"), "limit_cycle");
-  const std::string digital = runCapture(DF + " --controller-rate 100 2>&1", &code);
+  const std::string cascade = runCapture(
+      DF + " --controller-rate 100 --control-law cascade --position-loop-gain 1 --velocity-loop-gain 1 2>&1", &code);
   EXPECT_EQ(code, 2);
-  EXPECT_NE(digital.find("continuous P law"), std::string::npos) << digital;
+  EXPECT_NE(cascade.find("control_law"), std::string::npos) << cascade;
+  const std::string motor = runCapture(DF + " --controller-rate 100 --feedback motor 2>&1", &code);
+  EXPECT_EQ(code, 2);
+  EXPECT_NE(motor.find("feedback"), std::string::npos) << motor;
   const std::string none = runCapture(DF + " --backlash 0 2>&1", &code);
   EXPECT_EQ(code, 2);
-  EXPECT_NE(none.find("--backlash"), std::string::npos) << none;
+  EXPECT_NE(none.find("backlash: must be > 0"), std::string::npos) << none;
+  // A digital P law: its line in the report.
+  const std::string digital = runCapture(
+      DF + " --zeta 0.1 --inertia-ratio 1 --friction-ratio 0.4 --restitution 0 --controller-rate 100", &code);
+  EXPECT_EQ(code, 0) << digital;
+  EXPECT_NE(digital.find("law: digital P at 100 Hz"), std::string::npos) << digital;
   // --png: a PNG (its signature) through the safe-write path; any other name refused before the run.
   const std::string png = testing::TempDir() + "backlash_df_chart.png";
   std::remove(png.c_str());
