@@ -249,6 +249,23 @@ TEST(DescribingFunction, TheRealElementsBalanceMeetsTheClassicalOneInItsLimit)
   EXPECT_EQ(stable, 1);
 }
 
+namespace
+{
+/// The first stable prediction of a list (a test failure if there is none).
+HarmonicBalance stable(const std::vector<HarmonicBalance>& list)
+{
+  for (const HarmonicBalance& h : list)
+  {
+    if (h.stable)
+    {
+      return h;
+    }
+  }
+  ADD_FAILURE() << "no stable prediction";
+  return HarmonicBalance();
+}
+}  // namespace
+
 TEST(DescribingFunction, TheRealElementPredictsAHeavyMotorsCycle)
 {
   // A heavy motor and a light load (ρ²J_L/J_m = 1/9, ζ = 0.1, ρ²f_L/F = 0.4): the motor's motion is nearly a sine, the
@@ -265,17 +282,6 @@ TEST(DescribingFunction, TheRealElementPredictsAHeavyMotorsCycle)
     c.params.restitution = e;
     const LimitCyclePrediction a = predictLimitCycle(c);
     ASSERT_EQ(a.simulated.verdict, Verdict::LimitCycle);
-    const auto stable = [](const std::vector<HarmonicBalance>& list) {
-      for (const HarmonicBalance& h : list)
-      {
-        if (h.stable)
-        {
-          return h;
-        }
-      }
-      ADD_FAILURE() << "no stable prediction";
-      return HarmonicBalance();
-    };
     const HarmonicBalance classical = stable(a.predictions), numerical = stable(a.numerical);
     std::printf("exact A %.5f ω %.5f; classical %+.1f %% %+.1f %%; numerical %+.2f %% %+.2f %%\n",
                 a.simulated.amplitude, a.simulated.frequency, 100 * a.amplitudeError(classical),
@@ -355,17 +361,6 @@ TEST(DescribingFunction, ADigitalLoopsPredictionTendsToTheContinuousOne)
   c.params.load_friction = 0.08;
   c.params.restitution = 0.0;
   const LimitCyclePrediction continuous = predictLimitCycle(c);
-  const auto stable = [](const std::vector<HarmonicBalance>& list) {
-    for (const HarmonicBalance& h : list)
-    {
-      if (h.stable)
-      {
-        return h;
-      }
-    }
-    ADD_FAILURE() << "no stable prediction";
-    return HarmonicBalance();
-  };
   double previous = INFINITY;
   for (double fs : {20.0, 1000.0})
   {
