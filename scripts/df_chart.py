@@ -28,8 +28,9 @@ def main():
     points = rows(os.path.join(directory, "points.csv"))
     fig, ax = plt.subplots(figsize=(7.5, 6.5))
     ax.plot([r["re"] for r in nyquist], [r["im"] for r in nyquist], color="tab:blue", label="G(jω), the linear loop")
-    ax.plot([r["re"] for r in locus], [r["im"] for r in locus], color="tab:red",
-            label="−1/N(A), classical DF of backlash")
+    element_path = os.path.join(directory, "element.txt")
+    element = open(element_path).read().strip() if os.path.exists(element_path) else "classical DF of backlash"
+    ax.plot([r["re"] for r in locus], [r["im"] for r in locus], color="tab:red", label=f"−1/N(A), {element}")
     for p in points:
         if p["kind"] in ("stable", "unstable"):
             ax.plot(p["re"], p["im"], "o", color="k", mfc="k" if p["kind"] == "stable" else "w", ms=8,

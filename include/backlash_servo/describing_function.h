@@ -54,4 +54,11 @@ std::vector<HarmonicBalance> backlashHarmonicBalance(const std::function<std::co
 /// naming `amplitude` or `half_width` for a negative or non-finite value.
 double deadZoneDescribingFunction(double amplitude, double half_width);
 
+/// The solutions of G(jω) N(A) = −1 for the dead zone's DF (deadZoneDescribingFunction, half-width δ [rad]), found as
+/// backlashHarmonicBalance finds them: N is real, so they lie where G(jω) is real and ≤ −1. Throws
+/// InvalidParameterError naming `half_width` or `frequency` for bad input.
+std::vector<HarmonicBalance> deadZoneHarmonicBalance(const std::function<std::complex<double>(double)>& g,
+                                                     double half_width, double omega_lo, double omega_hi,
+                                                     int points = 2000);
+
 }  // namespace backlash_servo

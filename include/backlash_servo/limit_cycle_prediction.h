@@ -28,6 +28,16 @@
  * DF's own: the sampled harmonics of θ_c alias onto the fundamental — small while the cycle is slow against the
  * sampling, and the search stops at the Nyquist frequency π f_s.
  *
+ * **A compliant mesh** (`mesh_stiffness` c > 0, `mesh_damping` d; rigid shaft): the teeth pass the torque
+ * T = (c + jωd) N_dz(A) X in the fundamental, X the deflection x = ρθ_m − θ_c about its centre, N_dz the DF of a dead
+ * zone of half-width Δ/2 (describing_function.h; a damper gated by the same contact has the same DF). With
+ * M = −ω²J_m + jωf_m, L = −ω²J_L + jωf_L and the law's K(jω), the bodies give X = −G T,
+ *   G(jω) = ρ²/M + 1/L + ρK(jω)/(ML),
+ * so the balance is (c + jωd) G(jω) N_dz(A) = −1 (compliantLoop): real N_dz, solutions where that product is real and
+ * ≤ −1. A prediction's amplitude is ρθ_m's, |ρ(K/L + ρ)/(GM)| A. Classical only (no numerical DF of a compliant
+ * element yet); motor Coulomb friction, the never-pulling clip of the spring–damper law and a torsional shaft are
+ * outside it (a shaft is refused).
+ *
  * **The exact cycle.** The joint is run until its verdict settles (runResponse); on a limit cycle one more period
  * from the settled state is sampled at 4096 even points, and the fundamental of ρθ_m about its mean gives the
  * amplitude (peak: the largest excursion from the mean), the frequency 2π/period.
@@ -78,6 +88,12 @@ std::complex<double> lawGain(const ServoParams& params, const DriveParams& drive
 /// G(jω) of the loop with the configured law: thesisLoop · K(jω)/K.
 std::complex<double> loopResponse(const ServoParams& params, const DriveParams& drive, double omega);
 
+/// G(jω) of a compliant mesh's loop as the dead zone of its penetration sees it (see the file comment) [-].
+std::complex<double> compliantLoop(const ServoParams& params, const DriveParams& drive, double omega);
+
+/// |ρΘ_m / X|: the backlash input's amplitude per unit of the mesh deflection's in that loop at ω [rad/s].
+double compliantMotorAmplitude(const ServoParams& params, const DriveParams& drive, double omega);
+
 /// E(A, ω) of the real element's balance [N·m/rad] (see the file comment): amplitude A [rad], ω [rad/s].
 std::complex<double> elementBalance(const ServoParams& params, double amplitude, double omega,
                                     const DriveParams& drive = DriveParams());
@@ -92,7 +108,8 @@ bool numericalHarmonicBalance(const ServoParams& params, const HarmonicBalance& 
 SimulatedCycle simulateCycle(const RunConfig& config);
 
 /// Throws InvalidParameterError, naming the key, for what the analysis does not take: a profile, a torque limit, a
-/// compensator, a digital law other than P or PID, motor feedback, load encoder counts, or no backlash.
+/// compensator, a digital law other than P or PID, motor feedback, load encoder counts, a torsional shaft, or no
+/// backlash.
 void requireDescribable(const RunConfig& config);
 
 /// The whole analysis (requireDescribable first).

@@ -59,6 +59,26 @@ std::complex<double> loopResponse(const ServoParams& p, const DriveParams& d, do
   return thesisLoop(p, w) * (lawGain(p, d, w) / p.gain);
 }
 
+std::complex<double> compliantLoop(const ServoParams& p, const DriveParams& d, double w)
+{
+  const std::complex<double> m(-w * w * p.motor_inertia, w * p.motor_friction),
+      l(-w * w * p.load_inertia, w * p.load_friction);
+  const double rho = p.gear_ratio;
+  const std::complex<double> torque_to_deflection = rho * rho / m + 1.0 / l + rho * lawGain(p, d, w) / (m * l);
+  return std::complex<double>(p.mesh_stiffness, w * p.mesh_damping) * torque_to_deflection;
+}
+
+double compliantMotorAmplitude(const ServoParams& p, const DriveParams& d, double w)
+{
+  // ρΘ_m = ρ(K(jω)/L + ρ) X / (G M), G the torque-to-deflection response (see compliantLoop).
+  const std::complex<double> m(-w * w * p.motor_inertia, w * p.motor_friction),
+      l(-w * w * p.load_inertia, w * p.load_friction);
+  const double rho = p.gear_ratio;
+  const std::complex<double> k = lawGain(p, d, w);
+  const std::complex<double> g = rho * rho / m + 1.0 / l + rho * k / (m * l);
+  return std::abs(rho * (k / l + rho) / (g * m));
+}
+
 std::complex<double> elementBalance(const ServoParams& p, double a, double w, const DriveParams& drive)
 {
   const DrivenBacklash d = drivenBacklash(p, a, w);
@@ -228,6 +248,10 @@ void requireDescribable(const RunConfig& config)
   {
     throw InvalidParameterError("backlash", "must be > 0: without backlash there is no describing function to balance");
   }
+  if (config.params.shaft_stiffness > 0.0)
+  {
+    refuse("shaft_stiffness", "a rigid shaft (the compliant mesh's dead zone alone)");
+  }
 }
 
 LimitCyclePrediction predictLimitCycle(const RunConfig& config)
@@ -241,6 +265,19 @@ LimitCyclePrediction predictLimitCycle(const RunConfig& config)
   const double wn = out.natural_frequency;
   // (A sampled loop's fundamental is its own only below the Nyquist frequency π f_s.)
   const double top = drive.sampled() ? std::min(1e4 * wn, PI * drive.controller_rate) : 1e4 * wn;
+  if (p.mesh_stiffness > 0.0)
+  {
+    // A compliant mesh: the dead zone of its penetration, the deflection's amplitude turned into ρθ_m's.
+    out.predictions =
+        deadZoneHarmonicBalance([&](double w) { return compliantLoop(p, drive, w); }, 0.5 * p.backlash, 1e-4 * wn, top);
+    for (HarmonicBalance& h : out.predictions)
+    {
+      h.amplitude *= compliantMotorAmplitude(p, drive, h.frequency);
+    }
+    out.numerical_note = "no numerical DF for a compliant mesh: the classical DF of its dead zone only";
+    out.simulated = simulateCycle(config);
+    return out;
+  }
   out.predictions =
       backlashHarmonicBalance([&](double w) { return loopResponse(p, drive, w); }, p.backlash, 1e-4 * wn, top);
   if (p.load_torque != 0.0)

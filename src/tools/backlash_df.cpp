@@ -32,8 +32,9 @@ from each, with the numerical describing function of the real element (the load'
 driven by an exact sine); and simulates the joint exactly beside them: the cycle's amplitude (fundamental of the
 backlash input rho*theta_m about its centre), peak and frequency, and the error of each prediction. The continuous P
 law (the thesis' loop), or a digital P or PID law on the load's angle (--controller-rate, --control-law pid, optional
---controller-delay 1): its sampled-and-held fundamental K(jw) takes the place of K. SI units: amplitudes in rad,
-frequencies in rad/s.
+--controller-delay 1): its sampled-and-held fundamental K(jw) takes the place of K. With a compliant mesh
+(--mesh-stiffness > 0, rigid shaft) the element is the mesh's dead zone between the two bodies (classical DF only).
+SI units: amplitudes in rad, frequencies in rad/s.
 )";
 
 struct Options
@@ -67,12 +68,22 @@ Options parse(int argc, char** argv)
 
 /// The chart's data to a private directory, drawn there by df_chart.py (run without a shell), then moved into place
 /// through the safe-write path.
-void drawChart(const std::function<std::complex<double>(double)>& g, double wn, double backlash,
+void drawChart(const std::function<std::complex<double>(double)>& g, double wn, const ServoParams& p,
                const std::vector<HarmonicBalance>& predictions, const SimulatedCycle& sim, const std::string& script,
                SafeOutput& png)
 {
+  // The element whose −1/N(A) is drawn: backlash as hysteresis, or a compliant mesh's dead zone (its amplitudes are
+  // the deflection's: the exact cycle's ρθ_m amplitude has no point on that locus).
+  const double backlash = p.backlash;
+  const bool compliant = p.mesh_stiffness > 0.0;
+  const auto df = [&](double a) {
+    return compliant ? std::complex<double>(deadZoneDescribingFunction(a, 0.5 * backlash), 0.0)
+                     : backlashDescribingFunction(a, backlash);
+  };
   TemporaryDirectory dir("backlash_df");
   {
+    std::ofstream element(dir.file("element.txt"));
+    element << (compliant ? "classical DF of the compliant mesh's dead zone" : "classical DF of backlash") << "\n";
     std::ofstream nyquist(dir.file("nyquist.csv")), locus(dir.file("locus.csv")), points(dir.file("points.csv"));
     nyquist.precision(10);
     locus.precision(10);
@@ -91,7 +102,7 @@ void drawChart(const std::function<std::complex<double>(double)>& g, double wn, 
     for (int i = 0; i <= 2000; ++i)
     {
       const double a = 0.5 * backlash * (1.0 + std::pow(10.0, -6.0 + 9.0 * i / 2000.0));
-      const std::complex<double> z = -1.0 / backlashDescribingFunction(a, backlash);
+      const std::complex<double> z = -1.0 / df(a);
       if (std::abs(z) < 1e3)
       {
         locus << a << "," << z.real() << "," << z.imag() << "\n";
@@ -104,7 +115,7 @@ void drawChart(const std::function<std::complex<double>(double)>& g, double wn, 
       points << (h.stable ? "stable" : "unstable") << "," << h.amplitude << "," << h.frequency << "," << z.real() << ","
              << z.imag() << "\n";
     }
-    if (std::isfinite(sim.amplitude) && sim.amplitude > 0.5 * backlash)
+    if (!compliant && std::isfinite(sim.amplitude) && sim.amplitude > 0.5 * backlash)
     {
       const std::complex<double> z = -1.0 / backlashDescribingFunction(sim.amplitude, backlash);
       points << "simulated_locus," << sim.amplitude << "," << sim.frequency << "," << z.real() << "," << z.imag()
@@ -171,10 +182,21 @@ void report(const Options& o, const LimitCyclePrediction& a)
     return;
   }
   char buf[400];
-  std::snprintf(buf, sizeof buf,
-                "loop: zeta = %.4g, w_n = %.4g rad/s, backlash %.4g rad (classical DF: hysteresis in the feedback of "
-                "the linear servo)\n",
-                p.dampingRatio(), p.naturalFrequency(), p.backlash);
+  if (p.mesh_stiffness > 0.0)
+  {
+    std::snprintf(
+        buf, sizeof buf,
+        "loop: zeta = %.4g, w_n = %.4g rad/s, backlash %.4g rad (classical DF: the dead zone of the compliant "
+        "mesh, c = %.6g N*m/rad, d = %.6g N*m*s/rad, between the two bodies)\n",
+        p.dampingRatio(), p.naturalFrequency(), p.backlash, p.mesh_stiffness, p.mesh_damping);
+  }
+  else
+  {
+    std::snprintf(buf, sizeof buf,
+                  "loop: zeta = %.4g, w_n = %.4g rad/s, backlash %.4g rad (classical DF: hysteresis in the feedback of "
+                  "the linear servo)\n",
+                  p.dampingRatio(), p.naturalFrequency(), p.backlash);
+  }
   std::cout << buf;
   const DriveParams& d = o.config.drive;
   if (d.sampled())
@@ -255,8 +277,8 @@ int main(int argc, char** argv)
     if (png)
     {
       const DriveParams& d = o.config.drive;
-      drawChart([&p, &d](double w) { return loopResponse(p, d, w); }, analysis.natural_frequency, p.backlash,
-                analysis.predictions, analysis.simulated, chart_script, *png);
+      drawChart([&p, &d](double w) { return p.mesh_stiffness > 0.0 ? compliantLoop(p, d, w) : loopResponse(p, d, w); },
+                analysis.natural_frequency, p, analysis.predictions, analysis.simulated, chart_script, *png);
     }
     report(o, analysis);
     flushStdout();

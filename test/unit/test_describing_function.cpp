@@ -415,6 +415,69 @@ TEST(DescribingFunction, WhatTheAnalysisDoesNotTakeIsNamed)
   c.drive.compensation = "inverse";
   EXPECT_NE(refusal(c).find("compensation"), std::string::npos) << refusal(c);
   c = base;
+  c.params.mesh_stiffness = 1e4;
+  c.params.gear_inertia = 0.1;
+  c.params.shaft_stiffness = 100.0;
+  EXPECT_NE(refusal(c).find("shaft_stiffness"), std::string::npos) << refusal(c);
+  c = base;
   c.params.backlash = 0.0;
   EXPECT_NE(refusal(c).find("backlash"), std::string::npos) << refusal(c);
+}
+
+// The dead zone's harmonic balance on G(s) = k/(s(s + 1)²), real and −k/2 at ω = 1 alone: there N = 2/k, the
+// amplitude is where the dead zone's DF reaches it, and the cycle is unstable (below it the loop's gain N G is under
+// 1, above it over: amplitudes leave it).
+TEST(DescribingFunction, ADeadZonesBalanceOnAThirdOrderLoop)
+{
+  const double k = 4.0, delta = 0.05;
+  const auto g = [k](double w) {
+    const std::complex<double> s(0.0, w);
+    return k / (s * (s + 1.0) * (s + 1.0));
+  };
+  const std::vector<HarmonicBalance> h = deadZoneHarmonicBalance(g, delta, 1e-3, 1e3);
+  ASSERT_EQ(h.size(), 1u);
+  EXPECT_NEAR(h[0].frequency, 1.0, 1e-9);
+  EXPECT_NEAR(deadZoneDescribingFunction(h[0].amplitude, delta), 2.0 / k, 1e-9);
+  EXPECT_FALSE(h[0].stable);
+  // A gain that never reaches −1 on the real axis (k < 2): no cycle.
+  EXPECT_TRUE(deadZoneHarmonicBalance([&g](double w) { return 0.4 * g(w); }, delta, 1e-3, 1e3).empty());
+}
+
+// A compliant mesh's loop: 1 + G_c(jω) is the determinant of the two bodies' dynamic matrix (the mesh c + jωd between
+// them, the law's K(jω) on the load angle), written here as the 2 × 2 matrix, over M L; and ρθ_m's amplitude per unit
+// of the deflection is the ratio its null vector has where that determinant vanishes. Under the continuous law and a
+// digital PID drive.
+TEST(DescribingFunction, ACompliantMeshsLoopIsTheTwoBodiesDeterminant)
+{
+  ServoParams p;
+  p.gear_ratio = 0.5;
+  p.mesh_stiffness = 300.0;
+  p.mesh_damping = 0.7;
+  DriveParams pid;
+  pid.control_law = "pid";
+  pid.controller_rate = 50.0;
+  pid.integral_gain = 0.3;
+  pid.derivative_gain = 0.2;
+  for (const DriveParams& d : {DriveParams(), pid})
+  {
+    for (double w : {0.3, 1.1, 7.0, 40.0})
+    {
+      const std::complex<double> m(-w * w * p.motor_inertia, w * p.motor_friction),
+          l(-w * w * p.load_inertia, w * p.load_friction), kl = lawGain(p, d, w);
+      const double rho = p.gear_ratio;
+      const auto det = [&](std::complex<double> k) {
+        // Rows: the motor's and the load's equations in (Θ_m, Θ_c), the mesh's torque k(ρΘ_m − Θ_c) on the load.
+        const std::complex<double> a11 = m + rho * rho * k, a12 = kl - rho * k, a21 = -rho * k, a22 = l + k;
+        return a11 * a22 - a12 * a21;
+      };
+      const std::complex<double> k(p.mesh_stiffness, w * p.mesh_damping);
+      EXPECT_LT(std::abs(1.0 + compliantLoop(p, d, w) - det(k) / (m * l)), 1e-12 * std::abs(det(k) / (m * l))) << w;
+      // The mesh's effective stiffness that makes the determinant vanish (det is affine in k), and its null vector.
+      const std::complex<double> k0 = -det(0.0) / (det(1.0) - det(0.0));
+      ASSERT_LT(std::abs(det(k0)), 1e-9 * std::abs(det(1.0) - det(0.0)));
+      const std::complex<double> theta_c = 1.0, theta_m = (l + k0) * theta_c / (rho * k0);
+      const double ratio = std::abs(rho * theta_m / (rho * theta_m - theta_c));
+      EXPECT_NEAR(compliantMotorAmplitude(p, d, w), ratio, 1e-9 * ratio) << w;
+    }
+  }
 }
