@@ -34,9 +34,9 @@
  * M = −ω²J_m + jωf_m, L = −ω²J_L + jωf_L and the law's K(jω), the bodies give X = −G T,
  *   G(jω) = ρ²/M + 1/L + ρK(jω)/(ML),
  * so the balance is (c + jωd) G(jω) N_dz(A) = −1 (compliantLoop): real N_dz, solutions where that product is real and
- * ≤ −1. A prediction's amplitude is ρθ_m's, |ρ(K/L + ρ)/(GM)| A. Classical only (no numerical DF of a compliant
- * element yet); motor Coulomb friction, the never-pulling clip of the spring–damper law and a torsional shaft are
- * outside it (a shaft is refused).
+ * ≤ −1. A prediction's amplitude is ρθ_m's, |ρ(K/L + ρ)/(GM)| A. Motor Coulomb friction, the never-pulling clip of
+ * the spring–damper law and a torsional shaft are outside it (a shaft is refused). The numerical balance E = 0 then
+ * takes the compliant element's DFs (driven_mesh.h), started from these predictions and the rigid teeth's.
  *
  * **The exact cycle.** The joint is run until its verdict settles (runResponse); on a limit cycle one more period
  * from the settled state is sampled at 4096 even points, and the fundamental of ρθ_m about its mean gives the

@@ -4,6 +4,7 @@
 #include <cmath>
 
 #include "backlash_servo/driven_backlash.h"
+#include "backlash_servo/driven_mesh.h"
 #include "backlash_servo/params.h"
 #include "backlash_servo/simulator.h"
 
@@ -81,7 +82,7 @@ double compliantMotorAmplitude(const ServoParams& p, const DriveParams& d, doubl
 
 std::complex<double> elementBalance(const ServoParams& p, double a, double w, const DriveParams& drive)
 {
-  const DrivenBacklash d = drivenBacklash(p, a, w);
+  const DrivenBacklash d = drivenElement(p, a, w);
   const double rho = p.gear_ratio;
   return std::complex<double>(-w * w * p.motor_inertia, w * p.motor_friction) / rho +
          std::complex<double>(0.0, 4.0 * p.motor_coulomb_friction / (PI * a)) + lawGain(p, drive, w) * d.position +
@@ -265,6 +266,11 @@ LimitCyclePrediction predictLimitCycle(const RunConfig& config)
   const double wn = out.natural_frequency;
   // (A sampled loop's fundamental is its own only below the Nyquist frequency π f_s.)
   const double top = drive.sampled() ? std::min(1e4 * wn, PI * drive.controller_rate) : 1e4 * wn;
+  // The classical predictions, and where the real element's balance starts from (or why it is not solved).
+  std::vector<HarmonicBalance> starts;
+  const auto rigid = [&]() {
+    return backlashHarmonicBalance([&](double w) { return loopResponse(p, drive, w); }, p.backlash, 1e-4 * wn, top);
+  };
   if (p.mesh_stiffness > 0.0)
   {
     // A compliant mesh: the dead zone of its penetration, the deflection's amplitude turned into ρθ_m's.
@@ -274,24 +280,47 @@ LimitCyclePrediction predictLimitCycle(const RunConfig& config)
     {
       h.amplitude *= compliantMotorAmplitude(p, drive, h.frequency);
     }
-    out.numerical_note = "no numerical DF for a compliant mesh: the classical DF of its dead zone only";
-    out.simulated = simulateCycle(config);
-    return out;
-  }
-  out.predictions =
-      backlashHarmonicBalance([&](double w) { return loopResponse(p, drive, w); }, p.backlash, 1e-4 * wn, top);
-  if (p.load_torque != 0.0)
-  {
-    out.numerical_note = "no numerical DF: with a load torque the element's cycle is not symmetric";
+    // (A dead zone's prediction often lies below the half-backlash, where a sine-driven element from rest never
+    // reaches the load: the rigid teeth's predictions are starts too.)
+    starts = out.predictions;
+    for (const HarmonicBalance& h : rigid())
+    {
+      starts.push_back(h);
+    }
+    if (p.load_coulomb_friction > 0.0 || p.load_static_friction > 0.0 || p.load_torque != 0.0 ||
+        p.mesh_law != "spring_damper")
+    {
+      out.numerical_note =
+          "no numerical DF: the driven compliant element takes the spring_damper law, viscous load friction and no "
+          "load torque";
+    }
   }
   else
   {
-    for (const HarmonicBalance& h : out.predictions)
+    out.predictions = rigid();
+    starts = out.predictions;
+    if (p.load_torque != 0.0)
+    {
+      out.numerical_note = "no numerical DF: with a load torque the element's cycle is not symmetric";
+    }
+  }
+  if (out.numerical_note.empty())
+  {
+    for (const HarmonicBalance& h : starts)
     {
       HarmonicBalance n;
-      if (numericalHarmonicBalance(p, h, &n, drive))
+      if (h.amplitude > 0.5 * p.backlash && numericalHarmonicBalance(p, h, &n, drive))
       {
-        out.numerical.push_back(n);
+        bool seen = false;  // (two starts may reach one solution)
+        for (const HarmonicBalance& o : out.numerical)
+        {
+          seen = seen || (std::fabs(o.amplitude / n.amplitude - 1.0) < 1e-6 &&
+                          std::fabs(o.frequency / n.frequency - 1.0) < 1e-6);
+        }
+        if (!seen)
+        {
+          out.numerical.push_back(n);
+        }
       }
     }
     if (out.numerical.empty() && !out.predictions.empty())

@@ -33,7 +33,8 @@ driven by an exact sine); and simulates the joint exactly beside them: the cycle
 backlash input rho*theta_m about its centre), peak and frequency, and the error of each prediction. The continuous P
 law (the thesis' loop), or a digital P or PID law on the load's angle (--controller-rate, --control-law pid, optional
 --controller-delay 1): its sampled-and-held fundamental K(jw) takes the place of K. With a compliant mesh
-(--mesh-stiffness > 0, rigid shaft) the element is the mesh's dead zone between the two bodies (classical DF only).
+(--mesh-stiffness > 0, rigid shaft) the classical element is the mesh's dead zone between the two bodies, the
+numerical one the load behind the mesh's spring and damper.
 SI units: amplitudes in rad, frequencies in rad/s.
 )";
 

@@ -1,0 +1,287 @@
+#include "backlash_servo/driven_mesh.h"
+
+#include <cmath>
+#include <complex>
+#include <limits>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "backlash_servo/linear_mode.h"
+
+namespace backlash_servo
+{
+namespace
+{
+constexpr double PI = 3.14159265358979323846;
+constexpr double INF = std::numeric_limits<double>::infinity();
+
+void need(bool ok, const std::string& key, const std::string& what)
+{
+  if (!ok)
+  {
+    throw InvalidParameterError(key, what);
+  }
+}
+
+/// What a watched output's crossing means.
+enum class Kind
+{
+  Engage,   ///< contact on flank σ begins (y rising through 0, or P rising through 0 inside the flank)
+  Release,  ///< P falling through 0: the teeth would pull
+  Leave     ///< y falling through 0 while free: back in the free play (the watches change)
+};
+
+struct Watch
+{
+  ModeVector w;
+  double w0;
+  int direction;
+  Kind kind;
+  int sigma;
+};
+
+/// The load behind the compliant mesh, its tooth moving as A sin ωt (see the file comment). State (θ_c, θ̇_c, cos ωt,
+/// sin ωt).
+class MeshElement
+{
+ public:
+  MeshElement(const ServoParams& p, double amplitude, double omega)
+      : j_(p.load_inertia),
+        f_(p.load_friction),
+        c_(p.mesh_stiffness),
+        d_(p.mesh_damping),
+        half_(0.5 * p.backlash),
+        a_(amplitude),
+        w_(omega),
+        x_(4)
+  {
+    x_ << 0.0, 0.0, 1.0, 0.0;
+    Eigen::MatrixXd free = Eigen::MatrixXd::Zero(4, 4);
+    free(0, 1) = 1.0;
+    free(1, 1) = -f_ / j_;
+    free(2, 3) = -w_;  // d/dt cos ωt = −ω sin ωt
+    free(3, 2) = w_;   // d/dt sin ωt = ω cos ωt
+    Eigen::MatrixXd contact = free;
+    // J_L θ̈_c = −f_L θ̇_c + c(A sin ωt − θ_c) + d(Aω cos ωt − θ̇_c) − σcΔ/2.
+    contact(1, 0) = -c_ / j_;
+    contact(1, 1) = -(f_ + d_) / j_;
+    contact(1, 2) = d_ * a_ * w_ / j_;
+    contact(1, 3) = c_ * a_ / j_;
+    free_ = std::make_shared<const ModeBasis>(free);
+    contact_ = std::make_shared<const ModeBasis>(contact);
+  }
+
+  double position() const { return x_(0); }
+  double velocity() const { return x_(1); }
+  int phase() const { return phase_; }
+
+  /// The motion to t [s] ≥ now, exactly.
+  void advanceTo(double t)
+  {
+    while (t_ < t)
+    {
+      x_(2) = std::cos(w_ * t_);  // the sine's phase from the time (no drift over many periods)
+      x_(3) = std::sin(w_ * t_);
+      settlePhase();
+      ModeVector u = ModeVector::Zero(4);
+      if (phase_ != 0)
+      {
+        u(1) = -phase_ * c_ * half_ / j_;
+      }
+      const LinearMode m(phase_ == 0 ? free_ : contact_, u, x_);
+      const std::vector<Watch> watches = watchesNow();
+      const double horizon = t - t_;
+      const double skip = LinearMode::FLOOR_FRACTION / std::max(m.norm(), 1e-300);
+      double best = INF;
+      int hit = -1;
+      for (std::size_t i = 0; i < watches.size(); ++i)
+      {
+        const Watch& wa = watches[i];
+        // The crossing that began this segment is not searched for again at its start.
+        const bool again = t_ == last_time_ && static_cast<int>(wa.kind) == last_kind_ && wa.sigma == last_sigma_;
+        const double tau =
+            m.firstCrossing(wa.w, wa.w0, wa.direction, std::min(horizon, best), again ? skip : 0.0, again);
+        if (tau < best)
+        {
+          best = tau;
+          hit = static_cast<int>(i);
+        }
+      }
+      if (hit < 0 || !(best <= horizon))
+      {
+        x_ = m.state(horizon);
+        t_ = t;
+        return;
+      }
+      x_ = m.state(best);
+      t_ += best;
+      const Watch& e = watches[static_cast<std::size_t>(hit)];
+      last_time_ = t_;
+      last_kind_ = static_cast<int>(e.kind);
+      last_sigma_ = e.sigma;
+      if (e.kind == Kind::Engage)
+      {
+        phase_ = e.sigma;
+      }
+      else if (e.kind == Kind::Release)
+      {
+        phase_ = 0;
+      }
+      if (++events_ > 10000000)
+      {
+        throw InvalidParameterError("mesh_stiffness", "the driven compliant element made more than 1e7 contacts");
+      }
+    }
+  }
+
+ private:
+  /// At a segment's start: a free flank penetrated (or touching within rounding) whose torque pushes engages now —
+  /// a watch for P rising through 0 cannot see a P that starts above it —, a contact whose torque pulls beyond
+  /// rounding releases now (its crossing lay within the rounding of an earlier event); not the flank that changed at
+  /// this very instant.
+  void settlePhase()
+  {
+    const double y_band = 1e-12 * (a_ + 2.0 * half_), p_band = 1e-12 * (c_ * (a_ + 2.0 * half_) + d_ * a_ * w_);
+    ModeVector w;
+    double w0;
+    const bool just = t_ == last_time_;
+    if (phase_ == 0)
+    {
+      for (int sigma : {1, -1})
+      {
+        penetration(sigma, &w, &w0);
+        const double y = w.dot(x_) + w0;
+        torque(sigma, &w, &w0);
+        if (y > -y_band && w.dot(x_) + w0 > 0.0 && !(just && last_sigma_ == sigma))
+        {
+          phase_ = sigma;
+          return;
+        }
+      }
+      return;
+    }
+    torque(phase_, &w, &w0);
+    if (w.dot(x_) + w0 < -p_band && !(just && last_kind_ == static_cast<int>(Kind::Engage)))
+    {
+      phase_ = 0;
+    }
+  }
+
+  /// y_σ = σ(x − θ_c) − Δ/2 and P_σ = c y_σ + d ẏ_σ as outputs w·state + w₀.
+  void penetration(int sigma, ModeVector* w, double* w0) const
+  {
+    *w = ModeVector(4);
+    *w << -sigma, 0.0, 0.0, sigma * a_;
+    *w0 = -half_;
+  }
+  void torque(int sigma, ModeVector* w, double* w0) const
+  {
+    *w = ModeVector(4);
+    *w << -sigma * c_, -sigma * d_, sigma * d_ * a_ * w_, sigma * c_ * a_;
+    *w0 = -c_ * half_;
+  }
+
+  std::vector<Watch> watchesNow() const
+  {
+    std::vector<Watch> out;
+    ModeVector w;
+    double w0;
+    if (phase_ != 0)
+    {
+      torque(phase_, &w, &w0);
+      out.push_back({w, w0, -1, Kind::Release, phase_});
+      return out;
+    }
+    for (int sigma : {1, -1})
+    {
+      penetration(sigma, &w, &w0);
+      if (w.dot(x_) + w0 > 0.0)
+      {
+        out.push_back({w, w0, -1, Kind::Leave, sigma});
+        torque(sigma, &w, &w0);
+        out.push_back({w, w0, +1, Kind::Engage, sigma});
+      }
+      else
+      {
+        out.push_back({w, w0, +1, Kind::Engage, sigma});
+      }
+    }
+    return out;
+  }
+
+  double j_, f_, c_, d_, half_, a_, w_;
+  ModeVector x_;
+  double t_ = 0.0;
+  int phase_ = 0;  // 0 free, +1 forward flank, −1 backward flank
+  double last_time_ = -1.0;
+  int last_kind_ = -1, last_sigma_ = 0;
+  long events_ = 0;
+  std::shared_ptr<const ModeBasis> free_, contact_;
+};
+
+}  // namespace
+
+DrivenBacklash drivenCompliantMesh(const ServoParams& params, double amplitude, double omega, double tolerance,
+                                   int max_periods)
+{
+  need(std::isfinite(params.mesh_stiffness) && params.mesh_stiffness > 0.0, "mesh_stiffness",
+       "must be > 0 N·m/rad: the compliant element is the mesh");
+  need(params.mesh_law == "spring_damper", "mesh_law", "the driven compliant element takes the spring_damper law");
+  need(std::isfinite(params.mesh_damping) && params.mesh_damping >= 0.0, "mesh_damping", "must be >= 0 N·m·s/rad");
+  need(std::isfinite(params.load_inertia) && params.load_inertia > 0.0, "load_inertia", "must be > 0 kg·m²");
+  need(std::isfinite(params.load_friction) && params.load_friction >= 0.0, "load_friction", "must be >= 0 N·m·s/rad");
+  need(params.load_coulomb_friction == 0.0 && params.load_static_friction == 0.0, "load_coulomb_friction",
+       "must be 0: the driven compliant element takes viscous load friction only");
+  need(params.load_torque == 0.0, "load_torque",
+       "must be 0: with a load torque the element's cycle is not symmetric about its centre");
+  need(params.shaft_stiffness == 0.0, "shaft_stiffness", "must be 0: the driven compliant element has a rigid shaft");
+  need(std::isfinite(params.backlash) && params.backlash >= 0.0, "backlash", "must be >= 0 rad");
+  need(std::isfinite(amplitude) && amplitude > 0.0, "amplitude", "must be > 0 rad");
+  need(std::isfinite(omega) && omega > 0.0, "frequency", "must be > 0 rad/s");
+  need(max_periods >= 1 && tolerance > 0.0, "tolerance", "must be > 0, with at least one period");
+  const double period = 2.0 * PI / omega;
+  MeshElement element(params, amplitude, omega);
+  DrivenBacklash out;
+  double last_position = NAN, last_speed = NAN;
+  int last_phase = 2;
+  const double scale = std::max(params.backlash, amplitude);
+  int k = 1;
+  for (; k <= max_periods; ++k)
+  {
+    element.advanceTo(k * period);
+    if (std::fabs(element.position() - last_position) <= tolerance * scale &&
+        std::fabs(element.velocity() - last_speed) <= tolerance * amplitude * omega && element.phase() == last_phase)
+    {
+      out.periodic = true;
+      break;
+    }
+    last_position = element.position();
+    last_speed = element.velocity();
+    last_phase = element.phase();
+  }
+  out.periods = std::min(k, max_periods);
+  constexpr int M = 1 << 12, ANALYSED = 16;
+  const int analysed = out.periodic ? 1 : ANALYSED;
+  std::complex<double> position(0.0, 0.0);
+  for (int p = 0; p < analysed; ++p)
+  {
+    for (int i = 0; i < M; ++i)
+    {
+      element.advanceTo((out.periods + p) * period + period * i / M);
+      position += element.position() * std::polar(1.0, -2.0 * PI * i / M);
+    }
+  }
+  const std::complex<double> j(0.0, 1.0);
+  out.position = j * (2.0 / (static_cast<double>(M) * analysed)) * position / amplitude;
+  out.torque = std::complex<double>(-omega * omega * params.load_inertia, omega * params.load_friction) * out.position;
+  return out;
+}
+
+DrivenBacklash drivenElement(const ServoParams& params, double amplitude, double omega)
+{
+  return params.mesh_stiffness > 0.0 ? drivenCompliantMesh(params, amplitude, omega)
+                                     : drivenBacklash(params, amplitude, omega);
+}
+
+}  // namespace backlash_servo
