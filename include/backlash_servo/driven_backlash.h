@@ -57,4 +57,7 @@ struct DrivenBacklash
 DrivenBacklash drivenBacklash(const ServoParams& params, double amplitude, double omega, double tolerance = 1e-10,
                               int max_periods = 500);
 
+/// What drivenBacklash refuses of `params` (InvalidParameterError naming the key), before it drives anything.
+void requireDrivableBacklash(const ServoParams& params);
+
 }  // namespace backlash_servo

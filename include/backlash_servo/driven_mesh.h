@@ -36,6 +36,12 @@ namespace backlash_servo
 DrivenBacklash drivenCompliantMesh(const ServoParams& params, double amplitude, double omega, double tolerance = 1e-10,
                                    int max_periods = 500);
 
+/// What drivenCompliantMesh refuses of `params` (InvalidParameterError naming the key), before it drives anything.
+void requireDrivableMesh(const ServoParams& params);
+
+/// What drivenElement refuses of `params`, before it drives anything.
+void requireDrivable(const ServoParams& params);
+
 /// The joint's own element driven by A sin ωt: the compliant one when mesh_stiffness > 0, else the rigid teeth's
 /// (drivenBacklash).
 DrivenBacklash drivenElement(const ServoParams& params, double amplitude, double omega);

@@ -222,8 +222,7 @@ class MeshElement
 
 }  // namespace
 
-DrivenBacklash drivenCompliantMesh(const ServoParams& params, double amplitude, double omega, double tolerance,
-                                   int max_periods)
+void requireDrivableMesh(const ServoParams& params)
 {
   need(std::isfinite(params.mesh_stiffness) && params.mesh_stiffness > 0.0, "mesh_stiffness",
        "must be > 0 N·m/rad: the compliant element is the mesh");
@@ -237,6 +236,12 @@ DrivenBacklash drivenCompliantMesh(const ServoParams& params, double amplitude, 
        "must be 0: with a load torque the element's cycle is not symmetric about its centre");
   need(params.shaft_stiffness == 0.0, "shaft_stiffness", "must be 0: the driven compliant element has a rigid shaft");
   need(std::isfinite(params.backlash) && params.backlash >= 0.0, "backlash", "must be >= 0 rad");
+}
+
+DrivenBacklash drivenCompliantMesh(const ServoParams& params, double amplitude, double omega, double tolerance,
+                                   int max_periods)
+{
+  requireDrivableMesh(params);
   need(std::isfinite(amplitude) && amplitude > 0.0, "amplitude", "must be > 0 rad");
   need(std::isfinite(omega) && omega > 0.0, "frequency", "must be > 0 rad/s");
   need(max_periods >= 1 && tolerance > 0.0, "tolerance", "must be > 0, with at least one period");
@@ -276,6 +281,18 @@ DrivenBacklash drivenCompliantMesh(const ServoParams& params, double amplitude, 
   out.position = j * (2.0 / (static_cast<double>(M) * analysed)) * position / amplitude;
   out.torque = std::complex<double>(-omega * omega * params.load_inertia, omega * params.load_friction) * out.position;
   return out;
+}
+
+void requireDrivable(const ServoParams& params)
+{
+  if (params.mesh_stiffness > 0.0)
+  {
+    requireDrivableMesh(params);
+  }
+  else
+  {
+    requireDrivableBacklash(params);
+  }
 }
 
 DrivenBacklash drivenElement(const ServoParams& params, double amplitude, double omega)

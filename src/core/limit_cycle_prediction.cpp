@@ -60,24 +60,37 @@ std::complex<double> loopResponse(const ServoParams& p, const DriveParams& d, do
   return thesisLoop(p, w) * (lawGain(p, d, w) / p.gain);
 }
 
+namespace
+{
+/// The two bodies of a compliant mesh's loop at ω: M = −ω²J_m + jωf_m, L = −ω²J_L + jωf_L, the law's K(jω), and the
+/// deflection's response to the mesh torque, G = ρ²/M + 1/L + ρK/(ML) (X = −G T).
+struct TwoBodies
+{
+  std::complex<double> m, l, k, g;
+};
+TwoBodies twoBodies(const ServoParams& p, const DriveParams& d, double w)
+{
+  TwoBodies b;
+  b.m = {-w * w * p.motor_inertia, w * p.motor_friction};
+  b.l = {-w * w * p.load_inertia, w * p.load_friction};
+  b.k = lawGain(p, d, w);
+  const double rho = p.gear_ratio;
+  b.g = rho * rho / b.m + 1.0 / b.l + rho * b.k / (b.m * b.l);
+  return b;
+}
+}  // namespace
+
 std::complex<double> compliantLoop(const ServoParams& p, const DriveParams& d, double w)
 {
-  const std::complex<double> m(-w * w * p.motor_inertia, w * p.motor_friction),
-      l(-w * w * p.load_inertia, w * p.load_friction);
-  const double rho = p.gear_ratio;
-  const std::complex<double> torque_to_deflection = rho * rho / m + 1.0 / l + rho * lawGain(p, d, w) / (m * l);
-  return std::complex<double>(p.mesh_stiffness, w * p.mesh_damping) * torque_to_deflection;
+  return std::complex<double>(p.mesh_stiffness, w * p.mesh_damping) * twoBodies(p, d, w).g;
 }
 
 double compliantMotorAmplitude(const ServoParams& p, const DriveParams& d, double w)
 {
-  // ρΘ_m = ρ(K(jω)/L + ρ) X / (G M), G the torque-to-deflection response (see compliantLoop).
-  const std::complex<double> m(-w * w * p.motor_inertia, w * p.motor_friction),
-      l(-w * w * p.load_inertia, w * p.load_friction);
+  // ρΘ_m = ρ(K(jω)/L + ρ) X / (G M).
+  const TwoBodies b = twoBodies(p, d, w);
   const double rho = p.gear_ratio;
-  const std::complex<double> k = lawGain(p, d, w);
-  const std::complex<double> g = rho * rho / m + 1.0 / l + rho * k / (m * l);
-  return std::abs(rho * (k / l + rho) / (g * m));
+  return std::abs(rho * (b.k / b.l + rho) / (b.g * b.m));
 }
 
 std::complex<double> elementBalance(const ServoParams& p, double a, double w, const DriveParams& drive)
@@ -287,22 +300,19 @@ LimitCyclePrediction predictLimitCycle(const RunConfig& config)
     {
       starts.push_back(h);
     }
-    if (p.load_coulomb_friction > 0.0 || p.load_static_friction > 0.0 || p.load_torque != 0.0 ||
-        p.mesh_law != "spring_damper")
-    {
-      out.numerical_note =
-          "no numerical DF: the driven compliant element takes the spring_damper law, viscous load friction and no "
-          "load torque";
-    }
   }
   else
   {
     out.predictions = rigid();
     starts = out.predictions;
-    if (p.load_torque != 0.0)
-    {
-      out.numerical_note = "no numerical DF: with a load torque the element's cycle is not symmetric";
-    }
+  }
+  try
+  {
+    requireDrivable(p);  // (what the joint's element takes: its refusal, key named, is the note)
+  }
+  catch (const InvalidParameterError& e)
+  {
+    out.numerical_note = std::string("no numerical DF: ") + e.what();
   }
   if (out.numerical_note.empty())
   {
