@@ -4,7 +4,8 @@
  *        under a motor-torque law T_m = a − kθ_c, advanced exactly — every mode is linear with constant input (order
  *        4, or 6 with the shaft), solved by LinearMode, and every event is a located zero crossing. The second way the
  *        gear transmits torque beside the rigid teeth with impacts; the Plant (plant.h) delegates to it when
- *        mesh_stiffness > 0. No ROS dependency.
+ *        mesh_stiffness > 0, and — with rigid teeth — while the motor-torque law carries a sine (below). No ROS
+ *        dependency.
  *
  * Model (docs/model.md, "The compliant joint"): mesh coordinate g = θ_o − ρθ_m (θ_o = θ_c with a rigid shaft);
  * penetration y = −g on the forward flank (g < 0), y = g − Δ on the backward flank (g > Δ); P = c y + d ẏ.
@@ -21,6 +22,15 @@
  * velocity reaching 0 (Stop: it sticks when |H| ≤ T_s, else slides on in the direction of H) and a stuck body's H
  * leaving the band (Breakaway, in the direction of H). No pair rule is needed: the mesh torque is a function of the
  * state, so each body sticks or breaks away on its own. Both bodies stuck with a rigid shaft: nothing moves (held()).
+ *
+ * Rigid teeth (mesh_stiffness = 0, no shaft, no dry friction): the same closed forms carry the thesis' rigid mesh
+ * where its own modes (modes.h) cannot — a law with a sine, whose forced motion is not an exponential polynomial. In
+ * the free play the modes are the ones above; a flank reached (y rising through 0) is an impact (impact.h: momentum
+ * and Newton's restitution e), made plastic where the rebound could not rise above the rounding of the gap against
+ * the free motion's pressing acceleration (the Plant's rule, so a chatter ends in contact after finitely many
+ * impacts); teeth at relative rest on a flank that the free motion presses move as one body,
+ *   (J_m + ρ²J_L) ω̇_c = ρT_m − (f_m + ρ²f_L) ω_c + ρ²T_ext,  θ_m = (θ_c − δ_σ)/ρ,
+ * whose mesh torque Q = J_L ω̇_c + f_L ω_c − T_ext is released where it would pull (σQ falling through 0).
  *
  * Decisions within rounding: an event's crossing may fall within the rounding of a segment's start (a sample, a
  * re-anchoring, the end of the previous segment evaluated again), where its output has no sign left to search for.
@@ -44,6 +54,7 @@
 #include <string>
 #include <vector>
 
+#include "backlash_servo/impact.h"
 #include "backlash_servo/linear_mode.h"
 #include "backlash_servo/params.h"
 #include "backlash_servo/state.h"
@@ -95,9 +106,11 @@ struct CompliantEnergy
   double shaft_loss = 0.0;          ///< ∫ d_s (ω_o − ω_c)² dt
   double motor_dry_friction = 0.0;  ///< ∫ T_cm |ω_m| dt
   double load_dry_friction = 0.0;   ///< ∫ T_cL |ω_c| dt
+  double impact_loss = 0.0;         ///< kinetic energy lost in the impacts of rigid teeth
   double input_magnitude = 0.0;     ///< Σ |motor work| over the quadrature pieces: the rounding scale of `input`
   CompliantEnergy& operator+=(const CompliantEnergy& o)
   {
+    impact_loss += o.impact_loss;
     input += o.input;
     motor_friction += o.motor_friction;
     load_friction += o.load_friction;
@@ -111,11 +124,29 @@ struct CompliantEnergy
   }
 };
 
+/// An impact of rigid teeth: the flank (+1 forward, −1 backward), the velocities before [rad/s], the closing speed
+/// ẏ > 0 [rad/s] and what the impact map did; `stuck`: the teeth stayed in contact.
+struct JointImpact
+{
+  int sigma = 1;
+  double load_velocity_before = 0.0;
+  double motor_velocity_before = 0.0;
+  double closing = 0.0;
+  ImpactOutcome outcome;
+  bool stuck = false;
+};
+
+/// Throws InvalidParameterError naming the key unless the joint takes a law with a sine exactly: a compliant mesh
+/// always; rigid teeth without dry friction (their meshed pair's rest rule is the rigid plant's, not these modes').
+/// `what` names the input in the message (e.g. "a sine command").
+void requireExactWave(const ServoParams& params, const std::string& what);
+
 class CompliantJoint
 {
  public:
-  /// Throws InvalidParameterError unless params.compliant() and valid. The state starts at rest at 0 with the teeth
-  /// touching the forward flank without deflection; law: T_m = a − kθ_c [N·m].
+  /// Throws InvalidParameterError unless params are valid, and — with rigid teeth (mesh_stiffness = 0) —
+  /// requireExactWave() holds. The state starts at rest at 0 with the teeth touching the forward flank without
+  /// deflection; law: T_m = a − kθ_c [N·m].
   CompliantJoint(const ServoParams& params, const MotorInput& law);
 
   /// The state's size: 4 with a rigid shaft, 6 with a torsional one.
@@ -180,6 +211,11 @@ class CompliantJoint
   std::uint64_t contacts() const { return contacts_; }
   /// Re-engagements of a released flank while still penetrating.
   std::uint64_t reengagements() const { return reengagements_; }
+  /// Rigid teeth: the impacts so far, and the latest.
+  std::uint64_t impacts() const { return impacts_; }
+  const JointImpact& lastImpact() const { return last_impact_; }
+  /// Rigid teeth (mesh_stiffness = 0): flanks are reached by impacts.
+  bool rigid() const { return rigid_; }
   /// How a body with dry friction moves: 0 stuck, ±1 sliding that way (a body without dry friction: always 1, it
   /// never sticks).
   int slide(Body b) const { return slide_[static_cast<int>(b)]; }
@@ -240,6 +276,11 @@ class CompliantJoint
   void flankTorque(int sigma, double ky, double kv, ModeVector* w, double* w0) const;
   /// The mode the mesh takes from the current state (after an event).
   MeshMode chooseMode(bool released_forward, bool released_backward) const;
+  /// Rigid teeth in contact on flank σ: the meshed pair's A and u, and its mesh torque Q = w·x + w₀ [N·m].
+  void rigidContact(int sigma, ModeMatrix* a, ModeVector* u) const;
+  void rigidMeshTorque(int sigma, ModeVector* w, double* w0) const;
+  /// Rigid teeth: the impact on flank σ at the current state; the mode after it.
+  void impact(int sigma);
   /// The basis of a mode's matrix A: computed once and kept (a few modes and drive laws recur all run long).
   std::shared_ptr<const ModeBasis> basisFor(const ModeMatrix& a);
   void beginSegment();
@@ -260,6 +301,9 @@ class CompliantJoint
   MotorInput law_;
   bool torsional_;
   bool msl_;
+  bool rigid_;
+  std::uint64_t impacts_ = 0;
+  JointImpact last_impact_;
   double watch_lo_ = -INFINITY, watch_hi_ = INFINITY;
   double horizon_ = INFINITY;
   double time_ = 0.0;

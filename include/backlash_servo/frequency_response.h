@@ -59,8 +59,8 @@ struct FrfSettings
   /// Samples per second of the torque injection [Hz] (torque channels; 0 = the drive's controller_rate, else
   /// DEFAULT_INJECTION_RATE). The command is sampled by the drive at its controller_rate.
   double injection_rate = 0.0;
-  /// Torque channels: the sine itself, T_m = u₀ + A sin(ω(t − t₀)), instead of sampled and held (a compliant mesh
-  /// only). The command channel takes the sine itself under the continuous P law (a compliant mesh only).
+  /// Torque channels: the sine itself, T_m = u₀ + A sin(ω(t − t₀)), instead of sampled and held. The command channel
+  /// takes the sine itself under the continuous P law. Either is refused on rigid teeth with dry friction.
   bool continuous = false;
   double tolerance = 1e-8;  ///< steady state: relative repeat of the state from one period to the next [-]
   /// Periods run before a point is declared not periodic; 0 = enough to cover AUTO_SETTLING_SCALES of the joint's

@@ -129,7 +129,9 @@ struct EnergyLedger
  *
  * With a compliant mesh (params.compliant()) the plant delegates the motion to a CompliantJoint (compliant_joint.h):
  * the second way the gear transmits torque, with contact phases instead of impacts; the Plant's own interface, law,
- * watch and events stay the same (plant_compliant.cpp).
+ * watch and events stay the same (plant_compliant.cpp). With rigid teeth it delegates the same way while the law
+ * carries a sine (a sine command under the continuous law, a sine torque in effort mode), whose forced motion the
+ * thesis modes cannot express; the joint then resolves the impacts with the same map.
  */
 class Plant
 {
@@ -374,6 +376,10 @@ class Plant
   };
   /// Builds the joint for params_ at state_ (state.h's fields; contact is derived from the positions).
   void beginCompliant();
+  /// Rigid teeth: a law with a sine from now on (the joint carries the motion; throws InvalidParameterError, nothing
+  /// changed, where requireExactWave refuses), and back to the thesis modes (the ledger and its balance go on).
+  void enterWave(const MotorInput& law);
+  void leaveWave();
   /// state_ into the joint / the joint's state into state_.
   void stateToCompliant();
   void stateFromCompliant();
@@ -390,6 +396,8 @@ class Plant
   void compliantHoldTo(double t);
 
   CompliantHolder compliant_;
+  EnergyLedger wave_base_;     // rigid teeth carrying a sine: the ledger when the joint took over (else zero)
+  double wave_balance_ = 0.0;  // and its balance error then [J]
   ServoParams params_;
   GearMesh mesh_;
   State state_;

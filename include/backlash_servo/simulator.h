@@ -39,9 +39,10 @@ class Simulator
   void setCommand(double command, EventSink* sink = nullptr);
   /**
    * The continuous P law with θ_R = command + A sin(ω(t − t₀) + φ) [rad] (`wave` in rad) from now on, exactly: the
-   * motor torque gains the wave K·A sin(…), which a compliant mesh's modes carry as an oscillator. Ends a profile.
-   * InvalidParameterError with rigid teeth (a digital drive samples sines instead), or when the law is not the
-   * linear continuous one (a digital drive, a torque limit, compensation).
+   * motor torque gains the wave K·A sin(…), which the joint's modes carry as an oscillator (compliant_joint.h; with
+   * rigid teeth too). Ends a profile. InvalidParameterError (key named) on rigid teeth with dry friction (a digital
+   * drive samples sines instead), or when the law is not the linear continuous one (a digital drive, a torque limit,
+   * compensation).
    */
   void setCommandWave(double command, const Sinusoid& wave, EventSink* sink = nullptr);
   /**
@@ -61,8 +62,8 @@ class Simulator
   const std::shared_ptr<const CommandProfile>& profile() const { return profile_; }
   /// Effort mode, T_m = torque [N·m] from now on (the internal P loop is off). Must be finite.
   void setMotorTorque(double torque, EventSink* sink = nullptr);
-  /// Effort mode, T_m = torque + A sin(ω(t − t₀) + φ) [N·m] exactly (a compliant mesh only: InvalidParameterError
-  /// with rigid teeth).
+  /// Effort mode, T_m = torque + A sin(ω(t − t₀) + φ) [N·m] exactly (InvalidParameterError, key named, on rigid
+  /// teeth with dry friction).
   void setMotorTorque(double torque, const Sinusoid& wave, EventSink* sink = nullptr);
   /**
    * The caller will change the input again at time t [s] (e.g. a torque held over the samples of an external

@@ -276,11 +276,12 @@ void CommandProfile::requireTakenBy(bool sampled, bool dry, bool compliant) cons
                                   "> 0 Hz");
     }
   }
-  if (moves || (sines && !compliant))
+  if (moves || (sines && dry && !compliant))
   {
     throw InvalidParameterError("profile",
-                                "the continuous law takes step, points and ramp profiles (and sines with a compliant "
-                                "mesh); a sine or move is sampled by a digital drive: set controller_rate > 0 Hz");
+                                "the continuous law takes step, points, ramp and sine profiles (sines on rigid teeth "
+                                "without dry friction); a move — or a sine on rigid teeth with dry friction — is "
+                                "sampled by a digital drive: set controller_rate > 0 Hz");
   }
   bool ramps = false;
   for (const ProfileSegment& s : segments_)

@@ -38,13 +38,38 @@ double roundingOf(const ModeVector& w, double w0, const ModeVector& x)
 
 }  // namespace
 
+void requireExactWave(const ServoParams& p, const std::string& what)
+{
+  if (p.compliant())
+  {
+    return;
+  }
+  const std::pair<const char*, double> dry[] = {{"motor_static_friction", p.motor_static_friction},
+                                                {"motor_coulomb_friction", p.motor_coulomb_friction},
+                                                {"load_static_friction", p.load_static_friction},
+                                                {"load_coulomb_friction", p.load_coulomb_friction}};
+  for (const auto& [key, value] : dry)
+  {
+    if (value != 0.0)
+    {
+      throw InvalidParameterError(key, formatNumber(value) + ": " + what +
+                                           " is exact on rigid teeth only without dry friction; give a "
+                                           "controller_rate (the sine sampled and held) or a compliant mesh");
+    }
+  }
+}
+
 CompliantJoint::CompliantJoint(const ServoParams& params, const MotorInput& law)
-    : s_(params), law_(law), torsional_(params.torsionalShaft()), msl_(params.mesh_law == "msl_elastobacklash")
+    : s_(params),
+      law_(law),
+      torsional_(params.torsionalShaft()),
+      msl_(params.mesh_law == "msl_elastobacklash"),
+      rigid_(!params.compliant())
 {
   s_.validate();
-  if (!s_.compliant())
+  if (rigid_)
   {
-    throw InvalidParameterError("mesh_stiffness", "must be > 0 for a compliant joint (got 0)");
+    requireExactWave(s_, "a sine");
   }
   setState(Eigen::VectorXd::Zero(size()));
 }
@@ -52,7 +77,7 @@ CompliantJoint::CompliantJoint(const ServoParams& params, const MotorInput& law)
 void CompliantJoint::setParams(const ServoParams& params)
 {
   params.validate();
-  if (!params.compliant() || params.torsionalShaft() != torsional_)
+  if (params.compliant() == rigid_ || params.torsionalShaft() != torsional_)
   {
     throw InvalidParameterError(params.compliant() ? "shaft_stiffness" : "mesh_stiffness",
                                 "cannot switch between a rigid and a compliant " +
@@ -64,9 +89,15 @@ void CompliantJoint::setParams(const ServoParams& params)
   const CompliantEnergy kept = energy_;
   const double initial_kinetic = initial_kinetic_, initial_potential = initial_potential_;
   const std::uint64_t contacts = contacts_, reengagements = reengagements_;
+  if (rigid_)
+  {
+    requireExactWave(params, "a sine");
+  }
+  const std::uint64_t impacts = impacts_;
   s_ = params;
   msl_ = params.mesh_law == "msl_elastobacklash";
   setState(state(), time_);
+  impacts_ = impacts;
   energy_ = kept;
   contacts_ = contacts;
   reengagements_ = reengagements;
@@ -133,6 +164,7 @@ void CompliantJoint::setState(const Eigen::VectorXd& x, double t)
   mode_ = chooseMode(false, false);
   contacts_ = mode_ == MeshMode::Free ? 0 : 1;
   reengagements_ = 0;
+  impacts_ = 0;
   last_kind_ = -1;
   release_time_[0] = release_time_[1] = -INFINITY;
   fresh_ = true;
@@ -177,7 +209,7 @@ double CompliantJoint::energyBalanceError() const
 {
   const CompliantEnergy& e = energy_;
   return e.input + e.load_work - e.motor_friction - e.load_friction - e.mesh_loss - e.shaft_loss -
-         e.motor_dry_friction - e.load_dry_friction -
+         e.motor_dry_friction - e.load_dry_friction - e.impact_loss -
          (kineticEnergy() + potentialEnergy() - initial_kinetic_ - initial_potential_);
 }
 
@@ -314,6 +346,11 @@ double CompliantJoint::meshTorque() const
   const bool k2 = isK2(mode_);
   ModeVector w;
   double w0;
+  if (rigid_)
+  {
+    rigidMeshTorque(sigma, &w, &w0);
+    return sigma * std::max(0.0, sigma * (w.dot(x_) + w0));
+  }
   flankTorque(sigma, (k2 ? 2.0 : 1.0) * s_.mesh_stiffness, k2 ? 0.0 : s_.mesh_damping, &w, &w0);
   return sigma * std::max(0.0, w.dot(x_) + w0);
 }
@@ -340,6 +377,11 @@ void CompliantJoint::flankTorque(int sigma, double ky, double kv, ModeVector* w,
 
 void CompliantJoint::modeMatrices(MeshMode m, const std::array<int, 2>& slide, ModeMatrix* a, ModeVector* u) const
 {
+  if (rigid_ && m != MeshMode::Free)
+  {
+    rigidContact(isForward(m) ? 1 : -1, a, u);
+    return;
+  }
   const int k = dim(), o = out(), l = loadIndex();
   *a = ModeMatrix::Zero(k, k);
   *u = ModeVector::Zero(k);
@@ -415,6 +457,89 @@ void CompliantJoint::modeMatrices(MeshMode m, const std::array<int, 2>& slide, M
   }
 }
 
+void CompliantJoint::rigidContact(int sigma, ModeMatrix* a, ModeVector* u) const
+{
+  // The pair as one body on the load shaft (θ_c = θ_o, no shaft): J ω̇_c = ρ(a − kθ_c + A sin) − F_T ω_c + ρ²T_ext.
+  // The motor follows it — θ̇_m = ω_c/ρ, ω̇_m = ω̇_c/ρ — so the gap stays exactly as it began, and the motor's
+  // columns are zero (its eigenvalues 0 have a full eigenspace: no polynomial in the closed form).
+  const int k = dim(), o = out();
+  *a = ModeMatrix::Zero(k, k);
+  *u = ModeVector::Zero(k);
+  const double rho = s_.gear_ratio;
+  const double r = 1.0 / s_.totalInertia();
+  ModeMatrix& A = *a;
+  ModeVector& U = *u;
+  A(o, o + 1) = 1.0;
+  A(o + 1, o + 1) = -s_.totalFriction() * r;
+  A(o + 1, o) = -rho * law_.stiffness * r;
+  U(o + 1) = (rho * law_.offset + rho * rho * s_.load_torque) * r;
+  if (forced())
+  {
+    const int z = size();
+    A(z, z + 1) = -law_.wave.frequency;
+    A(z + 1, z) = law_.wave.frequency;
+    A(o + 1, z + 1) = rho * law_.wave.amplitude * r;
+  }
+  A(0, o + 1) = 1.0 / rho;
+  A.row(1) = A.row(o + 1) / rho;
+  U(1) = U(o + 1) / rho;
+  (void)sigma;  // (the same body on either flank: the flank enters only through the mesh torque's sign)
+}
+
+void CompliantJoint::rigidMeshTorque(int sigma, ModeVector* w, double* w0) const
+{
+  // Q = J_L ω̇_c + f_L ω_c − T_ext, ω̇_c the pair's.
+  ModeMatrix a;
+  ModeVector u;
+  rigidContact(sigma, &a, &u);
+  const int o = out();
+  const double jl = s_.load_inertia;
+  *w = jl * a.row(o + 1).transpose();
+  (*w)(o + 1) += s_.load_friction;
+  *w0 = jl * u(o + 1) - s_.load_torque;
+}
+
+void CompliantJoint::impact(int sigma)
+{
+  constexpr double EPS = std::numeric_limits<double>::epsilon();
+  const double rho = s_.gear_ratio, delta = s_.backlash;
+  const int o = out();
+  // Onto the flank exactly (moves θ_m by rounding): y = σ(ρθ_m − θ_o) − δ_σ = 0.
+  x_(0) = (x_(o) - (sigma > 0 ? 0.0 : delta)) / rho;
+  const double v = x_(o + 1), w = x_(1);
+  const double closing = sigma * (rho * w - v);  // ẏ > 0: the teeth approach
+  const double speed_noise = 64.0 * EPS * (std::fabs(v) + rho * std::fabs(w));
+  if (!(closing > 0.0) && -closing > speed_noise)
+  {
+    mode_ = MeshMode::Free;  // clearly moving away: only rounding put the gap on the flank
+    return;
+  }
+  // The free motion's acceleration ÿ pressing the teeth together: a rebound s rises s²/(2ÿ) off the flank.
+  ModeMatrix a;
+  ModeVector u, wy;
+  double wy0;
+  modeMatrices(MeshMode::Free, slide_, &a, &u);
+  flankTorque(sigma, 0.0, 1.0, &wy, &wy0);
+  const double press = wy.dot(a * x_ + u);
+  const double gap_noise = 64.0 * EPS * (std::fabs(x_(o)) + rho * std::fabs(x_(0)) + delta);
+  const double rebound = s_.restitution * std::max(closing, 0.0);
+  const bool plastic =
+      rebound <= speed_noise || delta == 0.0 || (press > 0.0 && rebound * rebound <= 2.0 * gap_noise * press);
+  const ImpactOutcome out = ImpactMap(s_, plastic ? 0.0 : s_.restitution)(v, w);
+  x_(o + 1) = out.load_velocity;
+  x_(1) = out.motor_velocity;
+  if (track_energy_)
+  {
+    energy_.impact_loss += out.energy_loss;
+  }
+  mode_ = plastic ? chooseMode(false, false) : MeshMode::Free;
+  if (closing > 0.0)
+  {
+    ++impacts_;
+    last_impact_ = JointImpact{sigma, v, w, closing, out, mode_ != MeshMode::Free};
+  }
+}
+
 MeshMode CompliantJoint::chooseMode(bool released_forward, bool released_backward) const
 {
   for (int sigma : {1, -1})
@@ -439,6 +564,10 @@ MeshMode CompliantJoint::chooseMode(bool released_forward, bool released_backwar
     {
       ydot = 0.0;
     }
+    if (rigid_ && (y != 0.0 || ydot != 0.0))
+    {
+      continue;  // rigid teeth: apart, or reaching the flank — an impact decides (a located event)
+    }
     const double tc = s_.mesh_stiffness * y, td = s_.mesh_damping * ydot;
     if (y == 0.0 && ydot == 0.0)
     {
@@ -447,7 +576,16 @@ MeshMode CompliantJoint::chooseMode(bool released_forward, bool released_backwar
       ModeVector u;
       modeMatrices(MeshMode::Free, slide_, &a, &u);
       flankTorque(sigma, 0.0, 1.0, &w, &w0);
-      if (w.dot(a * x_ + u) > 0.0)
+      // ÿ = w·ẋ; where it vanishes (a sine passing through zero at the start) its first derivative that does not
+      // decides: w·A^j ẋ, j = 1, 2.
+      ModeVector d = a * x_ + u;
+      double press = w.dot(d);
+      for (int j = 1; j <= 2 && std::fabs(press) <= roundingOf(w, 0.0, d); ++j)
+      {
+        d = a * d;
+        press = w.dot(d);
+      }
+      if (press > 0.0)
       {
         // (msl_elastobacklash enters in K2, dẏ > cy = 0, unless the teeth are undamped — as at an engagement.)
         if (msl_ && s_.mesh_damping > 0.0)
@@ -522,7 +660,7 @@ void CompliantJoint::beginSegment()
     {
       penetration(sigma, &w, &w0);
       const double y = w.dot(x_) + w0, band = roundingOf(w, w0, x_);
-      if (y > band)
+      if (y > band && !rigid_)
       {
         watches.push_back({w, w0, -1, MeshEvent::LeavePenetration, sigma});
         flankTorque(sigma, c, d, &w, &w0);  // P = cy + dẏ (msl: τc + τd, KD on re-engaging)
@@ -531,15 +669,22 @@ void CompliantJoint::beginSegment()
       else
       {
         // Penetrating within rounding (released there) is touching: the flank engages where y rises past that
-        // rounding — watching P or y itself from a start whose sign is rounding could miss it for good.
-        watches.push_back({w, y > 0.0 ? w0 - band : w0, +1, MeshEvent::Engage, sigma});
+        // rounding — watching P or y itself from a start whose sign is rounding could miss it for good. Not rigid
+        // teeth, which an impact put exactly on the flank (moving off it, or the start's rule has engaged them): a
+        // rebound's return found that late would gain the speed √(2ÿ·band) each time, and a chatter never end.
+        watches.push_back({w, y > 0.0 && !rigid_ ? w0 - band : w0, +1, MeshEvent::Engage, sigma});
       }
     }
   }
   else
   {
     const int sigma = isForward(mode_) ? 1 : -1;
-    if (isK2(mode_))
+    if (rigid_)
+    {
+      rigidMeshTorque(sigma, &w, &w0);
+      watches.push_back({sigma * w, sigma * w0, -1, MeshEvent::Release, sigma});  // σQ ↓ 0
+    }
+    else if (isK2(mode_))
     {
       flankTorque(sigma, c, -d, &w, &w0);  // c y − d ẏ ↑ 0
       watches.push_back({w, w0, +1, MeshEvent::SubMode, sigma});
@@ -783,6 +928,13 @@ void CompliantJoint::moveTo(double tau, double t)
       x_(angleIndex(b) + 1) = 0.0;
     }
   }
+  if (rigid_ && mode_ != MeshMode::Free)
+  {
+    // The meshed pair: the motor exactly where the flank puts it (the closed form keeps the gap to rounding).
+    const int o = out();
+    x_(0) = (x_(o) - (isForward(mode_) ? 0.0 : s_.backlash)) / s_.gear_ratio;
+    x_(1) = x_(o + 1) / s_.gear_ratio;
+  }
   time_ = t;
   if (track_energy_)
   {
@@ -796,7 +948,12 @@ bool CompliantJoint::handle(const Watch& watch, const Observer& observer)
   fresh_ = false;
   const double stored = potentialEnergy();
   const int load_slide = slide_[1];
+  const std::uint64_t impacts = impacts_;
   const bool other_flank = applyEvent(watch);
+  if (rigid_ && watch.kind == MeshEvent::Engage && impacts_ == impacts)
+  {
+    return false;  // rigid teeth touching without closing: no impact, nothing to report
+  }
   if (track_energy_)
   {
     energy_.mesh_loss += stored - potentialEnergy();
@@ -814,7 +971,10 @@ bool CompliantJoint::handle(const Watch& watch, const Observer& observer)
       {
         observer(MeshEvent::Release, watch.sigma);
       }
-      observer(MeshEvent::Engage, -watch.sigma);
+      if (!rigid_)  // (rigid teeth change flank without an impact)
+      {
+        observer(MeshEvent::Engage, -watch.sigma);
+      }
     }
     else
     {
@@ -822,6 +982,19 @@ bool CompliantJoint::handle(const Watch& watch, const Observer& observer)
           watch.kind == MeshEvent::Maximum || watch.kind == MeshEvent::Minimum || watch.kind == MeshEvent::WatchExit;
       // (Stop and Breakaway report the body in sigma.)
       observer(watch.kind, kinematic ? 0 : watch.sigma);
+      if (rigid_ && watch.kind == MeshEvent::Engage)
+      {
+        // An impact that reverses the load is a turning point of θ_c.
+        const double before = last_impact_.load_velocity_before, after = x_(out() + 1);
+        if (before > 0.0 && after <= 0.0)
+        {
+          observer(MeshEvent::Maximum, 0);
+        }
+        else if (before < 0.0 && after >= 0.0)
+        {
+          observer(MeshEvent::Minimum, 0);
+        }
+      }
     }
   }
   return !other_flank && watch.kind == MeshEvent::WatchExit;
@@ -853,6 +1026,12 @@ bool CompliantJoint::applyEvent(const Watch& watch)
       slide_began_[watch.sigma] = time_;
       break;
     case MeshEvent::Engage:
+      if (rigid_)
+      {
+        impact(watch.sigma);
+        contacts_ += mode_ != MeshMode::Free ? 1 : 0;
+        break;
+      }
       ++contacts_;
       // msl_elastobacklash enters in K2 (dẏ > cy = 0) unless the teeth are undamped.
       mode_ = msl_ && d > 0.0 ? (watch.sigma > 0 ? MeshMode::ForwardK2 : MeshMode::BackwardK2)
@@ -869,6 +1048,15 @@ bool CompliantJoint::applyEvent(const Watch& watch)
     }
     case MeshEvent::Release:
       release_time_[watch.sigma > 0 ? 0 : 1] = time_;
+      if (rigid_ && s_.backlash == 0.0)
+      {
+        // Rigid teeth without backlash: the pair's torque passes through zero onto the other flank, at relative rest.
+        mode_ = watch.sigma > 0 ? MeshMode::Backward : MeshMode::Forward;
+        ++contacts_;
+        last_kind_ = static_cast<int>(MeshEvent::Engage);
+        last_sigma_ = -watch.sigma;
+        return true;
+      }
       [[fallthrough]];
     case MeshEvent::LeavePenetration:
       // Now in the free play — or, with Δ = 0, on the other flank at once (an undamped mesh's torque passes through

@@ -7,6 +7,7 @@
 #include <vector>
 
 #include "backlash_servo/command_profile.h"
+#include "backlash_servo/compliant_joint.h"
 #include "gauss_legendre.h"
 
 namespace backlash_servo
@@ -232,15 +233,12 @@ FrfSampling frfSampling(const RunConfig& config, const FrfSettings& settings, do
   }
   const bool torque = torqueInput(settings.channel);
   FrfSampling out;
-  // The sine itself (a compliant mesh): the command under the continuous law, or the torque when asked for. Its
+  // The sine itself: the command under the continuous law, or the torque when asked for. Its
   // period is then observed at CONTINUOUS_POINTS instants (the steady-state test and the Fourier pieces' cuts).
   out.continuous = torque ? settings.continuous : !config.drive.sampled();
-  if (out.continuous && !config.params.compliant())
+  if (out.continuous)
   {
-    throw InvalidParameterError(torque ? "continuous" : "controller_rate",
-                                "an exact sine (not sampled and held) needs a compliant mesh (mesh_stiffness > 0); "
-                                "with rigid teeth the sine is applied sampled and held" +
-                                    std::string(torque ? "" : " by a digital drive (controller_rate > 0)"));
+    requireExactWave(config.params, torque ? "an exact sine torque (--continuous)" : "a sine command");
   }
   out.rate = out.continuous ? CONTINUOUS_POINTS * omega / (2.0 * PI)
                             : excitationRate(config, settings.channel, settings.injection_rate);

@@ -11,6 +11,7 @@
 #include <type_traits>
 #include <utility>
 
+#include "backlash_servo/compliant_joint.h"
 #include "backlash_servo/impact.h"
 
 namespace backlash_servo
@@ -119,6 +120,10 @@ Plant::Plant(const ServoParams& params, const State& initial, const MotorInput& 
     beginCompliant();
   }
   setState(initial);
+  if (!params_.compliant() && law_.wave.active())
+  {
+    enterWave(law_);
+  }
 }
 
 void Plant::deriveConstants()
@@ -140,7 +145,7 @@ void Plant::setState(const State& s)
   requireFinite("load_velocity", s.load_velocity);
   requireFinite("motor_position", s.motor_position);
   requireFinite("motor_velocity", s.motor_velocity);
-  if (compliant_.joint)
+  if (params_.compliant())
   {
     requireFinite("shaft_twist", s.shaft_twist);
     requireFinite("shaft_twist_rate", s.shaft_twist_rate);
@@ -185,19 +190,31 @@ void Plant::setState(const State& s)
   segment_.reset();
   forced_motor_breakaway_ = 0;
   energy_ = EnergyLedger();
-  energy_.initial_kinetic = kineticEnergy();
   impacts_ = 0;
   switches_ = 0;
+  if (compliant_.joint)
+  {
+    // Rigid teeth carrying a sine: the joint goes on from the new state.
+    wave_base_ = EnergyLedger();
+    wave_balance_ = 0.0;
+    stateToCompliant();
+  }
+  energy_.initial_kinetic = kineticEnergy();
 }
 
 void Plant::setLaw(const MotorInput& law)
 {
-  if (law.wave.active() && !compliant_.joint)
+  if (!params_.compliant() && law.wave.active() != static_cast<bool>(compliant_.joint))
   {
-    throw InvalidParameterError("mesh_stiffness",
-                                "a sinusoidal motor torque (a sine under the continuous law, or in effort mode) is "
-                                "exact with a compliant mesh only (mesh_stiffness > 0); with rigid teeth a digital "
-                                "drive samples it (controller_rate > 0)");
+    // Rigid teeth: a law with a sine is carried by the joint's closed forms from now on, one without by the thesis
+    // modes again (plant_compliant.cpp).
+    if (law.wave.active())
+    {
+      enterWave(law);
+      return;
+    }
+    law_ = law;
+    leaveWave();
   }
   law_ = law;
   flight_model_.reset();
@@ -277,9 +294,19 @@ void Plant::setParams(const ServoParams& params, EventSink* sink, bool frame)
   {
     params.validate();
   }
-  if (compliant_.joint || params.compliant())
+  if (params_.compliant() || params.compliant())
   {
     setCompliantParams(params, sink);
+    return;
+  }
+  if (compliant_.joint)
+  {
+    // Rigid teeth carrying a sine: the thesis modes take the change, the joint the motion again after it.
+    requireExactWave(params, "a sine");
+    leaveWave();
+    const MotorInput law = law_;
+    setParams(params, sink, frame);
+    enterWave(law);
     return;
   }
   segment_.reset();  // the closed form restarts from the state now

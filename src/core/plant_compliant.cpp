@@ -1,6 +1,7 @@
-// The Plant with a compliant mesh (mesh_stiffness > 0): the motion is the CompliantJoint's (compliant_joint.h); this
-// file translates between the Plant's interface (State, the motor-torque law, the drive's watch, events, the event
-// budget) and the joint's state vector and mesh events.
+// The Plant with a compliant mesh (mesh_stiffness > 0), and rigid teeth while the law carries a sine: the motion is
+// the CompliantJoint's (compliant_joint.h); this file translates between the Plant's interface (State, the
+// motor-torque law, the drive's watch, events, the event budget, the energy ledger) and the joint's state vector and
+// mesh events.
 #include <cmath>
 #include <cstdio>
 
@@ -29,6 +30,39 @@ void Plant::beginCompliant()
   watchCompliant();
   horizonCompliant();
   compliantEnergyTracking();
+}
+
+void Plant::enterWave(const MotorInput& law)
+{
+  requireExactWave(params_, "a sinusoidal motor torque (a sine command under the continuous law, or in effort mode)");
+  wave_base_ = energy_;  // the ledger so far; the joint's own adds to it
+  wave_balance_ = energyBalanceError();
+  law_ = law;
+  segment_.reset();
+  flight_model_.reset();
+  beginCompliant();
+  stateToCompliant();
+}
+
+void Plant::leaveWave()
+{
+  stateFromCompliant();
+  const double balance = compliantBalanceError();
+  compliant_.joint.reset();
+  wave_base_ = EnergyLedger();
+  wave_balance_ = 0.0;
+  segment_.reset();
+  flight_model_.reset();
+  if (state_.contact != Contact::Apart)
+  {
+    state_.motor_position = mesh_.motorPositionOnWall(state_.load_position, state_.contact);
+    state_.motor_velocity = mesh_.motorVelocityInContact(state_.load_velocity);
+  }
+  // The thesis modes' ledger goes on with the same balance (its kinetic reference re-based, as setParams does).
+  energy_.potential = 0.0;
+  energy_.initial_kinetic = kineticEnergy() - energy_.input - energy_.load_work + energy_.motor_friction +
+                            energy_.load_friction + energy_.motor_dry_friction + energy_.load_dry_friction +
+                            energy_.impact_loss + balance;
 }
 
 void Plant::stateToCompliant()
@@ -62,18 +96,23 @@ void Plant::stateFromCompliant()
   state_.shaft_twist = params_.torsionalShaft() ? x(2) - x(l) : 0.0;
   state_.shaft_twist_rate = params_.torsionalShaft() ? x(3) - x(l + 1) : 0.0;
   const CompliantEnergy& e = j.energy();
-  energy_.input = e.input;
-  energy_.input_magnitude = e.input_magnitude;
-  energy_.motor_friction = e.motor_friction;
-  energy_.load_friction = e.load_friction;
-  energy_.load_work = e.load_work;
-  energy_.mesh_loss = e.mesh_loss;
-  energy_.shaft_loss = e.shaft_loss;
-  energy_.motor_dry_friction = e.motor_dry_friction;
-  energy_.load_dry_friction = e.load_dry_friction;
+  const EnergyLedger& b = wave_base_;  // (zero with a compliant mesh)
+  energy_.input = b.input + e.input;
+  energy_.input_magnitude = b.input_magnitude + e.input_magnitude;
+  energy_.motor_friction = b.motor_friction + e.motor_friction;
+  energy_.load_friction = b.load_friction + e.load_friction;
+  energy_.load_work = b.load_work + e.load_work;
+  energy_.mesh_loss = b.mesh_loss + e.mesh_loss;
+  energy_.shaft_loss = b.shaft_loss + e.shaft_loss;
+  energy_.motor_dry_friction = b.motor_dry_friction + e.motor_dry_friction;
+  energy_.load_dry_friction = b.load_dry_friction + e.load_dry_friction;
+  energy_.impact_loss = b.impact_loss + e.impact_loss;
   energy_.potential = j.potentialEnergy();
-  energy_.initial_kinetic = j.initialKinetic();
-  energy_.initial_potential = j.initialPotential();
+  if (!j.rigid())
+  {
+    energy_.initial_kinetic = j.initialKinetic();
+    energy_.initial_potential = j.initialPotential();
+  }
   switch (j.mode())
   {
     case MeshMode::Forward:
@@ -105,6 +144,30 @@ bool Plant::advanceCompliant(double t_end, EventSink* sink)
   CompliantJoint& j = *compliant_.joint;
   const bool stopped = j.advanceTo(t_end, [&](MeshEvent e, int) {
     stateFromCompliant();
+    if (j.rigid() && e == MeshEvent::Engage)
+    {
+      // An impact of rigid teeth (the thesis' impact map, compliant_joint.h).
+      if (++impacts_ > event_budget_ && event_budget_ != 0)
+      {
+        throwImpactBudget();
+      }
+      if (sink != nullptr && sink->wantsImpacts())
+      {
+        const JointImpact& i = j.lastImpact();
+        ImpactInfo info;
+        info.wall = i.sigma > 0 ? Contact::Forward : Contact::Backward;
+        info.load_velocity_before = i.load_velocity_before;
+        info.load_velocity_after = i.outcome.load_velocity;
+        info.motor_velocity_before = i.motor_velocity_before;
+        info.motor_velocity_after = i.outcome.motor_velocity;
+        info.approach_speed = i.closing;
+        info.impulse = i.outcome.impulse;
+        info.energy_loss = i.outcome.energy_loss;
+        info.stuck = i.stuck;
+        emit(sink, EventType::Impact, &info);
+      }
+      return;
+    }
     switch (e)
     {
       case MeshEvent::Engage:
@@ -143,7 +206,7 @@ bool Plant::advanceCompliant(double t_end, EventSink* sink)
 
 void Plant::setCompliantParams(const ServoParams& params, EventSink* sink)
 {
-  if (!compliant_.joint || !params.compliant())
+  if (!compliant_.joint || !params.compliant() || compliant_.joint->rigid())
   {
     throw InvalidParameterError("mesh_stiffness", formatNumber(params.mesh_stiffness) +
                                                       ": cannot switch between rigid teeth and a compliant mesh "
@@ -177,7 +240,7 @@ void Plant::compliantHoldTo(double t)
 
 double Plant::compliantBalanceError() const
 {
-  return compliant_.joint->energyBalanceError();
+  return compliant_.joint->energyBalanceError() + wave_balance_;
 }
 
 void Plant::compliantEnergyTracking()

@@ -164,7 +164,7 @@ void Simulator::applyPiece(double t, EventSink* sink)
   next_change_ = until;
   if (wave.active())
   {
-    // A sine segment under the continuous law (a compliant mesh): its centre, and the sine carried by the modes.
+    // A sine segment under the continuous law: its centre, and the sine carried by the modes.
     applyCommand(base, sink, wave);
     return;
   }
@@ -293,11 +293,9 @@ void Simulator::setCommand(double command, EventSink* sink)
 void Simulator::setCommandWave(double command, const Sinusoid& wave, EventSink* sink)
 {
   requireFinite("command", command);
-  if (wave.active() && !plant_.params().compliant())
+  if (wave.active())
   {
-    throw InvalidParameterError("command",
-                                "a sine command under the continuous law is exact with a compliant mesh "
-                                "only (mesh_stiffness > 0); with rigid teeth a digital drive samples it");
+    requireExactWave(plant_.params(), "a sine command under the continuous law");
   }
   if (wave.active() && dynamic_cast<ProportionalDrive*>(drive_.get()) == nullptr)
   {
@@ -379,11 +377,9 @@ void Simulator::setMotorTorque(double torque, EventSink* sink)
 
 void Simulator::setMotorTorque(double torque, const Sinusoid& wave, EventSink* sink)
 {
-  if (wave.active() && !plant_.params().compliant())
+  if (wave.active())
   {
-    throw InvalidParameterError("motor_torque",
-                                "a sine torque is exact with a compliant mesh only (mesh_stiffness > "
-                                "0); with rigid teeth apply it sampled and held");
+    requireExactWave(plant_.params(), "a sine torque");
   }
   setDrive(std::make_unique<EffortDrive>(torque, wave), sink);
 }

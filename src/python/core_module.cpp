@@ -702,8 +702,8 @@ PYBIND11_MODULE(core, m)
         py::arg("harmonics") = 10, py::arg("continuous") = false,
         "One stepped-sine point as `backlash_frf` measures it: amplitude [rad or N·m] at frequency [rad/s] on the "
         "channel; a dict with the frequency used, the complex response, gain, phase [rad], distortion, periodic, "
-        "flank_changes, … (docs/frequency_response.md). continuous=True: the torque's sine itself (a compliant "
-        "mesh); the command takes the sine itself under the continuous law.");
+        "flank_changes, … (docs/frequency_response.md). continuous=True: the torque's sine itself (not on rigid "
+        "teeth with dry friction); the command takes the sine itself under the continuous law.");
   m.def("identify", &identify, py::arg("time"), py::arg("motor_torque"), py::arg("motor_position"),
         py::arg("load_position"), py::kw_only(), py::arg("gear_ratio") = NAN, py::arg("contact_band") = 0.0,
         py::arg("smoothing") = 0, py::arg("still_speed") = 0.0, py::arg("load_torque") = NAN,

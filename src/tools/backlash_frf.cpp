@@ -143,7 +143,8 @@ Options parse(int argc, char** argv)
         "stepped sines: compute only part K of N (contiguous points, amplitude-major) into the --csv "
         "part file, for --merge"},
        {"dry_run", "", "check every argument and point, compute and write nothing"},
-       {"continuous", "", "torque channels: the sine itself, not sampled and held (a compliant mesh only)"},
+       {"continuous", "",
+        "torque channels: the sine itself, not sampled and held (not on rigid teeth with dry friction)"},
        {"merge", "PART...",
         "join the part files of one sharded run (any order) into --csv FILE: exactly the CSV of "
         "an unsharded run"}});

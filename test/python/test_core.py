@@ -248,8 +248,15 @@ def test_frequency_response_of_the_locked_joint_is_the_held_transfer_function():
     assert p["periodic"]
     assert abs(p["response"] - expected) < 1e-9 * abs(expected)
     assert p["gain"] == pytest.approx(abs(expected), rel=1e-9)
-    with pytest.raises(ValueError, match="digital drive"):
-        core.frequency_response({}, amplitude=0.1, frequency=1.0)
+    # The continuous P law takes the sine itself, on rigid teeth too: D1 without backlash is rho K/(rho K - J w^2 + j w F)
+    # (rho = K = 1, J = 1, F = 0.8) to 1e-9; with dry friction the exact sine is refused naming the key.
+    d = core.frequency_response({"backlash": 0.0}, amplitude=0.1, frequency=1.3)
+    expected = 1.0 / complex(1.0 - 1.3 ** 2, 0.8 * 1.3)
+    assert d["frequency"] == 1.3
+    assert abs(d["response"] - expected) < 1e-9 * abs(expected)
+    with pytest.raises(ValueError, match="load_static_friction"):
+        core.frequency_response({"load_coulomb_friction": 0.01, "load_static_friction": 0.01}, amplitude=0.1,
+                                frequency=1.0)
 
 
 def test_broadband_response_of_the_locked_joint_is_coherent():

@@ -170,7 +170,8 @@ TEST(Cli, BadInputIsOneClearLineAndExitCode2)
       {"--profile " + profile("kind", "- jump: {time: 0, target: 1}"), "'jump'"},
       {"--profile " + profile("nocsv", "- points: {time: 0, csv: /nonexistent.csv}"), "cannot read"},
       {"--profile /nonexistent.csv", "cannot read"},
-      {"--profile " + profile("sine", "- sine: {time: 0, amplitude: 0.1, frequency: 1, duration: 2}"),
+      {"--profile " + profile("sine", "- sine: {time: 0, amplitude: 0.1, frequency: 1, duration: 2}") +
+           " --load-coulomb-friction 0.01",
        "controller_rate"},
       {"--profile " + profile("ramp", "- ramp: {time: 0, target: 1, duration: 2}") + " --load-coulomb-friction 0.01",
        "dry friction"},

@@ -326,8 +326,8 @@ TEST(Profile, OneStepIsTodaysStepAndStepsEqualCommandsByHand)
   EXPECT_EQ(ended.command(), 0.3);
 }
 
-// What each law takes: the continuous law refuses sines and moves, and ramps with dry friction (a digital drive
-// samples them all); effort mode refuses profiles.
+// What each law takes: the continuous law refuses moves, and sines and ramps with dry friction on rigid teeth (a
+// digital drive samples them all); effort mode refuses profiles.
 TEST(Profile, TheContinuousLawRefusesWhatItCannotTakeExactly)
 {
   ProfileSegment sine;
@@ -338,9 +338,20 @@ TEST(Profile, TheContinuousLawRefusesWhatItCannotTakeExactly)
   RunConfig c;
   c.duration = 5.0;
   c.profile = std::make_shared<CommandProfile>(0.0, std::vector<ProfileSegment>{sine});
+  EXPECT_NO_THROW(runResponse(c, nullptr, 0.0));
+  c.params.motor_coulomb_friction = c.params.motor_static_friction = 0.01;
   EXPECT_THROW(runResponse(c, nullptr, 0.0), InvalidParameterError);
   c.drive.controller_rate = 100.0;
   EXPECT_NO_THROW(runResponse(c, nullptr, 0.0));
+  ProfileSegment move;
+  move.kind = ProfileSegment::Kind::Move;
+  move.distance = 1.0;
+  move.max_velocity = 1.0;
+  move.max_acceleration = 0.5;
+  RunConfig moved;
+  moved.duration = 5.0;
+  moved.profile = std::make_shared<CommandProfile>(0.0, std::vector<ProfileSegment>{move});
+  EXPECT_THROW(runResponse(moved, nullptr, 0.0), InvalidParameterError);
   ProfileSegment ramp;
   ramp.kind = ProfileSegment::Kind::Ramp;
   ramp.target = 1.0;

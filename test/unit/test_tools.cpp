@@ -1009,9 +1009,6 @@ TEST(FrequencyResponseTool, BacklashPointsCsvChartAndRefusals)
   std::remove(csv.c_str());
   std::remove(png.c_str());
   // Refusals, before any run.
-  const std::string continuous = runCapture(FRF + " --amplitude 0.1 --frequency 1 2>&1", &code);
-  EXPECT_EQ(code, 2);
-  EXPECT_NE(continuous.find("by a digital drive"), std::string::npos) << continuous;
   const std::string fast = runCapture(FRF + " --controller-rate 10 --amplitude 0.1 --frequency 20 2>&1", &code);
   EXPECT_EQ(code, 2);
   EXPECT_NE(fast.find("above a quarter of the sample rate"), std::string::npos) << fast;
@@ -1108,7 +1105,7 @@ TEST(FrequencyResponseTool, BroadbandPrbsGivesTheSampledTransferFunctionAndRefus
   EXPECT_NE(sine_flag.find("sets its own frequencies"), std::string::npos) << sine_flag;
 }
 
-TEST(FrequencyResponseTool, ExactSinesOnACompliantMesh)
+TEST(FrequencyResponseTool, ExactSinesOnACompliantMeshAndOnRigidTeeth)
 {
   // --continuous: the sine torque itself on a compliant mesh pressed by a torque offset gives the two-mass transfer
   // function with no hold: ω_m/T_m = 1/(M + ρ²K L/(sL + K)) (M = J_m s + f_m, L = J_L s + f_L, K = c + ds).
@@ -1124,7 +1121,8 @@ TEST(FrequencyResponseTool, ExactSinesOnACompliantMesh)
   EXPECT_NEAR(jsonNumber(json, "gain"), std::abs(g), 1e-9 * std::abs(g)) << json;
   EXPECT_NEAR(jsonNumber(json, "phase"), std::arg(g), 1e-9) << json;
   EXPECT_EQ(jsonNumber(json, "frequency"), 19.0);
-  // The command under the continuous law takes the sine itself on a compliant joint; rigid teeth are refused.
+  // The command under the continuous law takes the sine itself, on a compliant joint and on rigid teeth: D1 without
+  // backlash gives its transfer function ρK/(ρK − Jω² + jωF_T) to 1e-9; with dry friction rigid teeth refuse it.
   const std::string law = runCapture(FRF + " --config " + std::string(SOURCE_DIR) +
                                          "/config/compliant_d1.yaml --amplitude 1 --frequency 1 "
                                          "--json",
@@ -1132,12 +1130,24 @@ TEST(FrequencyResponseTool, ExactSinesOnACompliantMesh)
   ASSERT_EQ(code, 0) << law;
   EXPECT_EQ(jsonNumber(law, "frequency"), 1.0);
   EXPECT_NE(law.find("\"periodic\":true"), std::string::npos) << law;
-  const std::string rigid = runCapture(FRF +
-                                           " --channel motor_torque:motor_velocity --continuous --amplitude 1 "
-                                           "--frequency 1 2>&1",
-                                       &code);
+  const backlash_servo::ServoParams d1;
+  const double w = 0.7;
+  const std::complex<double> t =
+      d1.gear_ratio * d1.gain /
+      (d1.gear_ratio * d1.gain - d1.totalInertia() * w * w + std::complex<double>(0.0, w * d1.totalFriction()));
+  const std::string rigid = runCapture(FRF + " --backlash 0 --amplitude 0.5 --frequency 0.7 --json", &code);
+  ASSERT_EQ(code, 0) << rigid;
+  EXPECT_EQ(jsonNumber(rigid, "frequency"), w);
+  EXPECT_NEAR(jsonNumber(rigid, "gain"), std::abs(t), 1e-9 * std::abs(t)) << rigid;
+  EXPECT_NEAR(jsonNumber(rigid, "phase"), std::arg(t), 1e-9) << rigid;
+  const std::string dry = runCapture(FRF +
+                                         " --motor-coulomb-friction 0.01 --motor-static-friction 0.01"
+                                         " --channel motor_torque:motor_velocity --continuous --amplitude 1 "
+                                         "--frequency 1 2>&1",
+                                     &code);
   EXPECT_EQ(code, 2);
-  EXPECT_NE(rigid.find("needs a compliant mesh"), std::string::npos) << rigid;
+  EXPECT_NE(dry.find("motor_static_friction"), std::string::npos) << dry;
+  EXPECT_NE(dry.find("without dry friction"), std::string::npos) << dry;
 }
 
 TEST(IdentifyTool, EstimatesAJointFromItsRecordingAndWritesAModelEveryToolReads)
