@@ -18,6 +18,8 @@ UNITS = {
     "command:load_position": ("θ_c / θ_R", "rad/rad"),
     "motor_torque:motor_velocity": ("ω_m / T_m", "(rad/s)/(N·m)"),
     "motor_torque:load_velocity": ("ω_c / T_m", "(rad/s)/(N·m)"),
+    "torque_setpoint:motor_velocity": ("ω_m / T_m, loops closed", "(rad/s)/(N·m)"),
+    "torque_setpoint:load_velocity": ("ω_c / T_m, loops closed", "(rad/s)/(N·m)"),
 }
 
 

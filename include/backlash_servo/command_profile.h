@@ -64,15 +64,16 @@ class CommandProfile
   bool piecewiseLinear() const;
   /// For a piecewise-linear profile: the piece in force at t [s]: θ_R(t) = at(t) [rad], its slope [rad/s] and the
   /// first instant after t [s] where value or slope may change (+inf: none). Within a sine segment (taken exactly
-  /// by the continuous law), `wave` (if given) gets the sine A sin(2πf(t − time)) [rad],
-  /// `base` its centre v₀ [rad], and `until` the segment's end; elsewhere wave is inactive.
-  void pieceAt(double t, double* slope, double* until, Sinusoid* wave = nullptr, double* base = nullptr) const;
+  /// by the continuous law), `wave` (if given) gets the sine A sin(2πf(t − time)) and its dither a_d sin(2πf_d(t −
+  /// time)) [rad], `base` its centre v₀ [rad], and `until` the segment's end; elsewhere wave is empty.
+  void pieceAt(double t, double* slope, double* until, Waveform* wave = nullptr, double* base = nullptr) const;
   /// For a piecewise-constant profile: the first instant after t [s] at which θ_R may change (+inf: none).
   double nextChange(double t) const;
   /// Throws InvalidParameterError("profile", …) unless a drive of this kind can take the profile: a digital drive
-  /// (sampled) takes any; the continuous law steps, points, — without dry friction (`dry`) — ramps, and sines without
-  /// a dither (exact: the joint's modes carry the sine; on rigid teeth (`compliant` false) without dry friction).
-  void requireTakenBy(bool sampled, bool dry, bool compliant = false) const;
+  /// (sampled) takes any; the continuous law steps, points, — without dry friction (`dry`) — ramps, and sines (exact:
+  /// the joint's modes carry the sine and its dither; on rigid teeth (`compliant` false) without dry friction; a
+  /// dither only where the modes carry `max_tones` ≥ 2 sines).
+  void requireTakenBy(bool sampled, bool dry, bool compliant = false, int max_tones = MAX_TONES) const;
   /// The same profile started dt [s] later (every segment and point time + dt).
   CommandProfile delayed(double dt) const;
   const std::vector<ProfileSegment>& segments() const { return segments_; }

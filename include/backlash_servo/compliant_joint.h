@@ -156,9 +156,10 @@ class CompliantJoint
   void setState(const Eigen::VectorXd& x, double t = 0.0);
   /// New parameters (same shaft model: a torsional shaft cannot appear or vanish) from now on, state kept.
   void setParams(const ServoParams& params);
-  /// A new motor-torque law from now on. Its wave A sin(ω(t − t₀) + φ) [N·m], if any, is exact too: the modes
-  /// carry an oscillator (ż_c = −ωz_s, ż_s = ωz_c, z = (cos, sin) of the wave's angle) as two more states — order
-  /// 6 or 8 —, so every motion stays the closed form of a linear mode with constant input.
+  /// A new motor-torque law from now on. Its wave Σ A_i sin(ω_i(t − t₀,i) + φ_i) [N·m], if any, is exact too: the
+  /// modes carry an oscillator per sine (ż_c = −ωz_s, ż_s = ωz_c, z = (cos, sin) of its angle) as two more states,
+  /// so every motion stays the closed form of a linear mode with constant input. Throws InvalidParameterError
+  /// ("wave") when the order would pass MAX_MODE_ORDER (two sines with a rigid shaft, one with a torsional shaft).
   void setLaw(const MotorInput& law);
   /// advanceTo() stops where θ_c leaves [lo, hi] [rad]; ±inf: none.
   void setWatch(double lo, double hi);
@@ -253,10 +254,12 @@ class CompliantJoint
     long pieces_done = 0;
   };
   int out() const { return 2; }  // index of θ_o, the mesh's output-side angle (θ_c itself with a rigid shaft)
-  /// The law has a wave: the modes carry its oscillator.
+  /// The law has a wave: the modes carry its oscillators.
   bool forced() const { return law_.wave.active(); }
-  /// The modes' order: size(), and the oscillator's two states (cos, sin of the wave's angle) when forced.
-  int dim() const { return size() + (forced() ? 2 : 0); }
+  /// The modes' order: size(), and each sine's oscillator, two states (cos, sin of its angle).
+  int dim() const { return size() + 2 * law_.wave.count; }
+  /// The oscillators' rows and the sines' torque on the row `row` (scaled by `gain`: 1/J of the body it drives).
+  void addOscillators(double gain, int row, ModeMatrix* a) const;
   /// x_ sized dim() around the physical state `phys`, the oscillator's states exact at time_.
   void setModeState(const Eigen::VectorXd& phys);
   /// A and u of mesh mode m with the bodies' slides (0 stuck: its rows zeroed; ±1: −T_c·slide folded into u).
@@ -307,7 +310,7 @@ class CompliantJoint
   double watch_lo_ = -INFINITY, watch_hi_ = INFINITY;
   double horizon_ = INFINITY;
   double time_ = 0.0;
-  Eigen::VectorXd x_;  // the state, then (forced) the oscillator's cos and sin of the wave's angle
+  Eigen::VectorXd x_;  // the state, then (forced) each oscillator's cos and sin of its sine's angle
   MeshMode mode_ = MeshMode::Forward;
   std::optional<Segment> segment_;
   std::vector<std::shared_ptr<const ModeBasis>> bases_;  // most recently used last

@@ -140,9 +140,9 @@ class ProportionalDrive : public Drive
   double command() const { return command_; }
   /// A step of the set-point θ_R [rad] (finite); call reevaluate() with the state after it. Ends a command wave.
   void setCommand(double command);
-  /// θ_R = command + A sin(ω(t − t₀) + φ) [rad] from now on (`wave` in rad): the law gains the torque wave K·A
-  /// sin(…). The linear law only (no torque limit, compensation or dither): InvalidParameterError otherwise.
-  void setCommandWave(double command, const Sinusoid& wave);
+  /// θ_R = command + Σ A_i sin(ω_i(t − t₀,i) + φ_i) [rad] from now on (`wave` in rad): the law gains the torque
+  /// wave K·A_i sin(…). The linear law only (no torque limit, compensation or dither): InvalidParameterError otherwise.
+  void setCommandWave(double command, const Waveform& wave);
   /// The law is linear (no torque limit, compensation or dither): it takes a command wave.
   bool linear() const { return limit_ == 0.0 && friction_ == 0.0 && amplitude_ == 0.0; }
 
@@ -161,7 +161,7 @@ class ProportionalDrive : public Drive
   double gain_;
   double command_;
   double limit_;
-  Sinusoid wave_;  // the command's wave [rad] (amplitude 0: none)
+  Waveform wave_;  // the command's wave [rad] (empty: none)
   Region region_ = Region::Linear;
   double friction_ = 0.0;   // F [N·m] (0: no feed-forward)
   double width_ = 0.0;      // w [rad]
@@ -177,7 +177,7 @@ class EffortDrive : public Drive
 {
  public:
   /// T_m = torque + wave(t) [N·m] (wave: none by default; finite, frequency > 0 when active).
-  explicit EffortDrive(double torque, const Sinusoid& wave = Sinusoid());
+  explicit EffortDrive(double torque, const Waveform& wave = Waveform());
   ControlMode mode() const override { return ControlMode::Effort; }
   MotorInput law() const override { return {torque_, 0.0, wave_}; }
   std::unique_ptr<Drive> clone() const override { return std::make_unique<EffortDrive>(*this); }
@@ -190,7 +190,7 @@ class EffortDrive : public Drive
 
  private:
   double torque_;
-  Sinusoid wave_;
+  Waveform wave_;
 };
 
 /**
@@ -257,6 +257,15 @@ class SampledDrive : public Drive
   /// The controller's latest readings [rad] (what it sees): motor (referred to the load shaft) and load.
   double motorReading() const { return motor_reading_; }
   double loadReading() const { return load_reading_; }
+  /**
+   * A torque injected into the drive's output at every sample from now on — the torque (current) set-point
+   * injection a commissioning tool uses to measure the mechanics with the loops closed: u_k += A sin(2π (k − k₀)/N)
+   * [N·m], k the sample's index (k₀ the next sample's), added after the law and the compensator and before the
+   * torque limit. amplitude 0: none. Throws InvalidParameterError unless A is finite and N ≥ 2.
+   */
+  void setInjection(double amplitude, long period_samples);
+  /// The torque injected at the latest sample [N·m].
+  double injected() const { return injected_; }
 
  private:
   DriveParams p_;
@@ -282,6 +291,10 @@ class SampledDrive : public Drive
   double motor_reading_ = 0.0, load_reading_ = 0.0;
   bool winding_ = false;
   bool steady_ = false;
+  double injection_amplitude_ = 0.0;  // A [N·m]
+  long injection_period_ = 0;         // N [samples]
+  long injection_start_ = 0;          // k₀
+  double injected_ = 0.0;             // at the latest sample [N·m]
 };
 
 /**

@@ -10,9 +10,11 @@
  * joint's mechanical response) held over samples of the injection rate. The plant then sees piecewise-constant
  * torques, so every motion stays the closed form of its mode and the response is exact. For a periodic input the
  * period T = 2π/ω must hold a whole number N ≥ 4 of samples: the frequency is placed there, ω = 2π f_s / N with
- * N = round(2π f_s / ω) (the frequency used is reported beside the one asked for). With a compliant mesh the sine
- * itself is exact too (the modes carry it as an oscillator, compliant_joint.h): the command under the continuous P
- * law, the torque with `continuous`; the period is then observed at 64 instants and ω is the one asked for.
+ * N = round(2π f_s / ω) (the frequency used is reported beside the one asked for). The sine itself is exact too
+ * (the modes carry it as an oscillator, compliant_joint.h; not on rigid teeth with dry friction): the command under
+ * the continuous P law, the torque with `continuous`; the period is then observed at 64 instants and ω is the one
+ * asked for. The set-point channels inject the held sine into the digital drive's torque set-point at its own
+ * samples, its loops closed (SampledDrive::setInjection), and divide by the applied motor torque's fundamental.
  *
  * **Steady state.** The state is compared at the starts of successive periods: velocities, gap and shaft twist must
  * repeat and positions advance by the same amount each period (a torque input may drift at a constant mean speed),
@@ -42,12 +44,16 @@ namespace backlash_servo
 /// What is excited and what is measured.
 enum class FrfChannel
 {
-  CommandToLoadPosition,  ///< θ_R [rad] through the digital drive → θ_c [rad]
-  TorqueToMotorVelocity,  ///< T_m [N·m] in effort mode → ω_m [rad/s]
-  TorqueToLoadVelocity    ///< T_m [N·m] in effort mode → ω_c [rad/s]
+  CommandToLoadPosition,    ///< θ_R [rad] through the digital drive → θ_c [rad]
+  TorqueToMotorVelocity,    ///< T_m [N·m] in effort mode → ω_m [rad/s]
+  TorqueToLoadVelocity,     ///< T_m [N·m] in effort mode → ω_c [rad/s]
+  SetpointToMotorVelocity,  ///< a torque injected into the digital drive's set-point, its loops closed → ω_m [rad/s]
+                            ///< per N·m of the motor torque (the mechanics measured in closed loop)
+  SetpointToLoadVelocity    ///< the same → ω_c [rad/s] per N·m of the motor torque
 };
 
-/// "command:load_position", "motor_torque:motor_velocity", "motor_torque:load_velocity".
+/// "command:load_position", "motor_torque:motor_velocity", "motor_torque:load_velocity",
+/// "torque_setpoint:motor_velocity", "torque_setpoint:load_velocity".
 const char* toString(FrfChannel c);
 /// The channel named by toString(); throws InvalidParameterError(key, …) naming the value otherwise.
 FrfChannel frfChannelFrom(const std::string& name, const std::string& key);
@@ -55,7 +61,9 @@ FrfChannel frfChannelFrom(const std::string& name, const std::string& key);
 struct FrfSettings
 {
   FrfChannel channel = FrfChannel::CommandToLoadPosition;
-  double offset = 0.0;  ///< u₀, the input's constant part [rad for the command, N·m for the torque]
+  /// u₀, the input's constant part [rad for the command, N·m for the torque]; for the set-point channels the speed
+  /// offset of the drive's command, θ_R = θ₀ + u₀(t − t₀) [rad/s], so that the joint keeps turning.
+  double offset = 0.0;
   /// Samples per second of the torque injection [Hz] (torque channels; 0 = the drive's controller_rate, else
   /// DEFAULT_INJECTION_RATE). The command is sampled by the drive at its controller_rate.
   double injection_rate = 0.0;
@@ -81,20 +89,22 @@ struct FrfPoint
   double requested_frequency = 0.0;  ///< ω asked for [rad/s]
   double frequency = 0.0;            ///< ω used [rad/s]: a whole number of samples per period
   int samples_per_period = 0;        ///< N
-  std::complex<double> response;     ///< H = Y₁/U₁ [output unit per input unit]
-  double gain = 0.0;                 ///< |H|
-  double phase = 0.0;                ///< arg H [rad], in (−π, π]
-  double distortion = 0.0;           ///< √(Σ_{h≥2}|Y_h|²)/|Y₁| [-]
-  double mean = 0.0;                 ///< the output's mean over the period [rad or rad/s]
-  double peak_to_peak = 0.0;         ///< the output's range over the period, at the samples [rad or rad/s]
-  bool periodic = false;             ///< the steady state repeated within the tolerance
-  int period_multiple = 0;           ///< 1: periodic at T; m = 2…4: subharmonic (repeats after mT); 0: not periodic
-  int periods = 0;                   ///< periods simulated
-  double flank_changes = 0.0;        ///< the teeth changed flank (crossed the backlash) this often per period [1]
-  double separations = 0.0;          ///< the teeth came apart (a contact ended) this often per period [1]
-  double settled_at = 0.0;           ///< sim time where the analysed period began [s]
-  State settled_state;               ///< the joint's state there (with a memoryless drive law, a run started on it at
-                                     ///< that time with the same excitation is periodic from its first period)
+  /// H = Y₁/U₁ [output unit per input unit]; for the set-point channels Y₁/T₁, T₁ the fundamental of the motor
+  /// torque the drive applied (its law's output with the injection, held), which takes the loops out of the ratio
+  std::complex<double> response;
+  double gain = 0.0;           ///< |H|
+  double phase = 0.0;          ///< arg H [rad], in (−π, π]
+  double distortion = 0.0;     ///< √(Σ_{h≥2}|Y_h|²)/|Y₁| [-]
+  double mean = 0.0;           ///< the output's mean over the period [rad or rad/s]
+  double peak_to_peak = 0.0;   ///< the output's range over the period, at the samples [rad or rad/s]
+  bool periodic = false;       ///< the steady state repeated within the tolerance
+  int period_multiple = 0;     ///< 1: periodic at T; m = 2…4: subharmonic (repeats after mT); 0: not periodic
+  int periods = 0;             ///< periods simulated
+  double flank_changes = 0.0;  ///< the teeth changed flank (crossed the backlash) this often per period [1]
+  double separations = 0.0;    ///< the teeth came apart (a contact ended) this often per period [1]
+  double settled_at = 0.0;     ///< sim time where the analysed period began [s]
+  State settled_state;         ///< the joint's state there (with a memoryless drive law, a run started on it at
+                               ///< that time with the same excitation is periodic from its first period)
 };
 
 /// The rate [Hz] at which the channel's input is sampled and held: the drive's controller_rate for the command
@@ -106,7 +116,12 @@ double frfOutput(FrfChannel channel, const State& state);
 /// True for the channels whose input is the motor torque (effort mode).
 inline bool torqueInput(FrfChannel channel)
 {
-  return channel != FrfChannel::CommandToLoadPosition;
+  return channel == FrfChannel::TorqueToMotorVelocity || channel == FrfChannel::TorqueToLoadVelocity;
+}
+/// True for the channels that inject into the digital drive's torque set-point, its loops closed.
+inline bool setpointInput(FrfChannel channel)
+{
+  return channel == FrfChannel::SetpointToMotorVelocity || channel == FrfChannel::SetpointToLoadVelocity;
 }
 
 /// The joint's fastest own rate [1/s] under the configuration (natural frequencies of the loop, the contact, the
@@ -116,7 +131,7 @@ double fastestRate(const ServoParams& params);
 /// How a point's sine is applied.
 struct FrfSampling
 {
-  bool continuous = false;  ///< the sine itself (a compliant mesh), else sampled and held
+  bool continuous = false;  ///< the sine itself, else sampled and held
   double rate = 0.0;        ///< samples [Hz]: the hold's, or the observation points' for the sine itself
   long samples_per_period = 0;
   double frequency = 0.0;  ///< ω used [rad/s]: the one asked for, or placed on the sample grid 2πf_s/N
@@ -124,10 +139,10 @@ struct FrfSampling
 
 /**
  * The sampling of a point at ω [rad/s] (> 0): the exact sine (the command under the continuous law, or a torque with
- * `settings.continuous`) needs a compliant mesh; a held sine at least 4 samples a period (ω at most a quarter of the
- * sample rate, placed on the grid ω = 2πf_s/N, N the nearest whole number); at most 1e9 samples a period. Throws
- * InvalidParameterError naming `continuous`, `controller_rate`, `injection_rate` or `frequency` otherwise — what
- * measureFrequencyResponse and backlash_frf's checks before any run both use.
+ * `settings.continuous`) is refused on rigid teeth with dry friction; a held sine at least 4 samples a period (ω at
+ * most a quarter of the sample rate, placed on the grid ω = 2πf_s/N, N the nearest whole number); at most 1e9 samples a
+ * period. Throws InvalidParameterError naming `continuous`, `controller_rate`, `injection_rate` or `frequency`
+ * otherwise — what measureFrequencyResponse and backlash_frf's checks before any run both use.
  */
 FrfSampling frfSampling(const RunConfig& config, const FrfSettings& settings, double omega);
 

@@ -30,6 +30,8 @@ class Simulator
   State state() const;
   const Plant& plant() const { return plant_; }
   const Drive& drive() const { return *drive_; }
+  /// The digital drive, to inject into its torque set-point (SampledDrive::setInjection); null for another drive.
+  SampledDrive* sampledDrive() { return dynamic_cast<SampledDrive*>(drive_.get()); }
   ControlMode controlMode() const { return drive_->mode(); }
   /// θ_R [rad] of the proportional law (the last one set, also while in effort mode).
   double command() const { return command_; }
@@ -38,13 +40,14 @@ class Simulator
   /// finite.
   void setCommand(double command, EventSink* sink = nullptr);
   /**
-   * The continuous P law with θ_R = command + A sin(ω(t − t₀) + φ) [rad] (`wave` in rad) from now on, exactly: the
-   * motor torque gains the wave K·A sin(…), which the joint's modes carry as an oscillator (compliant_joint.h; with
-   * rigid teeth too). Ends a profile. InvalidParameterError (key named) on rigid teeth with dry friction (a digital
-   * drive samples sines instead), or when the law is not the linear continuous one (a digital drive, a torque limit,
-   * compensation).
+   * The continuous P law with θ_R = command + Σ A_i sin(ω_i(t − t₀,i) + φ_i) [rad] (`wave` in rad: a sine or a sum
+   * of up to MAX_TONES) from now on, exactly: the motor torque gains the wave K·A sin(…), which the joint's modes
+   * carry as oscillators (compliant_joint.h; with rigid teeth too). Ends a profile. InvalidParameterError ("wave")
+   * for more sines than the modes carry (one with a torsional shaft). InvalidParameterError (key named) on rigid teeth
+   * with dry friction (a digital drive samples sines instead), or when the law is not the linear continuous one (a
+   * digital drive, a torque limit, compensation).
    */
-  void setCommandWave(double command, const Sinusoid& wave, EventSink* sink = nullptr);
+  void setCommandWave(double command, const Waveform& wave, EventSink* sink = nullptr);
   /**
    * Position mode: θ_R follows the profile (times [s] of sim time) from now on. A digital drive samples it at its
    * instants. The continuous law takes steps and points as exact command steps at their known instants (advanceTo
@@ -62,9 +65,9 @@ class Simulator
   const std::shared_ptr<const CommandProfile>& profile() const { return profile_; }
   /// Effort mode, T_m = torque [N·m] from now on (the internal P loop is off). Must be finite.
   void setMotorTorque(double torque, EventSink* sink = nullptr);
-  /// Effort mode, T_m = torque + A sin(ω(t − t₀) + φ) [N·m] exactly (InvalidParameterError, key named, on rigid
-  /// teeth with dry friction).
-  void setMotorTorque(double torque, const Sinusoid& wave, EventSink* sink = nullptr);
+  /// Effort mode, T_m = torque + Σ A_i sin(ω_i(t − t₀,i) + φ_i) [N·m] exactly (InvalidParameterError, key named, on
+  /// rigid teeth with dry friction, or for more sines than the modes carry).
+  void setMotorTorque(double torque, const Waveform& wave, EventSink* sink = nullptr);
   /**
    * The caller will change the input again at time t [s] (e.g. a torque held over the samples of an external
    * controller): events need not be searched beyond it, which spares a compliant joint's event search the stretch
@@ -151,7 +154,7 @@ class Simulator
   void takeSample();
   /// θ_R = command [rad] for the position law now (setCommand without ending the profile).
   /// θ_R = command (+ wave [rad], the continuous P law only) to the drive, from now on.
-  void applyCommand(double command, EventSink* sink, const Sinusoid& wave = Sinusoid());
+  void applyCommand(double command, EventSink* sink, const Waveform& wave = Waveform());
   /// advanceTo without the continuous law's profile steps.
   void advanceDriveTo(double t_end, EventSink* sink);
   /// The continuous law's profile piece in force at time t: its value as the command, its ramp as a frame.

@@ -4,8 +4,10 @@
  */
 #pragma once
 
+#include <array>
 #include <cmath>
-
+#include <cstddef>
+#include <stdexcept>
 #include <string>
 
 namespace backlash_servo
@@ -58,6 +60,52 @@ struct Sinusoid
   double at(double t) const { return amplitude * std::sin(angle(t)); }
 };
 
+/// Most sines a Waveform sums (each adds two states to a mode, whose order is at most MAX_MODE_ORDER).
+constexpr int MAX_TONES = 2;
+
+/// A sum of sines Σ A_i sin(ω_i(t − t₀,i) + φ_i) [N·m] — a sine and its dither, two test tones; empty: none.
+struct Waveform
+{
+  Waveform() = default;
+  /// The single sine s (none if its amplitude is 0).
+  Waveform(const Sinusoid& s) { add(s); }  // NOLINT(google-explicit-constructor): a sine is a waveform
+  /// Adds the sine s (ignored if its amplitude is 0); throws std::length_error beyond MAX_TONES.
+  void add(const Sinusoid& s)
+  {
+    if (!s.active())
+    {
+      return;
+    }
+    if (count >= MAX_TONES)
+    {
+      throw std::length_error("a waveform sums at most " + std::to_string(MAX_TONES) + " sines");
+    }
+    tones[static_cast<std::size_t>(count++)] = s;
+  }
+  bool active() const { return count > 0; }
+  double at(double t) const
+  {
+    double sum = 0.0;
+    for (int i = 0; i < count; ++i)
+    {
+      sum += tones[static_cast<std::size_t>(i)].at(t);
+    }
+    return sum;
+  }
+  /// Every amplitude times k.
+  Waveform scaled(double k) const
+  {
+    Waveform w = *this;
+    for (int i = 0; i < count; ++i)
+    {
+      w.tones[static_cast<std::size_t>(i)].amplitude *= k;
+    }
+    return w;
+  }
+  std::array<Sinusoid, MAX_TONES> tones{};
+  int count = 0;
+};
+
 /**
  * The motor torque as an affine function of the load position: \f$ T_m = a - k\,\theta_c \f$, plus an optional
  * sinusoid of time (`wave`: a sine on the command through the continuous law, or a sine torque in effort mode; a
@@ -67,10 +115,10 @@ struct Sinusoid
 struct MotorInput
 {
   MotorInput() = default;
-  MotorInput(double a, double k, const Sinusoid& w = Sinusoid()) : offset(a), stiffness(k), wave(w) {}
+  MotorInput(double a, double k, const Waveform& w = Waveform()) : offset(a), stiffness(k), wave(w) {}
   double offset = 0.0;     ///< a [N·m]
   double stiffness = 0.0;  ///< k [N·m/rad]
-  Sinusoid wave;           ///< + A sin(ω(t − t₀) + φ) [N·m]
+  Waveform wave;           ///< + Σ A_i sin(ω_i(t − t₀,i) + φ_i) [N·m]
   /// a − kθ_c [N·m], the law without its wave.
   double torque(double load_position) const { return offset - stiffness * load_position; }
   /// a − kθ_c + wave(t) [N·m] at time t [s].

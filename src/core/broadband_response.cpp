@@ -89,6 +89,12 @@ BroadbandResponse measureBroadband(const RunConfig& config, const BroadbandSetti
   {
     throw InvalidParameterError("periods", "needs settle_periods ≥ 1, periods ≥ 1 (together at most 100000)");
   }
+  if (setpointInput(s.channel))
+  {
+    throw InvalidParameterError("channel", std::string(toString(s.channel)) +
+                                               ": a broadband estimate excites the command or the motor torque; the "
+                                               "set-point channels are measured by stepped sines");
+  }
   const double rate = excitationRate(config, s.channel, s.injection_rate);
   // One period of the excitation's shape s_k.
   std::vector<double> shape;

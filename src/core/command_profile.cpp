@@ -206,13 +206,13 @@ bool CommandProfile::piecewiseLinear() const
   });
 }
 
-void CommandProfile::pieceAt(double t, double* slope, double* until, Sinusoid* wave, double* base) const
+void CommandProfile::pieceAt(double t, double* slope, double* until, Waveform* wave, double* base) const
 {
   *slope = 0.0;
   *until = nextChange(t);
   if (wave != nullptr)
   {
-    *wave = Sinusoid();
+    *wave = Waveform();
   }
   double value = start_;
   for (std::size_t i = 0; i < segments_.size() && t >= segments_[i].time; ++i)
@@ -223,7 +223,7 @@ void CommandProfile::pieceAt(double t, double* slope, double* until, Sinusoid* w
     value = evaluate(s, value, std::min(t, next) - s.time);
     if (wave != nullptr)
     {
-      *wave = Sinusoid();
+      *wave = Waveform();
     }
     if (s.kind == ProfileSegment::Kind::Sine && t < next && t < s.time + s.duration)
     {
@@ -232,6 +232,7 @@ void CommandProfile::pieceAt(double t, double* slope, double* until, Sinusoid* w
       if (wave != nullptr)
       {
         *wave = Sinusoid{s.amplitude, TWO_PI * s.frequency, 0.0, s.time};
+        wave->add(Sinusoid{s.dither_amplitude, TWO_PI * s.dither_frequency, 0.0, s.time});  // (none if 0)
       }
       if (base != nullptr)
       {
@@ -258,7 +259,7 @@ void CommandProfile::pieceAt(double t, double* slope, double* until, Sinusoid* w
   }
 }
 
-void CommandProfile::requireTakenBy(bool sampled, bool dry, bool compliant) const
+void CommandProfile::requireTakenBy(bool sampled, bool dry, bool compliant, int max_tones) const
 {
   if (sampled || piecewiseConstant())
   {
@@ -269,11 +270,11 @@ void CommandProfile::requireTakenBy(bool sampled, bool dry, bool compliant) cons
   {
     moves = moves || s.kind == ProfileSegment::Kind::Move;
     sines = sines || s.kind == ProfileSegment::Kind::Sine;
-    if (s.kind == ProfileSegment::Kind::Sine && s.dither_amplitude != 0.0)
+    if (s.kind == ProfileSegment::Kind::Sine && s.dither_amplitude != 0.0 && max_tones < 2)
     {
       throw InvalidParameterError("profile",
-                                  "a sine with a dither is sampled by a digital drive: set controller_rate "
-                                  "> 0 Hz");
+                                  "a sine with a dither is two sines, and the continuous law carries one on this "
+                                  "joint (a torsional shaft): set controller_rate > 0 Hz for a digital drive");
     }
   }
   if (moves || (sines && dry && !compliant))

@@ -36,6 +36,17 @@ double roundingOf(const ModeVector& w, double w0, const ModeVector& x)
   return 64.0 * std::numeric_limits<double>::epsilon() * (w.cwiseAbs().dot(x.cwiseAbs()) + std::fabs(w0));
 }
 
+/// The modes' order — the joint's size and two states per sine — within MAX_MODE_ORDER.
+void requireOrder(int size, const Waveform& wave)
+{
+  if (size + 2 * wave.count > MAX_MODE_ORDER)
+  {
+    throw InvalidParameterError("wave", std::to_string(wave.count) +
+                                            " sines: a joint with a torsional shaft takes one exactly (a digital "
+                                            "drive samples more)");
+  }
+}
+
 }  // namespace
 
 void requireExactWave(const ServoParams& p, const std::string& what)
@@ -71,6 +82,7 @@ CompliantJoint::CompliantJoint(const ServoParams& params, const MotorInput& law)
   {
     requireExactWave(s_, "a sine");
   }
+  requireOrder(size(), law_.wave);
   setState(Eigen::VectorXd::Zero(size()));
 }
 
@@ -107,6 +119,7 @@ void CompliantJoint::setParams(const ServoParams& params)
 
 void CompliantJoint::setLaw(const MotorInput& law)
 {
+  requireOrder(size(), law.wave);
   const Eigen::VectorXd phys = x_.head(size());
   law_ = law;
   setModeState(phys);
@@ -135,11 +148,11 @@ void CompliantJoint::setModeState(const Eigen::VectorXd& phys)
   const int n = size();
   x_.resize(dim());
   x_.head(n) = phys;
-  if (forced())
+  for (int i = 0; i < law_.wave.count; ++i)
   {
-    const double angle = law_.wave.angle(time_);
-    x_(n) = std::cos(angle);
-    x_(n + 1) = std::sin(angle);
+    const double angle = law_.wave.tones[static_cast<std::size_t>(i)].angle(time_);
+    x_(n + 2 * i) = std::cos(angle);
+    x_(n + 2 * i + 1) = std::sin(angle);
   }
 }
 
@@ -238,7 +251,11 @@ void CompliantJoint::integrate(const Segment& seg, double a, double b, Compliant
     const double w = half * WEIGHT[i % 4];
     const ModeVector x = seg.motion.state(s);
     const double wm = x(1), wc = x(l + 1);
-    const double wave = forced() ? law_.wave.amplitude * x(size() + 1) : 0.0;  // A sin of the oscillator's angle
+    double wave = 0.0;  // Σ A sin of the oscillators' angles
+    for (int t = 0; t < law_.wave.count; ++t)
+    {
+      wave += law_.wave.tones[static_cast<std::size_t>(t)].amplitude * x(size() + 2 * t + 1);
+    }
     sum.input += w * (law_.offset - law_.stiffness * x(l) + wave) * wm;
     sum.motor_friction += w * s_.motor_friction * wm * wm;
     sum.load_friction += w * s_.load_friction * wc * wc;
@@ -395,14 +412,7 @@ void CompliantJoint::modeMatrices(MeshMode m, const std::array<int, 2>& slide, M
   A(1, 1) = -s_.motor_friction / jm;
   A(1, l) = -law_.stiffness / jm;
   U(1) = law_.offset / jm;
-  if (forced())
-  {
-    // The wave's oscillator z = (cos, sin) of its angle, and A sin on the motor.
-    const int z = size();
-    A(z, z + 1) = -law_.wave.frequency;
-    A(z + 1, z) = law_.wave.frequency;
-    A(1, z + 1) = law_.wave.amplitude / jm;
-  }
+  addOscillators(1.0 / jm, 1, a);  // the sines on the motor
   if (m != MeshMode::Free)
   {
     // Q = k(ρθ_m − θ_o) + k_d(ρω_m − ω_o) − σ k δ_σ (δ = 0 forward, Δ backward).
@@ -457,6 +467,20 @@ void CompliantJoint::modeMatrices(MeshMode m, const std::array<int, 2>& slide, M
   }
 }
 
+void CompliantJoint::addOscillators(double gain, int row, ModeMatrix* a) const
+{
+  // Each sine's oscillator z = (cos, sin) of its angle, and A sin on the row.
+  ModeMatrix& A = *a;
+  for (int i = 0; i < law_.wave.count; ++i)
+  {
+    const Sinusoid& s = law_.wave.tones[static_cast<std::size_t>(i)];
+    const int z = size() + 2 * i;
+    A(z, z + 1) = -s.frequency;
+    A(z + 1, z) = s.frequency;
+    A(row, z + 1) = gain * s.amplitude;
+  }
+}
+
 void CompliantJoint::rigidContact(int sigma, ModeMatrix* a, ModeVector* u) const
 {
   // The pair as one body on the load shaft (θ_c = θ_o, no shaft): J ω̇_c = ρ(a − kθ_c + A sin) − F_T ω_c + ρ²T_ext.
@@ -473,13 +497,7 @@ void CompliantJoint::rigidContact(int sigma, ModeMatrix* a, ModeVector* u) const
   A(o + 1, o + 1) = -s_.totalFriction() * r;
   A(o + 1, o) = -rho * law_.stiffness * r;
   U(o + 1) = (rho * law_.offset + rho * rho * s_.load_torque) * r;
-  if (forced())
-  {
-    const int z = size();
-    A(z, z + 1) = -law_.wave.frequency;
-    A(z + 1, z) = law_.wave.frequency;
-    A(o + 1, z + 1) = rho * law_.wave.amplitude * r;
-  }
+  addOscillators(rho * r, o + 1, a);  // the sines on the pair, ρT_m
   A(0, o + 1) = 1.0 / rho;
   A.row(1) = A.row(o + 1) / rho;
   U(1) = U(o + 1) / rho;

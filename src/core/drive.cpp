@@ -70,7 +70,7 @@ MotorInput ProportionalDrive::law() const
       return {-limit_, 0.0};
     default:
       return {feedforward_ == 0 && dither_sign_ == 0 ? gain_ * command_ : gain_ * command_ + added(), gain_,
-              Sinusoid{gain_ * wave_.amplitude, wave_.frequency, wave_.phase, wave_.origin}};
+              wave_.scaled(gain_)};
   }
 }
 
@@ -161,23 +161,27 @@ void ProportionalDrive::setCommand(double command)
 {
   requireFinite("command", command);
   command_ = command;
-  wave_ = Sinusoid();
+  wave_ = Waveform();
 }
 
 namespace
 {
-/// A wave's numbers finite, its frequency > 0 when it is active.
-void requireWave(const std::string& key, const Sinusoid& w)
+/// A wave's numbers finite, each sine's frequency > 0.
+void requireWave(const std::string& key, const Waveform& wave)
 {
-  if (!std::isfinite(w.amplitude) || !std::isfinite(w.frequency) || !std::isfinite(w.phase) ||
-      !std::isfinite(w.origin) || (w.active() && !(w.frequency > 0.0)))
+  for (int i = 0; i < wave.count; ++i)
   {
-    throw InvalidParameterError(key, "a sine needs a finite amplitude, phase and origin and a frequency > 0 rad/s");
+    const Sinusoid& w = wave.tones[static_cast<std::size_t>(i)];
+    if (!std::isfinite(w.amplitude) || !std::isfinite(w.frequency) || !std::isfinite(w.phase) ||
+        !std::isfinite(w.origin) || !(w.frequency > 0.0))
+    {
+      throw InvalidParameterError(key, "a sine needs a finite amplitude, phase and origin and a frequency > 0 rad/s");
+    }
   }
 }
 }  // namespace
 
-void ProportionalDrive::setCommandWave(double command, const Sinusoid& wave)
+void ProportionalDrive::setCommandWave(double command, const Waveform& wave)
 {
   requireWave("command", wave);
   if (wave.active() && (limit_ > 0.0 || friction_ != 0.0 || amplitude_ != 0.0))
@@ -190,7 +194,7 @@ void ProportionalDrive::setCommandWave(double command, const Sinusoid& wave)
   wave_ = wave;
 }
 
-EffortDrive::EffortDrive(double torque, const Sinusoid& wave) : torque_(0.0)
+EffortDrive::EffortDrive(double torque, const Waveform& wave) : torque_(0.0)
 {
   setTorque(torque);
   requireWave("motor_torque", wave);
@@ -201,7 +205,7 @@ void EffortDrive::setTorque(double torque)
 {
   requireFinite("motor_torque", torque);
   torque_ = torque;
-  wave_ = Sinusoid();
+  wave_ = Waveform();
 }
 
 void DriveParams::validate(ControlMode mode) const
@@ -416,6 +420,16 @@ void SampledDrive::sample(const State& s)
     u = compensator_.torque(u, e, t_k);
     steady = false;
   }
+  injected_ = 0.0;
+  if (injection_amplitude_ != 0.0)
+  {
+    // The phase from the index modulo N: exact however long the run.
+    const long k = ((next_ - injection_start_) % injection_period_ + injection_period_) % injection_period_;
+    injected_ = injection_amplitude_ *
+                std::sin(6.283185307179586476925 * static_cast<double>(k) / static_cast<double>(injection_period_));
+    u += injected_;
+    steady = false;
+  }
   if (limit > 0.0)
   {
     u = std::min(std::max(u, -limit), limit);
@@ -434,6 +448,19 @@ void SampledDrive::sample(const State& s)
   steady_ = steady && held_ == u;
   ++next_;
   started_ = true;
+}
+
+void SampledDrive::setInjection(double amplitude, long period_samples)
+{
+  if (!std::isfinite(amplitude) || (amplitude != 0.0 && period_samples < 2))
+  {
+    throw InvalidParameterError("amplitude",
+                                "an injected torque needs a finite amplitude [N·m] and a period of at "
+                                "least 2 samples");
+  }
+  injection_amplitude_ = amplitude;
+  injection_period_ = period_samples;
+  injection_start_ = next_;
 }
 
 long SampledDrive::holdSamples(const State& state, double until, double lo, double hi, long max_count, double* last)

@@ -150,6 +150,10 @@ const char* toString(FrfChannel c)
       return "motor_torque:motor_velocity";
     case FrfChannel::TorqueToLoadVelocity:
       return "motor_torque:load_velocity";
+    case FrfChannel::SetpointToMotorVelocity:
+      return "torque_setpoint:motor_velocity";
+    case FrfChannel::SetpointToLoadVelocity:
+      return "torque_setpoint:load_velocity";
   }
   return "?";
 }
@@ -157,7 +161,8 @@ const char* toString(FrfChannel c)
 FrfChannel frfChannelFrom(const std::string& name, const std::string& key)
 {
   for (FrfChannel c :
-       {FrfChannel::CommandToLoadPosition, FrfChannel::TorqueToMotorVelocity, FrfChannel::TorqueToLoadVelocity})
+       {FrfChannel::CommandToLoadPosition, FrfChannel::TorqueToMotorVelocity, FrfChannel::TorqueToLoadVelocity,
+        FrfChannel::SetpointToMotorVelocity, FrfChannel::SetpointToLoadVelocity})
   {
     if (name == toString(c))
     {
@@ -165,12 +170,29 @@ FrfChannel frfChannelFrom(const std::string& name, const std::string& key)
     }
   }
   throw InvalidParameterError(key, "'" + name +
-                                       "' is not a channel: command:load_position, motor_torque:motor_velocity or "
-                                       "motor_torque:load_velocity");
+                                       "' is not a channel: command:load_position, motor_torque:motor_velocity, "
+                                       "motor_torque:load_velocity, torque_setpoint:motor_velocity or "
+                                       "torque_setpoint:load_velocity");
 }
 
 double excitationRate(const RunConfig& config, FrfChannel channel, double injection_rate)
 {
+  if (setpointInput(channel))
+  {
+    if (!config.drive.sampled())
+    {
+      throw InvalidParameterError("controller_rate",
+                                  "the torque set-point is the digital drive's: give a "
+                                  "controller_rate > 0 Hz");
+    }
+    if (injection_rate != 0.0 && injection_rate != config.drive.controller_rate)
+    {
+      throw InvalidParameterError("injection_rate",
+                                  "the set-point is injected at the drive's own samples "
+                                  "(controller_rate): leave injection_rate out");
+    }
+    return config.drive.controller_rate;
+  }
   if (!torqueInput(channel))
   {
     if (!config.drive.sampled())
@@ -198,8 +220,10 @@ double frfOutput(FrfChannel c, const State& s)
     case FrfChannel::CommandToLoadPosition:
       return s.load_position;
     case FrfChannel::TorqueToMotorVelocity:
+    case FrfChannel::SetpointToMotorVelocity:
       return s.motor_velocity;
     case FrfChannel::TorqueToLoadVelocity:
+    case FrfChannel::SetpointToLoadVelocity:
       return s.load_velocity;
   }
   return NAN;
@@ -235,7 +259,13 @@ FrfSampling frfSampling(const RunConfig& config, const FrfSettings& settings, do
   FrfSampling out;
   // The sine itself: the command under the continuous law, or the torque when asked for. Its
   // period is then observed at CONTINUOUS_POINTS instants (the steady-state test and the Fourier pieces' cuts).
-  out.continuous = torque ? settings.continuous : !config.drive.sampled();
+  if (setpointInput(settings.channel) && settings.continuous)
+  {
+    throw InvalidParameterError("continuous",
+                                "the set-point injection is the digital drive's, sampled at its "
+                                "controller_rate: leave continuous out");
+  }
+  out.continuous = torque ? settings.continuous : !setpointInput(settings.channel) && !config.drive.sampled();
   if (out.continuous)
   {
     requireExactWave(config.params, torque ? "an exact sine torque (--continuous)" : "a sine command");
@@ -282,7 +312,7 @@ FrfPoint measureFrequencyResponse(const RunConfig& config, const FrfSettings& se
     throw InvalidParameterError("max_periods", "needs max_periods 0 (automatic) or ≥ 3 and harmonics in [1, 1000]");
   }
   const FrfChannel channel = settings.channel;
-  const bool torque = torqueInput(channel);
+  const bool torque = torqueInput(channel), setpoint = setpointInput(channel);
   const FrfSampling sampling = frfSampling(config, settings, omega);
   const bool continuous = sampling.continuous;
   const double rate = sampling.rate;
@@ -311,7 +341,21 @@ FrfPoint measureFrequencyResponse(const RunConfig& config, const FrfSettings& se
   RunConfig run = config;
   run.track_energy = false;
   run.duration = 0.0;
-  if (!torque && !continuous)
+  if (setpoint)
+  {
+    // The loops hold the configured command, or follow it turning at the speed offset (a ramp the drive samples).
+    run.profile.reset();
+    if (settings.offset != 0.0)
+    {
+      ProfileSegment ramp;
+      ramp.kind = ProfileSegment::Kind::Ramp;
+      ramp.time = t0;
+      ramp.duration = period * (static_cast<double>(max_periods) + MAX_PERIOD_MULTIPLE + 2.0);
+      ramp.target = config.command + settings.offset * ramp.duration;
+      run.profile = std::make_shared<const CommandProfile>(config.command, std::vector<ProfileSegment>{ramp});
+    }
+  }
+  else if (!torque && !continuous)
   {
     ProfileSegment sine;
     sine.kind = ProfileSegment::Kind::Sine;
@@ -322,6 +366,10 @@ FrfPoint measureFrequencyResponse(const RunConfig& config, const FrfSettings& se
     run.profile = std::make_shared<const CommandProfile>(settings.offset, std::vector<ProfileSegment>{sine});
   }
   Simulator sim = makeSimulator(run);
+  if (setpoint)
+  {
+    sim.sampledDrive()->setInjection(amplitude, n_samples);  // (the next sample is sample 0, at t₀)
+  }
   const bool held = torque && !continuous;  // the torque set sample by sample
   if (continuous)
   {
@@ -396,6 +444,7 @@ FrfPoint measureFrequencyResponse(const RunConfig& config, const FrfSettings& se
   const double h_max = 0.5 / std::max(fastestRate(config.params), 1e-300);
   const int harmonics = settings.harmonics;
   std::vector<std::complex<double>> y(static_cast<std::size_t>(harmonics) + 1, 0.0);
+  std::complex<double> torque_line = 0.0;  // ∫ T_m e^{−jω(t − t₀)}: the set-point channels' input
   double lo = INFINITY, hi = -INFINITY;
   std::size_t next_break = 0;
   for (long k = k_begin; k < k_end; ++k)
@@ -446,6 +495,10 @@ FrfPoint measureFrequencyResponse(const RunConfig& config, const FrfSettings& se
           {
             y[static_cast<std::size_t>(j)] += wt * v * std::polar(1.0, -j * theta);
           }
+          if (setpoint)
+          {
+            torque_line += wt * sim.plant().motorTorque() * std::polar(1.0, -theta);
+          }
         }
       }
     }
@@ -460,7 +513,8 @@ FrfPoint measureFrequencyResponse(const RunConfig& config, const FrfSettings& se
   {
     coef[static_cast<std::size_t>(j)] = 2.0 / span * y[static_cast<std::size_t>(j)];
   }
-  const std::complex<double> u1(0.0, -amplitude);
+  // The input's fundamental as a phasor: −jA for the sine itself; the applied torque's for the set-point channels.
+  const std::complex<double> u1 = setpoint ? 2.0 / span * torque_line : std::complex<double>(0.0, -amplitude);
   out.response = coef[1] / u1;
   out.gain = std::abs(out.response);
   out.phase = std::arg(out.response);

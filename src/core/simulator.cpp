@@ -159,7 +159,7 @@ void Simulator::leaveFrame()
 void Simulator::applyPiece(double t, EventSink* sink)
 {
   double slope, until, base = 0.0;
-  Sinusoid wave;
+  Waveform wave;
   profile_->pieceAt(t, &slope, &until, &wave, &base);
   next_change_ = until;
   if (wave.active())
@@ -290,7 +290,7 @@ void Simulator::setCommand(double command, EventSink* sink)
   setCommandWave(command, Sinusoid(), sink);
 }
 
-void Simulator::setCommandWave(double command, const Sinusoid& wave, EventSink* sink)
+void Simulator::setCommandWave(double command, const Waveform& wave, EventSink* sink)
 {
   requireFinite("command", command);
   if (wave.active())
@@ -325,7 +325,8 @@ void Simulator::setProfile(std::shared_ptr<const CommandProfile> profile, EventS
   auto* sampled = dynamic_cast<SampledDrive*>(drive_.get());
   if (profile)
   {
-    profile->requireTakenBy(sampled != nullptr, params().hasDryFriction(), params().compliant());
+    profile->requireTakenBy(sampled != nullptr, params().hasDryFriction(), params().compliant(),
+                            params().torsionalShaft() ? 1 : MAX_TONES);
     const auto* proportional = dynamic_cast<const ProportionalDrive*>(drive_.get());
     if (sampled == nullptr && !profile->piecewiseLinear() && (proportional == nullptr || !proportional->linear()))
     {
@@ -349,7 +350,7 @@ void Simulator::setProfile(std::shared_ptr<const CommandProfile> profile, EventS
   }
 }
 
-void Simulator::applyCommand(double command, EventSink* sink, const Sinusoid& wave)
+void Simulator::applyCommand(double command, EventSink* sink, const Waveform& wave)
 {
   command_ = command;
   if (auto* sampled = dynamic_cast<SampledDrive*>(drive_.get()))
@@ -375,7 +376,7 @@ void Simulator::setMotorTorque(double torque, EventSink* sink)
   setDrive(std::make_unique<EffortDrive>(torque), sink);
 }
 
-void Simulator::setMotorTorque(double torque, const Sinusoid& wave, EventSink* sink)
+void Simulator::setMotorTorque(double torque, const Waveform& wave, EventSink* sink)
 {
   if (wave.active())
   {

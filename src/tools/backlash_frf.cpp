@@ -43,10 +43,14 @@ The joint's frequency response as a drive's commissioning tool measures it, one 
 motion: for each amplitude and frequency the periodic steady state is detected (a point that does not settle says
 so), then the fundamental's gain and phase, the harmonic distortion and how often the teeth cross the backlash.
 Channels: command:load_position (the command theta_R through the configured digital drive -> theta_c; the default),
-motor_torque:motor_velocity and motor_torque:load_velocity (the motor torque, the drive's loop off -> omega).
+motor_torque:motor_velocity and motor_torque:load_velocity (the motor torque, the drive's loop off -> omega),
+torque_setpoint:motor_velocity and torque_setpoint:load_velocity (a torque injected into the digital drive's
+set-point with its loops closed; the response is omega per N*m of the motor torque applied, the mechanics, and
+--offset is the command's speed [rad/s] so that the joint keeps turning).
 With --excitation prbs or chirp: one periodic broadband excitation instead, recorded at the samples, and the H1
 estimate with its coherence per DFT line - what a drive's commissioning tool shows.
-SI units: amplitudes and offsets in rad (command) or N*m (torque), frequencies in rad/s, phases in rad.
+SI units: amplitudes and offsets in rad (command) or N*m (torque; the set-point's offset in rad/s), frequencies in
+rad/s, phases in rad.
 )";
 
 constexpr double PI = 3.14159265358979323846;
@@ -114,11 +118,13 @@ Options parse(int argc, char** argv)
       keysOfSections({ParamSection::Servo, ParamSection::Chart, ParamSection::Drive, ParamSection::Initial}),
       {{"config", "FILE.yaml", "the joint's keys in snake_case (flags override it)"},
        {"channel", "CHANNEL",
-        "command:load_position (default), motor_torque:motor_velocity, motor_torque:load_velocity"},
+        "command:load_position (default), motor_torque:motor_velocity, motor_torque:load_velocity, "
+        "torque_setpoint:motor_velocity, torque_setpoint:load_velocity"},
        {"amplitude", "A[,A...]", "sine amplitudes [rad for the command, N*m for the torque]"},
        {"frequency", "W[,W...]", "frequencies [rad/s]"},
        {"frequency_range", "LO:HI:N", "N frequencies spaced logarithmically from LO to HI [rad/s]"},
-       {"offset", "U0", "the input's constant part [rad or N*m] (default 0)"},
+       {"offset", "U0",
+        "the input's constant part [rad or N*m] (default 0); set-point channels: the command's speed [rad/s]"},
        {"injection_rate", "HZ",
         "torque channels: samples per second of the injected torque (default: the drive's "
         "controller_rate, else 10000 Hz)"},
@@ -151,9 +157,9 @@ Options parse(int argc, char** argv)
   parser.parse(argc, argv);
   Options o;
   o.config_path = parser.option("config");
-  const bool torque_channel = parser.option("channel", "command:load_position") != "command:load_position";
-  o.config = runConfigFrom(parser.keys(), torque_channel ? ControlMode::Effort : ControlMode::Position);
   o.settings.channel = frfChannelFrom(parser.option("channel", "command:load_position"), "--channel");
+  const bool torque_channel = torqueInput(o.settings.channel);
+  o.config = runConfigFrom(parser.keys(), torque_channel ? ControlMode::Effort : ControlMode::Position);
   if (!parser.given("amplitude"))
   {
     throw ConfigError("--amplitude is required: the sine amplitudes [rad for the command, N*m for the torque]");
@@ -579,9 +585,12 @@ void writeJson(const Options& o, const std::vector<Row>& rows)
 
 void writeText(const Options& o, const std::vector<Row>& rows)
 {
-  const bool torque = o.settings.channel != FrfChannel::CommandToLoadPosition;
+  const bool torque = torqueInput(o.settings.channel), setpoint = setpointInput(o.settings.channel);
   std::printf("channel %s, offset %g %s; gain in %s, phase in rad\n", toString(o.settings.channel), o.settings.offset,
-              torque ? "N*m" : "rad", torque ? "(rad/s)/(N*m)" : "rad/rad");
+              torque     ? "N*m"
+              : setpoint ? "rad/s"
+                         : "rad",
+              torque || setpoint ? "(rad/s)/(N*m)" : "rad/rad");
   std::printf("%12s %12s %12s %12s %10s %8s %8s %s\n", "amplitude", "w [rad/s]", "gain", "phase", "THD", "flank/T",
               "apart/T", o.linear ? "steady state           linear gain / phase" : "steady state");
   for (const Row& r : rows)

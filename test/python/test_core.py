@@ -254,6 +254,10 @@ def test_frequency_response_of_the_locked_joint_is_the_held_transfer_function():
     expected = 1.0 / complex(1.0 - 1.3 ** 2, 0.8 * 1.3)
     assert d["frequency"] == 1.3
     assert abs(d["response"] - expected) < 1e-9 * abs(expected)
+    # The mechanics measured with the loops of a digital P drive closed: 1/(F + jwJ), the controller out of the ratio.
+    c = core.frequency_response({"backlash": 0.0, "controller_rate": 500.0}, amplitude=0.2, frequency=2.0,
+                                channel="torque_setpoint:motor_velocity", tolerance=1e-12)
+    assert abs(c["response"] - 1.0 / complex(0.8, c["frequency"])) < 1e-9
     with pytest.raises(ValueError, match="load_static_friction"):
         core.frequency_response({"load_coulomb_friction": 0.01, "load_static_friction": 0.01}, amplitude=0.1,
                                 frequency=1.0)

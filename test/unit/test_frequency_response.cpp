@@ -56,6 +56,72 @@ TEST(FrequencyResponse, LockedTorqueToVelocityIsTheHeldTransferFunction)
   }
 }
 
+TEST(FrequencyResponse, TheSetpointInjectionMeasuresTheMechanicsWithTheLoopsClosed)
+{
+  // A torque injected into the digital drive's set-point, its loops closed: ω over the motor torque the drive applied
+  // is the mechanics' own response, whatever the law — Δ = 0: ω_m/T_m = 1/(Jjω + F_T) on the motor shaft (ρ = 0.5 here,
+  // J = J_m + ρ²J_L, F_T = f_m + ρ²f_L), ω_c/T_m = ρ times it, for a P law with a one-sample delay and a cascade.
+  // With backlash and a speed offset a small injection leaves the teeth on one flank: the same response, to the
+  // same 1e-9.
+  for (const double w : {0.4, 6.0})
+  {
+    for (const bool cascade : {false, true})
+    {
+      RunConfig c = d1(0.0);
+      c.params.gear_ratio = 0.5;
+      c.drive.controller_rate = 500.0;
+      if (cascade)
+      {
+        c.drive.control_law = "cascade";
+        c.drive.position_loop_gain = 2.0;
+        c.drive.velocity_loop_gain = 1.5;
+        c.drive.velocity_loop_integral_gain = 1.0;
+      }
+      else
+      {
+        c.drive.controller_delay = 1.0;
+      }
+      FrfSettings s;
+      s.channel = FrfChannel::SetpointToMotorVelocity;
+      s.tolerance = 1e-12;
+      const FrfPoint p = measureFrequencyResponse(c, s, 0.2, w);
+      ASSERT_TRUE(p.periodic) << w;
+      const double wu = p.frequency;
+      const cd motor = 1.0 / cd(c.params.totalFriction(), wu * c.params.totalInertia());
+      EXPECT_LT(std::abs(p.response - motor), 1e-9 * std::abs(motor)) << w << " " << cascade << " " << p.response;
+      s.channel = FrfChannel::SetpointToLoadVelocity;
+      const FrfPoint q = measureFrequencyResponse(c, s, 0.2, w);
+      EXPECT_LT(std::abs(q.response - 0.5 * motor), 1e-9 * std::abs(motor)) << w << " " << cascade;
+      c.params.backlash = 0.3;
+      s.channel = FrfChannel::SetpointToMotorVelocity;
+      s.offset = 0.5;  // [rad/s]
+      const FrfPoint r = measureFrequencyResponse(c, s, 0.02, w);
+      ASSERT_TRUE(r.periodic) << w;
+      EXPECT_EQ(r.flank_changes, 0.0);
+      EXPECT_LT(std::abs(r.response - motor), 1e-9 * std::abs(motor)) << w << " " << cascade << " " << r.response;
+    }
+  }
+  // What it refuses, naming the key: no digital drive, an injection rate of its own, the sine itself.
+  RunConfig c = d1(0.3);
+  FrfSettings s;
+  s.channel = FrfChannel::SetpointToMotorVelocity;
+  try
+  {
+    measureFrequencyResponse(c, s, 0.1, 1.0);
+    ADD_FAILURE() << "the continuous law has no set-point to inject into";
+  }
+  catch (const InvalidParameterError& e)
+  {
+    EXPECT_EQ(e.field(), "controller_rate");
+  }
+  c.drive.controller_rate = 100.0;
+  s.injection_rate = 1000.0;
+  EXPECT_THROW(measureFrequencyResponse(c, s, 0.1, 1.0), InvalidParameterError);
+  s.injection_rate = 0.0;
+  s.continuous = true;
+  EXPECT_THROW(measureFrequencyResponse(c, s, 0.1, 1.0), InvalidParameterError);
+}
+
 TEST(FrequencyResponse, LockedSampledLoopIsTheSampledDataTransferFunction)
 {
   // Δ = 0 under a digital P drive at f_s: the controller sees y_k = θ_c(t_k) through the ZOH-equivalent plant

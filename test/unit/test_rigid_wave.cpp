@@ -228,3 +228,69 @@ TEST(RigidWave, DryFrictionOnRigidTeethRefusesTheExactSineNamingTheKey)
   EXPECT_EQ(sim.plant().compliantJoint(), nullptr);  // nothing changed
   EXPECT_THROW(sim.setMotorTorque(0.0, Sinusoid{0.5, 1.0, 0.0, 0.0}), InvalidParameterError);
 }
+
+TEST(RigidWave, ASumOfSinesIsTheSumOfTheResponsesWhereTheJointIsLinear)
+{
+  // Without backlash (and, for a compliant mesh, damping) the joint is linear: from rest, the response to two sines is
+  // the sum of the responses to each (superposition) — rigid teeth and a compliant mesh alike, the command under the
+  // continuous law and a torque in effort mode. A sine profile with a dither is that sum, taken exactly; more sines
+  // than the modes carry are refused naming the key.
+  for (const double stiffness : {0.0, 400.0})
+  {
+    ServoParams p;
+    p.backlash = 0.0;
+    p.gear_ratio = 0.5;
+    p.mesh_stiffness = stiffness;
+    // (undamped: a damper's torque that would pull releases the flank, so a damped mesh is not linear even at Δ = 0)
+    const Sinusoid a{0.3, 1.1, 0.2, 0.0}, b{0.05, 13.0, 0.0, 0.0};
+    Waveform both = a;
+    both.add(b);
+    for (const bool torque : {false, true})
+    {
+      const auto run = [&](const Waveform& w) {
+        Simulator sim(p, State(), 0.0);
+        torque ? sim.setMotorTorque(0.0, w) : sim.setCommandWave(0.0, w);
+        sim.advanceTo(7.3);
+        return sim.state();
+      };
+      const State sa = run(a), sb = run(b), sum = run(both);
+      EXPECT_NEAR(sum.load_position, sa.load_position + sb.load_position, 1e-11) << stiffness << " " << torque;
+      EXPECT_NEAR(sum.motor_velocity, sa.motor_velocity + sb.motor_velocity, 1e-10) << stiffness << " " << torque;
+      EXPECT_GT(std::fabs(sb.load_position), 1e-4);  // (the second sine matters)
+    }
+  }
+  // The profile's sine with a dither under the continuous law: the two sines, bit for bit.
+  ServoParams p = bouncing();
+  ProfileSegment sine;
+  sine.kind = ProfileSegment::Kind::Sine;
+  sine.amplitude = 0.4;
+  sine.frequency = 0.3;
+  sine.dither_amplitude = 0.01;
+  sine.dither_frequency = 5.0;
+  sine.duration = 30.0;
+  Simulator profiled(p, State(), 0.0), direct(p, State(), 0.0);
+  profiled.setProfile(std::make_shared<const CommandProfile>(0.0, std::vector<ProfileSegment>{sine}));
+  Waveform w = Sinusoid{0.4, 2.0 * PI * 0.3, 0.0, 0.0};
+  w.add(Sinusoid{0.01, 2.0 * PI * 5.0, 0.0, 0.0});
+  direct.setCommandWave(0.0, w);
+  profiled.advanceTo(12.0);
+  direct.advanceTo(12.0);
+  EXPECT_EQ(profiled.state().load_position, direct.state().load_position);
+  EXPECT_EQ(profiled.state().motor_velocity, direct.state().motor_velocity);
+  // A torsional shaft's modes carry one sine: the dithered profile is refused, naming the key.
+  ServoParams shaft;
+  shaft.mesh_stiffness = 1e3;
+  shaft.gear_inertia = 0.1;
+  shaft.shaft_stiffness = 1e3;
+  Simulator twisted(shaft, State(), 0.0);
+  try
+  {
+    twisted.setProfile(std::make_shared<const CommandProfile>(0.0, std::vector<ProfileSegment>{sine}));
+    ADD_FAILURE() << "accepted";
+  }
+  catch (const InvalidParameterError& e)
+  {
+    EXPECT_EQ(e.field(), "profile");
+  }
+  EXPECT_THROW(twisted.setMotorTorque(0.0, w), InvalidParameterError);
+}

@@ -973,6 +973,29 @@ TEST(FrequencyResponseTool, LockedJointGivesTheHeldTransferFunction)
   EXPECT_EQ(found, 2) << json;
   EXPECT_NEAR(jsonNumber(json, "linear_gain"), jsonNumber(json, "gain"), 1e-12) << json;
   EXPECT_NE(json.find("\"crosses_backlash\":false"), std::string::npos) << json;
+  // The same mechanics measured with a PID drive's loops closed (the set-point injection): no hold, no controller in
+  // the ratio — 1/(F + jωJ) itself; the text report gives the set-point's offset as a speed.
+  const std::string closed = runCapture(FRF +
+                                            " --backlash 0 --controller-rate 1000 --control-law pid --integral-gain 0.5"
+                                            " --derivative-gain 0.5 --channel torque_setpoint:motor_velocity"
+                                            " --amplitude 0.1 --frequency 5 --tolerance 1e-12 --json",
+                                        &code);
+  ASSERT_EQ(code, 0) << closed;
+  const double w = jsonNumber(closed, "frequency");
+  const std::complex<double> mechanics = 1.0 / std::complex<double>(0.8, w);
+  EXPECT_NEAR(jsonNumber(closed, "gain"), std::abs(mechanics), 1e-9 * std::abs(mechanics)) << closed;
+  EXPECT_NEAR(jsonNumber(closed, "phase"), std::arg(mechanics), 1e-9) << closed;
+  const std::string text =
+      runCapture(FRF +
+                     " --backlash 0.3 --restitution 0.8 --controller-rate 1000 --channel torque_setpoint:load_velocity"
+                     " --offset 0.5 --amplitude 0.02 --frequency 5",
+                 &code);
+  ASSERT_EQ(code, 0) << text;
+  EXPECT_NE(text.find("offset 0.5 rad/s; gain in (rad/s)/(N*m)"), std::string::npos) << text;
+  const std::string refused =
+      runCapture(FRF + " --channel torque_setpoint:motor_velocity --amplitude 0.1 --frequency 5 2>&1", &code);
+  EXPECT_EQ(code, 2);
+  EXPECT_NE(refused.find("controller_rate"), std::string::npos) << refused;
 }
 
 TEST(FrequencyResponseTool, BacklashPointsCsvChartAndRefusals)
