@@ -102,9 +102,13 @@ struct FrfPoint
   int periods = 0;             ///< periods simulated
   double flank_changes = 0.0;  ///< the teeth changed flank (crossed the backlash) this often per period [1]
   double separations = 0.0;    ///< the teeth came apart (a contact ended) this often per period [1]
-  double settled_at = 0.0;     ///< sim time where the analysed period began [s]
-  State settled_state;         ///< the joint's state there (with a memoryless drive law, a run started on it at
-                               ///< that time with the same excitation is periodic from its first period)
+  /// The mesh torque on the load over the analysed period [N·m]: its mean, and its least and greatest values (at
+  /// the samples and the quadrature's nodes — for the sine itself on a joint that stays on one flank, from its
+  /// fundamental: mean ∓ |Q₁|, exact).
+  double mesh_torque_mean = 0.0, mesh_torque_min = 0.0, mesh_torque_max = 0.0;
+  double settled_at = 0.0;  ///< sim time where the analysed period began [s]
+  State settled_state;      ///< the joint's state there (with a memoryless drive law, a run started on it at
+                            ///< that time with the same excitation is periodic from its first period)
 };
 
 /// The rate [Hz] at which the channel's input is sampled and held: the drive's controller_rate for the command
@@ -155,5 +159,15 @@ FrfSampling frfSampling(const RunConfig& config, const FrfSettings& settings, do
  */
 FrfPoint measureFrequencyResponse(const RunConfig& config, const FrfSettings& settings, double amplitude, double omega,
                                   const std::function<bool()>& cancelled = nullptr);
+
+/**
+ * The release amplitude at the point's frequency, from the point measured on the same joint without backlash
+ * (`linear`, periodic): the largest amplitude at which the teeth stay on their flank — below it the joint with
+ * backlash moves exactly as the one without. The linear joint's mesh torque is Q(t) = Q̄ + (A/A_lin)·q(t) (the
+ * offsets' part does not depend on the amplitude, q has mean 0), so the flank is released where it first reaches 0:
+ * A* = A_lin·Q̄/(Q̄ − min Q) when Q̄ > 0, A_lin·|Q̄|/(max Q − Q̄) when Q̄ < 0; 0 when |Q̄| is below 1e-8 of the
+ * swing (nothing holds the teeth on a flank). NaN when the point is not periodic or its mesh torque does not move.
+ */
+double releaseAmplitude(const FrfPoint& linear);
 
 }  // namespace backlash_servo

@@ -445,6 +445,8 @@ FrfPoint measureFrequencyResponse(const RunConfig& config, const FrfSettings& se
   const int harmonics = settings.harmonics;
   std::vector<std::complex<double>> y(static_cast<std::size_t>(harmonics) + 1, 0.0);
   std::complex<double> torque_line = 0.0;  // ∫ T_m e^{−jω(t − t₀)}: the set-point channels' input
+  std::complex<double> mesh_line = 0.0;    // ∫ Q e^{−jω(t − t₀)}
+  double mesh_sum = 0.0, mesh_lo = INFINITY, mesh_hi = -INFINITY;
   double lo = INFINITY, hi = -INFINITY;
   std::size_t next_break = 0;
   for (long k = k_begin; k < k_end; ++k)
@@ -454,6 +456,9 @@ FrfPoint measureFrequencyResponse(const RunConfig& config, const FrfSettings& se
     const double at_sample = frfOutput(channel, sim.state());
     lo = std::min(lo, at_sample);
     hi = std::max(hi, at_sample);
+    const double q_sample = sim.plant().meshTorque();
+    mesh_lo = std::min(mesh_lo, q_sample);
+    mesh_hi = std::max(mesh_hi, q_sample);
     if (held)
     {
       sim.setMotorTorque(inputAt(k));
@@ -499,6 +504,11 @@ FrfPoint measureFrequencyResponse(const RunConfig& config, const FrfSettings& se
           {
             torque_line += wt * sim.plant().motorTorque() * std::polar(1.0, -theta);
           }
+          const double q = sim.plant().meshTorque();
+          mesh_sum += wt * q;
+          mesh_line += wt * q * std::polar(1.0, -theta);
+          mesh_lo = std::min(mesh_lo, q);
+          mesh_hi = std::max(mesh_hi, q);
         }
       }
     }
@@ -507,6 +517,16 @@ FrfPoint measureFrequencyResponse(const RunConfig& config, const FrfSettings& se
   const double span = period * m;
   out.mean = y[0].real() / span;
   out.peak_to_peak = hi - lo;
+  out.mesh_torque_mean = mesh_sum / span;
+  out.mesh_torque_min = mesh_lo;
+  out.mesh_torque_max = mesh_hi;
+  if (continuous && breaks.flankChanges() == 0 && breaks.separations == 0 && m == 1)
+  {
+    // The sine itself on one flank: the mesh torque is its mean and its fundamental (the joint is linear there).
+    const double q1 = std::abs(2.0 / span * mesh_line);
+    out.mesh_torque_min = out.mesh_torque_mean - q1;
+    out.mesh_torque_max = out.mesh_torque_mean + q1;
+  }
   // Y_h = (2/span)∫ y e^{−jhω(t − t₀)} over the window of m periods (a subharmonic's own lines at ω/m are not read).
   std::vector<std::complex<double>> coef(static_cast<std::size_t>(harmonics) + 1);
   for (int j = 1; j <= harmonics; ++j)
@@ -526,6 +546,23 @@ FrfPoint measureFrequencyResponse(const RunConfig& config, const FrfSettings& se
   out.distortion = std::abs(coef[1]) > 0.0 ? std::sqrt(distortion) / std::abs(coef[1]) : 0.0;
   out.periods = static_cast<int>(n + m);
   return out;
+}
+
+double releaseAmplitude(const FrfPoint& linear)
+{
+  const double mean = linear.mesh_torque_mean;
+  const double swing = mean >= 0.0 ? mean - linear.mesh_torque_min : linear.mesh_torque_max - mean;
+  if (!linear.periodic || !(swing > 0.0))
+  {
+    return NAN;
+  }
+  // A mean within what the steady state's detection leaves of a transient (1e-8 of the swing, the default
+  // tolerance) holds nothing: the teeth leave the flank at any amplitude.
+  if (std::fabs(mean) <= 1e-8 * swing)
+  {
+    return 0.0;
+  }
+  return linear.amplitude * std::fabs(mean) / swing;
 }
 
 }  // namespace backlash_servo

@@ -226,6 +226,12 @@ py::dict frequencyResponse(const py::object& config, double amplitude, double fr
   d["flank_changes"] = p.flank_changes;
   d["separations"] = p.separations;
   d["samples_per_period"] = p.samples_per_period;
+  d["mesh_torque_mean"] = p.mesh_torque_mean;
+  d["mesh_torque_min"] = p.mesh_torque_min;
+  d["mesh_torque_max"] = p.mesh_torque_max;
+  // (the release amplitude is read off the joint without backlash: None for a joint with backlash)
+  d["release_amplitude"] =
+      c.params.backlash == 0.0 ? py::object(py::float_(releaseAmplitude(p))) : py::object(py::none());
   return d;
 }
 

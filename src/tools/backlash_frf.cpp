@@ -506,6 +506,20 @@ std::vector<double> crossingAmplitudes(const Options& o, const std::vector<Row>&
   return out;
 }
 
+/// Per frequency: the release amplitude (frequency_response.h) from the linear run, NaN without --linear.
+std::vector<double> releaseAmplitudes(const Options& o, const std::vector<Row>& rows)
+{
+  std::vector<double> out(o.frequencies.size(), NAN);
+  for (std::size_t i = 0; i < rows.size() && i < o.frequencies.size(); ++i)
+  {
+    if (rows[i].has_linear)
+    {
+      out[i] = releaseAmplitude(rows[i].linear);  // (the smallest amplitude's: any gives the same, the joint linear)
+    }
+  }
+  return out;
+}
+
 std::string number(double v)
 {
   return csvNumber(v);
@@ -570,12 +584,16 @@ void writeJson(const Options& o, const std::vector<Row>& rows)
   }
   w.endArray();
   w.beginArray("backlash_crossing");
-  const std::vector<double> crossing = crossingAmplitudes(o, rows);
+  const std::vector<double> crossing = crossingAmplitudes(o, rows), release = releaseAmplitudes(o, rows);
   for (std::size_t f = 0; f < o.frequencies.size(); ++f)
   {
     w.beginObject();
     w.field("frequency", rows[f].point.frequency);
     w.field("amplitude", crossing[f]);
+    if (o.linear)
+    {
+      w.field("release_amplitude", release[f]);
+    }
     w.endObject();
   }
   w.endArray();
@@ -614,19 +632,23 @@ void writeText(const Options& o, const std::vector<Row>& rows)
     }
     std::printf("\n");
   }
-  const std::vector<double> crossing = crossingAmplitudes(o, rows);
+  const std::vector<double> crossing = crossingAmplitudes(o, rows), release = releaseAmplitudes(o, rows);
   for (std::size_t f = 0; f < o.frequencies.size(); ++f)
   {
     if (std::isfinite(crossing[f]))
     {
-      std::printf("w = %.6g rad/s: the teeth cross the backlash from amplitude %.6g on (of those run)\n",
+      std::printf("w = %.6g rad/s: the teeth cross the backlash from amplitude %.6g on (of those run)",
                   rows[f].point.frequency, crossing[f]);
     }
     else
     {
-      std::printf("w = %.6g rad/s: the teeth do not cross the backlash at any amplitude run\n",
-                  rows[f].point.frequency);
+      std::printf("w = %.6g rad/s: the teeth do not cross the backlash at any amplitude run", rows[f].point.frequency);
     }
+    if (std::isfinite(release[f]))
+    {
+      std::printf("; they stay on their flank up to amplitude %.6g", release[f]);
+    }
+    std::printf("\n");
   }
 }
 

@@ -253,6 +253,7 @@ def test_frequency_response_of_the_locked_joint_is_the_held_transfer_function():
     d = core.frequency_response({"backlash": 0.0}, amplitude=0.1, frequency=1.3)
     expected = 1.0 / complex(1.0 - 1.3 ** 2, 0.8 * 1.3)
     assert d["frequency"] == 1.3
+    assert d["release_amplitude"] == 0.0  # nothing holds the teeth on a flank
     assert abs(d["response"] - expected) < 1e-9 * abs(expected)
     # The mechanics measured with the loops of a digital P drive closed: 1/(F + jwJ), the controller out of the ratio.
     c = core.frequency_response({"backlash": 0.0, "controller_rate": 500.0}, amplitude=0.2, frequency=2.0,

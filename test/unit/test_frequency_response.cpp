@@ -122,6 +122,46 @@ TEST(FrequencyResponse, TheSetpointInjectionMeasuresTheMechanicsWithTheLoopsClos
   EXPECT_THROW(measureFrequencyResponse(c, s, 0.1, 1.0), InvalidParameterError);
 }
 
+TEST(FrequencyResponse, TheReleaseAmplitudeIsWhereTheLinearJointsMeshTorqueReachesZero)
+{
+  // A load torque holds D1's teeth on a flank. Without backlash, under the continuous law's exact sine, the mesh
+  // torque is Q = −T_ext + (−J_Lω² + jωf_L)T(jω)·A e^{jωt}, T the pair's transfer function: the flank is released
+  // above A* = T_ext/|(−J_Lω² + jωf_L)T(jω)| (to 1e-9). The joint with backlash confirms it: at 0.98 A* its teeth stay
+  // on the flank and its response is the linear one; at 1.02 A* they part. Under a digital drive (a held sine) A* is
+  // read from the sampled period, and the same bracket holds.
+  for (const bool sampled : {false, true})
+  {
+    RunConfig c = d1(0.2);
+    c.params.load_torque = 0.2;
+    if (sampled)
+    {
+      c.drive.controller_rate = 200.0;
+    }
+    RunConfig lin = c;
+    lin.params.backlash = 0.0;
+    FrfSettings s;
+    s.tolerance = 1e-12;
+    for (const double w : {0.5, 2.0})
+    {
+      const FrfPoint l = measureFrequencyResponse(lin, s, 0.05, w);
+      const double release = releaseAmplitude(l);
+      ASSERT_TRUE(std::isfinite(release)) << w;
+      if (!sampled)
+      {
+        const double jl = c.params.load_inertia, fl = c.params.load_friction;
+        const cd t = 1.0 / cd(1.0 - w * w, 0.8 * w);
+        const double expected = 0.2 / std::abs(cd(-jl * w * w, fl * w) * t);
+        EXPECT_NEAR(release, expected, 1e-9 * expected) << w;
+      }
+      const FrfPoint below = measureFrequencyResponse(c, s, 0.98 * release, w);
+      EXPECT_EQ(below.separations, 0.0) << w << " " << sampled;
+      EXPECT_LT(std::abs(below.response - l.response), 1e-9 * std::abs(l.response)) << w << " " << sampled;
+      const FrfPoint above = measureFrequencyResponse(c, s, 1.02 * release, w);
+      EXPECT_GT(above.separations, 0.0) << w << " " << sampled;
+    }
+  }
+}
+
 TEST(FrequencyResponse, LockedSampledLoopIsTheSampledDataTransferFunction)
 {
   // Δ = 0 under a digital P drive at f_s: the controller sees y_k = θ_c(t_k) through the ZOH-equivalent plant

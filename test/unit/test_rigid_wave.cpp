@@ -294,3 +294,31 @@ TEST(RigidWave, ASumOfSinesIsTheSumOfTheResponsesWhereTheJointIsLinear)
   }
   EXPECT_THROW(twisted.setMotorTorque(0.0, w), InvalidParameterError);
 }
+
+TEST(RigidWave, NewParametersDuringTheSineTakeEffectAndTheLedgerGoesOn)
+{
+  // Live tuning while a sine runs on rigid teeth: the restitution and the backlash changed mid-run take effect (the
+  // run then equals one started with them from the state just after the change), and the ledger still balances.
+  const ServoParams p = bouncing();
+  ServoParams q = p;
+  q.restitution = 0.2;
+  q.backlash = 0.1;
+  const Sinusoid sine{0.5, 1.3, 0.0, 0.0};
+  Simulator tuned(p, State(), 0.0);
+  tuned.setCommandWave(0.0, sine);
+  tuned.advanceTo(4.0);
+  tuned.setParams(q);
+  const State at_change = tuned.state();  // (re-expressed on the new mesh)
+  ASSERT_NE(tuned.plant().compliantJoint(), nullptr);
+  tuned.advanceTo(12.0);
+  Simulator fresh(q, at_change, 0.0);
+  fresh.setCommandWave(0.0, sine);
+  fresh.advanceTo(12.0);
+  EXPECT_NEAR(tuned.state().load_position, fresh.state().load_position, 1e-9);
+  EXPECT_NEAR(tuned.state().motor_velocity, fresh.state().motor_velocity, 1e-9);
+  EXPECT_LT(std::fabs(tuned.plant().energyBalanceError()), 1e-11 * tuned.plant().energy().input_magnitude);
+  ServoParams dry = q;
+  dry.motor_coulomb_friction = dry.motor_static_friction = 0.01;
+  EXPECT_THROW(tuned.setParams(dry), InvalidParameterError);  // refused, the old parameters kept
+  EXPECT_EQ(tuned.params().restitution, 0.2);
+}

@@ -1163,6 +1163,15 @@ TEST(FrequencyResponseTool, ExactSinesOnACompliantMeshAndOnRigidTeeth)
   EXPECT_EQ(jsonNumber(rigid, "frequency"), w);
   EXPECT_NEAR(jsonNumber(rigid, "gain"), std::abs(t), 1e-9 * std::abs(t)) << rigid;
   EXPECT_NEAR(jsonNumber(rigid, "phase"), std::arg(t), 1e-9) << rigid;
+  // A load torque holds the teeth on a flank: the release amplitude T_ext/|(−J_Lω² + jωf_L)T(jω)|, solved from the
+  // joint without backlash.
+  const std::string held =
+      runCapture(FRF + " --restitution 0.8 --load-torque 0.2 --amplitude 0.1 --frequency 2 --linear --json", &code);
+  ASSERT_EQ(code, 0) << held;
+  const std::complex<double> t2 =
+      1.0 / (1.0 - d1.totalInertia() * 4.0 + std::complex<double>(0.0, 2.0 * d1.totalFriction()));
+  const double release = 0.2 / std::abs(std::complex<double>(-d1.load_inertia * 4.0, 2.0 * d1.load_friction) * t2);
+  EXPECT_NEAR(jsonNumber(held, "release_amplitude"), release, 1e-9 * release) << held;
   const std::string dry = runCapture(FRF +
                                          " --motor-coulomb-friction 0.01 --motor-static-friction 0.01"
                                          " --channel motor_torque:motor_velocity --continuous --amplitude 1 "
