@@ -279,9 +279,9 @@ class CompliantJoint
   void flankTorque(int sigma, double ky, double kv, ModeVector* w, double* w0) const;
   /// The mode the mesh takes from the current state (after an event).
   MeshMode chooseMode(bool released_forward, bool released_backward) const;
-  /// Rigid teeth in contact on flank σ: the meshed pair's A and u, and its mesh torque Q = w·x + w₀ [N·m].
-  void rigidContact(int sigma, ModeMatrix* a, ModeVector* u) const;
-  void rigidMeshTorque(int sigma, ModeVector* w, double* w0) const;
+  /// Rigid teeth in contact (either flank): the meshed pair's A and u, and its mesh torque Q = w·x + w₀ [N·m].
+  void rigidContact(ModeMatrix* a, ModeVector* u) const;
+  void rigidMeshTorque(ModeVector* w, double* w0) const;
   /// Rigid teeth: the impact on flank σ at the current state; the mode after it.
   void impact(int sigma);
   /// The basis of a mode's matrix A: computed once and kept (a few modes and drive laws recur all run long).

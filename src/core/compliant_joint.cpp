@@ -365,7 +365,7 @@ double CompliantJoint::meshTorque() const
   double w0;
   if (rigid_)
   {
-    rigidMeshTorque(sigma, &w, &w0);
+    rigidMeshTorque(&w, &w0);
     return sigma * std::max(0.0, sigma * (w.dot(x_) + w0));
   }
   flankTorque(sigma, (k2 ? 2.0 : 1.0) * s_.mesh_stiffness, k2 ? 0.0 : s_.mesh_damping, &w, &w0);
@@ -396,7 +396,7 @@ void CompliantJoint::modeMatrices(MeshMode m, const std::array<int, 2>& slide, M
 {
   if (rigid_ && m != MeshMode::Free)
   {
-    rigidContact(isForward(m) ? 1 : -1, a, u);
+    rigidContact(a, u);  // (either flank: the flank enters through the mesh torque's sign)
     return;
   }
   const int k = dim(), o = out(), l = loadIndex();
@@ -481,7 +481,7 @@ void CompliantJoint::addOscillators(double gain, int row, ModeMatrix* a) const
   }
 }
 
-void CompliantJoint::rigidContact(int sigma, ModeMatrix* a, ModeVector* u) const
+void CompliantJoint::rigidContact(ModeMatrix* a, ModeVector* u) const
 {
   // The pair as one body on the load shaft (θ_c = θ_o, no shaft): J ω̇_c = ρ(a − kθ_c + A sin) − F_T ω_c + ρ²T_ext.
   // The motor follows it — θ̇_m = ω_c/ρ, ω̇_m = ω̇_c/ρ — so the gap stays exactly as it began, and the motor's
@@ -501,15 +501,14 @@ void CompliantJoint::rigidContact(int sigma, ModeMatrix* a, ModeVector* u) const
   A(0, o + 1) = 1.0 / rho;
   A.row(1) = A.row(o + 1) / rho;
   U(1) = U(o + 1) / rho;
-  (void)sigma;  // (the same body on either flank: the flank enters only through the mesh torque's sign)
 }
 
-void CompliantJoint::rigidMeshTorque(int sigma, ModeVector* w, double* w0) const
+void CompliantJoint::rigidMeshTorque(ModeVector* w, double* w0) const
 {
   // Q = J_L ω̇_c + f_L ω_c − T_ext, ω̇_c the pair's.
   ModeMatrix a;
   ModeVector u;
-  rigidContact(sigma, &a, &u);
+  rigidContact(&a, &u);
   const int o = out();
   const double jl = s_.load_inertia;
   *w = jl * a.row(o + 1).transpose();
@@ -699,7 +698,7 @@ void CompliantJoint::beginSegment()
     const int sigma = isForward(mode_) ? 1 : -1;
     if (rigid_)
     {
-      rigidMeshTorque(sigma, &w, &w0);
+      rigidMeshTorque(&w, &w0);
       watches.push_back({sigma * w, sigma * w0, -1, MeshEvent::Release, sigma});  // σQ ↓ 0
     }
     else if (isK2(mode_))
