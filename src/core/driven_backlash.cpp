@@ -6,6 +6,8 @@
 #include <string>
 #include <vector>
 
+#include "driven_periods.h"
+
 namespace backlash_servo
 {
 namespace
@@ -406,47 +408,36 @@ DrivenBacklash drivenBacklash(const ServoParams& params, double amplitude, doubl
   DrivenBacklash out;
   double last_gap = NAN, last_speed = NAN;
   Phase last_phase = Phase::Free;
-  int k = 1;
-  for (; k <= max_periods; ++k)
-  {
-    const double t = k * period;
-    element.advanceTo(t);
-    const double gap = element.position() - element.x(t), speed = element.velocity();
-    if (std::fabs(gap - last_gap) <= tolerance * params.backlash &&
-        std::fabs(speed - last_speed) <= tolerance * amplitude * omega && element.phase() == last_phase)
-    {
-      out.periodic = true;
-      break;
-    }
-    last_gap = gap;
-    last_speed = speed;
-    last_phase = element.phase();
-  }
-  out.periods = std::min(k, max_periods);
-  // The next period (or, not periodic, the mean over the next ANALYSED periods), sampled: the fundamentals of θ_c and
-  // sgn θ̇_c.
-  constexpr int M = 1 << 12, ANALYSED = 16;
-  const int analysed = out.periodic ? 1 : ANALYSED;
+  out.periods = settlePeriods(
+      element, period, max_periods,
+      [&](double t) {
+        const double gap = element.position() - element.x(t), speed = element.velocity();
+        if (std::fabs(gap - last_gap) <= tolerance * params.backlash &&
+            std::fabs(speed - last_speed) <= tolerance * amplitude * omega && element.phase() == last_phase)
+        {
+          return true;
+        }
+        last_gap = gap;
+        last_speed = speed;
+        last_phase = element.phase();
+        return false;
+      },
+      &out.periodic);
+  // The next period (or, not periodic, the mean over the next DRIVEN_ANALYSED periods), sampled: the fundamentals of
+  // θ_c and sgn θ̇_c.
   const double start = out.periods * period;
   const long impacts_before = element.impacts();
   std::complex<double> position(0.0, 0.0), sign(0.0, 0.0);
-  for (int p = 0; p < analysed; ++p)
-  {
-    for (int i = 0; i < M; ++i)
-    {
-      const double t = (out.periods + p) * period + period * i / M;
-      element.advanceTo(t);
-      const double v = element.velocity();
-      const std::complex<double> rotor = std::polar(1.0, -2.0 * PI * i / M);  // e^{−jωt}, ωt = 2πk + 2πi/M
-      position += element.position() * rotor;
-      sign += (v > 0.0 ? 1.0 : v < 0.0 ? -1.0 : 0.0) * rotor;
-    }
-  }
+  const int analysed = samplePeriods(element, period, out.periods, out.periodic, [&](std::complex<double> rotor) {
+    const double v = element.velocity();
+    position += element.position() * rotor;
+    sign += (v > 0.0 ? 1.0 : v < 0.0 ? -1.0 : 0.0) * rotor;
+  });
   element.advanceTo(start + analysed * period);
   out.impacts = static_cast<int>((element.impacts() - impacts_before) / analysed);
   const std::complex<double> j(0.0, 1.0);
   // y₁ = (2/T)∫ y e^{−jωt} dt, N = j y₁ / A (y = A sin ωt → N = 1).
-  const double scale = 2.0 / (static_cast<double>(M) * analysed);
+  const double scale = 2.0 / (static_cast<double>(DRIVEN_SAMPLES) * analysed);
   out.position = j * scale * position / amplitude;
   const std::complex<double> sign_df = j * scale * sign / amplitude;
   out.torque = std::complex<double>(-omega * omega * params.load_inertia, omega * params.load_friction) * out.position +

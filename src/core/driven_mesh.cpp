@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "backlash_servo/linear_mode.h"
+#include "driven_periods.h"
 
 namespace backlash_servo
 {
@@ -251,34 +252,26 @@ DrivenBacklash drivenCompliantMesh(const ServoParams& params, double amplitude, 
   double last_position = NAN, last_speed = NAN;
   int last_phase = 2;
   const double scale = std::max(params.backlash, amplitude);
-  int k = 1;
-  for (; k <= max_periods; ++k)
-  {
-    element.advanceTo(k * period);
-    if (std::fabs(element.position() - last_position) <= tolerance * scale &&
-        std::fabs(element.velocity() - last_speed) <= tolerance * amplitude * omega && element.phase() == last_phase)
-    {
-      out.periodic = true;
-      break;
-    }
-    last_position = element.position();
-    last_speed = element.velocity();
-    last_phase = element.phase();
-  }
-  out.periods = std::min(k, max_periods);
-  constexpr int M = 1 << 12, ANALYSED = 16;
-  const int analysed = out.periodic ? 1 : ANALYSED;
+  out.periods = settlePeriods(
+      element, period, max_periods,
+      [&](double) {
+        if (std::fabs(element.position() - last_position) <= tolerance * scale &&
+            std::fabs(element.velocity() - last_speed) <= tolerance * amplitude * omega &&
+            element.phase() == last_phase)
+        {
+          return true;
+        }
+        last_position = element.position();
+        last_speed = element.velocity();
+        last_phase = element.phase();
+        return false;
+      },
+      &out.periodic);
   std::complex<double> position(0.0, 0.0);
-  for (int p = 0; p < analysed; ++p)
-  {
-    for (int i = 0; i < M; ++i)
-    {
-      element.advanceTo((out.periods + p) * period + period * i / M);
-      position += element.position() * std::polar(1.0, -2.0 * PI * i / M);
-    }
-  }
+  const int analysed = samplePeriods(element, period, out.periods, out.periodic,
+                                     [&](std::complex<double> rotor) { position += element.position() * rotor; });
   const std::complex<double> j(0.0, 1.0);
-  out.position = j * (2.0 / (static_cast<double>(M) * analysed)) * position / amplitude;
+  out.position = j * (2.0 / (static_cast<double>(DRIVEN_SAMPLES) * analysed)) * position / amplitude;
   out.torque = std::complex<double>(-omega * omega * params.load_inertia, omega * params.load_friction) * out.position;
   return out;
 }
