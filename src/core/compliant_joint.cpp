@@ -6,6 +6,7 @@
 #include <limits>
 #include <stdexcept>
 
+#include "backlash_servo/gear_mesh.h"
 #include "backlash_servo/linear_mode.h"
 
 namespace backlash_servo
@@ -521,10 +522,11 @@ void CompliantJoint::impact(int sigma)
   constexpr double EPS = std::numeric_limits<double>::epsilon();
   const double rho = s_.gear_ratio, delta = s_.backlash;
   const int o = out();
-  // Onto the flank exactly (moves θ_m by rounding): y = σ(ρθ_m − θ_o) − δ_σ = 0.
-  x_(0) = (x_(o) - (sigma > 0 ? 0.0 : delta)) / rho;
+  const GearMesh mesh(s_);
+  const Contact wall = sigma > 0 ? Contact::Forward : Contact::Backward;
+  x_(0) = mesh.motorPositionOnWall(x_(o), wall);  // onto the flank exactly (moves θ_m by rounding)
   const double v = x_(o + 1), w = x_(1);
-  const double closing = sigma * (rho * w - v);  // ẏ > 0: the teeth approach
+  const double closing = mesh.closingSpeed(wall, v, w);  // ẏ > 0: the teeth approach
   const double speed_noise = 64.0 * EPS * (std::fabs(v) + rho * std::fabs(w));
   if (!(closing > 0.0) && -closing > speed_noise)
   {
@@ -949,8 +951,9 @@ void CompliantJoint::moveTo(double tau, double t)
   {
     // The meshed pair: the motor exactly where the flank puts it (the closed form keeps the gap to rounding).
     const int o = out();
-    x_(0) = (x_(o) - (isForward(mode_) ? 0.0 : s_.backlash)) / s_.gear_ratio;
-    x_(1) = x_(o + 1) / s_.gear_ratio;
+    const GearMesh mesh(s_);
+    x_(0) = mesh.motorPositionOnWall(x_(o), isForward(mode_) ? Contact::Forward : Contact::Backward);
+    x_(1) = mesh.motorVelocityInContact(x_(o + 1));
   }
   time_ = t;
   if (track_energy_)
