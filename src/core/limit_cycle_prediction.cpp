@@ -34,48 +34,85 @@ std::complex<double> thesisLoop(const ServoParams& p, double w)
   return wn * wn / std::complex<double>(-w * w, 2.0 * zeta * wn * w);
 }
 
-std::complex<double> lawGain(const ServoParams& p, const DriveParams& d, double w)
+double lawStiffness(const ServoParams& p, const DriveParams& d)
 {
+  return d.sampled() && d.control_law == "cascade" ? d.velocity_loop_gain * d.position_loop_gain : p.gain;
+}
+
+double loopNaturalFrequency(const ServoParams& p, const DriveParams& d)
+{
+  return std::sqrt(p.gear_ratio * lawStiffness(p, d) / p.totalInertia());
+}
+
+LawResponse lawResponse(const ServoParams& p, const DriveParams& d, double w)
+{
+  LawResponse r;
   if (!d.sampled())
   {
-    return p.gain;
+    r.load = p.gain;
+    return r;
   }
   const double t = 1.0 / d.controller_rate;
   const std::complex<double> back = 1.0 - std::exp(std::complex<double>(0.0, -w * t));  // 1 − z⁻¹ at z = e^{jωT}
+  std::complex<double> hold = back / std::complex<double>(0.0, w * t);                  // the hold's fundamental
+  if (d.controller_delay > 0.0)
+  {
+    hold *= std::exp(std::complex<double>(0.0, -w * t));
+  }
+  if (d.control_law == "cascade")
+  {
+    // u = C_v(z) (K_p e − ŵ), ŵ = (1 − z⁻¹)/T · ρθ_m (the motor encoder's backward difference).
+    const std::complex<double> cv = d.velocity_loop_gain + d.velocity_loop_integral_gain * t / back;
+    const std::complex<double> speed = back / t;
+    (d.feedback == "motor" ? r.motor : r.load) = cv * d.position_loop_gain * hold;
+    r.motor += cv * speed * hold;
+    return r;
+  }
   std::complex<double> c = p.gain;
   if (d.control_law == "pid")
   {
     c += d.integral_gain * t / back + d.derivative_gain * back / t;
   }
-  std::complex<double> k = c * back / std::complex<double>(0.0, w * t);  // the hold's fundamental
-  if (d.controller_delay > 0.0)
-  {
-    k *= std::exp(std::complex<double>(0.0, -w * t));
-  }
-  return k;
+  (d.feedback == "motor" ? r.motor : r.load) = c * hold;
+  return r;
 }
 
 std::complex<double> loopResponse(const ServoParams& p, const DriveParams& d, double w)
 {
-  return thesisLoop(p, w) * (lawGain(p, d, w) / p.gain);
+  const LawResponse k = lawResponse(p, d, w);
+  const double rho = p.gear_ratio;
+  if (k.motor == 0.0)
+  {
+    return thesisLoop(p, w) * (k.load / p.gain);  // the thesis' loop: the load lumped into the motor
+  }
+  const std::complex<double> s(0.0, w);
+  if (k.load != 0.0)
+  {
+    return rho * k.load / (s * s * p.totalInertia() + s * p.totalFriction() + rho * k.motor);
+  }
+  // The loop reads the motor alone: lumped, nothing would pass the backlash; the load's reaction through it does.
+  const std::complex<double> m = s * s * p.motor_inertia + s * p.motor_friction,
+                             l = s * s * p.load_inertia + s * p.load_friction;
+  return rho * rho * l / (m + rho * k.motor);
 }
 
 namespace
 {
 /// The two bodies of a compliant mesh's loop at ω: M = −ω²J_m + jωf_m, L = −ω²J_L + jωf_L, the law's K(jω), and the
-/// deflection's response to the mesh torque, G = ρ²/M + 1/L + ρK/(ML) (X = −G T).
+/// deflection's response to the mesh torque, G = ρ(ρ + K_θ/L)/(M + ρK_x) + 1/L (X = −G T).
 struct TwoBodies
 {
-  std::complex<double> m, l, k, g;
+  std::complex<double> m, l, g;
+  LawResponse k;
 };
 TwoBodies twoBodies(const ServoParams& p, const DriveParams& d, double w)
 {
   TwoBodies b;
   b.m = {-w * w * p.motor_inertia, w * p.motor_friction};
   b.l = {-w * w * p.load_inertia, w * p.load_friction};
-  b.k = lawGain(p, d, w);
+  b.k = lawResponse(p, d, w);
   const double rho = p.gear_ratio;
-  b.g = rho * rho / b.m + 1.0 / b.l + rho * b.k / (b.m * b.l);
+  b.g = rho * (rho + b.k.load / b.l) / (b.m + rho * b.k.motor) + 1.0 / b.l;
   return b;
 }
 }  // namespace
@@ -87,18 +124,19 @@ std::complex<double> compliantLoop(const ServoParams& p, const DriveParams& d, d
 
 double compliantMotorAmplitude(const ServoParams& p, const DriveParams& d, double w)
 {
-  // ρΘ_m = ρ(K(jω)/L + ρ) X / (G M).
+  // ρΘ_m = ρ(K_θ/L + ρ) X / (G (M + ρK_x)).
   const TwoBodies b = twoBodies(p, d, w);
   const double rho = p.gear_ratio;
-  return std::abs(rho * (b.k / b.l + rho) / (b.g * b.m));
+  return std::abs(rho * (b.k.load / b.l + rho) / (b.g * (b.m + rho * b.k.motor)));
 }
 
 std::complex<double> elementBalance(const ServoParams& p, double a, double w, const DriveParams& drive)
 {
   const DrivenBacklash d = drivenElement(p, a, w);
   const double rho = p.gear_ratio;
+  const LawResponse k = lawResponse(p, drive, w);
   return std::complex<double>(-w * w * p.motor_inertia, w * p.motor_friction) / rho +
-         std::complex<double>(0.0, 4.0 * p.motor_coulomb_friction / (PI * a)) + lawGain(p, drive, w) * d.position +
+         std::complex<double>(0.0, 4.0 * p.motor_coulomb_friction / (PI * a)) + k.load * d.position + k.motor +
          rho * d.torque;
 }
 
@@ -107,8 +145,9 @@ bool numericalHarmonicBalance(const ServoParams& p, const HarmonicBalance& start
 {
   // Newton in (u, v) = (ln A, ln ω) on (Re E, Im E) / K.
   double u = std::log(start.amplitude), v = std::log(start.frequency);
-  const auto e = [&p, &drive](double uu, double vv) {
-    return elementBalance(p, std::exp(uu), std::exp(vv), drive) / p.gain;
+  const double scale = lawStiffness(p, drive), wn = loopNaturalFrequency(p, drive);
+  const auto e = [&p, &drive, scale](double uu, double vv) {
+    return elementBalance(p, std::exp(uu), std::exp(vv), drive) / scale;
   };
   try
   {
@@ -152,7 +191,7 @@ bool numericalHarmonicBalance(const ServoParams& p, const HarmonicBalance& start
       // Within the classical search's band of frequencies, and beyond the half-backlash (a sine-driven element from
       // rest never reaches the load below it).
       if (!std::isfinite(u) || !std::isfinite(v) || std::exp(u) <= 0.5 * p.backlash * (1.0 + 1e-9) ||
-          std::fabs(v - std::log(p.naturalFrequency())) > std::log(1e4))
+          std::fabs(v - std::log(wn)) > std::log(1e4))
       {
         return false;
       }
@@ -245,17 +284,13 @@ void requireDescribable(const RunConfig& config)
   }
   if (d.sampled())
   {
-    if (d.control_law != "proportional" && d.control_law != "pid")
-    {
-      refuse("control_law", "the P or PID law (not '" + d.control_law + "')");
-    }
-    if (d.feedback != "load")
-    {
-      refuse("feedback", "the load's angle fed back, the backlash inside the loop (not '" + d.feedback + "')");
-    }
-    if (d.load_encoder_resolution > 0.0)
+    if (d.feedback == "load" && d.load_encoder_resolution > 0.0)
     {
       refuse("load_encoder_resolution", "an ideal load encoder (counts are a second non-linearity)");
+    }
+    if ((d.feedback == "motor" || d.control_law == "cascade") && d.motor_encoder_resolution > 0.0)
+    {
+      refuse("motor_encoder_resolution", "an ideal motor encoder (counts are a second non-linearity)");
     }
   }
   if (!(config.params.backlash > 0.0))
@@ -274,8 +309,8 @@ LimitCyclePrediction predictLimitCycle(const RunConfig& config)
   const ServoParams& p = config.params;
   const DriveParams& drive = config.drive;
   LimitCyclePrediction out;
-  out.zeta = p.dampingRatio();
-  out.natural_frequency = p.naturalFrequency();
+  out.natural_frequency = loopNaturalFrequency(p, drive);
+  out.zeta = p.totalFriction() / (2.0 * out.natural_frequency * p.totalInertia());
   const double wn = out.natural_frequency;
   // (A sampled loop's fundamental is its own only below the Nyquist frequency π f_s.)
   const double top = drive.sampled() ? std::min(1e4 * wn, PI * drive.controller_rate) : 1e4 * wn;

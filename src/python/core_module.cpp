@@ -661,8 +661,8 @@ PYBIND11_MODULE(core, m)
   m.def("dead_zone_df", &deadZoneDescribingFunction, py::arg("amplitude"), py::arg("half_width"),
         "The describing function of a unit-slope dead zone of half-width δ [rad] at input amplitude A [rad].");
   m.def("limit_cycle_prediction", &predictCycle, py::arg("config") = py::none(),
-        "backlash_df's analysis of a configuration (a dict or a YAML path; the continuous P law or a digital P/PID "
-        "drive on the load, rigid teeth or a compliant mesh): the classical and "
+        "backlash_df's analysis of a configuration (a dict or a YAML path; the continuous P law or a digital P, PID "
+        "or cascade drive on the load or the motor, rigid teeth or a compliant mesh): the classical and "
         "the real element's numerical describing functions' predictions [{amplitude [rad], frequency [rad/s], stable, "
         "method ('classical' | 'numerical'), amplitude_error, frequency_error}], numerical_note, beside the exact "
         "cycle {verdict, amplitude, peak, frequency, centre, simulated_time} (docs/describing_function.md).");

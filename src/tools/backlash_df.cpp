@@ -31,8 +31,9 @@ in the feedback of the linear servo G(s) = w_n²/(s² + 2 zeta w_n s)) — every
 from each, with the numerical describing function of the real element (the load's inertia, friction and impacts,
 driven by an exact sine); and simulates the joint exactly beside them: the cycle's amplitude (fundamental of the
 backlash input rho*theta_m about its centre), peak and frequency, and the error of each prediction. The continuous P
-law (the thesis' loop), or a digital P or PID law on the load's angle (--controller-rate, --control-law pid, optional
---controller-delay 1): its sampled-and-held fundamental K(jw) takes the place of K. With a compliant mesh
+law (the thesis' loop), or a digital P, PID or cascade law on the load's or the motor's angle (--controller-rate,
+--control-law pid|cascade, --feedback motor, optional --controller-delay 1): its sampled-and-held fundamental takes
+the place of K. With a compliant mesh
 (--mesh-stiffness > 0, rigid shaft) the classical element is the mesh's dead zone between the two bodies, the
 numerical one the load behind the mesh's spring and damper.
 SI units: amplitudes in rad, frequencies in rad/s.
@@ -189,24 +190,26 @@ void report(const Options& o, const LimitCyclePrediction& a)
         buf, sizeof buf,
         "loop: zeta = %.4g, w_n = %.4g rad/s, backlash %.4g rad (classical DF: the dead zone of the compliant "
         "mesh, c = %.6g N*m/rad, d = %.6g N*m*s/rad, between the two bodies)\n",
-        p.dampingRatio(), p.naturalFrequency(), p.backlash, p.mesh_stiffness, p.mesh_damping);
+        a.zeta, a.natural_frequency, p.backlash, p.mesh_stiffness, p.mesh_damping);
   }
   else
   {
-    std::snprintf(buf, sizeof buf,
-                  "loop: zeta = %.4g, w_n = %.4g rad/s, backlash %.4g rad (classical DF: hysteresis in the feedback of "
-                  "the linear servo)\n",
-                  p.dampingRatio(), p.naturalFrequency(), p.backlash);
+    const bool motor_loop = o.config.drive.sampled() && o.config.drive.feedback == "motor";
+    std::snprintf(buf, sizeof buf, "loop: zeta = %.4g, w_n = %.4g rad/s, backlash %.4g rad (classical DF: %s)\n",
+                  a.zeta, a.natural_frequency, p.backlash,
+                  motor_loop ? "hysteresis passing the load's reaction to the motor's loop"
+                             : "hysteresis in the feedback of the linear servo");
   }
   std::cout << buf;
   const DriveParams& d = o.config.drive;
   if (d.sampled())
   {
+    const char* law = d.control_law == "pid" ? "PID" : d.control_law == "cascade" ? "cascade" : "P";
     std::snprintf(buf, sizeof buf,
-                  "law: digital %s at %.6g Hz%s, its fundamental K(jw) in place of K (aliasing neglected; "
+                  "law: digital %s on the %s's angle at %.6g Hz%s, its fundamental in place of K (aliasing neglected; "
                   "frequencies below pi*f_s = %.6g rad/s)\n",
-                  d.control_law == "pid" ? "PID" : "P", d.controller_rate,
-                  d.controller_delay > 0.0 ? ", one sample late" : "", 3.14159265358979323846 * d.controller_rate);
+                  law, d.feedback.c_str(), d.controller_rate, d.controller_delay > 0.0 ? ", one sample late" : "",
+                  3.14159265358979323846 * d.controller_rate);
     std::cout << buf;
   }
   if (predictions.empty())

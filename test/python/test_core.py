@@ -234,9 +234,9 @@ def test_limit_cycle_prediction_is_backlash_dfs_analysis(tmp_path):
     g = wn * wn / complex(-h["frequency"] ** 2, 2 * zeta * wn * h["frequency"])
     assert abs(g * core.backlash_df(h["amplitude"], 0.3) + 1) < 1e-6
     assert h["amplitude_error"] == h["amplitude"] / a["simulated"]["amplitude"] - 1
-    with pytest.raises(ValueError, match="control_law"):
+    with pytest.raises(ValueError, match="motor_encoder_resolution"):
         core.limit_cycle_prediction(dict(config, controller_rate=100.0, control_law="cascade", position_loop_gain=1.0,
-                                         velocity_loop_gain=1.0))
+                                         velocity_loop_gain=1.0, motor_encoder_resolution=4096))
 
 
 def test_frequency_response_of_the_locked_joint_is_the_held_transfer_function():
