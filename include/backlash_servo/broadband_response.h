@@ -10,7 +10,8 @@
  *   spectrum up to about f_s/(2h);
  * - chirp: s_k = sin(2π(k₀ k/N + (k₁ − k₀) k²/(2N²))), a linear sweep from DFT line k₀ to k₁ (k₁ − k₀ even, so the
  *   phase closes on a whole turn and the periodic sequence has no jump).
- * The first `settle_periods` periods let the transient decay; then `periods` periods are recorded.
+ * The first `settle_periods` periods let the transient decay (by default as many as cover AUTO_SETTLING_SCALES of the
+ * joint's slowest time constant, at least 2); then `periods` periods are recorded.
  *
  * **Estimate.** Each recorded period p gives the DFTs U_p(k), Y_p(k) of the input sequence and of the output sampled
  * at the same instants (y_k: θ_c, ω_m or ω_c at t_k, as the drive's own recording would read it). Per line k
@@ -49,7 +50,8 @@ struct BroadbandSettings
   double chirp_low = 0.0;       ///< chirp: lowest frequency [rad/s] (placed on a DFT line ≥ 1)
   double chirp_high = 0.0;      ///< chirp: highest frequency [rad/s] (≤ f_s/4 in rad/s)
   int chirp_samples = 4096;     ///< chirp: N, samples per period (≥ 16)
-  int settle_periods = 2;       ///< periods run before recording (≥ 1)
+  int settle_periods = 0;       ///< periods run before recording; 0: automatic, AUTO_SETTLING_SCALES of the
+                                ///< channel's slowestTimeScale (at least 2)
   int periods = 8;              ///< periods recorded and averaged (≥ 1)
 };
 
@@ -66,6 +68,7 @@ struct BroadbandResponse
 {
   int samples_per_period = 0;        ///< N
   double sample_rate = 0.0;          ///< f_s [Hz]
+  int settle_periods = 0;            ///< periods run before recording (the automatic choice, or as set)
   std::vector<BroadbandLine> lines;  ///< ascending frequency, the lines the excitation carries
 };
 

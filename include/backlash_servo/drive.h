@@ -17,6 +17,7 @@
 #include <limits>
 #include <memory>
 #include <string>
+#include <vector>
 
 #include "backlash_servo/command_profile.h"
 #include "backlash_servo/compensator.h"
@@ -264,6 +265,11 @@ class SampledDrive : public Drive
    * torque limit. amplitude 0: none. Throws InvalidParameterError unless A is finite and N ≥ 2.
    */
   void setInjection(double amplitude, long period_samples);
+  /**
+   * The same with any periodic shape: u_k += A s[(k − k₀) mod N] [N·m], N = shape->size() (a PRBS or a chirp, one
+   * period). Throws InvalidParameterError unless A and every s are finite and N ≥ 2.
+   */
+  void setInjection(double amplitude, std::shared_ptr<const std::vector<double>> shape);
   /// The torque injected at the latest sample [N·m].
   double injected() const { return injected_; }
 
@@ -291,10 +297,11 @@ class SampledDrive : public Drive
   double motor_reading_ = 0.0, load_reading_ = 0.0;
   bool winding_ = false;
   bool steady_ = false;
-  double injection_amplitude_ = 0.0;  // A [N·m]
-  long injection_period_ = 0;         // N [samples]
-  long injection_start_ = 0;          // k₀
-  double injected_ = 0.0;             // at the latest sample [N·m]
+  double injection_amplitude_ = 0.0;                            // A [N·m]
+  long injection_period_ = 0;                                   // N [samples]
+  long injection_start_ = 0;                                    // k₀
+  std::shared_ptr<const std::vector<double>> injection_shape_;  // one period s_k (null: a sine of N samples)
+  double injected_ = 0.0;                                       // at the latest sample [N·m]
 };
 
 /**

@@ -115,6 +115,13 @@ struct FrfPoint
 /// (InvalidParameterError without a digital drive), else `injection_rate` (> 0), the drive's controller_rate, or
 /// DEFAULT_INJECTION_RATE.
 double excitationRate(const RunConfig& config, FrfChannel channel, double injection_rate);
+/// The joint's slowest time constant [s] for the channel: its bodies' viscous decay J/f, the drive's integral time,
+/// and — when the loops are closed (the command and set-point channels) — 1/ω_n. Settling is judged against it.
+double slowestTimeScale(const RunConfig& config, FrfChannel channel);
+/// The command a set-point channel's loops follow from `config.initial.time` for `duration` [s]: the configured
+/// command held (speed 0), or turning at `speed` [rad/s] from it (a ramp the drive samples) — so that the joint keeps
+/// to one flank while the injection measures it. Null for speed 0 (the constant command).
+std::shared_ptr<const CommandProfile> speedOffsetProfile(const RunConfig& config, double speed, double duration);
 /// The channel's output in a state: θ_c [rad], ω_m or ω_c [rad/s].
 double frfOutput(FrfChannel channel, const State& state);
 /// True for the channels whose input is the motor torque (effort mode).

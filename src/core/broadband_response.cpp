@@ -85,15 +85,10 @@ BroadbandResponse measureBroadband(const RunConfig& config, const BroadbandSetti
   {
     throw InvalidParameterError("offset", "must be finite");
   }
-  if (s.settle_periods < 1 || s.periods < 1 || s.settle_periods + s.periods > 100000)
+  if (s.settle_periods < 0 || s.periods < 1 || s.settle_periods + s.periods > 100000)
   {
-    throw InvalidParameterError("periods", "needs settle_periods ≥ 1, periods ≥ 1 (together at most 100000)");
-  }
-  if (setpointInput(s.channel))
-  {
-    throw InvalidParameterError("channel", std::string(toString(s.channel)) +
-                                               ": a broadband estimate excites the command or the motor torque; the "
-                                               "set-point channels are measured by stepped sines");
+    throw InvalidParameterError("periods",
+                                "needs settle_periods ≥ 0 (0: automatic), periods ≥ 1 (together at most 100000)");
   }
   const double rate = excitationRate(config, s.channel, s.injection_rate);
   // One period of the excitation's shape s_k.
@@ -140,7 +135,15 @@ BroadbandResponse measureBroadband(const RunConfig& config, const BroadbandSetti
     }
   }
   const std::size_t n = shape.size();
-  const long total = static_cast<long>(n) * (s.settle_periods + s.periods);
+  int settle = s.settle_periods;
+  if (settle == 0)
+  {
+    const double period = static_cast<double>(n) / rate;
+    settle = static_cast<int>(
+        std::min(100000.0 - s.periods,
+                 std::max(2.0, std::ceil(AUTO_SETTLING_SCALES * slowestTimeScale(config, s.channel) / period))));
+  }
+  const long total = static_cast<long>(n) * (settle + s.periods);
   const double t0 = config.initial.time;
   const auto sampleTime = [&](long k) { return t0 + static_cast<double>(k) / rate; };
   const auto inputAt = [&](long k) { return s.offset + amplitude * shape[static_cast<std::size_t>(k) % n]; };
@@ -148,8 +151,13 @@ BroadbandResponse measureBroadband(const RunConfig& config, const BroadbandSetti
   RunConfig run = config;
   run.track_energy = false;
   run.duration = 0.0;
-  const bool torque = torqueInput(s.channel);
-  if (!torque)
+  const bool torque = torqueInput(s.channel), setpoint = setpointInput(s.channel);
+  if (setpoint)
+  {
+    // The loops closed on the command (held, or turning at the offset speed), the shape injected at their samples.
+    run.profile = speedOffsetProfile(config, s.offset, static_cast<double>(total + 2) / rate);
+  }
+  else if (!torque)
   {
     // The command as set-points held from each sample instant (the drive reads each at its own sample).
     ProfileSegment points;
@@ -162,6 +170,10 @@ BroadbandResponse measureBroadband(const RunConfig& config, const BroadbandSetti
     run.profile = std::make_shared<const CommandProfile>(inputAt(0), std::vector<ProfileSegment>{points});
   }
   Simulator sim = makeSimulator(run);
+  if (setpoint)
+  {
+    sim.sampledDrive()->setInjection(amplitude, std::make_shared<const std::vector<double>>(shape));  // (from t₀)
+  }
   std::vector<std::complex<double>> twiddle(n);
   for (std::size_t m = 0; m < n; ++m)
   {
@@ -171,21 +183,23 @@ BroadbandResponse measureBroadband(const RunConfig& config, const BroadbandSetti
   std::vector<std::complex<double>> cross(lines, 0.0);
   std::vector<double> uu(lines, 0.0), yy(lines, 0.0);
   std::vector<double> u(n), y(n);
-  for (long p = 0; p < s.settle_periods + s.periods; ++p)
+  for (long p = 0; p < settle + s.periods; ++p)
   {
     for (std::size_t j = 0; j < n; ++j)
     {
       const long k = p * static_cast<long>(n) + static_cast<long>(j);
       sim.advanceTo(sampleTime(k));
       y[j] = frfOutput(s.channel, sim.state());
-      u[j] = inputAt(k);
+      // (Set-point: the torque the drive applied over the last sample, [t_{k−1}, t_k) — its sample at t_k is taken
+      // when the run goes on; the one-sample shift is undone on the estimate.)
+      u[j] = setpoint ? sim.plant().motorTorque() : inputAt(k);
       if (torque)
       {
         sim.setMotorTorque(u[j]);
         sim.setInputHorizon(sampleTime(k + 1));
       }
     }
-    if (p >= s.settle_periods)
+    if (p >= settle)
     {
       const std::vector<std::complex<double>> uf = dft(u, twiddle), yf = dft(y, twiddle);
       for (std::size_t k = 0; k < lines; ++k)
@@ -197,12 +211,13 @@ BroadbandResponse measureBroadband(const RunConfig& config, const BroadbandSetti
     }
     if (progress)
     {
-      progress(static_cast<double>(p + 1) / (s.settle_periods + s.periods));
+      progress(static_cast<double>(p + 1) / (settle + s.periods));
     }
   }
   BroadbandResponse out;
   out.samples_per_period = static_cast<int>(n);
   out.sample_rate = rate;
+  out.settle_periods = settle;
   double largest = 0.0;
   for (std::size_t k = 1; k < lines; ++k)
   {
@@ -217,6 +232,10 @@ BroadbandResponse measureBroadband(const RunConfig& config, const BroadbandSetti
     BroadbandLine l;
     l.frequency = 2.0 * PI * rate * static_cast<double>(k) / static_cast<double>(n);
     l.h1 = cross[k] / uu[k];
+    if (setpoint)
+    {
+      l.h1 *= std::polar(1.0, -l.frequency / rate);  // u recorded one sample late: U = z·(what was recorded)
+    }
     l.coherence = yy[k] > 0.0 ? std::norm(cross[k]) / (uu[k] * yy[k]) : 0.0;
     l.input_power = uu[k] / s.periods;
     out.lines.push_back(l);

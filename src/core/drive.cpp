@@ -425,8 +425,9 @@ void SampledDrive::sample(const State& s)
   {
     // The phase from the index modulo N: exact however long the run.
     const long k = ((next_ - injection_start_) % injection_period_ + injection_period_) % injection_period_;
-    injected_ = injection_amplitude_ *
-                std::sin(6.283185307179586476925 * static_cast<double>(k) / static_cast<double>(injection_period_));
+    injected_ = injection_amplitude_ * (injection_shape_ ? (*injection_shape_)[static_cast<std::size_t>(k)]
+                                                         : std::sin(6.283185307179586476925 * static_cast<double>(k) /
+                                                                    static_cast<double>(injection_period_)));
     u += injected_;
     steady = false;
   }
@@ -461,6 +462,20 @@ void SampledDrive::setInjection(double amplitude, long period_samples)
   injection_amplitude_ = amplitude;
   injection_period_ = period_samples;
   injection_start_ = next_;
+  injection_shape_.reset();
+}
+
+void SampledDrive::setInjection(double amplitude, std::shared_ptr<const std::vector<double>> shape)
+{
+  for (std::size_t k = 0; shape && k < shape->size(); ++k)
+  {
+    if (!std::isfinite((*shape)[k]))
+    {
+      throw InvalidParameterError("amplitude", "an injected shape must be finite at every sample");
+    }
+  }
+  setInjection(amplitude, shape ? static_cast<long>(shape->size()) : 0L);
+  injection_shape_ = std::move(shape);
 }
 
 long SampledDrive::holdSamples(const State& state, double until, double lo, double hi, long max_count, double* last)

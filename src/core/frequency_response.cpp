@@ -213,6 +213,26 @@ double excitationRate(const RunConfig& config, FrfChannel channel, double inject
   return rate;
 }
 
+double slowestTimeScale(const RunConfig& config, FrfChannel channel)
+{
+  return std::max({plantTimeScale(config.params), driveTimeScale(config),
+                   torqueInput(channel) ? 0.0 : 1.0 / config.params.naturalFrequency()});
+}
+
+std::shared_ptr<const CommandProfile> speedOffsetProfile(const RunConfig& config, double speed, double duration)
+{
+  if (speed == 0.0)
+  {
+    return nullptr;
+  }
+  ProfileSegment ramp;
+  ramp.kind = ProfileSegment::Kind::Ramp;
+  ramp.time = config.initial.time;
+  ramp.duration = duration;
+  ramp.target = config.command + speed * ramp.duration;
+  return std::make_shared<const CommandProfile>(config.command, std::vector<ProfileSegment>{ramp});
+}
+
 double frfOutput(FrfChannel c, const State& s)
 {
   switch (c)
@@ -327,10 +347,8 @@ FrfPoint measureFrequencyResponse(const RunConfig& config, const FrfSettings& se
   long max_periods = settings.max_periods;
   if (max_periods == 0)
   {
-    const double slowest = std::max(
-        {plantTimeScale(config.params), driveTimeScale(config), torque ? 0.0 : 1.0 / config.params.naturalFrequency()});
-    max_periods =
-        static_cast<long>(std::min(1e7, std::max(1000.0, std::ceil(AUTO_SETTLING_SCALES * slowest / period))));
+    max_periods = static_cast<long>(
+        std::min(1e7, std::max(1000.0, std::ceil(AUTO_SETTLING_SCALES * slowestTimeScale(config, channel) / period))));
   }
   const auto sampleTime = [&](long k) { return t0 + static_cast<double>(k) / rate; };
   // The input at sample k, its phase from k mod N (exact however long the run).
@@ -343,17 +361,8 @@ FrfPoint measureFrequencyResponse(const RunConfig& config, const FrfSettings& se
   run.duration = 0.0;
   if (setpoint)
   {
-    // The loops hold the configured command, or follow it turning at the speed offset (a ramp the drive samples).
-    run.profile.reset();
-    if (settings.offset != 0.0)
-    {
-      ProfileSegment ramp;
-      ramp.kind = ProfileSegment::Kind::Ramp;
-      ramp.time = t0;
-      ramp.duration = period * (static_cast<double>(max_periods) + MAX_PERIOD_MULTIPLE + 2.0);
-      ramp.target = config.command + settings.offset * ramp.duration;
-      run.profile = std::make_shared<const CommandProfile>(config.command, std::vector<ProfileSegment>{ramp});
-    }
+    run.profile = speedOffsetProfile(config, settings.offset,
+                                     period * (static_cast<double>(max_periods) + MAX_PERIOD_MULTIPLE + 2.0));
   }
   else if (!torque && !continuous)
   {

@@ -726,7 +726,7 @@ PYBIND11_MODULE(core, m)
         py::arg("excitation") = "prbs", py::arg("channel") = "command:load_position", py::arg("offset") = 0.0,
         py::arg("injection_rate") = 0.0, py::arg("prbs_order") = 10, py::arg("prbs_hold") = 1,
         py::arg("chirp") = py::none(), py::arg("chirp_samples") = 4096, py::arg("periods") = 8,
-        py::arg("settle_periods") = 2,
+        py::arg("settle_periods") = 0,
         "The H1 estimate and coherence of a PRBS or chirp excitation (`backlash_frf --excitation`): numpy arrays "
         "frequency [rad/s], h1 (complex), coherence, input_power; chirp = (low, high) [rad/s].");
   py::class_<PySimulator>(m, "Simulator", "A joint stepped from Python (the configured plant and drive).")

@@ -144,7 +144,9 @@ Options parse(int argc, char** argv)
        {"chirp", "LO:HI", "chirp: the sweep's frequencies [rad/s] (default: 0.01 to 0.25 of the sample rate)"},
        {"chirp_samples", "N", "chirp: samples a period (default 4096)"},
        {"periods", "P", "broadband: periods recorded and averaged (default 8)"},
-       {"settle_periods", "S", "broadband: periods run first for the transient to decay (default 2)"},
+       {"settle_periods", "S",
+        "broadband: periods run first for the transient to decay (default 0: automatic, 40 of the joint's slowest "
+        "time constants, at least 2)"},
        {"shard", "K/N",
         "stepped sines: compute only part K of N (contiguous points, amplitude-major) into the --csv "
         "part file, for --merge"},
@@ -210,7 +212,7 @@ Options parse(int argc, char** argv)
     b.prbs_hold = whole("prbs_hold", 1, 1, 1000);
     b.chirp_samples = whole("chirp_samples", 4096, 16, 1 << 20);
     b.periods = whole("periods", 8, 1, 10000);
-    b.settle_periods = whole("settle_periods", 2, 1, 10000);
+    b.settle_periods = whole("settle_periods", 0, 0, 10000);
     if (parser.given("chirp"))
     {
       char tail = 0;

@@ -274,6 +274,10 @@ def test_broadband_response_of_the_locked_joint_is_coherent():
     assert len(r["frequency"]) == 63
     assert np.max(np.abs(r["h1"] - b / (z - e)) / np.abs(b / (z - e))) < 1e-9
     assert np.max(np.abs(r["coherence"] - 1.0)) < 1e-9
+    # Injected into a 50 Hz P drive's torque set-point (loop closed, automatic settling): the same mechanics.
+    q = core.broadband_response({"backlash": 0.0, "controller_rate": 50.0}, amplitude=0.5,
+                                channel="torque_setpoint:motor_velocity", prbs_order=7, periods=2)
+    assert np.max(np.abs(q["h1"] - b / (z - e)) / np.abs(b / (z - e))) < 1e-9
     with pytest.raises(ValueError, match="excitation"):
         core.broadband_response({}, amplitude=1.0, excitation="noise", channel="motor_torque:motor_velocity")
 

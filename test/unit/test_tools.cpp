@@ -1093,30 +1093,35 @@ TEST(FrequencyResponseTool, ShardsMergeIntoTheUnshardedCsv)
 TEST(FrequencyResponseTool, BroadbandPrbsGivesTheSampledTransferFunctionAndRefusesStrayFlags)
 {
   // Backlash 0, torque → motor speed at the hold's instants: H(z) = b/(z − e), e = e^{−(F/J)T}, b = (1 − e)/F
-  // (J = 1, F = 0.8); coherence 1.
-  int code = 0;
-  const std::string json = runCapture(FRF +
-                                          " --backlash 0 --channel motor_torque:motor_velocity --injection-rate 50 "
-                                          "--excitation prbs --prbs-order 7 --settle-periods 12 --periods 2 "
-                                          "--amplitude 0.5 --json",
-                                      &code);
-  ASSERT_EQ(code, 0) << json;
-  EXPECT_EQ(jsonText(json, "excitation"), "prbs");
-  const std::regex line(
-      "\\{\"frequency\":([0-9.eE+-]+),\"gain\":([0-9.eE+-]+),\"phase\":([0-9.eE+-]+),"
-      "\"coherence\":([0-9.eE+-]+)");
-  int found = 0;
-  const double ts = 1.0 / 50.0, e = std::exp(-0.8 * ts), b = (1.0 - e) / 0.8;
-  for (std::sregex_iterator it(json.begin(), json.end(), line), end; it != end; ++it, ++found)
+  // (J = 1, F = 0.8); coherence 1 — the torque itself, and injected into a 50 Hz P drive's set-point (its loop closed,
+  // one sample late), recorded after the automatic number of settling periods.
+  for (const std::string input :
+       {"--channel motor_torque:motor_velocity --injection-rate 50",
+        "--channel torque_setpoint:motor_velocity --controller-rate 50 --controller-delay 1 --offset 0.5"})
   {
-    const std::smatch& m = *it;
-    const std::complex<double> z = std::exp(std::complex<double>(0.0, std::stod(m[1]) * ts));
-    const std::complex<double> h = b / (z - e);
-    EXPECT_NEAR(std::stod(m[2]), std::abs(h), 1e-8 * std::abs(h)) << m[1];
-    EXPECT_NEAR(std::stod(m[3]), std::arg(h), 1e-8) << m[1];
-    EXPECT_NEAR(std::stod(m[4]), 1.0, 1e-8) << m[1];
+    int code = 0;
+    const std::string json = runCapture(
+        FRF + " --backlash 0 " + input + " --excitation prbs --prbs-order 7 --periods 2 --amplitude 0.5 --json", &code);
+    ASSERT_EQ(code, 0) << json;
+    EXPECT_EQ(jsonText(json, "excitation"), "prbs");
+    EXPECT_GE(jsonNumber(json, "settle_periods"), 2.0) << json;
+    const std::regex line(
+        "\\{\"frequency\":([0-9.eE+-]+),\"gain\":([0-9.eE+-]+),\"phase\":([0-9.eE+-]+),"
+        "\"coherence\":([0-9.eE+-]+)");
+    int found = 0;
+    const double ts = 1.0 / 50.0, e = std::exp(-0.8 * ts), b = (1.0 - e) / 0.8;
+    for (std::sregex_iterator it(json.begin(), json.end(), line), end; it != end; ++it, ++found)
+    {
+      const std::smatch& m = *it;
+      const std::complex<double> z = std::exp(std::complex<double>(0.0, std::stod(m[1]) * ts));
+      const std::complex<double> h = b / (z - e);
+      EXPECT_NEAR(std::stod(m[2]), std::abs(h), 1e-8 * std::abs(h)) << input << " " << m[1];
+      EXPECT_NEAR(std::stod(m[3]), std::arg(h), 1e-8) << input << " " << m[1];
+      EXPECT_NEAR(std::stod(m[4]), 1.0, 1e-8) << input << " " << m[1];
+    }
+    EXPECT_EQ(found, 63) << input;  // the lines 1 … 63 of a 127-sample period
   }
-  EXPECT_EQ(found, 63);  // the lines 1 … 63 of a 127-sample period
+  int code = 0;
   const std::string stray = runCapture(FRF + " --excitation chirp --prbs-order 8 --amplitude 1 2>&1", &code);
   EXPECT_EQ(code, 2);
   EXPECT_NE(stray.find("--prbs-order does not apply to --excitation chirp"), std::string::npos) << stray;

@@ -50,6 +50,7 @@ void writeBroadbandJson(std::ostream& out, const std::string& channel, const std
   w.field("sample_rate", estimates.empty() ? NAN : estimates.front().response.sample_rate);
   w.field("samples_per_period",
           estimates.empty() ? NAN : static_cast<double>(estimates.front().response.samples_per_period));
+  w.field("settle_periods", estimates.empty() ? NAN : static_cast<double>(estimates.front().response.settle_periods));
   w.beginArray("estimates");
   for (const BroadbandEstimate& e : estimates)
   {
@@ -88,9 +89,10 @@ void writeBroadbandText(std::ostream& out, const std::string& channel, const std
   {
     const std::vector<BroadbandLine>& lines = e.response.lines;
     std::snprintf(buf, sizeof buf,
-                  "%s, %s of amplitude %g: %zu lines (%d samples a period at %g Hz), H1 and coherence\n",
+                  "%s, %s of amplitude %g: %zu lines (%d samples a period at %g Hz, recorded after %d periods), H1 "
+                  "and coherence\n",
                   channel.c_str(), excitation.c_str(), e.amplitude, lines.size(), e.response.samples_per_period,
-                  e.response.sample_rate);
+                  e.response.sample_rate, e.response.settle_periods);
     out << buf;
     std::snprintf(buf, sizeof buf, "%12s %12s %12s %10s%s\n", "w [rad/s]", "gain", "phase", "coherence",
                   e.has_linear ? "  linear gain / phase" : "");
