@@ -5,20 +5,24 @@
  *        from the exact periodic steady state (the numerical DF of a compliant element). No ROS dependency.
  *
  * **The element.** The motor's tooth (an infinitely heavy motor) moves as x(t) = ρθ_m = A sin ωt [rad]; the load
- * (J_L, f_L; no Coulomb friction, no load torque) is coupled to it through the mesh of docs/model.md Part 3 with the
- * `spring_damper` law: on the forward flank the penetration is y = x − θ_c − Δ/2, on the backward one
- * y = θ_c − x − Δ/2 (the free play centred on x), and while y > 0 and P = c y + d ẏ > 0 the teeth push the load with
- * P (forward +, backward −); otherwise they pass nothing. The state (θ_c, θ̇_c, cos ωt, sin ωt) makes every phase a
- * linear mode with constant input — free flight J_L θ̈_c = −f_L θ̇_c, or contact with the sine's forcing — solved in
- * closed form by LinearMode, whose rigorous crossings locate the events: a flank's penetration rising through 0
- * (contact), P falling through 0 (release, the torque would pull), and after a release inside the flank P rising
- * through 0 again (contact) or y falling through 0 (back in the free play). The sine's phase is set from the time at
- * each segment's start.
+ * (J_L, f_L; no Coulomb friction, no load torque) is coupled to it through the mesh of docs/model.md Part 3: on the
+ * forward flank the penetration is y = x − θ_c − Δ/2, on the backward one y = θ_c − x − Δ/2 (the free play centred on
+ * x), and while y > 0 and P > 0 the teeth push the load with P (forward +, backward −); otherwise they pass nothing.
+ * `spring_damper`: P = c y + d ẏ; `msl_elastobacklash`: P = c y + d ẏ while d ẏ ≤ c y, 2c y while d ẏ > c y (its two
+ * sub-modes, each a linear mode; a contact reached at the flank, ẏ > 0, starts in the second). The state (θ_c, θ̇_c, cos
+ * ωt, sin ωt) makes every phase a linear mode with constant input — free flight J_L θ̈_c = −f_L θ̇_c, or contact with the
+ * sine's forcing — solved in closed form by LinearMode, whose rigorous crossings locate the events: a flank's
+ * penetration rising through 0 (contact), P falling through 0 (release, the torque would pull; y in msl's 2c y
+ * sub-mode), after a release inside the flank P rising through 0 again (contact) or y falling through 0 (back in the
+ * free play), and msl's sub-mode switch d ẏ − c y crossing 0. The sine's phase is set from the time at each segment's
+ * start.
  *
  * **The describing functions** as driven_backlash.h: from rest at the centre, period after period until the state at
  * a period's start repeats (within `tolerance` of Δ and of Aω, the same phase); then over one period (the mean of 16
  * when it does not repeat) N_θ = Θ₁/A from 2¹² samples, and N_T = (−ω² J_L + jω f_L) N_θ, the torque the teeth pass.
- * With Δ = 0 the element is linear: N_θ = (c + jωd)/(−ω²J_L + jω(f_L + d) + c) (tested).
+ * With Δ = 0 and d = 0 the element is the linear spring, N_θ = c/(−ω²J_L + jωf_L + c); with damping the never-pull
+ * rule keeps it non-linear even at Δ = 0. Tested against both and, with backlash and damping under either law,
+ * against a brute-force fixed-step integration.
  */
 #pragma once
 
@@ -30,8 +34,8 @@ namespace backlash_servo
 /**
  * The compliant element of `params` (backlash ≥ 0, mesh_stiffness > 0, mesh_damping, load inertia and viscous
  * friction) driven by x = A sin ωt, A [rad] > 0, ω [rad/s] > 0, at most `max_periods` periods. Throws
- * InvalidParameterError naming the key for what it does not take: no mesh stiffness, the msl_elastobacklash law, a
- * load's Coulomb or static friction, a load torque, a torsional shaft, a non-positive amplitude or frequency.
+ * InvalidParameterError naming the key for what it does not take: no mesh stiffness, a load's Coulomb or static
+ * friction, a load torque, a torsional shaft, a non-positive amplitude or frequency.
  */
 DrivenBacklash drivenCompliantMesh(const ServoParams& params, double amplitude, double omega, double tolerance = 1e-10,
                                    int max_periods = 500);

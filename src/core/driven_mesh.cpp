@@ -29,8 +29,9 @@ void need(bool ok, const std::string& key, const std::string& what)
 enum class Kind
 {
   Engage,   ///< contact on flank σ begins (y rising through 0, or P rising through 0 inside the flank)
-  Release,  ///< P falling through 0: the teeth would pull
-  Leave     ///< y falling through 0 while free: back in the free play (the watches change)
+  Release,  ///< the teeth would pull (P falling through 0), or — in msl's 2c·y sub-mode — y falling through 0
+  Leave,    ///< y falling through 0 while free: back in the free play (the watches change)
+  Switch    ///< msl_elastobacklash's sub-mode changes: d·ẏ − c·y crossing 0
 };
 
 struct Watch
@@ -55,6 +56,7 @@ class MeshElement
         half_(0.5 * p.backlash),
         a_(amplitude),
         w_(omega),
+        msl_(p.mesh_law == "msl_elastobacklash"),
         x_(4)
   {
     x_ << 0.0, 0.0, 1.0, 0.0;
@@ -69,13 +71,19 @@ class MeshElement
     contact(1, 1) = -(f_ + d_) / j_;
     contact(1, 2) = d_ * a_ * w_ / j_;
     contact(1, 3) = c_ * a_ / j_;
+    // msl's 2c·y sub-mode: J_L θ̈_c = −f_L θ̇_c + 2c(A sin ωt − θ_c) − σ2cΔ/2.
+    Eigen::MatrixXd doubled = free;
+    doubled(1, 0) = -2.0 * c_ / j_;
+    doubled(1, 3) = 2.0 * c_ * a_ / j_;
     free_ = std::make_shared<const ModeBasis>(free);
     contact_ = std::make_shared<const ModeBasis>(contact);
+    doubled_ = std::make_shared<const ModeBasis>(doubled);
   }
 
   double position() const { return x_(0); }
   double velocity() const { return x_(1); }
-  int phase() const { return phase_; }
+  /// 0 free, ±1 on the forward / backward flank (±2 there in msl's 2c·y sub-mode).
+  int phase() const { return doubled_mode_ ? 2 * phase_ : phase_; }
 
   /// The motion to t [s] ≥ now, exactly.
   void advanceTo(double t)
@@ -88,9 +96,9 @@ class MeshElement
       ModeVector u = ModeVector::Zero(4);
       if (phase_ != 0)
       {
-        u(1) = -phase_ * c_ * half_ / j_;
+        u(1) = -phase_ * (doubled_mode_ ? 2.0 : 1.0) * c_ * half_ / j_;
       }
-      const LinearMode m(phase_ == 0 ? free_ : contact_, u, x_);
+      const LinearMode m(phase_ == 0 ? free_ : doubled_mode_ ? doubled_ : contact_, u, x_);
       const std::vector<Watch> watches = watchesNow();
       const double horizon = t - t_;
       const double skip = LinearMode::FLOOR_FRACTION / std::max(m.norm(), 1e-300);
@@ -124,10 +132,21 @@ class MeshElement
       if (e.kind == Kind::Engage)
       {
         phase_ = e.sigma;
+        // msl: a contact begun at the flank (y = 0, ẏ > 0: d·ẏ > c·y) is in its 2c·y sub-mode; one begun inside it
+        // where P rises through 0 (d·ẏ = −c·y < c·y) in its c·y + d·ẏ sub-mode.
+        ModeVector w;
+        double w0;
+        balance(phase_, &w, &w0);
+        doubled_mode_ = msl_ && w.dot(x_) + w0 > 0.0;
       }
       else if (e.kind == Kind::Release)
       {
         phase_ = 0;
+        doubled_mode_ = false;
+      }
+      else if (e.kind == Kind::Switch)
+      {
+        doubled_mode_ = !doubled_mode_;
       }
       if (++events_ > 10000000)
       {
@@ -140,7 +159,7 @@ class MeshElement
   /// At a segment's start: a free flank penetrated (or touching within rounding) whose torque pushes engages now —
   /// a watch for P rising through 0 cannot see a P that starts above it —, a contact whose torque pulls beyond
   /// rounding releases now (its crossing lay within the rounding of an earlier event); not the flank that changed at
-  /// this very instant.
+  /// this very instant. msl's sub-mode is the one the state is in beyond rounding (else it stays).
   void settlePhase()
   {
     const double y_band = 1e-12 * (a_ + 2.0 * half_), p_band = 1e-12 * (c_ * (a_ + 2.0 * half_) + d_ * a_ * w_);
@@ -157,19 +176,44 @@ class MeshElement
         if (y > -y_band && w.dot(x_) + w0 > 0.0 && !(just && last_sigma_ == sigma))
         {
           phase_ = sigma;
+          subModeFromState(p_band, false);
           return;
         }
       }
       return;
     }
-    torque(phase_, &w, &w0);
-    if (w.dot(x_) + w0 < -p_band && !(just && last_kind_ == static_cast<int>(Kind::Engage)))
+    subModeFromState(p_band, just && last_kind_ == static_cast<int>(Kind::Switch));
+    doubled_mode_ ? penetration(phase_, &w, &w0) : torque(phase_, &w, &w0);
+    if (w.dot(x_) + w0 < -(doubled_mode_ ? y_band : p_band) && !(just && last_kind_ == static_cast<int>(Kind::Engage)))
     {
       phase_ = 0;
+      doubled_mode_ = false;
     }
   }
 
-  /// y_σ = σ(x − θ_c) − Δ/2 and P_σ = c y_σ + d ẏ_σ as outputs w·state + w₀.
+  /// msl: in contact, the 2c·y sub-mode where d·ẏ − c·y > band, the other where it is < −band (unless it switched at
+  /// this very instant).
+  void subModeFromState(double band, bool just_switched)
+  {
+    if (!msl_ || just_switched)
+    {
+      return;
+    }
+    ModeVector w;
+    double w0;
+    balance(phase_, &w, &w0);
+    const double s = w.dot(x_) + w0;
+    if (s > band)
+    {
+      doubled_mode_ = true;
+    }
+    else if (s < -band)
+    {
+      doubled_mode_ = false;
+    }
+  }
+
+  /// y_σ = σ(x − θ_c) − Δ/2, P_σ = c y_σ + d ẏ_σ and (msl) d ẏ_σ − c y_σ as outputs w·state + w₀.
   void penetration(int sigma, ModeVector* w, double* w0) const
   {
     *w = ModeVector(4);
@@ -182,6 +226,12 @@ class MeshElement
     *w << -sigma * c_, -sigma * d_, sigma * d_ * a_ * w_, sigma * c_ * a_;
     *w0 = -c_ * half_;
   }
+  void balance(int sigma, ModeVector* w, double* w0) const
+  {
+    *w = ModeVector(4);
+    *w << sigma * c_, -sigma * d_, sigma * d_ * a_ * w_, -sigma * c_ * a_;
+    *w0 = c_ * half_;
+  }
 
   std::vector<Watch> watchesNow() const
   {
@@ -190,8 +240,21 @@ class MeshElement
     double w0;
     if (phase_ != 0)
     {
+      if (doubled_mode_)
+      {
+        penetration(phase_, &w, &w0);
+        out.push_back({w, w0, -1, Kind::Release, phase_});
+        balance(phase_, &w, &w0);
+        out.push_back({w, w0, -1, Kind::Switch, phase_});
+        return out;
+      }
       torque(phase_, &w, &w0);
       out.push_back({w, w0, -1, Kind::Release, phase_});
+      if (msl_)
+      {
+        balance(phase_, &w, &w0);
+        out.push_back({w, w0, +1, Kind::Switch, phase_});
+      }
       return out;
     }
     for (int sigma : {1, -1})
@@ -212,13 +275,15 @@ class MeshElement
   }
 
   double j_, f_, c_, d_, half_, a_, w_;
+  bool msl_;
   ModeVector x_;
   double t_ = 0.0;
-  int phase_ = 0;  // 0 free, +1 forward flank, −1 backward flank
+  int phase_ = 0;              // 0 free, +1 forward flank, −1 backward flank
+  bool doubled_mode_ = false;  // msl_elastobacklash's 2c·y sub-mode (while d·ẏ > c·y)
   double last_time_ = -1.0;
   int last_kind_ = -1, last_sigma_ = 0;
   long events_ = 0;
-  std::shared_ptr<const ModeBasis> free_, contact_;
+  std::shared_ptr<const ModeBasis> free_, contact_, doubled_;
 };
 
 }  // namespace
@@ -227,7 +292,6 @@ void requireDrivableMesh(const ServoParams& params)
 {
   need(std::isfinite(params.mesh_stiffness) && params.mesh_stiffness > 0.0, "mesh_stiffness",
        "must be > 0 N·m/rad: the compliant element is the mesh");
-  need(params.mesh_law == "spring_damper", "mesh_law", "the driven compliant element takes the spring_damper law");
   need(std::isfinite(params.mesh_damping) && params.mesh_damping >= 0.0, "mesh_damping", "must be >= 0 N·m·s/rad");
   need(std::isfinite(params.load_inertia) && params.load_inertia > 0.0, "load_inertia", "must be > 0 kg·m²");
   need(std::isfinite(params.load_friction) && params.load_friction >= 0.0, "load_friction", "must be >= 0 N·m·s/rad");

@@ -356,11 +356,11 @@ LimitCyclePrediction predictLimitCycle(const RunConfig& config)
       HarmonicBalance n;
       if (h.amplitude > 0.5 * p.backlash && numericalHarmonicBalance(p, h, &n, drive))
       {
-        bool seen = false;  // (two starts may reach one solution)
+        bool seen = false;  // (two starts may reach one solution, to the balance's floor near 1e-5)
         for (const HarmonicBalance& o : out.numerical)
         {
-          seen = seen || (std::fabs(o.amplitude / n.amplitude - 1.0) < 1e-6 &&
-                          std::fabs(o.frequency / n.frequency - 1.0) < 1e-6);
+          seen = seen || (std::fabs(o.amplitude / n.amplitude - 1.0) < 1e-4 &&
+                          std::fabs(o.frequency / n.frequency - 1.0) < 1e-4);
         }
         if (!seen)
         {
