@@ -161,6 +161,12 @@ class CompliantJoint
   /// so every motion stays the closed form of a linear mode with constant input. Throws InvalidParameterError
   /// ("wave") when the order would pass MAX_MODE_ORDER (two sines with a rigid shaft, one with a torsional shaft).
   void setLaw(const MotorInput& law);
+  /// A sinusoidal torque on the load from now on, T_ext(t) = load_torque + Σ B_i sin(ω_i(t − t₀,i) + φ_i) [N·m] (the
+  /// load itself behind a torsional shaft), carried exactly like the law's wave: an oscillator per sine, after the
+  /// law's. Throws InvalidParameterError ("load_wave") when the order would pass MAX_MODE_ORDER (the law's sines and
+  /// these together: two with a rigid shaft, one with a torsional shaft). Empty: none.
+  void setLoadWave(const Waveform& wave);
+  const Waveform& loadWave() const { return load_wave_; }
   /// advanceTo() stops where θ_c leaves [lo, hi] [rad]; ±inf: none.
   void setWatch(double lo, double hi);
   /// Events need not be searched beyond time t [s] (a digital drive's next sample, where the law changes anyway):
@@ -254,12 +260,18 @@ class CompliantJoint
     long pieces_done = 0;
   };
   int out() const { return 2; }  // index of θ_o, the mesh's output-side angle (θ_c itself with a rigid shaft)
-  /// The law has a wave: the modes carry its oscillators.
-  bool forced() const { return law_.wave.active(); }
-  /// The modes' order: size(), and each sine's oscillator, two states (cos, sin of its angle).
-  int dim() const { return size() + 2 * law_.wave.count; }
-  /// The oscillators' rows and the sines' torque on the row `row` (scaled by `gain`: 1/J of the body it drives).
-  void addOscillators(double gain, int row, ModeMatrix* a) const;
+  /// The law or the load has a wave: the modes carry its oscillators.
+  bool forced() const { return law_.wave.active() || load_wave_.active(); }
+  /// The modes' order: size(), and each sine's oscillator, two states (cos, sin of its angle) — the law's, then the
+  /// load's.
+  int dim() const { return size() + 2 * (law_.wave.count + load_wave_.count); }
+  /// Index of the first state of the load wave's first oscillator.
+  int loadWaveIndex() const { return size() + 2 * law_.wave.count; }
+  /// A wave's oscillators (from state index `first`) and its torque on the row `row` (scaled by `gain`: 1/J of the
+  /// body it drives).
+  void addOscillators(const Waveform& wave, int first, double gain, int row, ModeMatrix* a) const;
+  /// Σ B_i sin of the load wave's oscillators in the mode state x [N·m].
+  double loadWaveAt(const ModeVector& x) const;
   /// x_ sized dim() around the physical state `phys`, the oscillator's states exact at time_.
   void setModeState(const Eigen::VectorXd& phys);
   /// A and u of mesh mode m with the bodies' slides (0 stuck: its rows zeroed; ±1: −T_c·slide folded into u).
@@ -310,7 +322,8 @@ class CompliantJoint
   double watch_lo_ = -INFINITY, watch_hi_ = INFINITY;
   double horizon_ = INFINITY;
   double time_ = 0.0;
-  Eigen::VectorXd x_;  // the state, then (forced) each oscillator's cos and sin of its sine's angle
+  Eigen::VectorXd x_;   // the state, then (forced) each oscillator's cos and sin of its sine's angle
+  Waveform load_wave_;  // the load torque's sines [N·m]
   MeshMode mode_ = MeshMode::Forward;
   std::optional<Segment> segment_;
   std::vector<std::shared_ptr<const ModeBasis>> bases_;  // most recently used last

@@ -147,6 +147,13 @@ class Plant
   /// A new motor-torque law from now on (the state is not touched; the closed form restarts here — unless dry
   /// friction holds everything and still does under the new law: then nothing moves and the segment stays).
   void setLaw(const MotorInput& law);
+  /// A sinusoidal torque on the load from now on, added to `load_torque`: T_ext(t) = load_torque + Σ B_i
+  /// sin(ω_i(t − t₀,i) + φ_i) [N·m] — a disturbance, exact: the joint's modes carry it (on rigid teeth the sine's
+  /// closed forms take the motion as for a motor sine, plant_compliant.cpp). Empty: none. Throws
+  /// InvalidParameterError naming the key for what cannot carry it exactly (dry friction on rigid teeth; more sines,
+  /// the motor's and the load's together, than the modes hold).
+  void setLoadWave(const Waveform& wave);
+  const Waveform& loadWave() const { return load_wave_; }
   /// The plant stops (advanceTo() returns true) where θ_c leaves [lo, hi] [rad]: a drive's switch. ±inf: none.
   void setWatch(double lo, double hi)
   {
@@ -402,6 +409,7 @@ class Plant
   GearMesh mesh_;
   State state_;
   MotorInput law_;
+  Waveform load_wave_;  // the load torque's sines [N·m]
   std::optional<Segment> segment_;
   bool apart_needs_series_ = false;  // apartNeedsSeries() for the current parameters (fixed window)
   double press_factor_ = 0.0;        // (J_m + ρ²J_L)/(J_m J_L) of the current parameters [1/(kg·m²)]

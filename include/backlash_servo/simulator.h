@@ -68,6 +68,10 @@ class Simulator
   /// Effort mode, T_m = torque + Σ A_i sin(ω_i(t − t₀,i) + φ_i) [N·m] exactly (InvalidParameterError, key named, on
   /// rigid teeth with dry friction, or for more sines than the modes carry).
   void setMotorTorque(double torque, const Waveform& wave, EventSink* sink = nullptr);
+  /// A sinusoidal disturbance on the load from now on, T_ext(t) = load_torque + Σ B_i sin(ω_i(t − t₀,i) + φ_i)
+  /// [N·m], exactly, under any drive (Plant::setLoadWave: refused, key named, on rigid teeth with dry friction or for
+  /// more sines, the motor's and the load's together, than the modes carry). Empty: none.
+  void setLoadTorqueWave(const Waveform& wave, EventSink* sink = nullptr);
   /**
    * The caller will change the input again at time t [s] (e.g. a torque held over the samples of an external
    * controller): events need not be searched beyond it, which spares a compliant joint's event search the stretch

@@ -37,14 +37,16 @@ double roundingOf(const ModeVector& w, double w0, const ModeVector& x)
   return 64.0 * std::numeric_limits<double>::epsilon() * (w.cwiseAbs().dot(x.cwiseAbs()) + std::fabs(w0));
 }
 
-/// The modes' order — the joint's size and two states per sine — within MAX_MODE_ORDER.
-void requireOrder(int size, const Waveform& wave)
+/// The modes' order — the joint's size and two states per sine, the law's and the load's — within MAX_MODE_ORDER.
+void requireOrder(int size, const Waveform& wave, const Waveform& load_wave, const char* key)
 {
-  if (size + 2 * wave.count > MAX_MODE_ORDER)
+  const int count = wave.count + load_wave.count;
+  if (size + 2 * count > MAX_MODE_ORDER)
   {
-    throw InvalidParameterError("wave", std::to_string(wave.count) +
-                                            " sines: a joint with a torsional shaft takes one exactly (a digital "
-                                            "drive samples more)");
+    throw InvalidParameterError(key, std::to_string(count) +
+                                         " sines (the motor's and the load's together): a joint with a torsional "
+                                         "shaft takes one exactly, with a rigid shaft two (a digital drive samples "
+                                         "more)");
   }
 }
 
@@ -83,7 +85,7 @@ CompliantJoint::CompliantJoint(const ServoParams& params, const MotorInput& law)
   {
     requireExactWave(s_, "a sine");
   }
-  requireOrder(size(), law_.wave);
+  requireOrder(size(), law_.wave, load_wave_, "wave");
   setState(Eigen::VectorXd::Zero(size()));
 }
 
@@ -118,9 +120,18 @@ void CompliantJoint::setParams(const ServoParams& params)
   initial_kinetic_ = initial_kinetic + (kineticEnergy() + potentialEnergy() - before);
 }
 
+void CompliantJoint::setLoadWave(const Waveform& wave)
+{
+  requireOrder(size(), law_.wave, wave, "load_wave");
+  const Eigen::VectorXd phys = x_.head(size());
+  load_wave_ = wave;
+  setModeState(phys);
+  segment_.reset();
+}
+
 void CompliantJoint::setLaw(const MotorInput& law)
 {
-  requireOrder(size(), law.wave);
+  requireOrder(size(), law.wave, load_wave_, "wave");
   const Eigen::VectorXd phys = x_.head(size());
   law_ = law;
   setModeState(phys);
@@ -149,11 +160,15 @@ void CompliantJoint::setModeState(const Eigen::VectorXd& phys)
   const int n = size();
   x_.resize(dim());
   x_.head(n) = phys;
-  for (int i = 0; i < law_.wave.count; ++i)
+  int z = n;
+  for (const Waveform* wave : {&law_.wave, &load_wave_})
   {
-    const double angle = law_.wave.tones[static_cast<std::size_t>(i)].angle(time_);
-    x_(n + 2 * i) = std::cos(angle);
-    x_(n + 2 * i + 1) = std::sin(angle);
+    for (int i = 0; i < wave->count; ++i, z += 2)
+    {
+      const double angle = wave->tones[static_cast<std::size_t>(i)].angle(time_);
+      x_(z) = std::cos(angle);
+      x_(z + 1) = std::sin(angle);
+    }
   }
 }
 
@@ -260,7 +275,7 @@ void CompliantJoint::integrate(const Segment& seg, double a, double b, Compliant
     sum.input += w * (law_.offset - law_.stiffness * x(l) + wave) * wm;
     sum.motor_friction += w * s_.motor_friction * wm * wm;
     sum.load_friction += w * s_.load_friction * wc * wc;
-    sum.load_work += w * s_.load_torque * wc;
+    sum.load_work += w * (s_.load_torque + loadWaveAt(x)) * wc;
     sum.motor_dry_friction += w * s_.motor_coulomb_friction * seg.slide[0] * wm;
     sum.load_dry_friction += w * s_.load_coulomb_friction * seg.slide[1] * wc;
     if (damped_flank)
@@ -413,7 +428,7 @@ void CompliantJoint::modeMatrices(MeshMode m, const std::array<int, 2>& slide, M
   A(1, 1) = -s_.motor_friction / jm;
   A(1, l) = -law_.stiffness / jm;
   U(1) = law_.offset / jm;
-  addOscillators(1.0 / jm, 1, a);  // the sines on the motor
+  addOscillators(law_.wave, size(), 1.0 / jm, 1, a);  // the sines on the motor
   if (m != MeshMode::Free)
   {
     // Q = k(ρθ_m − θ_o) + k_d(ρω_m − ω_o) − σ k δ_σ (δ = 0 forward, Δ backward).
@@ -445,11 +460,13 @@ void CompliantJoint::modeMatrices(MeshMode m, const std::array<int, 2>& slide, M
     A(l + 1, o + 1) += ds / jl;
     A(l + 1, l + 1) += -(ds + s_.load_friction) / jl;
     U(l + 1) += s_.load_torque / jl;
+    addOscillators(load_wave_, loadWaveIndex(), 1.0 / jl, l + 1, a);  // the load's sines
   }
   else
   {
     A(o + 1, o + 1) += -s_.load_friction / j_out;
     U(o + 1) += s_.load_torque / j_out;
+    addOscillators(load_wave_, loadWaveIndex(), 1.0 / j_out, o + 1, a);
   }
   for (int b = 0; b < 2; ++b)
   {
@@ -468,23 +485,34 @@ void CompliantJoint::modeMatrices(MeshMode m, const std::array<int, 2>& slide, M
   }
 }
 
-void CompliantJoint::addOscillators(double gain, int row, ModeMatrix* a) const
+void CompliantJoint::addOscillators(const Waveform& wave, int first, double gain, int row, ModeMatrix* a) const
 {
   // Each sine's oscillator z = (cos, sin) of its angle, and A sin on the row.
   ModeMatrix& A = *a;
-  for (int i = 0; i < law_.wave.count; ++i)
+  for (int i = 0; i < wave.count; ++i)
   {
-    const Sinusoid& s = law_.wave.tones[static_cast<std::size_t>(i)];
-    const int z = size() + 2 * i;
+    const Sinusoid& s = wave.tones[static_cast<std::size_t>(i)];
+    const int z = first + 2 * i;
     A(z, z + 1) = -s.frequency;
     A(z + 1, z) = s.frequency;
     A(row, z + 1) = gain * s.amplitude;
   }
 }
 
+double CompliantJoint::loadWaveAt(const ModeVector& x) const
+{
+  double sum = 0.0;
+  for (int i = 0; i < load_wave_.count; ++i)
+  {
+    sum += load_wave_.tones[static_cast<std::size_t>(i)].amplitude * x(loadWaveIndex() + 2 * i + 1);
+  }
+  return sum;
+}
+
 void CompliantJoint::rigidContact(ModeMatrix* a, ModeVector* u) const
 {
-  // The pair as one body on the load shaft (θ_c = θ_o, no shaft): J ω̇_c = ρ(a − kθ_c + A sin) − F_T ω_c + ρ²T_ext.
+  // The pair as one body on the load shaft (θ_c = θ_o, no shaft): J ω̇_c = ρ(a − kθ_c + A sin) − F_T ω_c + ρ²T_ext,
+  // T_ext = load_torque + Σ B sin.
   // The motor follows it — θ̇_m = ω_c/ρ, ω̇_m = ω̇_c/ρ — so the gap stays exactly as it began, and the motor's
   // columns are zero (its eigenvalues 0 have a full eigenspace: no polynomial in the closed form).
   const int k = dim(), o = out();
@@ -498,7 +526,8 @@ void CompliantJoint::rigidContact(ModeMatrix* a, ModeVector* u) const
   A(o + 1, o + 1) = -s_.totalFriction() * r;
   A(o + 1, o) = -rho * law_.stiffness * r;
   U(o + 1) = (rho * law_.offset + rho * rho * s_.load_torque) * r;
-  addOscillators(rho * r, o + 1, a);  // the sines on the pair, ρT_m
+  addOscillators(law_.wave, size(), rho * r, o + 1, a);                  // the sines on the pair, ρT_m
+  addOscillators(load_wave_, loadWaveIndex(), rho * rho * r, o + 1, a);  // and the load's, ρ²T_ext
   A(0, o + 1) = 1.0 / rho;
   A.row(1) = A.row(o + 1) / rho;
   U(1) = U(o + 1) / rho;
@@ -515,6 +544,10 @@ void CompliantJoint::rigidMeshTorque(ModeVector* w, double* w0) const
   *w = jl * a.row(o + 1).transpose();
   (*w)(o + 1) += s_.load_friction;
   *w0 = jl * u(o + 1) - s_.load_torque;
+  for (int i = 0; i < load_wave_.count; ++i)
+  {
+    (*w)(loadWaveIndex() + 2 * i + 1) -= load_wave_.tones[static_cast<std::size_t>(i)].amplitude;  // − the sines
+  }
 }
 
 void CompliantJoint::impact(int sigma)

@@ -204,10 +204,10 @@ void Plant::setState(const State& s)
 
 void Plant::setLaw(const MotorInput& law)
 {
-  if (!params_.compliant() && law.wave.active() != static_cast<bool>(compliant_.joint))
+  if (!params_.compliant() && (law.wave.active() || load_wave_.active()) != static_cast<bool>(compliant_.joint))
   {
     // Rigid teeth: a law with a sine is carried by the joint's closed forms from now on, one without by the thesis
-    // modes again (plant_compliant.cpp).
+    // modes again (plant_compliant.cpp) — unless the load's torque carries a sine.
     if (law.wave.active())
     {
       enterWave(law);

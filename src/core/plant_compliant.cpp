@@ -27,9 +27,55 @@ Plant::CompliantHolder& Plant::CompliantHolder::operator=(const CompliantHolder&
 void Plant::beginCompliant()
 {
   compliant_.joint = std::make_unique<CompliantJoint>(params_, law_);
+  compliant_.joint->setLoadWave(load_wave_);
   watchCompliant();
   horizonCompliant();
   compliantEnergyTracking();
+}
+
+void Plant::setLoadWave(const Waveform& wave)
+{
+  for (int i = 0; i < wave.count; ++i)
+  {
+    const Sinusoid& t = wave.tones[static_cast<std::size_t>(i)];
+    requireFinite("load_wave", t.amplitude);
+    requireFinite("load_wave", t.frequency);
+    requireFinite("load_wave", t.phase);
+    requireFinite("load_wave", t.origin);
+  }
+  if (params_.compliant())
+  {
+    compliant_.joint->setLoadWave(wave);  // (refuses more sines than the modes hold, nothing changed)
+    load_wave_ = wave;
+    return;
+  }
+  // Rigid teeth: the sine's closed forms carry the motion while any sine is on, the thesis modes otherwise.
+  const bool on = wave.active() || law_.wave.active();
+  if (on && !compliant_.joint)
+  {
+    requireExactWave(params_, "a sinusoidal load torque");
+    const Waveform before = load_wave_;
+    load_wave_ = wave;
+    try
+    {
+      enterWave(law_);
+    }
+    catch (...)
+    {
+      load_wave_ = before;
+      throw;
+    }
+    return;
+  }
+  if (compliant_.joint)
+  {
+    compliant_.joint->setLoadWave(wave);
+  }
+  load_wave_ = wave;
+  if (!on && compliant_.joint)
+  {
+    leaveWave();
+  }
 }
 
 void Plant::enterWave(const MotorInput& law)

@@ -385,6 +385,12 @@ void Simulator::setMotorTorque(double torque, const Waveform& wave, EventSink* s
   setDrive(std::make_unique<EffortDrive>(torque, wave), sink);
 }
 
+void Simulator::setLoadTorqueWave(const Waveform& wave, EventSink* sink)
+{
+  plant_.setLoadWave(wave);
+  plant_.emit(sink, EventType::InputChange);
+}
+
 void Simulator::setParams(const ServoParams& params, EventSink* sink)
 {
   params.validate();
