@@ -20,6 +20,7 @@ UNITS = {
     "motor_torque:load_velocity": ("ω_c / T_m", "(rad/s)/(N·m)"),
     "torque_setpoint:motor_velocity": ("ω_m / T_m, loops closed", "(rad/s)/(N·m)"),
     "torque_setpoint:load_velocity": ("ω_c / T_m, loops closed", "(rad/s)/(N·m)"),
+    "load_torque:load_position": ("θ_c / T_ext, dynamic compliance", "rad/(N·m)"),
 }
 
 

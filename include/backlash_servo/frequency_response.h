@@ -49,11 +49,13 @@ enum class FrfChannel
   TorqueToLoadVelocity,     ///< T_m [N·m] in effort mode → ω_c [rad/s]
   SetpointToMotorVelocity,  ///< a torque injected into the digital drive's set-point, its loops closed → ω_m [rad/s]
                             ///< per N·m of the motor torque (the mechanics measured in closed loop)
-  SetpointToLoadVelocity    ///< the same → ω_c [rad/s] per N·m of the motor torque
+  SetpointToLoadVelocity,   ///< the same → ω_c [rad/s] per N·m of the motor torque
+  LoadTorqueToLoadPosition  ///< a sine torque on the load [N·m], the configured loop holding the command → θ_c [rad]
+                            ///< (the servo's dynamic compliance; the sine itself, exact)
 };
 
 /// "command:load_position", "motor_torque:motor_velocity", "motor_torque:load_velocity",
-/// "torque_setpoint:motor_velocity", "torque_setpoint:load_velocity".
+/// "torque_setpoint:motor_velocity", "torque_setpoint:load_velocity", "load_torque:load_position".
 const char* toString(FrfChannel c);
 /// The channel named by toString(); throws InvalidParameterError(key, …) naming the value otherwise.
 FrfChannel frfChannelFrom(const std::string& name, const std::string& key);
@@ -128,6 +130,11 @@ double frfOutput(FrfChannel channel, const State& state);
 inline bool torqueInput(FrfChannel channel)
 {
   return channel == FrfChannel::TorqueToMotorVelocity || channel == FrfChannel::TorqueToLoadVelocity;
+}
+/// True for the channel whose input is a torque on the load (a disturbance: the sine itself, exact).
+inline bool loadTorqueInput(FrfChannel channel)
+{
+  return channel == FrfChannel::LoadTorqueToLoadPosition;
 }
 /// True for the channels that inject into the digital drive's torque set-point, its loops closed.
 inline bool setpointInput(FrfChannel channel)

@@ -90,6 +90,13 @@ BroadbandResponse measureBroadband(const RunConfig& config, const BroadbandSetti
     throw InvalidParameterError("periods",
                                 "needs settle_periods ≥ 0 (0: automatic), periods ≥ 1 (together at most 100000)");
   }
+  if (loadTorqueInput(s.channel))
+  {
+    throw InvalidParameterError("channel", std::string(toString(s.channel)) +
+                                               ": a disturbance on the load is measured by stepped sines (the sine "
+                                               "itself, exact); broadband takes the command, the motor torque and "
+                                               "the set-point");
+  }
   const double rate = excitationRate(config, s.channel, s.injection_rate);
   // One period of the excitation's shape s_k.
   std::vector<double> shape;

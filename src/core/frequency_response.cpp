@@ -154,6 +154,8 @@ const char* toString(FrfChannel c)
       return "torque_setpoint:motor_velocity";
     case FrfChannel::SetpointToLoadVelocity:
       return "torque_setpoint:load_velocity";
+    case FrfChannel::LoadTorqueToLoadPosition:
+      return "load_torque:load_position";
   }
   return "?";
 }
@@ -162,7 +164,7 @@ FrfChannel frfChannelFrom(const std::string& name, const std::string& key)
 {
   for (FrfChannel c :
        {FrfChannel::CommandToLoadPosition, FrfChannel::TorqueToMotorVelocity, FrfChannel::TorqueToLoadVelocity,
-        FrfChannel::SetpointToMotorVelocity, FrfChannel::SetpointToLoadVelocity})
+        FrfChannel::SetpointToMotorVelocity, FrfChannel::SetpointToLoadVelocity, FrfChannel::LoadTorqueToLoadPosition})
   {
     if (name == toString(c))
     {
@@ -171,12 +173,25 @@ FrfChannel frfChannelFrom(const std::string& name, const std::string& key)
   }
   throw InvalidParameterError(key, "'" + name +
                                        "' is not a channel: command:load_position, motor_torque:motor_velocity, "
-                                       "motor_torque:load_velocity, torque_setpoint:motor_velocity or "
-                                       "torque_setpoint:load_velocity");
+                                       "motor_torque:load_velocity, torque_setpoint:motor_velocity, "
+                                       "torque_setpoint:load_velocity or load_torque:load_position");
 }
 
 double excitationRate(const RunConfig& config, FrfChannel channel, double injection_rate)
 {
+  if (loadTorqueInput(channel))
+  {
+    if (injection_rate != 0.0)
+    {
+      throw InvalidParameterError("injection_rate",
+                                  "the load torque's sine is applied itself, not sampled: leave injection_rate out");
+    }
+    if (!config.drive.sampled())
+    {
+      throw InvalidParameterError("controller_rate", "the load torque's sine has no rate without a digital drive");
+    }
+    return config.drive.controller_rate;  // (its period spans whole samples of the drive)
+  }
   if (setpointInput(channel))
   {
     if (!config.drive.sampled())
@@ -238,6 +253,7 @@ double frfOutput(FrfChannel c, const State& s)
   switch (c)
   {
     case FrfChannel::CommandToLoadPosition:
+    case FrfChannel::LoadTorqueToLoadPosition:
       return s.load_position;
     case FrfChannel::TorqueToMotorVelocity:
     case FrfChannel::SetpointToMotorVelocity:
@@ -285,10 +301,17 @@ FrfSampling frfSampling(const RunConfig& config, const FrfSettings& settings, do
                                 "the set-point injection is the digital drive's, sampled at its "
                                 "controller_rate: leave continuous out");
   }
-  out.continuous = torque ? settings.continuous : !setpointInput(settings.channel) && !config.drive.sampled();
-  if (out.continuous)
+  const bool load = loadTorqueInput(settings.channel);
+  if (load && settings.continuous)
   {
-    requireExactWave(config.params, torque ? "an exact sine torque (--continuous)" : "a sine command");
+    throw InvalidParameterError("continuous", "the load torque's sine is always the sine itself: leave continuous out");
+  }
+  out.continuous = torque ? settings.continuous : !setpointInput(settings.channel) && !config.drive.sampled();
+  if (out.continuous || load)
+  {
+    requireExactWave(config.params, torque ? "an exact sine torque (--continuous)"
+                                    : load ? "a sine load torque"
+                                           : "a sine command");
   }
   out.rate = out.continuous ? CONTINUOUS_POINTS * omega / (2.0 * PI)
                             : excitationRate(config, settings.channel, settings.injection_rate);
@@ -359,7 +382,14 @@ FrfPoint measureFrequencyResponse(const RunConfig& config, const FrfSettings& se
   RunConfig run = config;
   run.track_energy = false;
   run.duration = 0.0;
-  if (setpoint)
+  const bool load = loadTorqueInput(channel);
+  if (load)
+  {
+    // The loop holds the configured command; the load torque's constant part is the offset on top of load_torque.
+    run.profile.reset();
+    run.params.load_torque += settings.offset;
+  }
+  else if (setpoint)
   {
     run.profile = speedOffsetProfile(config, settings.offset,
                                      period * (static_cast<double>(max_periods) + MAX_PERIOD_MULTIPLE + 2.0));
@@ -380,7 +410,11 @@ FrfPoint measureFrequencyResponse(const RunConfig& config, const FrfSettings& se
     sim.sampledDrive()->setInjection(amplitude, n_samples);  // (the next sample is sample 0, at t₀)
   }
   const bool held = torque && !continuous;  // the torque set sample by sample
-  if (continuous)
+  if (load)
+  {
+    sim.setLoadTorqueWave(Sinusoid{amplitude, w, 0.0, t0});
+  }
+  else if (continuous)
   {
     const Sinusoid wave{amplitude, w, 0.0, t0};
     torque ? sim.setMotorTorque(settings.offset, wave) : sim.setCommandWave(settings.offset, wave);

@@ -586,6 +586,10 @@ class PySimulator
   }
 
   void setMotorTorque(double torque) { sim_.setMotorTorque(torque); }
+  void setLoadTorqueWave(double amplitude, double frequency, double phase)
+  {
+    sim_.setLoadTorqueWave(Sinusoid{amplitude, frequency, phase, 0.0});
+  }
 
   /// Live changes, as the node applies them: plant keys at once; drive keys retune a digital drive without a bump
   /// (or start a fresh drive for a new law). Other keys are refused.
@@ -740,6 +744,10 @@ PYBIND11_MODULE(core, m)
       .def("set_motor_torque", &PySimulator::setMotorTorque, py::arg("torque"),
            "Effort mode: the motor torque T_m [N·m] from now on (the drive's loop off), e.g. a recorded torque "
            "replayed sample by sample.")
+      .def("set_load_torque_wave", &PySimulator::setLoadTorqueWave, py::arg("amplitude"), py::arg("frequency"),
+           py::arg("phase") = 0.0,
+           "A sine torque on the load from now on, added to load_torque: B sin(ωt + φ) [N·m], t the simulated time "
+           "[s], ω [rad/s], φ [rad] — exact (amplitude 0: none).")
       .def("set", &PySimulator::set, py::arg("changes"),
            "Live changes of plant and drive keys (a dict), applied now as the node applies them.")
       .def_property_readonly("state", &PySimulator::state,

@@ -46,10 +46,12 @@ Channels: command:load_position (the command theta_R through the configured digi
 motor_torque:motor_velocity and motor_torque:load_velocity (the motor torque, the drive's loop off -> omega),
 torque_setpoint:motor_velocity and torque_setpoint:load_velocity (a torque injected into the digital drive's
 set-point with its loops closed; the response is omega per N*m of the motor torque applied, the mechanics, and
---offset is the command's speed [rad/s] so that the joint keeps turning).
+--offset is the command's speed [rad/s] so that the joint keeps turning), load_torque:load_position (a sine torque
+on the load, the sine itself, the configured loop holding the command -> theta_c: the servo's dynamic compliance;
+--offset is a constant load torque added to load_torque [N*m]).
 With --excitation prbs or chirp: one periodic broadband excitation instead, recorded at the samples, and the H1
 estimate with its coherence per DFT line - what a drive's commissioning tool shows.
-SI units: amplitudes and offsets in rad (command) or N*m (torque; the set-point's offset in rad/s), frequencies in
+SI units: amplitudes and offsets in rad (command) or N*m (torques; the set-point's offset in rad/s), frequencies in
 rad/s, phases in rad.
 )";
 
@@ -119,8 +121,8 @@ Options parse(int argc, char** argv)
       {{"config", "FILE.yaml", "the joint's keys in snake_case (flags override it)"},
        {"channel", "CHANNEL",
         "command:load_position (default), motor_torque:motor_velocity, motor_torque:load_velocity, "
-        "torque_setpoint:motor_velocity, torque_setpoint:load_velocity"},
-       {"amplitude", "A[,A...]", "sine amplitudes [rad for the command, N*m for the torque]"},
+        "torque_setpoint:motor_velocity, torque_setpoint:load_velocity, load_torque:load_position"},
+       {"amplitude", "A[,A...]", "sine amplitudes [rad for the command, N*m for the torques]"},
        {"frequency", "W[,W...]", "frequencies [rad/s]"},
        {"frequency_range", "LO:HI:N", "N frequencies spaced logarithmically from LO to HI [rad/s]"},
        {"offset", "U0",
@@ -605,12 +607,15 @@ void writeJson(const Options& o, const std::vector<Row>& rows)
 
 void writeText(const Options& o, const std::vector<Row>& rows)
 {
-  const bool torque = torqueInput(o.settings.channel), setpoint = setpointInput(o.settings.channel);
+  const bool torque = torqueInput(o.settings.channel), setpoint = setpointInput(o.settings.channel),
+             load = loadTorqueInput(o.settings.channel);
   std::printf("channel %s, offset %g %s; gain in %s, phase in rad\n", toString(o.settings.channel), o.settings.offset,
-              torque     ? "N*m"
-              : setpoint ? "rad/s"
-                         : "rad",
-              torque || setpoint ? "(rad/s)/(N*m)" : "rad/rad");
+              torque || load ? "N*m"
+              : setpoint     ? "rad/s"
+                             : "rad",
+              torque || setpoint ? "(rad/s)/(N*m)"
+              : load             ? "rad/(N*m)"
+                                 : "rad/rad");
   std::printf("%12s %12s %12s %12s %10s %8s %8s %s\n", "amplitude", "w [rad/s]", "gain", "phase", "THD", "flank/T",
               "apart/T", o.linear ? "steady state           linear gain / phase" : "steady state");
   for (const Row& r : rows)

@@ -282,6 +282,24 @@ def test_broadband_response_of_the_locked_joint_is_coherent():
         core.broadband_response({}, amplitude=1.0, excitation="noise", channel="motor_torque:motor_velocity")
 
 
+def test_dynamic_compliance_of_the_locked_joint_is_its_transfer_function():
+    # A sine torque on the load, the continuous P law holding: theta_c/T_ext = 1/(K - J w^2 + j w F) (D1, rho = 1).
+    p = core.frequency_response({"backlash": 0.0}, amplitude=0.3, frequency=0.7, channel="load_torque:load_position",
+                                tolerance=1e-12)
+    expected = 1.0 / complex(1.0 - 0.49, 0.8 * 0.7)
+    assert p["periodic"]
+    assert abs(p["response"] - expected) < 1e-9 * abs(expected)
+    # The same disturbance stepped from Python, started on that forced response: it stays on it.
+    z = expected * 0.3
+    sim = core.Simulator({"backlash": 0.0, "load_position": z.imag, "motor_position": z.imag,
+                          "load_velocity": (0.7j * z).imag, "motor_velocity": (0.7j * z).imag, "command": 0.0})
+    sim.set_load_torque_wave(0.3, 0.7)
+    sim.advance(10.0)
+    assert abs(sim.state["load_position"] - (z * cmath.exp(7j)).imag) < 1e-9
+    with pytest.raises(ValueError, match="load_wave"):
+        sim.set_load_torque_wave(math.nan, 0.7)
+
+
 def test_frequency_response_of_a_pressed_compliant_joint_under_an_exact_sine():
     # The sine itself on a compliant mesh pressed by a torque offset: the two-mass drive's w_m/T_m, no hold.
     cfg = {"backlash": 0.1, "gear_ratio": 0.5, "mesh_stiffness": 100.0, "mesh_damping": 1.0}

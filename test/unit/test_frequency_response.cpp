@@ -162,6 +162,69 @@ TEST(FrequencyResponse, TheReleaseAmplitudeIsWhereTheLinearJointsMeshTorqueReach
   }
 }
 
+TEST(FrequencyResponse, ALoadTorqueSineGivesTheServosDynamicCompliance)
+{
+  // A sine torque on the load, the P loop holding the command. Δ = 0 under the continuous law: the locked joint
+  // J θ̈_c + F_T θ̇_c + ρKθ_c = ρ²T_ext gives θ_c/T_ext = H = ρ²/(ρK − Jω² + jωF_T) (to 1e-9), and its mesh torque
+  // Q = (−J_Lω² + jωf_L)θ_c − T_ext: with a constant load torque T₀ the flank is released above
+  // A* = T₀/|(−J_Lω² + jωf_L)H − 1|. The joint with backlash pressed by T₀ follows the locked response below A* (to
+  // 1e-9) and parts from its flank above it — under the continuous law and under a 1 kHz PID drive.
+  for (const bool sampled : {false, true})
+  {
+    RunConfig c = d1(0.3);
+    c.params.gear_ratio = 0.5;
+    if (sampled)
+    {
+      c.drive.controller_rate = 1000.0;
+      c.drive.control_law = "pid";
+      c.drive.integral_gain = 0.5;
+      c.drive.derivative_gain = 0.5;
+    }
+    RunConfig lin = c;
+    lin.params.backlash = 0.0;
+    FrfSettings s;
+    s.channel = FrfChannel::LoadTorqueToLoadPosition;
+    s.tolerance = 1e-12;
+    s.offset = 0.3;  // T₀ [N·m]
+    for (const double w : {0.3, 1.0, 3.0})
+    {
+      const FrfPoint l = measureFrequencyResponse(lin, s, 0.05, w);
+      ASSERT_TRUE(l.periodic) << w;
+      const double release = releaseAmplitude(l);
+      if (!sampled)
+      {
+        const ServoParams& p = c.params;
+        const double rho = p.gear_ratio;
+        const cd h = rho * rho / (rho * p.gain - p.totalInertia() * w * w + cd(0.0, w * p.totalFriction()));
+        EXPECT_LT(std::abs(l.response - h), 1e-9 * std::abs(h)) << w;
+        const double expected = 0.3 / std::abs(cd(-p.load_inertia * w * w, p.load_friction * w) * h - 1.0);
+        EXPECT_NEAR(release, expected, 1e-9 * expected) << w;
+      }
+      const FrfPoint below = measureFrequencyResponse(c, s, 0.98 * release, w);
+      EXPECT_EQ(below.separations, 0.0) << w << " " << sampled;
+      EXPECT_LT(std::abs(below.response - l.response), 1e-9 * std::abs(l.response)) << w << " " << sampled;
+      const FrfPoint above = measureFrequencyResponse(c, s, 1.02 * release, w);
+      EXPECT_GT(above.separations, 0.0) << w << " " << sampled;
+    }
+  }
+  // Not by broadband, not held, not "continuous" (it always is), not on rigid teeth with dry friction.
+  RunConfig c = d1(0.3);
+  c.drive.controller_rate = 100.0;
+  BroadbandSettings b;
+  b.channel = FrfChannel::LoadTorqueToLoadPosition;
+  EXPECT_THROW(measureBroadband(c, b, 0.1), InvalidParameterError);
+  FrfSettings s;
+  s.channel = FrfChannel::LoadTorqueToLoadPosition;
+  s.injection_rate = 500.0;
+  EXPECT_THROW(measureFrequencyResponse(c, s, 0.1, 1.0), InvalidParameterError);
+  s.injection_rate = 0.0;
+  s.continuous = true;
+  EXPECT_THROW(measureFrequencyResponse(c, s, 0.1, 1.0), InvalidParameterError);
+  s.continuous = false;
+  c.params.load_coulomb_friction = c.params.load_static_friction = 0.05;
+  EXPECT_THROW(measureFrequencyResponse(c, s, 0.1, 1.0), InvalidParameterError);
+}
+
 TEST(FrequencyResponse, LockedSampledLoopIsTheSampledDataTransferFunction)
 {
   // Δ = 0 under a digital P drive at f_s: the controller sees y_k = θ_c(t_k) through the ZOH-equivalent plant

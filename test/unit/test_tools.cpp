@@ -996,6 +996,29 @@ TEST(FrequencyResponseTool, LockedJointGivesTheHeldTransferFunction)
   EXPECT_NE(refused.find("controller_rate"), std::string::npos) << refused;
 }
 
+// A sine torque on the load, the continuous P law holding (backlash 0): θ_c/T_ext = 1/(K − Jω² + jωF) (D1, ρ = 1:
+// −1.25j at ω_n = 1 rad/s), its unit named; broadband refuses the channel naming it.
+TEST(FrequencyResponseTool, ALoadTorqueSineGivesTheDynamicCompliance)
+{
+  int code = 0;
+  const std::string json = runCapture(
+      FRF + " --backlash 0 --channel load_torque:load_position --amplitude 0.3 --frequency 1 --tolerance 1e-12 --json",
+      &code);
+  ASSERT_EQ(code, 0) << json;
+  EXPECT_NEAR(jsonNumber(json, "gain"), 1.25, 1e-9) << json;
+  EXPECT_NEAR(jsonNumber(json, "phase"), -0.5 * 3.14159265358979323846, 1e-9) << json;
+  const std::string text = runCapture(
+      FRF + " --backlash 0 --channel load_torque:load_position --amplitude 0.3 --frequency 1 --offset 0.1", &code);
+  ASSERT_EQ(code, 0) << text;
+  EXPECT_NE(text.find("offset 0.1 N*m; gain in rad/(N*m)"), std::string::npos) << text;
+  const std::string broadband = runCapture(FRF +
+                                               " --controller-rate 100 --channel load_torque:load_position "
+                                               "--excitation prbs --amplitude 0.1 2>&1",
+                                           &code);
+  EXPECT_NE(code, 0);
+  EXPECT_NE(broadband.find("load_torque:load_position"), std::string::npos) << broadband;
+}
+
 TEST(FrequencyResponseTool, BacklashPointsCsvChartAndRefusals)
 {
   int code = 0;
