@@ -28,10 +28,12 @@ void need(bool ok, const std::string& key, const std::string& what)
 /// What a watched output's crossing means.
 enum class Kind
 {
-  Engage,   ///< contact on flank σ begins (y rising through 0, or P rising through 0 inside the flank)
-  Release,  ///< the teeth would pull (P falling through 0), or — in msl's 2c·y sub-mode — y falling through 0
-  Leave,    ///< y falling through 0 while free: back in the free play (the watches change)
-  Switch    ///< msl_elastobacklash's sub-mode changes: d·ẏ − c·y crossing 0
+  Engage,    ///< contact on flank σ begins (y rising through 0, or P rising through 0 inside the flank)
+  Release,   ///< the teeth would pull (P falling through 0), or — in msl's 2c·y sub-mode — y falling through 0
+  Leave,     ///< y falling through 0 while free: back in the free play (the watches change)
+  Switch,    ///< msl_elastobacklash's sub-mode changes: d·ẏ − c·y crossing 0
+  Stop,      ///< dry friction: a sliding load's velocity reaching 0 (the rest rule decides)
+  Breakaway  ///< dry friction: a stuck load's holding torque leaving [−T_s, T_s]
 };
 
 struct Watch
@@ -57,6 +59,9 @@ class MeshElement
         a_(amplitude),
         w_(omega),
         msl_(p.mesh_law == "msl_elastobacklash"),
+        tc_(p.load_coulomb_friction),
+        ts_(std::max(p.load_static_friction, p.load_coulomb_friction)),
+        dry_(tc_ > 0.0 || ts_ > 0.0),
         x_(4)
   {
     x_ << 0.0, 0.0, 1.0, 0.0;
@@ -75,15 +80,30 @@ class MeshElement
     Eigen::MatrixXd doubled = free;
     doubled(1, 0) = -2.0 * c_ / j_;
     doubled(1, 3) = 2.0 * c_ * a_ / j_;
-    free_ = std::make_shared<const ModeBasis>(free);
-    contact_ = std::make_shared<const ModeBasis>(contact);
-    doubled_ = std::make_shared<const ModeBasis>(doubled);
+    const Eigen::MatrixXd* a[3] = {&free, &contact, &doubled};
+    for (int k = 0; k < 3; ++k)
+    {
+      basis_[k][0] = std::make_shared<const ModeBasis>(*a[k]);
+      Eigen::MatrixXd stuck = *a[k];
+      stuck.topRows(2).setZero();  // the load held: θ_c and θ̇_c = 0 stay
+      basis_[k][1] = std::make_shared<const ModeBasis>(stuck);
+    }
   }
 
   double position() const { return x_(0); }
   double velocity() const { return x_(1); }
-  /// 0 free, ±1 on the forward / backward flank (±2 there in msl's 2c·y sub-mode).
-  int phase() const { return doubled_mode_ ? 2 * phase_ : phase_; }
+  /// 0 free, ±1 on the forward / backward flank (±2 there in msl's 2c·y sub-mode), times 3, plus the load's slide
+  /// (0 stuck, ±1 sliding; 0 without dry friction).
+  int phase() const { return 3 * (doubled_mode_ ? 2 * phase_ : phase_) + slide_; }
+  /// From now on, ∫ F e^{−jωt} dt over [from, to] is summed: F the load's dry friction torque (T_c·slide while it
+  /// slides, the holding torque while stuck) [N·m·s].
+  void recordFriction(double from, double to)
+  {
+    record_from_ = from;
+    record_to_ = to;
+    friction_line_ = 0.0;
+  }
+  std::complex<double> frictionLine() const { return friction_line_; }
 
   /// The motion to t [s] ≥ now, exactly.
   void advanceTo(double t)
@@ -93,12 +113,18 @@ class MeshElement
       x_(2) = std::cos(w_ * t_);  // the sine's phase from the time (no drift over many periods)
       x_(3) = std::sin(w_ * t_);
       settlePhase();
+      settleSlide();
       ModeVector u = ModeVector::Zero(4);
-      if (phase_ != 0)
+      const bool stuck = dry_ && slide_ == 0;
+      if (phase_ != 0 && !stuck)
       {
         u(1) = -phase_ * (doubled_mode_ ? 2.0 : 1.0) * c_ * half_ / j_;
       }
-      const LinearMode m(phase_ == 0 ? free_ : doubled_mode_ ? doubled_ : contact_, u, x_);
+      if (dry_ && !stuck)
+      {
+        u(1) -= slide_ * tc_ / j_;
+      }
+      const LinearMode m(basis_[phase_ == 0 ? 0 : doubled_mode_ ? 2 : 1][stuck ? 1 : 0], u, x_);
       const std::vector<Watch> watches = watchesNow();
       const double horizon = t - t_;
       const double skip = LinearMode::FLOOR_FRACTION / std::max(m.norm(), 1e-300);
@@ -108,7 +134,9 @@ class MeshElement
       {
         const Watch& wa = watches[i];
         // The crossing that began this segment is not searched for again at its start.
-        const bool again = t_ == last_time_ && static_cast<int>(wa.kind) == last_kind_ && wa.sigma == last_sigma_;
+        // (Nor a velocity's zero at the start of a slide begun at rest.)
+        const bool again = t_ == last_time_ && ((static_cast<int>(wa.kind) == last_kind_ && wa.sigma == last_sigma_) ||
+                                                wa.kind == Kind::Stop);
         const double tau =
             m.firstCrossing(wa.w, wa.w0, wa.direction, std::min(horizon, best), again ? skip : 0.0, again);
         if (tau < best)
@@ -119,10 +147,12 @@ class MeshElement
       }
       if (hit < 0 || !(best <= horizon))
       {
+        recordSegment(m, horizon);
         x_ = m.state(horizon);
         t_ = t;
         return;
       }
+      recordSegment(m, best);
       x_ = m.state(best);
       t_ += best;
       const Watch& e = watches[static_cast<std::size_t>(hit)];
@@ -147,6 +177,15 @@ class MeshElement
       else if (e.kind == Kind::Switch)
       {
         doubled_mode_ = !doubled_mode_;
+      }
+      else if (e.kind == Kind::Stop)
+      {
+        x_(1) = 0.0;  // at rest: the rest rule decides (settleSlide)
+        slide_ = 0;
+      }
+      else if (e.kind == Kind::Breakaway)
+      {
+        slide_ = e.sigma;
       }
       if (++events_ > 10000000)
       {
@@ -188,6 +227,77 @@ class MeshElement
     {
       phase_ = 0;
       doubled_mode_ = false;
+    }
+  }
+
+  /// The load's holding torque H = w·state + w₀ [N·m]: the mesh torque on it (σP on flank σ, 0 in the free play).
+  void holding(ModeVector* w, double* w0) const
+  {
+    if (phase_ == 0)
+    {
+      *w = ModeVector::Zero(4);
+      *w0 = 0.0;
+      return;
+    }
+    doubled_mode_ ? penetration(phase_, w, w0) : torque(phase_, w, w0);
+    const double k = doubled_mode_ ? 2.0 * c_ : 1.0;  // (msl's 2c·y: twice the spring on y)
+    *w *= phase_ * k;
+    *w0 *= phase_ * k;
+  }
+
+  /// Dry friction's rest rule at a segment's start: a load at rest stays stuck while |H| ≤ T_s, else slides in the
+  /// direction of H (beyond rounding).
+  void settleSlide()
+  {
+    if (!dry_ || slide_ != 0)
+    {
+      return;
+    }
+    ModeVector w;
+    double w0;
+    holding(&w, &w0);
+    const double h = w.dot(x_) + w0, band = 1e-12 * (c_ * (a_ + 2.0 * half_) + d_ * a_ * w_ + ts_);
+    if (std::fabs(h) > ts_ + band)
+    {
+      slide_ = h > 0.0 ? 1 : -1;
+    }
+  }
+
+  /// Adds ∫ F e^{−jωt} over the part of [t_, t_ + tau] inside the recorded window (see recordFriction).
+  void recordSegment(const LinearMode& m, double tau)
+  {
+    if (!dry_)
+    {
+      return;
+    }
+    const double a = std::max(t_, record_from_), b = std::min(t_ + tau, record_to_);
+    if (!(b > a))
+    {
+      return;
+    }
+    const std::complex<double> jw(0.0, w_);
+    if (slide_ != 0)
+    {
+      friction_line_ += slide_ * tc_ * (std::exp(-jw * b) - std::exp(-jw * a)) / (-jw);
+      return;
+    }
+    // Stuck: F = H(t), smooth — 8-point Gauss–Legendre over pieces of at most 1/64 of a period (exact to rounding).
+    static constexpr double NODE[4] = {0.1834346424956498, 0.5255324099163290, 0.7966664774136267, 0.9602898564975363};
+    static constexpr double WEIGHT[4] = {0.3626837833783620, 0.3137066458778873, 0.2223810344533745,
+                                         0.1012285362903763};
+    ModeVector w;
+    double w0;
+    holding(&w, &w0);
+    const int pieces = std::max(1, static_cast<int>(std::ceil((b - a) * w_ * 64.0 / (2.0 * PI))));
+    const double h = (b - a) / pieces;
+    for (int k = 0; k < pieces; ++k)
+    {
+      const double mid = a + (k + 0.5) * h;
+      for (int i = 0; i < 8; ++i)
+      {
+        const double t = mid + (i < 4 ? -1.0 : 1.0) * 0.5 * h * NODE[i % 4];
+        friction_line_ += 0.5 * h * WEIGHT[i % 4] * (w.dot(m.state(t - t_)) + w0) * std::exp(-jw * t);
+      }
     }
   }
 
@@ -238,6 +348,18 @@ class MeshElement
     std::vector<Watch> out;
     ModeVector w;
     double w0;
+    if (dry_ && slide_ != 0)
+    {
+      w = ModeVector::Zero(4);
+      w(1) = 1.0;
+      out.push_back({w, 0.0, -slide_, Kind::Stop, slide_});
+    }
+    else if (dry_ && phase_ != 0)
+    {
+      holding(&w, &w0);
+      out.push_back({w, w0 - ts_, +1, Kind::Breakaway, 1});
+      out.push_back({w, w0 + ts_, -1, Kind::Breakaway, -1});
+    }
     if (phase_ != 0)
     {
       if (doubled_mode_)
@@ -276,6 +398,11 @@ class MeshElement
 
   double j_, f_, c_, d_, half_, a_, w_;
   bool msl_;
+  double tc_, ts_;  // the load's Coulomb and static friction [N·m]
+  bool dry_;
+  int slide_ = 0;  // dry friction: 0 stuck, ±1 sliding
+  double record_from_ = INF, record_to_ = -INF;
+  std::complex<double> friction_line_ = 0.0;
   ModeVector x_;
   double t_ = 0.0;
   int phase_ = 0;              // 0 free, +1 forward flank, −1 backward flank
@@ -283,7 +410,7 @@ class MeshElement
   double last_time_ = -1.0;
   int last_kind_ = -1, last_sigma_ = 0;
   long events_ = 0;
-  std::shared_ptr<const ModeBasis> free_, contact_, doubled_;
+  std::shared_ptr<const ModeBasis> basis_[3][2];  // free, contact, msl's 2c·y; moving or the load stuck
 };
 
 }  // namespace
@@ -295,8 +422,10 @@ void requireDrivableMesh(const ServoParams& params)
   need(std::isfinite(params.mesh_damping) && params.mesh_damping >= 0.0, "mesh_damping", "must be >= 0 N·m·s/rad");
   need(std::isfinite(params.load_inertia) && params.load_inertia > 0.0, "load_inertia", "must be > 0 kg·m²");
   need(std::isfinite(params.load_friction) && params.load_friction >= 0.0, "load_friction", "must be >= 0 N·m·s/rad");
-  need(params.load_coulomb_friction == 0.0 && params.load_static_friction == 0.0, "load_coulomb_friction",
-       "must be 0: the driven compliant element takes viscous load friction only");
+  need(std::isfinite(params.load_coulomb_friction) && params.load_coulomb_friction >= 0.0, "load_coulomb_friction",
+       "must be >= 0 N·m");
+  need(std::isfinite(params.load_static_friction) && params.load_static_friction >= 0.0, "load_static_friction",
+       "must be >= 0 N·m");
   need(params.load_torque == 0.0, "load_torque",
        "must be 0: with a load torque the element's cycle is not symmetric about its centre");
   need(params.shaft_stiffness == 0.0, "shaft_stiffness", "must be 0: the driven compliant element has a rigid shaft");
@@ -332,11 +461,17 @@ DrivenBacklash drivenCompliantMesh(const ServoParams& params, double amplitude, 
       },
       &out.periodic);
   std::complex<double> position(0.0, 0.0);
+  const int analysed_periods = out.periodic ? 1 : DRIVEN_ANALYSED;
+  element.recordFriction(out.periods * period, (out.periods + analysed_periods) * period);
   const int analysed = samplePeriods(element, period, out.periods, out.periodic,
                                      [&](std::complex<double> rotor) { position += element.position() * rotor; });
+  element.advanceTo((out.periods + analysed) * period);  // (the friction's integral to the window's end)
   const std::complex<double> j(0.0, 1.0);
   out.position = j * (2.0 / (static_cast<double>(DRIVEN_SAMPLES) * analysed)) * position / amplitude;
-  out.torque = std::complex<double>(-omega * omega * params.load_inertia, omega * params.load_friction) * out.position;
+  // The teeth's torque Q = J_L θ̈_c + f_L θ̇_c + F: its fundamental (−ω²J_L + jωf_L)Θ₁ + F₁.
+  const std::complex<double> friction = j * (2.0 / (period * analysed)) * element.frictionLine() / amplitude;
+  out.torque = std::complex<double>(-omega * omega * params.load_inertia, omega * params.load_friction) * out.position +
+               friction;
   return out;
 }
 

@@ -598,11 +598,11 @@ TEST(DescribingFunction, ACompliantMeshsLoopIsTheTwoBodiesDeterminant)
 
 // A heavy motor (ρ²J_L/J_m = 1/9, ζ = 0.1) on a soft compliant mesh (c = 3 N·m/rad, d = 0.3 N·m·s/rad): the motor
 // moves nearly as a sine, and the compliant element's numerical DF meets the exact cycle within 2 % in amplitude and
-// 1 % in frequency (measured −0.7 % / +0.3 %; −0.8 % / +0.3 % with the msl_elastobacklash law), where the classical
-// DF of the mesh's dead zone is 31 % off.
+// 1 % in frequency (measured −0.7 % / +0.3 %; −0.8 % / +0.3 % with the msl_elastobacklash law; +0.8 % / +0.5 % with
+// 0.03 N·m of dry friction on the load), where the classical DF of the mesh's dead zone is 19–31 % off.
 TEST(DescribingFunction, TheCompliantElementPredictsAHeavyMotorsCycle)
 {
-  for (const char* law : {"spring_damper", "msl_elastobacklash"})
+  for (const char* law : {"spring_damper", "msl_elastobacklash", "spring_damper + dry"})
   {
     RunConfig c;
     c.params.motor_inertia = 0.9;
@@ -611,7 +611,11 @@ TEST(DescribingFunction, TheCompliantElementPredictsAHeavyMotorsCycle)
     c.params.load_friction = 0.08;
     c.params.mesh_stiffness = 3.0;
     c.params.mesh_damping = 0.3;
-    c.params.mesh_law = law;
+    c.params.mesh_law = std::string(law) == "msl_elastobacklash" ? law : "spring_damper";
+    if (std::string(law) == "spring_damper + dry")
+    {
+      c.params.load_coulomb_friction = c.params.load_static_friction = 0.03;  // [N·m]
+    }
     const LimitCyclePrediction a = predictLimitCycle(c);
     ASSERT_EQ(a.simulated.verdict, Verdict::LimitCycle) << law;
     const HarmonicBalance classical = stable(a.predictions), numerical = stable(a.numerical);
@@ -621,6 +625,6 @@ TEST(DescribingFunction, TheCompliantElementPredictsAHeavyMotorsCycle)
                 100 * a.frequencyError(numerical));
     EXPECT_LT(std::fabs(a.amplitudeError(numerical)), 0.02) << law;
     EXPECT_LT(std::fabs(a.frequencyError(numerical)), 0.01) << law;
-    EXPECT_GT(std::fabs(a.amplitudeError(classical)), 0.2) << law;
+    EXPECT_GT(std::fabs(a.amplitudeError(classical)), 0.15) << law;
   }
 }
