@@ -233,6 +233,15 @@ class CompliantJoint
   void heldMotorTorque(double* lo, double* hi) const;
   /// Moves the clock to t ≥ time() [s] while held() (nothing moves).
   void holdTo(double t);
+  /**
+   * The load stuck by dry friction on a pressed flank (rigid shaft, no wave) while a motor without dry friction
+   * settles on the mesh spring under the law in force: the motor's mode with the load frozen, ẋ_m = M x_m + f, is
+   * stable with distinct eigenvalues, and every output that could change the mode — the mesh torque P (a release),
+   * msl's d·ẏ − c·y (its sub-mode switch), the load's holding torque (a breakaway) — stays on its side for ever:
+   * |o(t) − o_eq| ≤ Σ_i |c_i|, the modal coefficients of its deviation from the equilibrium x_eq = −M⁻¹f (each term
+   * decays), with margins beyond rounding. Then nothing but that decay ever happens: the joint converges to x_eq.
+   */
+  bool settlesForever() const;
 
  private:
   struct Watch

@@ -94,6 +94,9 @@ class Drive
   virtual bool steady() const { return std::isinf(nextEventTime(-std::numeric_limits<double>::infinity())); }
   /// A digital drive (samples at known instants) rather than a continuous law.
   virtual bool sampled() const { return false; }
+  /// The output may depend on the motor's angle or speed (motor feedback, the cascade's speed loop, a compensator):
+  /// a motor still moving may change it although the load stands. Default: no.
+  virtual bool readsMotor() const { return false; }
   /// What the controller read at its latest sample: quantised motor angle on the motor shaft and load angle [rad].
   /// False for a continuous law (it reads nothing at instants).
   virtual bool readings(double* /*motor*/, double* /*load*/) const { return false; }
@@ -239,6 +242,7 @@ class SampledDrive : public Drive
   /// At the latest sample: the integrator frozen, the measurement unchanged (no derivative or velocity estimate),
   /// the delayed output equal to the held one, no compensator. (A profile change ahead is the simulator's to see.)
   bool steady() const override { return steady_; }
+  bool readsMotor() const override { return motor_feedback_ || law_ == Law::Cascade || compensator_.active(); }
   bool sampled() const override { return true; }
   long holdSamples(const State& state, double until, double lo, double hi, long max_count, double* last) override;
   bool readings(double* motor, double* load) const override

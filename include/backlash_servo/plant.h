@@ -209,6 +209,9 @@ class Plant
   /// motor; each is confirmed by decideAtRest() itself, pulled 1e-9 towards the present torque. False when the rule
   /// does not apply (no segment held, a forced breakaway pending, or the present torque not held).
   bool heldTorqueRange(double* lo, double* hi, double* until) const;
+  /// A compliant joint whose stuck load holds for ever while its motor settles on the mesh spring under the law in
+  /// force (CompliantJoint::settlesForever): with the law unchanged, nothing but that decay happens again.
+  bool settlesForever() const;
   /// Re-expresses the state in a frame moving relative to the present one (the continuous law's ramps, see
   /// Simulator): load angle and velocity + dx_load [rad], dv_load [rad/s], motor ones + dx_motor, dv_motor; the
   /// closed form restarts there. The caller keeps gap, contact and parameters consistent with the new frame.

@@ -33,6 +33,11 @@ void Plant::beginCompliant()
   compliantEnergyTracking();
 }
 
+bool Plant::settlesForever() const
+{
+  return params_.compliant() && compliant_.joint->settlesForever();
+}
+
 void Plant::setLoadWave(const Waveform& wave)
 {
   for (int i = 0; i < wave.count; ++i)

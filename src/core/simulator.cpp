@@ -204,16 +204,18 @@ void Simulator::takeSample()
 
 bool Simulator::atRestForever() const
 {
-  double lo, hi, until;
-  if (motor_bias_ != 0.0 || !plant_.heldTorqueRange(&lo, &hi, &until))
+  if (motor_bias_ != 0.0 || (profile_ && !std::isinf(profile_->nextChange(plant_.state().time))))
   {
     return false;  // (in a ramp's moving frame the law changes)
   }
-  if (profile_ && !std::isinf(profile_->nextChange(plant_.state().time)))
+  double lo, hi, until;
+  if (plant_.heldTorqueRange(&lo, &hi, &until))
   {
-    return false;
+    return std::isinf(until) && drive_->steady();
   }
-  return std::isinf(until) && drive_->steady();
+  // A stuck load and a motor settling on the mesh spring: the law must stay as it is — one that reads only the stuck
+  // load (or nothing) and no longer changes.
+  return plant_.settlesForever() && drive_->steady() && !drive_->readsMotor();
 }
 
 bool Simulator::holdSamples(double t_end)

@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <string>
 
 #include "backlash_servo/simulator.h"
 #include "backlash_servo/step_response.h"
@@ -178,6 +179,44 @@ TEST(Verdicts, AJointStuckByLoadStictionAfterOneMaximumConverges)
   }
 }
 }  // namespace
+
+TEST(Verdicts, ACompliantJointWhoseLoadSticksOffTheCommandConverges)
+{
+  // D1 with a compliant mesh (c = 1e4 N·m/rad, d = 4.46 N·m·s/rad) and load stiction T_cL = T_sL: the load sticks
+  // 7 % and 12 % off the command while the frictionless motor rings down on the mesh spring — it never stops exactly,
+  // yet nothing else can happen: converged (continuous law and a 1 kHz P drive). Independent check: run on for
+  // 100 s — the load never moves again, the motor ends where the mesh torque carries the law's torque.
+  for (const bool sampled : {false, true})
+  {
+    for (const double friction : {0.1, 0.3})
+    {
+      RunConfig c;
+      c.params.mesh_stiffness = 1e4;
+      c.params.mesh_damping = 4.4613;
+      c.params.load_coulomb_friction = c.params.load_static_friction = friction;
+      if (sampled)
+      {
+        c.drive.controller_rate = 1000.0;
+      }
+      const RunSummary r = runResponse(c);
+      SCOPED_TRACE((sampled ? "1 kHz P law, T_sL " : "continuous P law, T_sL ") + std::to_string(friction));
+      EXPECT_EQ(r.status.verdict, Verdict::Converged);
+      EXPECT_EQ(r.stopped_by, "settled");
+      EXPECT_LT(r.simulated, 100.0);
+      EXPECT_GT(std::fabs(r.final_state.load_position - c.command), 0.05);  // (off by more than the quiet rule's 1 %)
+      Simulator sim = makeSimulator(c);
+      sim.advanceTo(r.simulated);
+      const double stuck_at = sim.state().load_position;
+      EXPECT_EQ(stuck_at, r.final_state.load_position);
+      sim.advanceTo(r.simulated + 100.0);
+      EXPECT_EQ(sim.state().load_position, stuck_at);
+      EXPECT_EQ(sim.state().load_velocity, 0.0);
+      const double tm = c.params.gain * (c.command - stuck_at);
+      EXPECT_NEAR(c.params.gear_ratio * sim.plant().meshTorque(), tm, 1e-9 * std::fabs(tm));
+      EXPECT_LT(std::fabs(sim.plant().meshTorque()), friction);
+    }
+  }
+}
 
 namespace
 {
