@@ -95,106 +95,14 @@ TEST(DrivenMesh, WhatItDoesNotTakeIsNamed)
 
 namespace
 {
-/// N_θ of the element by brute force: J_L θ̈ = −f_L θ̇ + Q(x − θ, ẋ − θ̇), x = A sin ωt, Q the mesh law of
-/// docs/model.md as a function of the state, classical RK4 with `steps` a period from rest at the centre, `periods`
-/// periods, the fundamental of the last by the trapezoid rule (exact for the periodic samples' trigonometric sums).
-std::complex<double> bruteForce(const ServoParams& p, double a, double w, int periods, int steps)
-{
-  const double half = 0.5 * p.backlash, c = p.mesh_stiffness, d = p.mesh_damping;
-  const bool msl = p.mesh_law == "msl_elastobacklash";
-  const auto accel = [&](double t, double th, double om) {
-    const double g = a * std::sin(w * t) - th, gd = a * w * std::cos(w * t) - om;
-    const int sigma = g > half ? 1 : (g < -half ? -1 : 0);
-    if (sigma == 0)
-    {
-      return -p.load_friction * om / p.load_inertia;
-    }
-    const double y = sigma * g - half, yd = sigma * gd;
-    const double tc = c * y, td = d * yd;
-    const double push = msl ? (tc + td <= 0.0 ? 0.0 : tc + std::min(tc, td)) : std::max(0.0, tc + td);
-    return (-p.load_friction * om + sigma * push) / p.load_inertia;
-  };
-  const double h = 2.0 * M_PI / w / steps;
-  const auto rk4 = [&](double t, double dt, double* th, double* om) {
-    const double k1x = *om, k1v = accel(t, *th, *om);
-    const double k2x = *om + 0.5 * dt * k1v, k2v = accel(t + 0.5 * dt, *th + 0.5 * dt * k1x, *om + 0.5 * dt * k1v);
-    const double k3x = *om + 0.5 * dt * k2v, k3v = accel(t + 0.5 * dt, *th + 0.5 * dt * k2x, *om + 0.5 * dt * k2v);
-    const double k4x = *om + dt * k3v, k4v = accel(t + dt, *th + dt * k3x, *om + dt * k3v);
-    *th += dt / 6.0 * (k1x + 2.0 * k2x + 2.0 * k3x + k4x);
-    *om += dt / 6.0 * (k1v + 2.0 * k2v + 2.0 * k3v + k4v);
-  };
-  // Which side of the free play the load is on: the spring_damper torque jumps (0 → d·ẏ) where a flank is reached,
-  // so a step across it is redone in 10⁴ sub-steps (RK4's error at a jump is first order in the step).
-  const auto side = [&](double t, double th) {
-    const double g = a * std::sin(w * t) - th;
-    return g > half ? 1 : (g < -half ? -1 : 0);
-  };
-  double th = 0.0, om = 0.0;
-  std::complex<double> line = 0.0;
-  for (int k = 0; k < periods * steps; ++k)
-  {
-    const double t = k * h;
-    if (k >= (periods - 1) * steps)
-    {
-      line += th * std::polar(1.0, -w * t);
-    }
-    double th1 = th, om1 = om;
-    rk4(t, h, &th1, &om1);
-    if (side(t, th) != side(t + h, th1))
-    {
-      th1 = th;
-      om1 = om;
-      constexpr int SUB = 10000;
-      for (int i = 0; i < SUB; ++i)
-      {
-        rk4(t + i * h / SUB, h / SUB, &th1, &om1);
-      }
-    }
-    th = th1;
-    om = om1;
-  }
-  return std::complex<double>(0.0, 1.0) * (2.0 / steps) * line / a;
-}
-}  // namespace
-
-// Backlash, damping and the two mesh laws: the exact element's N_θ equals the brute-force one to 1e-7 (the fixed
-// step's error), below, near and above the contact's resonance √(c/J_L) ≈ 17 rad/s; and the laws
-// differ there (by more than 1e-3: msl's 2c·y sub-mode while d·ẏ > c·y).
-TEST(DrivenMesh, EitherMeshLawMatchesABruteForceIntegration)
-{
-  ServoParams p;
-  p.load_inertia = 0.1;
-  p.load_friction = 0.08;
-  p.mesh_stiffness = 30.0;
-  p.mesh_damping = 1.0;
-  p.backlash = 0.3;
-  for (double w : {5.0, 20.0, 40.0})
-  {
-    std::complex<double> laws[2];
-    for (int i = 0; i < 2; ++i)
-    {
-      p.mesh_law = i == 0 ? "spring_damper" : "msl_elastobacklash";
-      const DrivenBacklash exact = drivenCompliantMesh(p, 0.5, w);
-      const std::complex<double> reference = bruteForce(p, 0.5, w, 80, 20000);
-      std::printf("%s ω %g: N_θ %.9f%+.9fj, brute force off by %.2e (%d periods to settle)\n", p.mesh_law.c_str(), w,
-                  exact.position.real(), exact.position.imag(), std::abs(exact.position - reference), exact.periods);
-      ASSERT_TRUE(exact.periodic) << p.mesh_law << " " << w;
-      EXPECT_LT(std::abs(exact.position - reference), 1e-7 * std::abs(reference)) << p.mesh_law << " " << w;
-      laws[i] = exact.position;
-    }
-    EXPECT_GT(std::abs(laws[1] - laws[0]), 1e-3 * std::abs(laws[0])) << w;
-  }
-}
-
-namespace
-{
-/// The element with the load's dry friction by brute force (docs/model.md's rest rule): classical RK4 steps of a
-/// period/steps while the load slides, a stop located by bisection on the step length (then stuck while |H| ≤ T_s,
+/// The element by brute force: J_L θ̈_c = −f_L θ̇_c − F + Q, x = A sin ωt, Q the mesh law of docs/model.md as a
+/// function of the state, F the load's dry friction by the rest rule; from rest at the centre, classical RK4 steps of
+/// a period/steps while the load slides, a stop located by bisection on the step length (then stuck while |H| ≤ T_s,
 /// else sliding on in the direction of H), a stuck load's breakaway by bisection on its holding torque H(t) = Q(t)
 /// (explicit in t: the load does not move), a step across a flank redone in 10⁴ sub-steps. Returns N_θ and N_T (the
 /// fundamental of the mesh torque Q on the load, by the rectangle rule at the steps).
-void bruteForceDry(const ServoParams& p, double a, double w, int periods, int steps, std::complex<double>* n_theta,
-                   std::complex<double>* n_torque)
+void bruteForce(const ServoParams& p, double a, double w, int periods, int steps, std::complex<double>* n_theta,
+                std::complex<double>* n_torque)
 {
   const double half = 0.5 * p.backlash, c = p.mesh_stiffness, d = p.mesh_damping;
   const double tc = p.load_coulomb_friction, ts = std::max(p.load_static_friction, tc);
@@ -307,6 +215,36 @@ void bruteForceDry(const ServoParams& p, double a, double w, int periods, int st
 }
 }  // namespace
 
+// Backlash, damping and the two mesh laws: the exact element's N_θ equals the brute-force one to 1e-7 (the fixed
+// step's error), below, near and above the contact's resonance √(c/J_L) ≈ 17 rad/s; and the laws
+// differ there (by more than 1e-3: msl's 2c·y sub-mode while d·ẏ > c·y).
+TEST(DrivenMesh, EitherMeshLawMatchesABruteForceIntegration)
+{
+  ServoParams p;
+  p.load_inertia = 0.1;
+  p.load_friction = 0.08;
+  p.mesh_stiffness = 30.0;
+  p.mesh_damping = 1.0;
+  p.backlash = 0.3;
+  for (double w : {5.0, 20.0, 40.0})
+  {
+    std::complex<double> laws[2];
+    for (int i = 0; i < 2; ++i)
+    {
+      p.mesh_law = i == 0 ? "spring_damper" : "msl_elastobacklash";
+      const DrivenBacklash exact = drivenCompliantMesh(p, 0.5, w);
+      std::complex<double> reference, torque;
+      bruteForce(p, 0.5, w, 80, 20000, &reference, &torque);
+      std::printf("%s ω %g: N_θ %.9f%+.9fj, brute force off by %.2e (%d periods to settle)\n", p.mesh_law.c_str(), w,
+                  exact.position.real(), exact.position.imag(), std::abs(exact.position - reference), exact.periods);
+      ASSERT_TRUE(exact.periodic) << p.mesh_law << " " << w;
+      EXPECT_LT(std::abs(exact.position - reference), 1e-7 * std::abs(reference)) << p.mesh_law << " " << w;
+      laws[i] = exact.position;
+    }
+    EXPECT_GT(std::abs(laws[1] - laws[0]), 1e-3 * std::abs(laws[0])) << w;
+  }
+}
+
 // The load's dry friction (Coulomb 0.05, static 0.08 N·m): it sticks in the free play and on a flank until the mesh
 // torque leaves its static band. The exact element's N_θ equals the brute-force one to 1e-6 and its N_T — the
 // fundamental of the mesh torque, inertia, viscous and dry friction's together — to 1e-4 (the brute force's
@@ -328,7 +266,7 @@ TEST(DrivenMesh, TheLoadsDryFrictionMatchesABruteForceIntegration)
       p.mesh_law = law;
       const DrivenBacklash exact = drivenCompliantMesh(p, 0.5, w);
       std::complex<double> n_theta, n_torque;
-      bruteForceDry(p, 0.5, w, 80, 20000, &n_theta, &n_torque);
+      bruteForce(p, 0.5, w, 80, 20000, &n_theta, &n_torque);
       std::printf("%s ω %g: N_θ %.9f%+.9fj (brute force off by %.2e), N_T %.6f%+.6fj (off by %.2e), %d periods\n", law,
                   w, exact.position.real(), exact.position.imag(), std::abs(exact.position - n_theta),
                   exact.torque.real(), exact.torque.imag(), std::abs(exact.torque - n_torque), exact.periods);
