@@ -2,17 +2,19 @@
 
 #include <algorithm>
 #include <cmath>
-#include <cstdio>
 #include <limits>
 #include <stdexcept>
 
-#include <Eigen/Dense>
-
 #include "backlash_servo/gear_mesh.h"
 #include "backlash_servo/linear_mode.h"
+#include "compliant_joint_detail.h"
 
 namespace backlash_servo
 {
+using compliant_detail::isForward;
+using compliant_detail::isK2;
+using compliant_detail::roundingOf;
+
 namespace
 {
 constexpr double INF = std::numeric_limits<double>::infinity();
@@ -22,22 +24,6 @@ constexpr double WINDOW_SCALE = 256.0;
 // below ~4000 rad, whose rounding would otherwise grow with the segment's length (a joint gliding in contact for
 // minutes drifted its energy balance by 2e-10 of its energy per second).
 constexpr double REANCHOR_WINDOWS = 16.0;
-
-bool isForward(MeshMode m)
-{
-  return m == MeshMode::Forward || m == MeshMode::ForwardK2;
-}
-bool isK2(MeshMode m)
-{
-  return m == MeshMode::ForwardK2 || m == MeshMode::BackwardK2;
-}
-
-/// What rounding can do to an output w·x + w₀ of a state x whose entries are known to their last bits (the angles or
-/// speeds it is the difference of).
-double roundingOf(const ModeVector& w, double w0, const ModeVector& x)
-{
-  return 64.0 * std::numeric_limits<double>::epsilon() * (w.cwiseAbs().dot(x.cwiseAbs()) + std::fabs(w0));
-}
 
 /// The modes' order — the joint's size and two states per sine, the law's and the load's — within MAX_MODE_ORDER.
 void requireOrder(int size, const Waveform& wave, const Waveform& load_wave, const char* key)
@@ -53,27 +39,6 @@ void requireOrder(int size, const Waveform& wave, const Waveform& load_wave, con
 }
 
 }  // namespace
-
-void requireExactWave(const ServoParams& p, const std::string& what)
-{
-  if (p.compliant())
-  {
-    return;
-  }
-  const std::pair<const char*, double> dry[] = {{"motor_static_friction", p.motor_static_friction},
-                                                {"motor_coulomb_friction", p.motor_coulomb_friction},
-                                                {"load_static_friction", p.load_static_friction},
-                                                {"load_coulomb_friction", p.load_coulomb_friction}};
-  for (const auto& [key, value] : dry)
-  {
-    if (value != 0.0)
-    {
-      throw InvalidParameterError(key, formatNumber(value) + ": " + what +
-                                           " is exact on rigid teeth only without dry friction; give a "
-                                           "controller_rate (the sine sampled and held) or a compliant mesh");
-    }
-  }
-}
 
 CompliantJoint::CompliantJoint(const ServoParams& params, const MotorInput& law)
     : s_(params),
@@ -205,111 +170,6 @@ void CompliantJoint::setState(const Eigen::VectorXd& x, double t)
   initial_potential_ = potentialEnergy();
 }
 
-double CompliantJoint::kineticEnergy() const
-{
-  const int o = out(), l = loadIndex();
-  const double jo = torsional_ ? s_.gear_inertia : s_.gear_inertia + s_.load_inertia;
-  double k = 0.5 * s_.motor_inertia * x_(1) * x_(1) + 0.5 * jo * x_(o + 1) * x_(o + 1);
-  if (torsional_)
-  {
-    k += 0.5 * s_.load_inertia * x_(l + 1) * x_(l + 1);
-  }
-  return k;
-}
-
-double CompliantJoint::potentialEnergy() const
-{
-  double v = 0.0;
-  if (mode_ != MeshMode::Free)
-  {
-    ModeVector w;
-    double w0;
-    penetration(isForward(mode_) ? 1 : -1, &w, &w0);
-    const double y = w.dot(x_) + w0;
-    v = (isK2(mode_) ? 1.0 : 0.5) * s_.mesh_stiffness * y * y;
-  }
-  if (torsional_)
-  {
-    const double twist = x_(out()) - x_(loadIndex());
-    v += 0.5 * s_.shaft_stiffness * twist * twist;
-  }
-  return v;
-}
-
-double CompliantJoint::energyBalanceError() const
-{
-  const CompliantEnergy& e = energy_;
-  return e.input + e.load_work - e.motor_friction - e.load_friction - e.mesh_loss - e.shaft_loss -
-         e.motor_dry_friction - e.load_dry_friction - e.impact_loss -
-         (kineticEnergy() + potentialEnergy() - initial_kinetic_ - initial_potential_);
-}
-
-void CompliantJoint::integrate(const Segment& seg, double a, double b, CompliantEnergy* e) const
-{
-  // 8-point Gauss–Legendre nodes and weights on [−1, 1].
-  static constexpr double NODE[4] = {0.1834346424956498, 0.5255324099163290, 0.7966664774136267, 0.9602898564975363};
-  static constexpr double WEIGHT[4] = {0.3626837833783620, 0.3137066458778873, 0.2223810344533745, 0.1012285362903763};
-  if (!(b > a))
-  {
-    return;
-  }
-  const int o = out(), l = loadIndex();
-  const double mid = 0.5 * (a + b), half = 0.5 * (b - a);
-  const bool damped_flank = mode_ != MeshMode::Free && !isK2(mode_);
-  ModeVector wv;
-  double wv0 = 0.0;
-  if (damped_flank)
-  {
-    flankTorque(isForward(mode_) ? 1 : -1, 0.0, 1.0, &wv, &wv0);  // ẏ
-  }
-  CompliantEnergy sum;
-  for (int i = 0; i < 8; ++i)
-  {
-    const double s = mid + (i < 4 ? -1.0 : 1.0) * half * NODE[i % 4];
-    const double w = half * WEIGHT[i % 4];
-    const ModeVector x = seg.motion.state(s);
-    const double wm = x(1), wc = x(l + 1);
-    double wave = 0.0;  // Σ A sin of the oscillators' angles
-    for (int t = 0; t < law_.wave.count; ++t)
-    {
-      wave += law_.wave.tones[static_cast<std::size_t>(t)].amplitude * x(size() + 2 * t + 1);
-    }
-    sum.input += w * (law_.offset - law_.stiffness * x(l) + wave) * wm;
-    sum.motor_friction += w * s_.motor_friction * wm * wm;
-    sum.load_friction += w * s_.load_friction * wc * wc;
-    sum.load_work += w * (s_.load_torque + loadWaveAt(x)) * wc;
-    sum.motor_dry_friction += w * s_.motor_coulomb_friction * seg.slide[0] * wm;
-    sum.load_dry_friction += w * s_.load_coulomb_friction * seg.slide[1] * wc;
-    if (damped_flank)
-    {
-      const double ydot = wv.dot(x) + wv0;
-      sum.mesh_loss += w * s_.mesh_damping * ydot * ydot;
-    }
-    if (torsional_)
-    {
-      const double rate = x(o + 1) - wc;
-      sum.shaft_loss += w * s_.shaft_damping * rate * rate;
-    }
-  }
-  sum.input_magnitude = std::fabs(sum.input);
-  *e += sum;
-}
-
-void CompliantJoint::placeEnergy(double tau)
-{
-  Segment& seg = *segment_;
-  while (static_cast<double>(seg.pieces_done + 1) * seg.piece <= tau)
-  {
-    integrate(seg, static_cast<double>(seg.pieces_done) * seg.piece,
-              static_cast<double>(seg.pieces_done + 1) * seg.piece, &seg.pieces);
-    ++seg.pieces_done;
-  }
-  CompliantEnergy e = seg.pieces;
-  integrate(seg, static_cast<double>(seg.pieces_done) * seg.piece, tau, &e);
-  energy_ = seg.at_start;
-  energy_ += e;
-}
-
 Eigen::VectorXcd CompliantJoint::eigenvalues() const
 {
   ModeMatrix a;
@@ -321,116 +181,6 @@ Eigen::VectorXcd CompliantJoint::eigenvalues() const
 double CompliantJoint::inertiaOf(int body) const
 {
   return body == 0 ? s_.motor_inertia : torsional_ ? s_.load_inertia : s_.load_inertia + s_.gear_inertia;
-}
-
-void CompliantJoint::holdingTorque(int body, MeshMode m, ModeVector* w, double* w0) const
-{
-  // J ω̇ = H − f ω − T_c·slide: H is J times the body's velocity row while it moves, its fold taken back (ω = 0).
-  ModeMatrix a;
-  ModeVector u;
-  modeMatrices(m, {1, 1}, &a, &u);
-  const int v = angleIndex(body) + 1;
-  const double j = inertiaOf(body);
-  *w = j * a.row(v).transpose();
-  (*w)(v) = 0.0;  // (the viscous term vanishes at rest)
-  *w0 = j * u(v) + coulombOf(body);
-}
-
-int CompliantJoint::restSlide(int body) const
-{
-  ModeVector w;
-  double w0;
-  holdingTorque(body, mode_, &w, &w0);
-  const double h = w.dot(x_) + w0;
-  return std::fabs(h) <= staticOf(body) ? 0 : h > 0.0 ? 1 : -1;
-}
-
-bool CompliantJoint::held() const
-{
-  if (torsional_ || forced() || !dry_[0] || !dry_[1] || slide_[0] != 0 || slide_[1] != 0)
-  {
-    return false;
-  }
-  return restSlide(0) == 0 && restSlide(1) == 0;
-}
-
-bool CompliantJoint::settlesForever() const
-{
-  if (rigid_ || torsional_ || forced() || dry_[0] || !dry_[1] || slide_[1] != 0 || mode_ == MeshMode::Free)
-  {
-    return false;
-  }
-  ModeMatrix a;
-  ModeVector u;
-  modeMatrices(mode_, slide_, &a, &u);  // (the load's rows frozen)
-  const Eigen::Matrix2d m = a.topLeftCorner(2, 2);
-  const Eigen::Vector2d f = u.head(2) + a.block(0, 2, 2, size() - 2) * x_.segment(2, size() - 2);
-  if (!(std::fabs(m.determinant()) > 0.0))
-  {
-    return false;
-  }
-  const Eigen::Vector2d eq = -m.partialPivLu().solve(f), dev = x_.head(2) - eq;
-  Eigen::EigenSolver<Eigen::Matrix2d> solver(m);
-  const Eigen::Vector2cd lambda = solver.eigenvalues();
-  const Eigen::Matrix2cd v = solver.eigenvectors();
-  if (!(lambda.real().maxCoeff() < 0.0) || !(std::abs(lambda(0) - lambda(1)) > 1e-9 * lambda.cwiseAbs().maxCoeff()) ||
-      !(std::fabs(v.determinant()) > 0.0))
-  {
-    return false;  // not decaying, or a repeated eigenvalue (a polynomial factor: no simple bound)
-  }
-  const Eigen::Vector2cd modal = v.partialPivLu().solve(dev.cast<std::complex<double>>());
-  // o(t) − o_eq = w_m·V e^{Λt} V⁻¹ δ: within Σ|c_i| for all t ≥ 0; o_eq and the bound from the motor's part w_m.
-  const auto side = [&](const ModeVector& w, double w0, double* at_eq, double* bound) {
-    ModeVector x = x_;
-    x.head(2) = eq;
-    *at_eq = w.dot(x) + w0;
-    const Eigen::RowVector2cd wm = w.head(2).transpose().cast<std::complex<double>>() * v;
-    *bound = std::abs(wm(0) * modal(0)) + std::abs(wm(1) * modal(1)) + roundingOf(w, w0, x) +
-             1e-12 * (std::fabs(*at_eq) + w.head(2).cwiseAbs().dot(dev.cwiseAbs()));
-  };
-  const int sigma = isForward(mode_) ? 1 : -1;
-  double eq_value, bound;
-  ModeVector w;
-  double w0;
-  const bool k2 = isK2(mode_);
-  flankTorque(sigma, k2 ? 2.0 * s_.mesh_stiffness : s_.mesh_stiffness, k2 ? 0.0 : s_.mesh_damping, &w, &w0);
-  side(w, w0, &eq_value, &bound);
-  if (!(eq_value - bound > 0.0))
-  {
-    return false;  // the contact might be released
-  }
-  if (msl_)
-  {
-    // KD while d·ẏ − c·y < 0, K2 while > 0: the switch must not come.
-    ModeVector ws;
-    double ws0;
-    flankTorque(sigma, -s_.mesh_stiffness, s_.mesh_damping, &ws, &ws0);
-    side(ws, ws0, &eq_value, &bound);
-    if (k2 ? !(eq_value - bound > 0.0) : !(eq_value + bound < 0.0))
-    {
-      return false;
-    }
-  }
-  holdingTorque(1, mode_, &w, &w0);
-  side(w, w0, &eq_value, &bound);
-  return std::fabs(eq_value) + bound < staticOf(1);
-}
-
-void CompliantJoint::heldMotorTorque(double* lo, double* hi) const
-{
-  const double pressed = s_.gear_ratio * meshTorque(), now = law_.torque(x_(loadIndex()), time_);
-  const auto inside = [now](double end) { return end - 1e-9 * (end - now); };  // pulled towards the torque now
-  *lo = inside(pressed - s_.motor_static_friction);
-  *hi = inside(pressed + s_.motor_static_friction);
-}
-
-void CompliantJoint::holdTo(double t)
-{
-  if (t > time_)
-  {
-    time_ = t;
-    segment_.reset();
-  }
 }
 
 double CompliantJoint::meshTorque() const
@@ -571,89 +321,6 @@ double CompliantJoint::loadWaveAt(const ModeVector& x) const
     sum += load_wave_.tones[static_cast<std::size_t>(i)].amplitude * x(loadWaveIndex() + 2 * i + 1);
   }
   return sum;
-}
-
-void CompliantJoint::rigidContact(ModeMatrix* a, ModeVector* u) const
-{
-  // The pair as one body on the load shaft (θ_c = θ_o, no shaft): J ω̇_c = ρ(a − kθ_c + A sin) − F_T ω_c + ρ²T_ext,
-  // T_ext = load_torque + Σ B sin.
-  // The motor follows it — θ̇_m = ω_c/ρ, ω̇_m = ω̇_c/ρ — so the gap stays exactly as it began, and the motor's
-  // columns are zero (its eigenvalues 0 have a full eigenspace: no polynomial in the closed form).
-  const int k = dim(), o = out();
-  *a = ModeMatrix::Zero(k, k);
-  *u = ModeVector::Zero(k);
-  const double rho = s_.gear_ratio;
-  const double r = 1.0 / s_.totalInertia();
-  ModeMatrix& A = *a;
-  ModeVector& U = *u;
-  A(o, o + 1) = 1.0;
-  A(o + 1, o + 1) = -s_.totalFriction() * r;
-  A(o + 1, o) = -rho * law_.stiffness * r;
-  U(o + 1) = (rho * law_.offset + rho * rho * s_.load_torque) * r;
-  addOscillators(law_.wave, size(), rho * r, o + 1, a);                  // the sines on the pair, ρT_m
-  addOscillators(load_wave_, loadWaveIndex(), rho * rho * r, o + 1, a);  // and the load's, ρ²T_ext
-  A(0, o + 1) = 1.0 / rho;
-  A.row(1) = A.row(o + 1) / rho;
-  U(1) = U(o + 1) / rho;
-}
-
-void CompliantJoint::rigidMeshTorque(ModeVector* w, double* w0) const
-{
-  // Q = J_L ω̇_c + f_L ω_c − T_ext, ω̇_c the pair's.
-  ModeMatrix a;
-  ModeVector u;
-  rigidContact(&a, &u);
-  const int o = out();
-  const double jl = s_.load_inertia;
-  *w = jl * a.row(o + 1).transpose();
-  (*w)(o + 1) += s_.load_friction;
-  *w0 = jl * u(o + 1) - s_.load_torque;
-  for (int i = 0; i < load_wave_.count; ++i)
-  {
-    (*w)(loadWaveIndex() + 2 * i + 1) -= load_wave_.tones[static_cast<std::size_t>(i)].amplitude;  // − the sines
-  }
-}
-
-void CompliantJoint::impact(int sigma)
-{
-  constexpr double EPS = std::numeric_limits<double>::epsilon();
-  const double rho = s_.gear_ratio, delta = s_.backlash;
-  const int o = out();
-  const GearMesh mesh(s_);
-  const Contact wall = sigma > 0 ? Contact::Forward : Contact::Backward;
-  x_(0) = mesh.motorPositionOnWall(x_(o), wall);  // onto the flank exactly (moves θ_m by rounding)
-  const double v = x_(o + 1), w = x_(1);
-  const double closing = mesh.closingSpeed(wall, v, w);  // ẏ > 0: the teeth approach
-  const double speed_noise = 64.0 * EPS * (std::fabs(v) + rho * std::fabs(w));
-  if (!(closing > 0.0) && -closing > speed_noise)
-  {
-    mode_ = MeshMode::Free;  // clearly moving away: only rounding put the gap on the flank
-    return;
-  }
-  // The free motion's acceleration ÿ pressing the teeth together: a rebound s rises s²/(2ÿ) off the flank.
-  ModeMatrix a;
-  ModeVector u, wy;
-  double wy0;
-  modeMatrices(MeshMode::Free, slide_, &a, &u);
-  flankTorque(sigma, 0.0, 1.0, &wy, &wy0);
-  const double press = wy.dot(a * x_ + u);
-  const double gap_noise = 64.0 * EPS * (std::fabs(x_(o)) + rho * std::fabs(x_(0)) + delta);
-  const double rebound = s_.restitution * std::max(closing, 0.0);
-  const bool plastic =
-      rebound <= speed_noise || delta == 0.0 || (press > 0.0 && rebound * rebound <= 2.0 * gap_noise * press);
-  const ImpactOutcome out = ImpactMap(s_, plastic ? 0.0 : s_.restitution)(v, w);
-  x_(o + 1) = out.load_velocity;
-  x_(1) = out.motor_velocity;
-  if (track_energy_)
-  {
-    energy_.impact_loss += out.energy_loss;
-  }
-  mode_ = plastic ? chooseMode(false, false) : MeshMode::Free;
-  if (closing > 0.0)
-  {
-    ++impacts_;
-    last_impact_ = JointImpact{sigma, v, w, closing, out, mode_ != MeshMode::Free};
-  }
 }
 
 MeshMode CompliantJoint::chooseMode(bool released_forward, bool released_backward) const
