@@ -665,9 +665,10 @@ double LinearMode::searchWindow(const ModeVector& w, double w0, int direction, d
   {
     return changes ? refine(w, w0, direction, lo, hi) : INF;
   }
-  if (std::fabs(s1) > m * h)
+  if (std::fabs(s1) > m * h + rateNoise(w, xd))
   {
-    // s' keeps its sign on the window (|s'(τ) − s'(lo)| ≤ M h): s is monotone, one zero at most.
+    // s' keeps its sign on the window (|s'(τ) − s'(lo)| ≤ M h, s'(lo) beyond its own rounding): s is monotone, one
+    // zero at most.
     return changes ? refine(w, w0, direction, lo, hi) : INF;
   }
   if (h <= floor)
