@@ -3,6 +3,7 @@
 
 #include <sys/wait.h>
 
+#include <algorithm>
 #include <cmath>
 #include <complex>
 #include <cstdio>
@@ -181,6 +182,36 @@ void rk4(const F& f, long double (&y)[N], long double h, int steps)
     for (int i = 0; i < N; ++i)
       y[i] += h / 6 * (k1[i] + 2 * k2[i] + 2 * k3[i] + k4[i]);
   }
+}
+
+/// The locked joint (Δ = 0) on the forced response θ_c = Im(z e^{jωt}) [rad] at time t [s], the motor at θ_c/ρ.
+inline backlash_servo::State onForcedResponse(std::complex<double> z, double omega, double rho, double t)
+{
+  const std::complex<double> at = z * std::exp(std::complex<double>(0.0, omega * t));
+  backlash_servo::State s;
+  s.time = t;
+  s.load_position = at.imag();
+  s.load_velocity = (std::complex<double>(0.0, omega) * at).imag();
+  s.motor_position = s.load_position / rho;
+  s.motor_velocity = s.load_velocity / rho;
+  return s;
+}
+
+/// Advances `sim` over 40 quarter periods of ω and returns the largest deviation of its load from the forced response
+/// Im(z e^{jωt}) — in angle [rad], and in speed divided by ω.
+inline double worstFromForcedResponse(backlash_servo::Simulator& sim, std::complex<double> z, double omega,
+                                      backlash_servo::EventSink* sink = nullptr)
+{
+  double worst = 0.0;
+  for (int i = 1; i <= 40; ++i)
+  {
+    const double t = i * 0.25 * 3.14159265358979323846 / omega;
+    sim.advanceTo(t, sink);
+    const backlash_servo::State expected = onForcedResponse(z, omega, 1.0, t);
+    worst = std::max({worst, std::fabs(sim.state().load_position - expected.load_position),
+                      std::fabs(sim.state().load_velocity - expected.load_velocity) / omega});
+  }
+  return worst;
 }
 
 }  // namespace test_helpers

@@ -13,6 +13,7 @@
 #include "backlash_servo/compliant_joint.h"
 #include "backlash_servo/plant.h"
 #include "backlash_servo/simulator.h"
+#include "test_helpers.h"
 
 namespace
 {
@@ -60,32 +61,14 @@ TEST(LoadWave, WithoutBacklashTheJointFollowsTheLockedForcedResponse)
     {
       const double k = loop ? p.gain : 0.0;
       const cd h = rho * rho / (rho * k - J * w * w + cd(0.0, w * F));
-      const auto load = [&](double time, double* x, double* v) {
-        const cd z = h * b * std::exp(cd(0.0, w * time));
-        *x = z.imag();
-        *v = (cd(0.0, w) * z).imag();
-      };
-      State s;
-      load(0.0, &s.load_position, &s.load_velocity);
-      s.motor_position = s.load_position / rho;
-      s.motor_velocity = s.load_velocity / rho;
-      Simulator sim(p, s, 0.0);
+      Simulator sim(p, test_helpers::onForcedResponse(h * b, w, rho, 0.0), 0.0);
       if (!loop)
       {
         sim.setMotorTorque(0.0);
       }
       Impacts impacts;
       sim.setLoadTorqueWave(Sinusoid{b, w, 0.0, 0.0}, &impacts);
-      double worst = 0.0;
-      for (int i = 1; i <= 40; ++i)
-      {
-        const double time = i * 0.25 * PI / w;
-        sim.advanceTo(time, &impacts);
-        double x, v;
-        load(time, &x, &v);
-        worst =
-            std::max({worst, std::fabs(sim.state().load_position - x), std::fabs(sim.state().load_velocity - v) / w});
-      }
+      const double worst = test_helpers::worstFromForcedResponse(sim, h * b, w, &impacts);
       EXPECT_LT(worst, 1e-9 * std::abs(h) * b) << (loop ? "P law" : "effort") << " w = " << w;
       EXPECT_EQ(impacts.count, 0) << "w = " << w;
     }

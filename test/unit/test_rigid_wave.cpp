@@ -14,6 +14,7 @@
 #include "backlash_servo/drive.h"
 #include "backlash_servo/plant.h"
 #include "backlash_servo/simulator.h"
+#include "test_helpers.h"
 
 namespace
 {
@@ -91,27 +92,10 @@ TEST(RigidWave, WithoutBacklashASineCommandGivesTheMeshedPairsForcedResponse)
   {
     const double a = 0.4;
     const cd t = rho * K / (rho * K - J * w * w + cd(0.0, w * F));
-    const auto load = [&](double time, double* x, double* v) {
-      const cd z = t * a * std::exp(cd(0.0, w * time));
-      *x = z.imag();
-      *v = (cd(0.0, w) * z).imag();
-    };
-    State s;
-    load(0.0, &s.load_position, &s.load_velocity);
-    s.motor_position = s.load_position / rho;
-    s.motor_velocity = s.load_velocity / rho;
-    Simulator sim(p, s, 0.0);
+    Simulator sim(p, test_helpers::onForcedResponse(t * a, w, rho, 0.0), 0.0);
     Impacts flips;
     sim.setCommandWave(0.0, Sinusoid{a, w, 0.0, 0.0}, &flips);
-    double worst = 0.0;
-    for (int i = 1; i <= 40; ++i)
-    {
-      const double time = i * 0.25 * PI / w;
-      sim.advanceTo(time, &flips);
-      double x, v;
-      load(time, &x, &v);
-      worst = std::max({worst, std::fabs(sim.state().load_position - x), std::fabs(sim.state().load_velocity - v) / w});
-    }
+    const double worst = test_helpers::worstFromForcedResponse(sim, t * a, w, &flips);
     EXPECT_LT(worst, 1e-9 * a) << "w = " << w;
     EXPECT_TRUE(flips.impacts.empty()) << "w = " << w;  // flank changes at relative rest: no impact
   }
