@@ -237,7 +237,8 @@ class CompliantJoint
    * The load stuck by dry friction on a pressed flank (rigid shaft, no wave) while a motor without dry friction
    * settles on the mesh spring under the law in force: the motor's mode with the load frozen, ẋ_m = M x_m + f, is
    * stable with distinct eigenvalues, and every output that could change the mode — the mesh torque P (a release),
-   * msl's d·ẏ − c·y (its sub-mode switch), the load's holding torque (a breakaway) — stays on its side for ever:
+   * msl's d·ẏ − c·y (the switch to its 2c·y sub-mode, which a settling motor is never in), the load's holding torque
+   * (a breakaway) — stays on its side for ever:
    * |o(t) − o_eq| ≤ Σ_i |c_i|, the modal coefficients of its deviation from the equilibrium x_eq = −M⁻¹f (each term
    * decays), with margins beyond rounding. Then nothing but that decay ever happens: the joint converges to x_eq.
    */
@@ -279,8 +280,16 @@ class CompliantJoint
   /// A wave's oscillators (from state index `first`) and its torque on the row `row` (scaled by `gain`: 1/J of the
   /// body it drives).
   void addOscillators(const Waveform& wave, int first, double gain, int row, ModeMatrix* a) const;
-  /// Σ B_i sin of the load wave's oscillators in the mode state x [N·m].
-  double loadWaveAt(const ModeVector& x) const;
+  /// Σ A_i sin of a wave's oscillators (from state index `first`) in the mode state x [N·m].
+  static double waveAt(const Waveform& wave, int first, const ModeVector& x)
+  {
+    double sum = 0.0;
+    for (int i = 0; i < wave.count; ++i)
+    {
+      sum += wave.tones[static_cast<std::size_t>(i)].amplitude * x(first + 2 * i + 1);
+    }
+    return sum;
+  }
   /// x_ sized dim() around the physical state `phys`, the oscillator's states exact at time_.
   void setModeState(const Eigen::VectorXd& phys);
   /// A and u of mesh mode m with the bodies' slides (0 stuck: its rows zeroed; ±1: −T_c·slide folded into u).

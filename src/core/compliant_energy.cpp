@@ -5,6 +5,7 @@
 #include <cmath>
 
 #include "compliant_joint_detail.h"
+#include "gauss_legendre.h"
 
 namespace backlash_servo
 {
@@ -52,9 +53,7 @@ double CompliantJoint::energyBalanceError() const
 
 void CompliantJoint::integrate(const Segment& seg, double a, double b, CompliantEnergy* e) const
 {
-  // 8-point Gauss–Legendre nodes and weights on [−1, 1].
-  static constexpr double NODE[4] = {0.1834346424956498, 0.5255324099163290, 0.7966664774136267, 0.9602898564975363};
-  static constexpr double WEIGHT[4] = {0.3626837833783620, 0.3137066458778873, 0.2223810344533745, 0.1012285362903763};
+  // (8-point Gauss–Legendre, gauss_legendre.h.)
   if (!(b > a))
   {
     return;
@@ -71,19 +70,14 @@ void CompliantJoint::integrate(const Segment& seg, double a, double b, Compliant
   CompliantEnergy sum;
   for (int i = 0; i < 8; ++i)
   {
-    const double s = mid + (i < 4 ? -1.0 : 1.0) * half * NODE[i % 4];
-    const double w = half * WEIGHT[i % 4];
+    const double s = mid + half * GAUSS_NODE[i];
+    const double w = half * GAUSS_WEIGHT[i];
     const ModeVector x = seg.motion.state(s);
     const double wm = x(1), wc = x(l + 1);
-    double wave = 0.0;  // Σ A sin of the oscillators' angles
-    for (int t = 0; t < law_.wave.count; ++t)
-    {
-      wave += law_.wave.tones[static_cast<std::size_t>(t)].amplitude * x(size() + 2 * t + 1);
-    }
-    sum.input += w * (law_.offset - law_.stiffness * x(l) + wave) * wm;
+    sum.input += w * (law_.offset - law_.stiffness * x(l) + waveAt(law_.wave, size(), x)) * wm;
     sum.motor_friction += w * s_.motor_friction * wm * wm;
     sum.load_friction += w * s_.load_friction * wc * wc;
-    sum.load_work += w * (s_.load_torque + loadWaveAt(x)) * wc;
+    sum.load_work += w * (s_.load_torque + waveAt(load_wave_, loadWaveIndex(), x)) * wc;
     sum.motor_dry_friction += w * s_.motor_coulomb_friction * seg.slide[0] * wm;
     sum.load_dry_friction += w * s_.load_coulomb_friction * seg.slide[1] * wc;
     if (damped_flank)

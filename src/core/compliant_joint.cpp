@@ -313,16 +313,6 @@ void CompliantJoint::addOscillators(const Waveform& wave, int first, double gain
   }
 }
 
-double CompliantJoint::loadWaveAt(const ModeVector& x) const
-{
-  double sum = 0.0;
-  for (int i = 0; i < load_wave_.count; ++i)
-  {
-    sum += load_wave_.tones[static_cast<std::size_t>(i)].amplitude * x(loadWaveIndex() + 2 * i + 1);
-  }
-  return sum;
-}
-
 MeshMode CompliantJoint::chooseMode(bool released_forward, bool released_backward) const
 {
   for (int sigma : {1, -1})

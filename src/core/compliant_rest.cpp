@@ -48,7 +48,9 @@ bool CompliantJoint::held() const
 
 bool CompliantJoint::settlesForever() const
 {
-  if (rigid_ || torsional_ || forced() || dry_[0] || !dry_[1] || slide_[1] != 0 || mode_ == MeshMode::Free)
+  // (msl's 2c·y sub-mode holds only while d·ẏ > c·y > 0: a motor coming to rest leaves it first.)
+  if (rigid_ || torsional_ || forced() || dry_[0] || !dry_[1] || slide_[1] != 0 || mode_ == MeshMode::Free ||
+      isK2(mode_))
   {
     return false;
   }
@@ -84,8 +86,7 @@ bool CompliantJoint::settlesForever() const
   double eq_value, bound;
   ModeVector w;
   double w0;
-  const bool k2 = isK2(mode_);
-  flankTorque(sigma, k2 ? 2.0 * s_.mesh_stiffness : s_.mesh_stiffness, k2 ? 0.0 : s_.mesh_damping, &w, &w0);
+  flankTorque(sigma, s_.mesh_stiffness, s_.mesh_damping, &w, &w0);
   side(w, w0, &eq_value, &bound);
   if (!(eq_value - bound > 0.0))
   {
@@ -93,12 +94,10 @@ bool CompliantJoint::settlesForever() const
   }
   if (msl_)
   {
-    // KD while d·ẏ − c·y < 0, K2 while > 0: the switch must not come.
-    ModeVector ws;
-    double ws0;
-    flankTorque(sigma, -s_.mesh_stiffness, s_.mesh_damping, &ws, &ws0);
-    side(ws, ws0, &eq_value, &bound);
-    if (k2 ? !(eq_value - bound > 0.0) : !(eq_value + bound < 0.0))
+    // c·y + d·ẏ while d·ẏ − c·y < 0: the switch to 2c·y must not come.
+    flankTorque(sigma, -s_.mesh_stiffness, s_.mesh_damping, &w, &w0);
+    side(w, w0, &eq_value, &bound);
+    if (!(eq_value + bound < 0.0))
     {
       return false;
     }

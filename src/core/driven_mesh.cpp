@@ -9,6 +9,7 @@
 
 #include "backlash_servo/linear_mode.h"
 #include "driven_periods.h"
+#include "gauss_legendre.h"
 
 namespace backlash_servo
 {
@@ -282,9 +283,6 @@ class MeshElement
       return;
     }
     // Stuck: F = H(t), smooth — 8-point Gauss–Legendre over pieces of at most 1/64 of a period (exact to rounding).
-    static constexpr double NODE[4] = {0.1834346424956498, 0.5255324099163290, 0.7966664774136267, 0.9602898564975363};
-    static constexpr double WEIGHT[4] = {0.3626837833783620, 0.3137066458778873, 0.2223810344533745,
-                                         0.1012285362903763};
     ModeVector w;
     double w0;
     holding(&w, &w0);
@@ -295,8 +293,8 @@ class MeshElement
       const double mid = a + (k + 0.5) * h;
       for (int i = 0; i < 8; ++i)
       {
-        const double t = mid + (i < 4 ? -1.0 : 1.0) * 0.5 * h * NODE[i % 4];
-        friction_line_ += 0.5 * h * WEIGHT[i % 4] * (w.dot(m.state(t - t_)) + w0) * std::exp(-jw * t);
+        const double t = mid + 0.5 * h * GAUSS_NODE[i];
+        friction_line_ += 0.5 * h * GAUSS_WEIGHT[i] * (w.dot(m.state(t - t_)) + w0) * std::exp(-jw * t);
       }
     }
   }
@@ -461,8 +459,7 @@ DrivenBacklash drivenCompliantMesh(const ServoParams& params, double amplitude, 
       },
       &out.periodic);
   std::complex<double> position(0.0, 0.0);
-  const int analysed_periods = out.periodic ? 1 : DRIVEN_ANALYSED;
-  element.recordFriction(out.periods * period, (out.periods + analysed_periods) * period);
+  element.recordFriction(out.periods * period, (out.periods + analysedPeriods(out.periodic)) * period);
   const int analysed = samplePeriods(element, period, out.periods, out.periodic,
                                      [&](std::complex<double> rotor) { position += element.position() * rotor; });
   element.advanceTo((out.periods + analysed) * period);  // (the friction's integral to the window's end)

@@ -34,6 +34,12 @@ int settlePeriods(Element& element, double period, int max_periods, Repeats&& re
   return std::min(k, max_periods);
 }
 
+/// How many periods the fundamentals are taken over: the settled one, or DRIVEN_ANALYSED when none repeated.
+inline int analysedPeriods(bool periodic)
+{
+  return periodic ? 1 : DRIVEN_ANALYSED;
+}
+
 /**
  * Samples the period after `periods` settled ones (DRIVEN_ANALYSED of them when not `periodic`) at DRIVEN_SAMPLES
  * instants each: `sample(rotor)` with the element there and rotor = e^{−jωt} (ωt = 2πk + 2πi/M). Returns the periods
@@ -44,7 +50,7 @@ int samplePeriods(Element& element, double period, int periods, bool periodic, S
 {
   constexpr double PI = 3.14159265358979323846;
   constexpr int M = DRIVEN_SAMPLES;
-  const int analysed = periodic ? 1 : DRIVEN_ANALYSED;
+  const int analysed = analysedPeriods(periodic);
   for (int p = 0; p < analysed; ++p)
   {
     for (int i = 0; i < M; ++i)

@@ -77,29 +77,11 @@ LawResponse lawResponse(const ServoParams& p, const DriveParams& d, double w)
   return r;
 }
 
-std::complex<double> loopResponse(const ServoParams& p, const DriveParams& d, double w)
-{
-  const LawResponse k = lawResponse(p, d, w);
-  const double rho = p.gear_ratio;
-  if (k.motor == 0.0)
-  {
-    return thesisLoop(p, w) * (k.load / p.gain);  // the thesis' loop: the load lumped into the motor
-  }
-  const std::complex<double> s(0.0, w);
-  if (k.load != 0.0)
-  {
-    return rho * k.load / (s * s * p.totalInertia() + s * p.totalFriction() + rho * k.motor);
-  }
-  // The loop reads the motor alone: lumped, nothing would pass the backlash; the load's reaction through it does.
-  const std::complex<double> m = s * s * p.motor_inertia + s * p.motor_friction,
-                             l = s * s * p.load_inertia + s * p.load_friction;
-  return rho * rho * l / (m + rho * k.motor);
-}
-
 namespace
 {
-/// The two bodies of a compliant mesh's loop at ω: M = −ω²J_m + jωf_m, L = −ω²J_L + jωf_L, the law's K(jω), and the
-/// deflection's response to the mesh torque, G = ρ(ρ + K_θ/L)/(M + ρK_x) + 1/L (X = −G T).
+/// The two bodies of a loop at ω (a compliant mesh's, or the load's reaction on a motor loop): M = −ω²J_m + jωf_m, L =
+/// −ω²J_L + jωf_L, the law's K(jω), and the deflection's response to the mesh torque, G = ρ(ρ + K_θ/L)/(M + ρK_x) + 1/L
+/// (X = −G T).
 struct TwoBodies
 {
   std::complex<double> m, l, g;
@@ -116,6 +98,24 @@ TwoBodies twoBodies(const ServoParams& p, const DriveParams& d, double w)
   return b;
 }
 }  // namespace
+
+std::complex<double> loopResponse(const ServoParams& p, const DriveParams& d, double w)
+{
+  const TwoBodies b = twoBodies(p, d, w);
+  const LawResponse& k = b.k;
+  const double rho = p.gear_ratio;
+  if (k.motor == 0.0)
+  {
+    return thesisLoop(p, w) * (k.load / p.gain);  // the thesis' loop: the load lumped into the motor
+  }
+  const std::complex<double> s(0.0, w);
+  if (k.load != 0.0)
+  {
+    return rho * k.load / (s * s * p.totalInertia() + s * p.totalFriction() + rho * k.motor);
+  }
+  // The loop reads the motor alone: lumped, nothing would pass the backlash; the load's reaction through it does.
+  return rho * rho * b.l / (b.m + rho * k.motor);
+}
 
 std::complex<double> compliantLoop(const ServoParams& p, const DriveParams& d, double w)
 {
