@@ -213,12 +213,9 @@ void bruteForce(const ServoParams& p, double a, double w, int periods, int steps
   *n_theta = std::complex<double>(0.0, 1.0) * (2.0 / steps) * line / a;
   *n_torque = std::complex<double>(0.0, 1.0) * (2.0 / steps) * torque / a;
 }
-}  // namespace
-
-// Backlash, damping and the two mesh laws: the exact element's N_θ equals the brute-force one to 1e-7 (the fixed
-// step's error), below, near and above the contact's resonance √(c/J_L) ≈ 17 rad/s; and the laws
-// differ there (by more than 1e-3: msl's 2c·y sub-mode while d·ẏ > c·y).
-TEST(DrivenMesh, EitherMeshLawMatchesABruteForceIntegration)
+/// The element of the brute-force comparisons: a light load (0.1 kg·m², 0.08 N·m·s/rad) behind a soft damped mesh
+/// (30 N·m/rad, 1 N·m·s/rad, √(c/J_L) ≈ 17 rad/s) across 0.3 rad of play.
+ServoParams softElement()
 {
   ServoParams p;
   p.load_inertia = 0.1;
@@ -226,6 +223,16 @@ TEST(DrivenMesh, EitherMeshLawMatchesABruteForceIntegration)
   p.mesh_stiffness = 30.0;
   p.mesh_damping = 1.0;
   p.backlash = 0.3;
+  return p;
+}
+}  // namespace
+
+// Backlash, damping and the two mesh laws: the exact element's N_θ equals the brute-force one to 1e-7 (the fixed
+// step's error), below, near and above the contact's resonance √(c/J_L) ≈ 17 rad/s; and the laws
+// differ there (by more than 1e-3: msl's 2c·y sub-mode while d·ẏ > c·y).
+TEST(DrivenMesh, EitherMeshLawMatchesABruteForceIntegration)
+{
+  ServoParams p = softElement();
   for (double w : {5.0, 20.0, 40.0})
   {
     std::complex<double> laws[2];
@@ -251,12 +258,7 @@ TEST(DrivenMesh, EitherMeshLawMatchesABruteForceIntegration)
 // rectangle rule across the torque's jumps), under either law, and differs from the frictionless element's.
 TEST(DrivenMesh, TheLoadsDryFrictionMatchesABruteForceIntegration)
 {
-  ServoParams p;
-  p.load_inertia = 0.1;
-  p.load_friction = 0.08;
-  p.mesh_stiffness = 30.0;
-  p.mesh_damping = 1.0;
-  p.backlash = 0.3;
+  ServoParams p = softElement();
   p.load_coulomb_friction = 0.05;
   p.load_static_friction = 0.08;
   for (const char* law : {"spring_damper", "msl_elastobacklash"})

@@ -184,6 +184,19 @@ void rk4(const F& f, long double (&y)[N], long double h, int steps)
   }
 }
 
+/// The thesis' D1 servo (ζ = 0.4, ω_n = 1 rad/s) with a heavy load (2 kg·m², 0.3 N·m·s/rad, ρ = 0.5) and bouncing
+/// teeth (Δ = 0.2 rad, e = 0.6).
+inline backlash_servo::ServoParams bouncing()
+{
+  backlash_servo::ServoParams p;
+  p.gear_ratio = 0.5;
+  p.backlash = 0.2;
+  p.restitution = 0.6;
+  p.load_inertia = 2.0;
+  p.load_friction = 0.3;
+  return p;
+}
+
 /// The locked joint (Δ = 0) on the forced response θ_c = Im(z e^{jωt}) [rad] at time t [s], the motor at θ_c/ρ.
 inline backlash_servo::State onForcedResponse(std::complex<double> z, double omega, double rho, double t)
 {

@@ -125,12 +125,7 @@ TEST(LoadWave, TheLedgerBalancesThroughTheSineAndAfterItAndChunksCutNothing)
   // rounding, and a run cut into many advanceTo() calls is bit-identical.
   for (const bool compliant : {false, true})
   {
-    ServoParams p;
-    p.gear_ratio = 0.5;
-    p.backlash = 0.2;
-    p.restitution = 0.6;
-    p.load_inertia = 2.0;
-    p.load_friction = 0.3;
+    ServoParams p = test_helpers::bouncing();
     p.load_torque = 0.1;
     if (compliant)
     {

@@ -22,17 +22,7 @@ using namespace backlash_servo;
 using cd = std::complex<double>;
 constexpr double PI = 3.14159265358979323846;
 
-/// The thesis' D1 servo (ζ = 0.4, ω_n = 1 rad/s) with a heavy load and bouncing teeth.
-ServoParams bouncing()
-{
-  ServoParams p;
-  p.gear_ratio = 0.5;
-  p.backlash = 0.2;
-  p.restitution = 0.6;
-  p.load_inertia = 2.0;
-  p.load_friction = 0.3;
-  return p;
-}
+using test_helpers::bouncing;
 
 struct Impacts : EventSink
 {
