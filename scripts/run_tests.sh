@@ -35,6 +35,9 @@ if cmake -S . -B build/sanitize -DPYTHON_EXECUTABLE=/usr/bin/python3 -DBACKLASH_
   # (Left out here, run in the normal build: long replays whose code the other sanitized tests cover.)
   slow='-Compensation.TheContinuousLawTakesFeedforwardAndSquareDitherExactly:JointFit.MeasuredAnglesFromFineEncoders'
   slow+=':Identification.RestitutionFittedByReplayingWindowsOfTheRecording'
+  slow+=':Verdicts.ARandomCompliantJointConvergedOnASettlingMotorNeverMovesAgain'  # (24 joints; the rule: one)
+  slow+=':IdentifyMesh.TheJointFitRecoversTheCompliantJoint'  # (the fit: JointFit.*, the mesh: IdentifyMesh.*)
+  slow+=':FrequencyResponse.ALoadTorqueSineGivesTheServosDynamicCompliance'  # (the sine: LoadWave.*)
   GTEST_TOTAL_SHARDS=2 GTEST_SHARD_INDEX=0 sanitized core-0 core --gtest_filter="$slow" &
   GTEST_TOTAL_SHARDS=2 GTEST_SHARD_INDEX=1 sanitized core-1 core --gtest_filter="$slow" &
   sanitized fuzz fuzz --gtest_filter='-Fuzz.CompliantJoints*' &  # (the compliant joint's code runs in the core tests)
