@@ -13,35 +13,20 @@
 
 #include "backlash_servo/compliant_joint.h"
 #include "backlash_servo/impact.h"
+#include "plant_detail.h"
 
 namespace backlash_servo
 {
+using plant_detail::CONTACT_SEARCH_PERIODS;
+using plant_detail::FREE_SEARCH_PERIODS;
+using plant_detail::loadTurnaround;
+
 namespace
 {
 constexpr double EPS = std::numeric_limits<double>::epsilon();
 /// Iterations without advancing time before the simulator declares a bug instead of hanging.
 constexpr int MAX_STALLED_ITERATIONS = 10000;
-/// Apart mode: impacts are searched this far ahead per segment [natural periods] (fastest on the benchmarks).
-constexpr double FREE_SEARCH_PERIODS = 0.5;
-/// Contact mode: separations and maxima are searched this far ahead per segment [natural periods].
-constexpr double CONTACT_SEARCH_PERIODS = 1.0;
 constexpr double PI = 3.14159265358979323846;
-
-/// Apart, the load alone under its viscous friction and a constant torque T [N·m] (the load torque): J_L ω̇ + f_L ω = T,
-/// so ω relaxes monotonically to T/f_L and turns from + to − at most once — a maximum of θ_c inside the flight — at
-/// τ* = (v0 J_L/(−T))·log1p(x)/x, x = v0 f_L/(−T) (→ v0 J_L/(−T) without friction). τ* [s] if in (0, horizon], else
-/// +inf.
-double loadTurnaround(const ServoParams& p, double v0, double horizon)
-{
-  const double t = p.load_torque;
-  if (!((v0 > 0.0 && t < 0.0) || (v0 < 0.0 && t > 0.0)))
-  {
-    return INFINITY;
-  }
-  const double x = std::fabs(v0) * p.load_friction / std::fabs(t);
-  const double tau = std::fabs(v0) * p.load_inertia / std::fabs(t) * (x > 0.0 ? std::log1p(x) / x : 1.0);
-  return tau > 0.0 && tau <= horizon ? tau : INFINITY;
-}
 
 /// (J_m + ρ²J_L)/(J_m J_L) [1/(kg·m²)]: the relative acceleration of the teeth per unit of mesh torque.
 double pressFactor(const ServoParams& p)
@@ -230,62 +215,6 @@ void Plant::setLaw(const MotorInput& law)
     return;
   }
   segment_.reset();
-}
-
-bool Plant::heldUnder(double torque) const
-{
-  const RestDecision d = decideAtRest(params_, torque, state_);
-  return d.motor == 0 && d.load == 0 && d.contact == state_.contact;
-}
-
-bool Plant::heldTorqueRange(double* lo, double* hi, double* until) const
-{
-  if (compliant_.joint)
-  {
-    *until = INFINITY;  // (nothing moves and no torque on a body changes until the motor's does)
-    return compliantHeld(lo, hi);
-  }
-  if (!dry_ || forced_motor_breakaway_ != 0 || !segmentHeld())
-  {
-    return false;
-  }
-  const double now = law_.torque(state_.load_position);
-  if (!heldUnder(now))
-  {
-    return false;
-  }
-  const double rho = params_.gear_ratio;
-  const double pair = (rho * params_.motor_static_friction + rho * rho * params_.load_static_friction) / rho;
-  const double preload = rho * params_.load_torque;  // ρ²τ_L referred to the motor shaft
-  std::array<double, 4> ends = {-params_.motor_static_friction, params_.motor_static_friction, -pair - preload,
-                                pair - preload};
-  std::sort(ends.begin(), ends.end());
-  const auto inside = [now](double end) { return end - 1e-9 * (end - now); };  // pulled towards the torque now
-  *lo = *hi = now;
-  for (double end : ends)  // ascending: the ends above the torque now, nearest first
-  {
-    if (end > now)
-    {
-      if (!heldUnder(inside(end)))
-      {
-        break;
-      }
-      *hi = inside(end);
-    }
-  }
-  for (auto it = ends.rbegin(); it != ends.rend(); ++it)  // descending: the ends below
-  {
-    if (*it < now)
-    {
-      if (!heldUnder(inside(*it)))
-      {
-        break;
-      }
-      *lo = inside(*it);
-    }
-  }
-  *until = segment_->start.time + segment_->end_tau;
-  return true;
 }
 
 void Plant::setParams(const ServoParams& params, EventSink* sink, bool frame)
@@ -533,48 +462,6 @@ bool Plant::advanceTo(double t_end, EventSink* sink)
   return false;
 }
 
-void Plant::chatter(double t_end, EventSink* sink, bool report)
-{
-  // What advanceTo's loop does for each flight segment ending before t_end, without the segment: the same checks,
-  // build, evaluation and impact in the same order (bit-identical). Anything else goes back to the loop. Skipped:
-  // impactNow() — each state here comes out of handleImpact() apart, the teeth leaving the wall they are on (a
-  // rebound, or moving away), so no impact is due at once unless the other wall lies within rounding, where the
-  // flight's build refuses (Δ ≤ 4 × its rounding bound) and the loop decides.
-  if (dry_ || !(std::isinf(watch_lo_) && std::isinf(watch_hi_)) || !flight_model_)
-  {
-    return;
-  }
-  const double window = FREE_SEARCH_PERIODS * period_;
-  ShortFlight f;  // rebuilt per impact (nothing initialised on construction)
-  while (state_.contact == Contact::Apart && state_.time < t_end)
-  {
-    requireBounded();
-    // With the ledger kept the flight's series stays for its energy flows; else only the state at the impact is
-    // formed, in place (the start kept in case the flight is handed back to the loop).
-    const State start = state_;
-    const double horizon = searchWindow(window);
-    if (!(track_energy_ ? f.build(*flight_model_, state_, horizon)
-                        : f.flyToImpact(*flight_model_, state_, horizon, &state_)))
-    {
-      return;
-    }
-    const double tau = f.impactTime();
-    if (start.time + tau > t_end || loadTurnaround(params_, start.load_velocity, tau) <= tau)
-    {
-      state_ = start;
-      return;  // ends beyond t_end, or a maximum inside: the loop's segment keeps it
-    }
-    ++short_flight_count_;
-    if (track_energy_)
-    {
-      addFlows(f.energy(tau));
-      f.at(tau, &state_);
-    }
-    state_.time += tau;
-    handleImpact(f.wall(), sink, report);
-  }
-}
-
 template <class F>
 void Plant::visitMotion(const Segment& seg, F&& f)
 {
@@ -623,27 +510,6 @@ void Plant::throwDiverged() const
                 "left the validated envelope (docs/validation.md)",
                 s.time, s.load_position, s.load_velocity);
   throw MotionDiverged(buf);
-}
-
-double Plant::impactNow(Contact* wall) const
-{
-  if (state_.contact != Contact::Apart)
-  {
-    return INFINITY;
-  }
-  const double g = mesh_.gap(state_.load_position, state_.motor_position);
-  const double v = state_.load_velocity, w = state_.motor_velocity;
-  const double rounding = 1e-12 * (std::fabs(v) + std::fabs(params_.gear_ratio * w));
-  for (Contact side : {Contact::Forward, Contact::Backward})
-  {
-    const bool on_wall = side == Contact::Forward ? g <= 0.0 : g >= params_.backlash;
-    if (on_wall && mesh_.closingSpeed(side, v, w) > rounding)
-    {
-      *wall = side;
-      return 0.0;
-    }
-  }
-  return INFINITY;
 }
 
 void Plant::beginSegment()
@@ -723,209 +589,6 @@ void Plant::beginSegment()
   seg.wall = wall;
   applyWatch(seg);
   markLoadTurnaround(seg);
-}
-
-void Plant::chooseDryMode(EventSink* sink, Slide* motor, Slide* load)
-{
-  State& s = state_;
-  if (s.contact != Contact::Apart && s.load_velocity != 0.0)
-  {
-    // The pair slides: does the contact hold with its kinetic friction?
-    const Slide dir = s.load_velocity > 0.0 ? 1 : -1;
-    *motor = dir;
-    *load = dir;
-    ServoParams folded;
-    MotorInput law;
-    foldKineticFriction(params_, law_, dir, dir, &folded, &law);
-    if (rigid_flip_time_ == s.time || contactHolds(folded, law, s.load_position, s.load_velocity, s.contact))
-    {
-      return;
-    }
-    s.contact = mesh_.afterSeparation(s.contact);  // Δ = 0: the other flank, the pair still sliding
-    emit(sink, EventType::Separation);
-    if (s.contact == Contact::Apart)
-    {
-      *motor = slideOf(s.motor_velocity, dir);
-    }
-    return;
-  }
-  if (s.contact != Contact::Apart)
-  {
-    s.motor_velocity = 0.0;  // the pair at rest
-  }
-  RestDecision d = decideAtRest(params_, law_.torque(s.load_position), s);
-  if (forced_motor_breakaway_ != 0 && s.motor_velocity == 0.0 && d.contact == Contact::Apart)
-  {
-    d.motor = forced_motor_breakaway_;  // pulled free at a located event: rounding must not re-stick it there
-  }
-  forced_motor_breakaway_ = 0;
-  if (d.contact == Contact::Apart && s.contact != Contact::Apart)
-  {
-    s.contact = Contact::Apart;
-    emit(sink, EventType::Separation);
-  }
-  else if (d.contact != Contact::Apart)
-  {
-    s.contact = d.contact;
-  }
-  *motor = d.motor;
-  *load = d.load;
-}
-
-void Plant::beginDrySegment(Slide motor, Slide load)
-{
-  requireBounded();
-  const double period = period_;
-  segment_.emplace();
-  Segment& seg = *segment_;
-  seg.start = state_;
-  seg.energy_at_start = energy_;
-  seg.dry = true;
-  seg.motor_slide = motor;
-  seg.load_slide = load;
-  const bool motor_dry = params_.motor_static_friction > 0.0 || params_.motor_coulomb_friction > 0.0;
-  const bool load_dry = params_.load_static_friction > 0.0 || params_.load_coulomb_friction > 0.0;
-  auto finish = [&](double window, std::initializer_list<std::pair<double, Segment::End>> ends) {
-    seg.end_tau = window;
-    seg.end = Segment::End::Restart;
-    for (const auto& e : ends)
-    {
-      if (e.first <= seg.end_tau && (e.first < seg.end_tau || seg.end == Segment::End::Restart))
-      {
-        seg.end_tau = e.first;
-        seg.end = e.second;
-      }
-    }
-    applyWatch(seg);
-    if (state_.contact == Contact::Apart && !load_dry)
-    {
-      markLoadTurnaround(seg);  // a dry load's turnaround is its rest (and a held load has none)
-    }
-  };
-  if (motor == 0 && load == 0)
-  {
-    // Everything stuck (apart, or the pair pressed together): nothing moves until an input changes.
-    seg.stuck.emplace(params_, law_, state_, StuckMotion::Moving::None, 0);
-    finish(INFINITY, {});
-    return;
-  }
-  if (state_.contact != Contact::Apart)
-  {
-    ServoParams folded;
-    MotorInput law;
-    foldKineticFriction(params_, law_, motor, load, &folded, &law);
-    const ContactMotion& m = seg.contact.emplace(folded, law, state_.load_position, state_.load_velocity);
-    const double window = searchWindow(CONTACT_SEARCH_PERIODS * period);
-    seg.rest_motor = false;
-    finish(window, {{m.separationTime(GearMesh::pressingSign(state_.contact), window), Segment::End::Separation},
-                    {m.restTime(motor, window), Segment::End::Rest}});
-    return;
-  }
-  const double free_window = FREE_SEARCH_PERIODS * period;  // accuracy window of the apart closed form
-  const double window = searchWindow(free_window);          // events are searched up to the drive's next sample
-  Contact wall = Contact::Forward;
-  if (motor != 0 && load != 0)
-  {
-    ServoParams folded;
-    MotorInput law;
-    foldKineticFriction(params_, law_, motor, load, &folded, &law);
-    if (short_flights_ && impactNow(&wall) != 0.0)
-    {
-      // A short chatter flight with both bodies sliding: the kinetic friction is a constant torque in the model.
-      ShortFlight& f = seg.flight.emplace();
-      if (f.build(ShortFlight::Model(folded, law), state_, window))
-      {
-        const double impact = f.impactTime();
-        const double motor_rest = motor_dry ? f.restTime(true, motor, impact) : INFINITY;
-        const double load_rest = load_dry ? f.restTime(false, load, impact) : INFINITY;
-        if (!std::isnan(motor_rest) && !std::isnan(load_rest))
-        {
-          ++short_flight_count_;
-          seg.wall = f.wall();
-          seg.rest_motor = motor_rest < load_rest;
-          finish(window, {{impact, Segment::End::Impact}, {std::min(motor_rest, load_rest), Segment::End::Rest}});
-          return;
-        }
-      }
-      seg.flight.reset();
-    }
-    double impact, motor_rest = INFINITY, load_rest = INFINITY;
-    auto search = [&](const auto& m) {
-      impact = firstImpact(m, window, &wall);
-      motor_rest = motor_dry ? m.restTime(true, motor, window) : INFINITY;
-      load_rest = load_dry ? m.restTime(false, load, window) : INFINITY;
-    };
-    if (apartNeedsSeries(folded, free_window))
-    {
-      seg.wide = std::make_shared<const WideFreeMotion>(folded, law, state_, free_window);
-      search(*seg.wide);
-    }
-    else
-    {
-      search(seg.free.emplace(folded, law, state_, free_window));
-    }
-    seg.wall = wall;
-    seg.rest_motor = motor_rest < load_rest;
-    finish(window, {{impact, Segment::End::Impact}, {std::min(motor_rest, load_rest), Segment::End::Rest}});
-    return;
-  }
-  // One body slides, the other is held by its static friction.
-  const bool motor_moves = motor != 0;
-  const StuckMotion& m =
-      seg.stuck.emplace(params_, law_, state_, motor_moves ? StuckMotion::Moving::Motor : StuckMotion::Moving::Load,
-                        motor_moves ? motor : load);
-  const double impact = firstImpact(m, window, &wall);
-  seg.wall = wall;
-  seg.rest_motor = motor_moves;
-  const bool moving_dry = motor_moves ? motor_dry : load_dry;
-  finish(window, {{impact, Segment::End::Impact},
-                  {moving_dry ? m.restTime(window) : INFINITY, Segment::End::Rest},
-                  {m.breakawayTime(window), Segment::End::Breakaway}});
-}
-
-void Plant::countSwitch()
-{
-  if (event_budget_ != 0 && ++switches_ > event_budget_)
-  {
-    char buf[240];
-    std::snprintf(buf, sizeof buf,
-                  "event budget of %llu rests and law switches exceeded at t = %.9g s (a sliding mode: the joint "
-                  "sticks and slips at a switch of the law, e.g. a feed-forward dead band's edge; raise max_events "
-                  "to go on)",
-                  static_cast<unsigned long long>(event_budget_), state_.time);
-    throw EventBudgetExceeded(buf);
-  }
-}
-
-void Plant::handleRest(const Segment& seg, EventSink* sink)
-{
-  countSwitch();
-  if (seg.end == Segment::End::Breakaway)
-  {
-    forced_motor_breakaway_ = law_.torque(state_.load_position) > 0.0 ? 1 : -1;
-    emit(sink, EventType::Rest);
-    return;
-  }
-  const bool load_stops = !seg.rest_motor;
-  if (state_.contact != Contact::Apart)
-  {
-    state_.load_velocity = 0.0;
-    state_.motor_velocity = 0.0;
-  }
-  else if (seg.rest_motor)
-  {
-    state_.motor_velocity = 0.0;
-  }
-  else
-  {
-    state_.load_velocity = 0.0;
-  }
-  if (load_stops && seg.load_slide != 0)
-  {
-    // a turning point of θ_c where the load comes to rest (docs/model.md Part 2)
-    emit(sink, seg.load_slide > 0 ? EventType::Maximum : EventType::Minimum);
-  }
-  emit(sink, EventType::Rest);
 }
 
 void Plant::markLoadTurnaround(Segment& seg) const
@@ -1017,114 +680,6 @@ void Plant::emitExtremaUpTo(double tau, EventSink* sink)
       state_ = keep;
     }
     ++seg.extrema_emitted;
-  }
-}
-
-void Plant::settleOnWall(Contact wall)
-{
-  state_.motor_velocity = mesh_.motorVelocityInContact(state_.load_velocity);
-  if (dry_)
-  {
-    state_.contact = wall;  // the next segment decides with friction (chooseDryMode)
-    return;
-  }
-  // With Δ = 0 there is no floating: if this flank does not press, the other one (the same gap) does.
-  state_.contact = contactHolds(params_, law_, state_.load_position, state_.load_velocity, wall)
-                       ? wall
-                       : mesh_.afterSeparation(wall);
-}
-
-void Plant::throwImpactBudget() const
-{
-  char buf[200];
-  std::snprintf(buf, sizeof buf,
-                "event budget of %llu impacts exceeded at t = %.9g s (an impact storm; raise max_events to go on)",
-                static_cast<unsigned long long>(event_budget_), state_.time);
-  throw EventBudgetExceeded(buf);
-}
-
-void Plant::handleImpact(Contact wall, EventSink* sink, bool report)
-{
-  const double rho = params_.gear_ratio;
-  const double delta = params_.backlash;
-  // Snap onto the wall (moves θ_m by rounding).
-  state_.motor_position = mesh_.motorPositionOnWall(state_.load_position, wall);
-  const double v = state_.load_velocity;
-  const double w = state_.motor_velocity;
-  if (delta == 0.0 && mesh_.closingSpeed(wall, v, w) < 0.0)
-  {
-    wall = GearMesh::otherWall(wall);  // rigid mesh: leaving one flank is running into the other
-  }
-  const double closing = mesh_.closingSpeed(wall, v, w);  // > 0: teeth approach
-  // "Numerically zero" relative speed s: below rounding of the velocities, or so small that the bounce it would start
-  // against the pressing mesh torque could not rise above the rounding of the gap (h = s²/2a); squares compared, and
-  // the mesh torque computed only when the first test does not decide.
-  const double speed_noise = 64.0 * EPS * (std::fabs(v) + rho * std::fabs(w));
-  const double gap_noise =
-      64.0 * EPS * (std::fabs(state_.load_position) + rho * std::fabs(state_.motor_position) + delta);
-  auto bounce_floor = [&]() {  // s² of a bounce rising to the gap noise: 2 a h
-    return 2.0 * gap_noise * std::fabs(contactMeshTorque(params_, law_, state_.load_position, v)) * press_factor_;
-  };
-  // s² > the floor, tested on the floor's bound first (no division): most speeds — every rebound of a chatter — are
-  // decided without computing the floor (the same decisions: the bound is above the floor's computed value).
-  auto above_floor = [&](double s) {
-    return s * s > 2.0 * gap_noise * mesh_bound_(law_.torque(state_.load_position), v) * press_factor_ ||
-           s * s > bounce_floor();
-  };
-  if (!(closing > 0.0) && -closing > speed_noise && above_floor(-closing))
-  {
-    state_.contact = Contact::Apart;  // clearly moving away: only rounding put the gap on the wall
-    return;
-  }
-  // A touch without closing (rounding) or a closing speed the stick rule calls zero is made plastic; so is every
-  // impact of a rigid mesh (Δ = 0, e.g. the backlash tuned to 0 while the teeth float): no room to bounce into.
-  const double rebound = params_.restitution * closing;
-  const bool plastic = delta == 0.0 || rebound <= speed_noise || !above_floor(rebound);
-  const ImpactMap& impact = plastic ? plastic_impact_ : elastic_impact_;
-  const double e = impact.restitution();
-  const ImpactOutcome o = impact(v, w);
-  state_.load_velocity = o.load_velocity;
-  state_.motor_velocity = o.motor_velocity;
-  energy_.impact_loss += o.energy_loss;
-  if (!(closing > 0.0))
-  {
-    settleOnWall(wall);  // not an impact: nothing counted or reported
-    return;
-  }
-  ++impacts_;
-  if (event_budget_ != 0 && impacts_ > event_budget_)
-  {
-    throwImpactBudget();
-  }
-  if (e == 0.0)
-  {
-    settleOnWall(wall);
-  }
-  else
-  {
-    state_.contact = Contact::Apart;
-  }
-  if (report)
-  {
-    ImpactInfo info;
-    info.wall = wall;
-    info.load_velocity_before = v;
-    info.load_velocity_after = o.load_velocity;
-    info.motor_velocity_before = w;
-    info.motor_velocity_after = o.motor_velocity;
-    info.approach_speed = closing;
-    info.impulse = o.impulse;
-    info.energy_loss = o.energy_loss;
-    info.stuck = state_.contact != Contact::Apart;
-    emit(sink, EventType::Impact, &info);
-  }
-  if (v > 0.0 && o.load_velocity <= 0.0)
-  {
-    emit(sink, EventType::Maximum);
-  }
-  else if (v < 0.0 && o.load_velocity >= 0.0)
-  {
-    emit(sink, EventType::Minimum);
   }
 }
 
