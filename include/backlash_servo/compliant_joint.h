@@ -154,8 +154,10 @@ class CompliantJoint
   /// Replaces the state (the order of state()) at time t [s]; the mesh takes the mode the state implies (pressing
   /// flank or free). Throws std::invalid_argument on a wrong size or non-finite entries.
   void setState(const Eigen::VectorXd& x, double t = 0.0);
-  /// New parameters (same shaft model: a torsional shaft cannot appear or vanish) from now on, state kept.
-  void setParams(const ServoParams& params);
+  /// New parameters (same shaft model: a torsional shaft cannot appear or vanish) from now on, state kept. `frame`:
+  /// they are a moving frame's (the Simulator's ramps: the load torque biased by −f_L v, which may lie beyond the
+  /// envelope), derived from validated ones and not checked against the parameter table again.
+  void setParams(const ServoParams& params, bool frame = false);
   /// A new motor-torque law from now on. Its wave Σ A_i sin(ω_i(t − t₀,i) + φ_i) [N·m], if any, is exact too: the
   /// modes carry an oscillator per sine (ż_c = −ωz_s, ż_s = ωz_c, z = (cos, sin) of its angle) as two more states,
   /// so every motion stays the closed form of a linear mode with constant input. Throws InvalidParameterError

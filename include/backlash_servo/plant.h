@@ -396,7 +396,7 @@ class Plant
   void watchCompliant();
   void horizonCompliant();
   bool advanceCompliant(double t_end, EventSink* sink);
-  void setCompliantParams(const ServoParams& params, EventSink* sink);
+  void setCompliantParams(const ServoParams& params, EventSink* sink, bool frame);
   double compliantMeshTorque() const;
   double compliantKineticEnergy() const;
   double compliantBalanceError() const;

@@ -56,9 +56,12 @@ CompliantJoint::CompliantJoint(const ServoParams& params, const MotorInput& law)
   setState(Eigen::VectorXd::Zero(size()));
 }
 
-void CompliantJoint::setParams(const ServoParams& params)
+void CompliantJoint::setParams(const ServoParams& params, bool frame)
 {
-  params.validate();
+  if (!frame)
+  {
+    params.validate();
+  }
   if (params.compliant() == rigid_ || params.torsionalShaft() != torsional_)
   {
     throw InvalidParameterError(params.compliant() ? "shaft_stiffness" : "mesh_stiffness",

@@ -225,7 +225,7 @@ void Plant::setParams(const ServoParams& params, EventSink* sink, bool frame)
   }
   if (params_.compliant() || params.compliant())
   {
-    setCompliantParams(params, sink);
+    setCompliantParams(params, sink, frame);
     return;
   }
   if (compliant_.joint)

@@ -255,7 +255,7 @@ bool Plant::advanceCompliant(double t_end, EventSink* sink)
   return stopped;
 }
 
-void Plant::setCompliantParams(const ServoParams& params, EventSink* sink)
+void Plant::setCompliantParams(const ServoParams& params, EventSink* sink, bool frame)
 {
   if (!compliant_.joint || !params.compliant() || compliant_.joint->rigid())
   {
@@ -263,7 +263,7 @@ void Plant::setCompliantParams(const ServoParams& params, EventSink* sink)
                                                       ": cannot switch between rigid teeth and a compliant mesh "
                                                       "during a run (start a new run with the new parameters)");
   }
-  compliant_.joint->setParams(params);  // throws (keeping the old ones) when the shaft model would change
+  compliant_.joint->setParams(params, frame);  // throws (keeping the old ones) when the shaft model would change
   params_ = params;
   deriveConstants();
   watchCompliant();

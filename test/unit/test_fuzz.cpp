@@ -77,6 +77,20 @@ TEST(Fuzz, CompliantJointsKeepEveryProperty)
   EXPECT_GT(counts["ok"], n * 8 / 10);
 }
 
+// A compliant joint under the continuous law following a ramp runs in the ramp's moving frame, whose load torque
+// carries the load's viscous friction at the ramp's speed, −f_L v: compliant seed 1 #210 (f_L = 1.5e7 N·m·s/rad at
+// 169 rad/s, 2.6e9 N·m) was refused as if the user had set load_torque beyond its range. The frame's torques are
+// derived, not inputs: the run keeps every property.
+TEST(Fuzz, ACompliantRampsFrameTorqueIsNotAUserInput)
+{
+  const fuzz::Case c = fuzz::makeCompliantCase(1, 210);
+  ASSERT_TRUE(c.profile != nullptr);
+  ASSERT_FALSE(c.drive.sampled());
+  EXPECT_GT(c.params.load_friction * 417.0 / 2.47, 1e9);  // the ramp's friction bias, beyond load_torque's range
+  const fuzz::Outcome o = fuzz::check(c);
+  EXPECT_EQ(o.klass, "ok") << o.detail;
+}
+
 // The gap property's rounding scale includes the set-point θ_R(t) (a ramp runs in a frame moving with it): seed 7
 // #52681, positions crossing zero at 26 rad/s during a ramp to −9.3 rad, the gap 1.7e-15 rad below 0 — rounding of
 // the frame's ~9 rad. A gap out by far more than rounding (a missed impact) is still flagged, with or without a
