@@ -1,6 +1,7 @@
 #include "backlash_servo/linear_mode.h"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <limits>
 #include <stdexcept>
@@ -434,37 +435,64 @@ ModeVector LinearMode::evaluate(double tau) const
   if (basis_->modal_)
   {
     // δ = D Σ_k v_k τ φ₁(λ_k τ) g_k: τφ₁(λτ) g = (e^{λτ} − 1) g/λ, by φ₁'s series where that would cancel.
+    // (In real arithmetic, the products written out as (a + jb)(c + jd) = (ac − bd) + j(ad + bc) — the same
+    // operations as std::complex's, without its checks for infinities, which cost two thirds of the evaluation.)
     const ModeVectorC& lambda = basis_->lambda_;
     const Eigen::Index r = n - basis_->nil_;
     const ModeVector& weight = basis_->weight_;
-    ModeVectorC e(r);
+    std::array<double, MAX_MODE_ORDER> e_re{}, e_im{};
     for (Eigen::Index k = 0; k < r; ++k)
     {
       if (weight(k) == 0.0)
       {
-        e(k) = 0.0;  // (a pair's conjugate: counted in its partner's doubled term)
-        continue;
+        continue;  // (a pair's conjugate: counted in its partner's doubled term)
       }
       const double re = lambda(k).real() * tau, im = lambda(k).imag() * tau;
-      if (re * re + im * im < 0.01)
+      double a, b;  // e^{λτ} − 1 over λ, or τφ₁(λτ)
+      double c, d;  // g/λ, or g
+      const bool series = re * re + im * im < 0.01;
+      if (series)
       {
-        const std::complex<double> z(re, im);
-        std::complex<double> phi1 = 1.0, term = 1.0;
+        // The terms to the tenth, but for those that can no longer change a bit of the sum: each later term is
+        // smaller than this one times |z| < 0.1, and one below a quarter of a component's ulp (> 2⁻⁵⁵ of it) leaves
+        // that component as it is.
+        double p_re = 1.0, p_im = 0.0, t_re = 1.0, t_im = 0.0;  // φ₁ and its series' term
+        const double z_abs = std::fabs(re) + std::fabs(im), quarter_ulp = 0x1p-55;
         for (int j = 2; j <= 10; ++j)
         {
-          term *= z * (1.0 / j);
-          phi1 += term;
+          const double inv = 1.0 / j, z_re = re * inv, z_im = im * inv;
+          const double next_re = t_re * z_re - t_im * z_im;
+          t_im = t_re * z_im + t_im * z_re;
+          t_re = next_re;
+          p_re += t_re;
+          p_im += t_im;
+          if (j % 3 == 0)  // (checked at every third term: each check costs a third of a term)
+          {
+            const double tail = (std::fabs(t_re) + std::fabs(t_im)) * z_abs;
+            if (tail < quarter_ulp * std::fabs(p_re) && (im == 0.0 || tail < quarter_ulp * std::fabs(p_im)))
+            {
+              break;
+            }
+          }
         }
-        e(k) = weight(k) * tau * phi1 * g_(k);
+        const double wt = weight(k) * tau;
+        a = wt * p_re;
+        b = wt * p_im;
+        c = g_(k).real();
+        d = g_(k).imag();
       }
       else
       {
         // e^{λτ} − 1 = e^{Re}(cos Im + j sin Im) − 1 (one real exp, one sincos: cheaper than the complex exp).
         const double mag = std::exp(re);
-        const std::complex<double> em1 = im == 0.0 ? std::complex<double>(mag - 1.0, 0.0)
-                                                   : std::complex<double>(mag * std::cos(im) - 1.0, mag * std::sin(im));
-        e(k) = weight(k) * (em1 * g_over_lambda_(k));
+        a = im == 0.0 ? mag - 1.0 : mag * std::cos(im) - 1.0;
+        b = im == 0.0 ? 0.0 : mag * std::sin(im);
+        c = g_over_lambda_(k).real();
+        d = g_over_lambda_(k).imag();
       }
+      const double prod_re = a * c - b * d, prod_im = a * d + b * c;
+      e_re[static_cast<std::size_t>(k)] = series ? prod_re : weight(k) * prod_re;
+      e_im[static_cast<std::size_t>(k)] = series ? prod_im : weight(k) * prod_im;
     }
     ModeVector x = x0_;
     const Eigen::Index m = basis_->nil_;
@@ -473,7 +501,8 @@ ModeVector LinearMode::evaluate(double tau) const
       double sum = 0.0;
       for (Eigen::Index k = 0; k < r; ++k)
       {
-        sum += basis_->v_(i, k).real() * e(k).real() - basis_->v_(i, k).imag() * e(k).imag();
+        const std::size_t kk = static_cast<std::size_t>(k);
+        sum += basis_->v_(i, k).real() * e_re[kk] - basis_->v_(i, k).imag() * e_im[kk];
       }
       double p = 0.0;  // Σ_j P_j τ^{j+1} (Horner)
       for (Eigen::Index j = m - 1; j >= 0; --j)
@@ -523,22 +552,23 @@ LinearMode::Curvature LinearMode::curvature(const ModeVector& w) const
   {
     // s''(τ) = Σ_k (wᵀD v_k) λ_k g_k e^{λ_k τ}: the drift of a zero eigenvalue has no curvature.
     const Eigen::Index n = x0_.size(), m = basis_->nil_, r = n - m;
-    ModeVectorC wv(r);
-    for (Eigen::Index k = 0; k < r; ++k)
-    {
-      std::complex<double> sum = 0.0;
-      for (Eigen::Index i = 0; i < n; ++i)
-      {
-        sum += basis_->v_(i, k) * (w(i) * basis_->bal_(i));
-      }
-      wv(k) = sum;
-    }
+    // (In real arithmetic: std::complex's operations written out, without its checks for infinities; |z| by hypot,
+    // as std::abs computes it.)
     k.beta.resize(r);
     k.rate.resize(r);
     for (Eigen::Index i = 0; i < r; ++i)
     {
-      const std::complex<double> l = basis_->lambda_(i);
-      k.beta(i) = basis_->weight_(i) * std::abs(wv(i) * l * g_(i));  // (a pair's: both terms in the first)
+      double wv_re = 0.0, wv_im = 0.0;  // wᵀD v_i
+      for (Eigen::Index j = 0; j < n; ++j)
+      {
+        const double wb = w(j) * basis_->bal_(j);
+        wv_re += basis_->v_(j, i).real() * wb;
+        wv_im += basis_->v_(j, i).imag() * wb;
+      }
+      const std::complex<double> l = basis_->lambda_(i), g = g_(i);
+      const double a_re = wv_re * l.real() - wv_im * l.imag(), a_im = wv_re * l.imag() + wv_im * l.real();
+      const double b_re = a_re * g.real() - a_im * g.imag(), b_im = a_re * g.imag() + a_im * g.real();
+      k.beta(i) = basis_->weight_(i) * std::hypot(b_re, b_im);  // (a pair's: both terms in the first)
       k.rate(i) = l.real();
     }
     // The polynomial part: s'' = Σ_{j ≥ 1} (Dw)·P_j (j + 1) j τ^{j−1}.
