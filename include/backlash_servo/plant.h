@@ -310,6 +310,8 @@ class Plant
   void addFlows(const EnergyFlows& flows);
   /// Builds the segment starting at the current state (after checking a contact still holds).
   void beginSegment();
+  /// A new segment from the state now (checked bounded), its start and ledger recorded.
+  Segment& openSegment();
   /// Apart, on a wall, with the teeth closing beyond rounding (a state set there, e.g. a run's start): the impact is
   /// now — 0 [s] and its wall in *wall; else +inf. (The closed form's search would find it only once the gap's
   /// penetration exceeds the rounding bound of the positions, which slow, light motions may never reach.)

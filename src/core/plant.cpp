@@ -512,14 +512,20 @@ void Plant::throwDiverged() const
   throw MotionDiverged(buf);
 }
 
-void Plant::beginSegment()
+Plant::Segment& Plant::openSegment()
 {
   requireBounded();
-  const double period = period_;
   segment_.emplace();
   Segment& seg = *segment_;
   seg.start = state_;
   seg.energy_at_start = energy_;
+  return seg;
+}
+
+void Plant::beginSegment()
+{
+  const double period = period_;
+  Segment& seg = openSegment();
   if (state_.contact != Contact::Apart)
   {
     const Contact wall = state_.contact;

@@ -122,12 +122,8 @@ void Plant::chooseDryMode(EventSink* sink, Slide* motor, Slide* load)
 
 void Plant::beginDrySegment(Slide motor, Slide load)
 {
-  requireBounded();
   const double period = period_;
-  segment_.emplace();
-  Segment& seg = *segment_;
-  seg.start = state_;
-  seg.energy_at_start = energy_;
+  Segment& seg = openSegment();
   seg.dry = true;
   seg.motor_slide = motor;
   seg.load_slide = load;
