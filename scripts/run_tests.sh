@@ -7,6 +7,12 @@ export PATH=/usr/bin:$PATH
 bash scripts/setup.sh || { echo "0 passed, 1 failed"; exit 1; }
 rm -rf build/test_results
 make -C build -j"$(nproc)" tests || { echo "0 passed, 1 failed"; exit 1; }
+# The sanitizer build (used below) compiles meanwhile, at the lowest priority, on the core the plain tests leave idle
+# (they run one at a time).
+mkdir -p build/sanitize/devel/lib/python3/dist-packages
+(cmake -S . -B build/sanitize -DPYTHON_EXECUTABLE=/usr/bin/python3 -DBACKLASH_SANITIZE=ON >/dev/null &&
+ nice -n 19 make -C build/sanitize -j1 backlash_servo_core_test backlash_servo_fuzz_test >/dev/null 2>&1) &
+sanitize_build=$!
 make -C build run_tests -j1 2>&1 | tail -n 200
 # The Python API against the tools and the design-study notebook, executed (pytest, Debian's python3).
 mkdir -p build/test_results/backlash_servo
@@ -14,8 +20,7 @@ mkdir -p build/test_results/backlash_servo
  /usr/bin/python3 -m pytest -q -p no:cacheprovider test/python \
    --junitxml=build/test_results/backlash_servo/pytest-python.xml 2>&1 | tail -n 30)
 # The core's unit tests and the fuzz sample again under AddressSanitizer + UndefinedBehaviorSanitizer.
-mkdir -p build/sanitize/devel/lib/python3/dist-packages build/test_results/backlash_servo
-if cmake -S . -B build/sanitize -DPYTHON_EXECUTABLE=/usr/bin/python3 -DBACKLASH_SANITIZE=ON >/dev/null &&
+if wait "$sanitize_build" &&
    make -C build/sanitize -j"$(nproc)" backlash_servo_core_test backlash_servo_fuzz_test >/dev/null; then
   # Three processes on the machine's cores: the core tests in two shards, the fuzz sample. The compensators'
   # convergence study (8 million samples a run, the same code paths as its 100 kHz runs) is left to the plain build.
