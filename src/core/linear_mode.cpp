@@ -466,7 +466,7 @@ ModeVector LinearMode::evaluate(double tau) const
           t_re = next_re;
           p_re += t_re;
           p_im += t_im;
-          if (j % 3 == 0)  // (checked at every third term: each check costs a third of a term)
+          if (j % 3 == 0)  // (at every third term: a check at each cost the compliant D1 servo more than it saved)
           {
             const double tail = (std::fabs(t_re) + std::fabs(t_im)) * z_abs;
             if (tail < quarter_ulp * std::fabs(p_re) && (im == 0.0 || tail < quarter_ulp * std::fabs(p_im)))

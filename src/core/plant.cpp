@@ -5,7 +5,6 @@
 #include <cmath>
 #include <cstdio>
 #include <initializer_list>
-#include <limits>
 #include <stdexcept>
 #include <string>
 #include <type_traits>
@@ -18,12 +17,12 @@
 namespace backlash_servo
 {
 using plant_detail::CONTACT_SEARCH_PERIODS;
+using plant_detail::EPS;
 using plant_detail::FREE_SEARCH_PERIODS;
 using plant_detail::loadTurnaround;
 
 namespace
 {
-constexpr double EPS = std::numeric_limits<double>::epsilon();
 /// Iterations without advancing time before the simulator declares a bug instead of hanging.
 constexpr int MAX_STALLED_ITERATIONS = 10000;
 constexpr double PI = 3.14159265358979323846;

@@ -3,6 +3,7 @@
 #pragma once
 
 #include <cmath>
+#include <limits>
 
 #include "backlash_servo/params.h"
 
@@ -10,6 +11,7 @@ namespace backlash_servo
 {
 namespace plant_detail
 {
+constexpr double EPS = std::numeric_limits<double>::epsilon();
 /// Apart mode: impacts are searched this far ahead per segment [natural periods] (fastest on the benchmarks).
 constexpr double FREE_SEARCH_PERIODS = 0.5;
 /// Contact mode: separations and maxima are searched this far ahead per segment [natural periods].

@@ -3,7 +3,6 @@
 // chatter, the run of short flights and impacts taken without the general segment (bit-identical to it).
 #include <cmath>
 #include <cstdio>
-#include <limits>
 
 #include "backlash_servo/impact.h"
 #include "backlash_servo/plant.h"
@@ -11,10 +10,7 @@
 
 namespace backlash_servo
 {
-namespace
-{
-constexpr double EPS = std::numeric_limits<double>::epsilon();
-}  // namespace
+using plant_detail::EPS;
 using plant_detail::FREE_SEARCH_PERIODS;
 using plant_detail::loadTurnaround;
 
