@@ -20,11 +20,17 @@
  * Â is diagonalised as above, on the kernel it is a nilpotent block N (N^m = 0, m = dim ker Â^K), whose coordinates
  * y obey ẏ = N y + g_N, y(0) = 0, so that
  *   δ̂(τ) = Σ_{λ_k ≠ 0} V_k τ φ₁(λ_kτ) g_k + V_N Σ_{j<m} Nʲ g_N τ^{j+1}/(j + 1)!,
- * damped sinusoids plus a polynomial of degree m, as cheap to evaluate. Otherwise (a defective eigenvalue that is not
- * zero: a critically damped pair) δ is its Taylor series in the balanced basis, δ̂(a + r) = Σ_j k_j r^j (k_0 = δ̂(a),
- * k_1 = Âδ̂(a) + v̂₀, k_j = Âk_{j−1}/j), summed to rounding (TAYLOR_TERMS terms) from anchors a at multiples of
- * TAYLOR_STEP/‖Â‖₂ from the start, each anchor from the one before — exact to rounding, and a pure function of τ.
- * (The caller re-anchors long motions: CompliantJoint starts a new one every 4096 fast time scales without events.)
+ * damped sinusoids plus a polynomial of degree m, as cheap to evaluate. When the zero eigenvalue has a neighbour
+ * that is merely small (a body's viscous friction f/J ~ 1e-9 of a mesh's frequency: the common drift of bodies in
+ * contact decays that slowly), the two parts are coupled and the block is not nilpotent to within rounding (up to
+ * NEAR_SPLIT): the coupling is removed — T⁻¹ÂT = [F C; D S] block-diagonalised by [I X; Y I] from the Sylvester
+ * equations F X − X S = X D X − C, Y F − S Y = D − Y C Y — and the slow block's series summed on beyond m terms,
+ * to rounding over SERIES_SPAN fast time scales (taking it as nilpotent resolved the drift to 1e-7 only).
+ * Otherwise (a defective eigenvalue that is not zero: a critically damped pair) δ is its Taylor series in the
+ * balanced basis, δ̂(a + r) = Σ_j k_j r^j (k_0 = δ̂(a), k_1 = Âδ̂(a) + v̂₀, k_j = Âk_{j−1}/j), summed to rounding
+ * (TAYLOR_TERMS terms) from anchors a at multiples of TAYLOR_STEP/‖Â‖₂ from the start, each anchor from the one
+ * before — exact to rounding, and a pure function of τ. (The caller re-anchors long motions: CompliantJoint starts a
+ * new one every 4096 fast time scales without events.)
  *
  * **Zero crossings, rigorously.** ẋ obeys the homogeneous equation (ẍ = A ẋ), so on a window [a, a + h]
  *   s(a + t) = s(a) + s'(a) t + R(t),  |R(t)| ≤ ½ M t²,  M ≥ max |s''| on the window:
@@ -72,6 +78,11 @@ class ModeBasis
   /// Eigenbases worse conditioned than this are not used: the Taylor series instead. (A defective eigenvalue's
   /// computed eigenvectors are parallel to about √ε, a condition near 1e8: the threshold stays well below that.)
   static constexpr double MAX_EIGENBASIS_CONDITION = 1e6;
+  /// The zero eigenvalue's split (see the file comment), relative to ‖Â‖₂ (to its m-th power for Nᵐ): couplings
+  /// between the subspaces and a remainder Nᵐ up to EXACT_SPLIT are rounding; up to NEAR_SPLIT they are removed
+  /// (the blocks decoupled, the slow block's series summed beyond m terms); beyond, the Taylor series.
+  static constexpr double EXACT_SPLIT = 1e-14;
+  static constexpr double NEAR_SPLIT = 1e-10;
 
   /// @param a the mode's matrix A (n × n, n ≤ MAX_MODE_ORDER, finite) [SI per the state's units]. Throws
   /// std::invalid_argument.
@@ -103,11 +114,17 @@ class ModeBasis
   ModeMatrixC v_inv_;     // V⁻¹ (modal)
   ModeVector weight_;     // per eigenvalue: 1, or 2 and 0 for a complex pair (only the first evaluated, doubled)
   int nil_ = 0;           // the order of the nilpotent block (the last nil_ columns of V)
-  ModeMatrix nilpotent_;  // N: Â restricted to ker Â^K in those coordinates (N^nil_ = 0)
+  int poly_terms_ = 0;    // the terms of its series: nil_, or more for a block that is slow but not nilpotent
+  ModeMatrix nilpotent_;  // N: Â restricted to ker Â^K in those coordinates (N^nil_ = 0, or merely small)
   /// Takes V, Λ (and a nilpotent block of that order in V's last columns) if V is well-conditioned.
   bool useBasis(const Eigen::MatrixXcd& v, const Eigen::VectorXcd& lambda, int nilpotent_order);
   /// The modal form with a polynomial part where Â's zero eigenvalue lacks eigenvectors (see the file comment).
   void splitNilpotent(const Eigen::MatrixXd& b);
+  /// Block-diagonalises T⁻¹ÂT = [F C; D S] (F r × r) by T ← T [I X; Y I] (Sylvester equations for X, Y) and
+  /// recomputes *blocks; false if the blocks could not be separated.
+  bool decouple(Eigen::Index r, Eigen::Index m, Eigen::MatrixXd* t, Eigen::MatrixXd* blocks);
+  /// The terms of the slow block S's series that reach rounding on τ ≤ LinearMode::SERIES_SPAN/‖Â‖₂.
+  int slowTerms(const Eigen::MatrixXd& s) const;
 };
 
 class LinearMode
@@ -115,6 +132,9 @@ class LinearMode
  public:
   /// The search's floor h_min as a fraction of the fastest time scale 1/‖Â‖₂ (the grazing tolerance).
   static constexpr double FLOOR_FRACTION = 1e-9;
+  /// A slow (not nilpotent) block's series is summed to rounding over τ ≤ SERIES_SPAN/‖Â‖₂ (CompliantJoint
+  /// re-anchors every 4096/‖Â‖₂); beyond, its truncation grows.
+  static constexpr double SERIES_SPAN = 65536.0;
   /// Without a modal basis: the Taylor anchors' spacing [1/‖Â‖₂], the terms summed, how many anchors are all kept,
   /// and how many apart the kept ones are beyond those.
   static constexpr double TAYLOR_STEP = 0.5;

@@ -353,10 +353,10 @@ Recording readRecording(const std::string& path)
   return r;
 }
 
-std::string number(double v)
+std::string number(double v, int digits = 9)
 {
   char buf[40];
-  std::snprintf(buf, sizeof buf, "%.9g", v);
+  std::snprintf(buf, sizeof buf, "%.*g", digits, v);
   return buf;
 }
 
@@ -675,7 +675,7 @@ int main(int argc, char** argv)
               "|corr| " + number(std::round(r.largest_correlation * 100.0) / 100.0) + " with " + r.most_correlated_with;
         }
         std::printf("%-24s %14s %14s +- %-10s %-10s %s\n", r.key.c_str(), number(r.initial.value).c_str(),
-                    number(r.value.value).c_str(), number(r.value.standard_error).c_str(), unitOf(r.key).c_str(),
+                    number(r.value.value).c_str(), number(r.value.standard_error, 3).c_str(), unitOf(r.key).c_str(),
                     how.c_str());
       }
       std::printf("%-24s %14s %14s    %-10s %-10s %s\n", "zero_offset", "", number(e.zero_offset).c_str(), "", "rad",

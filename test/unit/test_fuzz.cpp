@@ -8,6 +8,7 @@
 // BasicFreeMotion::energy. Long runs: bash scripts/fuzz_long.sh.
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <functional>
 #include <map>
 
@@ -87,6 +88,20 @@ TEST(Fuzz, ACompliantRampsFrameTorqueIsNotAUserInput)
   ASSERT_TRUE(c.profile != nullptr);
   ASSERT_FALSE(c.drive.sampled());
   EXPECT_GT(c.params.load_friction * 417.0 / 2.47, 1e9);  // the ramp's friction bias, beyond load_torque's range
+  const fuzz::Outcome o = fuzz::check(c);
+  EXPECT_EQ(o.klass, "ok") << o.detail;
+}
+
+// A motor viscous friction ~1e-6 of the compliant mesh's frequency (compliant seed 1 #749: 1.1e-11 N·m·s/rad on
+// 1.1e-5 kg·m², a soft mesh and shaft, a cascade loop sampled every 60 s): in contact the joint's common drift decays
+// at ~1e-9 of the mesh's frequency beside the zero eigenvalue of its common angle. Taken as nilpotent, that drift was
+// resolved to 1e-7 and the energy balance missed by 8e-9 of its scale; the run keeps every property.
+TEST(Fuzz, ASlowFrictionDriftBesideTheMeshKeepsTheEnergyBalance)
+{
+  const fuzz::Case c = fuzz::makeCompliantCase(1, 749);
+  ASSERT_TRUE(c.params.compliant() && c.params.torsionalShaft());
+  EXPECT_LT(c.params.motor_friction / c.params.motor_inertia,
+            1e-5 * std::sqrt(c.params.mesh_stiffness / c.params.motor_inertia));
   const fuzz::Outcome o = fuzz::check(c);
   EXPECT_EQ(o.klass, "ok") << o.detail;
 }
