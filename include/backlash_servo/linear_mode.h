@@ -43,7 +43,8 @@
  * linear part keeps one sign farther from 0 than ½ M h² plus the rounding of an evaluated output holds no zero. A
  * window where |s'(a)| > M h has a derivative of one sign, so s is monotone there: one zero at most, bracketed by the
  * signs at its ends and refined until both ends are adjacent doubles or within a few ulps of the output's terms,
- * where the sign of s means nothing more (the ITP method: regula falsi made two-sided and never slower than
+ * where the sign of s means nothing more (Newton's method kept inside the bracket, s' = w·(Ax + u): about six
+ * evaluations a crossing; where it stalls, the ITP method — regula falsi made two-sided and never slower than
  * bisection); the end past the crossing is the event. Any other window is halved, earliest half
  * first. Windows start as long as the exclusion is likely to pass (h = √(|s(a)|/M), at most 1/‖Â‖₂); halving stops at
  * the floor h_min = FLOOR_FRACTION / ‖Â‖₂ — only near a turning point of s that lies within h_min·|s'| of zero — where
@@ -135,6 +136,8 @@ class LinearMode
   /// A slow (not nilpotent) block's series is summed to rounding over τ ≤ SERIES_SPAN/‖Â‖₂ (CompliantJoint
   /// re-anchors every 4096/‖Â‖₂); beyond, its truncation grows.
   static constexpr double SERIES_SPAN = 65536.0;
+  /// Newton steps a crossing's refinement takes before it leaves the bracket to the ITP method.
+  static constexpr int NEWTON_STEPS = 8;
   /// Without a modal basis: the Taylor anchors' spacing [1/‖Â‖₂], the terms summed, how many anchors are all kept,
   /// and how many apart the kept ones are beyond those.
   static constexpr double TAYLOR_STEP = 0.5;
@@ -198,7 +201,7 @@ class LinearMode
   /// What rounding can do to w·v of a rate v = A x + u (or a higher derivative) computed from an evaluated state.
   double rateNoise(const ModeVector& w, const ModeVector& v) const;
   /// The bracketed crossing in (lo, hi] (direction·s(lo) ≤ 0 < direction·s(hi)) refined to adjacent doubles or to a
-  /// few ulps of the output's terms (ITP); returns the end past it.
+  /// few ulps of the output's terms (Newton, then ITP); returns the end past it.
   double refine(const ModeVector& w, double w0, int direction, double lo, double hi) const;
 
   std::shared_ptr<const ModeBasis> basis_;

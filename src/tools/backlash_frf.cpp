@@ -631,8 +631,11 @@ void writeText(const Options& o, const std::vector<Row>& rows)
     {
       std::snprintf(state, sizeof state, "NOT periodic (%d T)", p.periods);
     }
-    std::printf("%12.6g %12.6g %12.6g %12.6g %10.3g %8.3g %8.3g %-22s", p.amplitude, p.frequency, p.gain, p.phase,
-                p.distortion, p.flank_changes, p.separations, state);
+    // (A distortion below 1e-9 is the rounding of the Fourier integrals: the table says so; CSV and JSON keep it.)
+    char distortion[16];
+    std::snprintf(distortion, sizeof distortion, p.distortion < 1e-9 ? "<1e-9" : "%.3g", p.distortion);
+    std::printf("%12.6g %12.6g %12.6g %12.6g %10s %8.3g %8.3g %-22s", p.amplitude, p.frequency, p.gain, p.phase,
+                distortion, p.flank_changes, p.separations, state);
     if (r.has_linear)
     {
       std::printf(" %12.6g %12.6g", r.linear.gain, r.linear.phase);

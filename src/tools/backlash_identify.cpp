@@ -678,7 +678,7 @@ int main(int argc, char** argv)
                     number(r.value.value).c_str(), number(r.value.standard_error, 3).c_str(), unitOf(r.key).c_str(),
                     how.c_str());
       }
-      std::printf("%-24s %14s %14s    %-10s %-10s %s\n", "zero_offset", "", number(e.zero_offset).c_str(), "", "rad",
+      std::printf("%-24s %14s %14s    %-10s %-10s %s\n", "zero_offset", "", number(e.zero_offset, 6).c_str(), "", "rad",
                   "(the gap the encoders read on the forward flank)");
       if (e.load_torque_given)
       {
