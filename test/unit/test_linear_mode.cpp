@@ -8,6 +8,7 @@
 #include <limits>
 #include <vector>
 
+#include "../../src/core/gauss_legendre.h"
 #include "backlash_servo/linear_mode.h"
 
 namespace
@@ -233,12 +234,6 @@ TEST(LinearMode, ASlowDriftBesideAZeroEigenvalueIsExact)
           << t_k << " speed " << i + 1;
     }
   }
-  const double nodes[8] = {-0.96028985649753623168, -0.79666647741362673959, -0.52553240991632898582,
-                           -0.18343464249564980494, 0.18343464249564980494,  0.52553240991632898582,
-                           0.79666647741362673959,  0.96028985649753623168};
-  const double weights[8] = {0.10122853629037625915, 0.22238103445337447054, 0.31370664587788728734,
-                             0.36268378337836198297, 0.36268378337836198297, 0.31370664587788728734,
-                             0.22238103445337447054, 0.10122853629037625915};
   double integral = 0.0;
   const double t0 = span - 1.0, piece = 0.05;
   for (int p = 0; p < 20; ++p)
@@ -246,7 +241,8 @@ TEST(LinearMode, ASlowDriftBesideAZeroEigenvalueIsExact)
     const double mid = t0 + (p + 0.5) * piece;
     for (int i = 0; i < 8; ++i)
     {
-      integral += 0.5 * piece * weights[i] * m.state(mid + 0.5 * piece * nodes[i])(1);
+      integral +=
+          0.5 * piece * backlash_servo::GAUSS_WEIGHT[i] * m.state(mid + 0.5 * piece * backlash_servo::GAUSS_NODE[i])(1);
     }
   }
   const double moved = m.state(t0 + 1.0)(0) - m.state(t0)(0);
