@@ -44,7 +44,7 @@ ModeVector affine(const ModeMatrix& a, const ModeVector& x, const ModeVector& u)
 ModeVector affineCompensated(const ModeMatrix& a, const ModeVector& x, const ModeVector& u)
 {
   const Eigen::Index n = x.size();
-  ModeVector y(n);
+  ModeVector y = affine(a, x, u);
   const auto twoSum = [](double p, double q, double* err) {
     const double s = p + q, z = s - p;
     *err += (p - (s - z)) + (q - z);
@@ -52,13 +52,11 @@ ModeVector affineCompensated(const ModeMatrix& a, const ModeVector& x, const Mod
   };
   for (Eigen::Index i = 0; i < n; ++i)
   {
-    double plain = 0.0, size = 0.0;
+    double size = 0.0;
     for (Eigen::Index j = 0; j < n; ++j)
     {
-      plain += a(i, j) * x(j);
       size += std::fabs(a(i, j) * x(j));
     }
-    y(i) = plain + u(i);
     if (!(std::fabs(y(i)) < 0x1p-26 * (size + std::fabs(u(i)))))
     {
       continue;
@@ -231,12 +229,13 @@ void ModeBasis::splitNilpotent(const Eigen::MatrixXd& b)
     }
     return power_m.norm() / norm_m;
   };
-  if (coupling() > NEAR_SPLIT || nilpotency() > NEAR_SPLIT)
+  const double split_coupling = coupling(), split_remainder = nilpotency();
+  if (split_coupling > NEAR_SPLIT || split_remainder > NEAR_SPLIT)
   {
     return;
   }
   poly_terms_ = static_cast<int>(m);
-  if (coupling() > EXACT_SPLIT || nilpotency() > EXACT_SPLIT)
+  if (split_coupling > EXACT_SPLIT || split_remainder > EXACT_SPLIT)
   {
     // A zero eigenvalue's neighbour that is merely small (a body's viscous friction f/J ~ 1e-9 of the mesh's
     // frequency): the split is exact only once decoupled, and the slow block is not nilpotent — its series runs on.

@@ -450,7 +450,6 @@ inline Outcome check(const Case& c, std::uint64_t event_budget = 100000)
     // The compliant mesh's and shaft's torques are computed from absolute angles and speeds: c(ρθ_m − θ_o) carries
     // ε·c·|θ| of rounding however small the penetration, a force the state does not explain, whose work grows with
     // the distance travelled (sampled at the probes below).
-    double angle_max = 0.0, speed_max = 0.0, travel = 0.0;
     State last = whole.state();
     const auto angles = [&](const State& st) {
       return std::max({std::fabs(st.load_position), std::fabs(st.load_position + st.shaft_twist),
@@ -460,8 +459,7 @@ inline Outcome check(const Case& c, std::uint64_t event_budget = 100000)
       return std::max({std::fabs(st.load_velocity), std::fabs(st.load_velocity + st.shaft_twist_rate),
                        c.params.gear_ratio * std::fabs(st.motor_velocity)});
     };
-    angle_max = angles(last);
-    speed_max = speeds(last);
+    double angle_max = angles(last), speed_max = speeds(last), travel = 0.0;
     for (int i = 1; i <= 1000; ++i)
     {
       whole.advanceTo(i == 1000 ? c.start.time + c.duration : c.start.time + c.duration * i / 1000.0, &watch);
