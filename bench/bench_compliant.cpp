@@ -352,8 +352,10 @@ int main(int argc, char** argv)
   };
   const std::vector<Setting> settings = {
       {"CVODE BDF rtol 1e-8", CV_BDF, 1e-8},       {"CVODE BDF rtol 1e-10", CV_BDF, 1e-10},
-      {"CVODE BDF rtol 1e-12", CV_BDF, 1e-12},     {"CVODE Adams rtol 1e-8", CV_ADAMS, 1e-8},
-      {"CVODE Adams rtol 1e-10", CV_ADAMS, 1e-10}, {"CVODE Adams rtol 1e-12", CV_ADAMS, 1e-12}};
+      {"CVODE BDF rtol 1e-12", CV_BDF, 1e-12},     {"CVODE BDF rtol 1e-13", CV_BDF, 1e-13},
+      {"CVODE BDF rtol 1e-14", CV_BDF, 1e-14},     {"CVODE Adams rtol 1e-8", CV_ADAMS, 1e-8},
+      {"CVODE Adams rtol 1e-10", CV_ADAMS, 1e-10}, {"CVODE Adams rtol 1e-12", CV_ADAMS, 1e-12},
+      {"CVODE Adams rtol 1e-13", CV_ADAMS, 1e-13}, {"CVODE Adams rtol 1e-14", CV_ADAMS, 1e-14}};
   for (const Setting& s : settings)
   {
     const CvodeRun r = runCvode(p, 1.0, duration, s.rtol, s.method);

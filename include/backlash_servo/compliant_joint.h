@@ -260,7 +260,8 @@ class CompliantJoint
   {
     LinearMode motion;
     double start;             // [s]
-    double window;            // search window [s]
+    double window;            // longest search window [s]
+    double next_window;       // the next search window [s]: short first, doubling up to `window`
     double searched = 0;      // events searched over (0, searched] of local time
     double event = INFINITY;  // local time of the first event found, or +inf
     int hit = -1;             // its index in watches

@@ -39,14 +39,20 @@
  * body's drift adding nothing), plus Σ_{j≥1} |(Dw)·P_j| (j + 1) j τ_end^{j−1} for the polynomial part Σ_j P_j τ^{j+1};
  * otherwise M = ‖(Dw)ᵀÂ‖₂ ‖D⁻¹ẋ(a)‖₂ e^{‖Â‖₂ h} (s'' = wᵀ A exp(A t) ẋ(a) in the
  * balanced basis x = D x̂, Â = D⁻¹AD, D a diagonal of powers of 2 (Parlett–Reinsch) so that ‖Â‖₂ is near the mode's
- * fastest frequency; ‖exp(Â t)‖₂ ≤ e^{‖Â‖₂ t}). A window on which the
- * linear part keeps one sign farther from 0 than ½ M h² plus the rounding of an evaluated output holds no zero. A
- * window where |s'(a)| > M h has a derivative of one sign, so s is monotone there: one zero at most, bracketed by the
+ * fastest frequency; ‖exp(Â t)‖₂ ≤ e^{‖Â‖₂ t}). Modally the model is also taken one degree further,
+ *   s(a + t) = s(a) + s'(a) t + ½ s''(a) t² + R₃(t),  |R₃(t)| ≤ M₃ t³/6,  M₃ = Σ_k |(wᵀDv_k) λ_k g_k| |λ_k| e^{Re λ_k
+ * τ*} (plus the polynomial part's third derivative), s''(a) = w·Aẋ(a) — where s is smooth on the window (the fast modes
+ * decayed, or a slow peel-off from zero) the quadratic follows it much farther than the line. A window on which
+ * either model keeps one sign farther from 0 than its remainder plus the rounding of the evaluated output and its
+ * derivatives holds no zero. A window where |s'(a)| > M h, or where s'(a) + s''(a) t keeps its sign beyond ½ M₃ t²,
+ * has a derivative of one sign, so s is monotone there: one zero at most, bracketed by the
  * signs at its ends and refined until both ends are adjacent doubles or within a few ulps of the output's terms,
  * where the sign of s means nothing more (Newton's method kept inside the bracket, s' = w·(Ax + u): about six
  * evaluations a crossing; where it stalls, the ITP method — regula falsi made two-sided and never slower than
  * bisection); the end past the crossing is the event. Any other window is halved, earliest half
- * first. Windows start as long as the exclusion is likely to pass (h = √(|s(a)|/M), at most 1/‖Â‖₂); halving stops at
+ * first. Where the bounds do not grow with the window (modal, no growing mode, no τ in s''), each window is the
+ * longest these tests settle from one evaluation — halving the rest of the horizon until they do (arithmetic only) —
+ * and at least h = √(|s(a)|/M); otherwise h = √(|s(a)|/M), at most 1/‖Â‖₂ (four of them modally); halving stops at
  * the floor h_min = FLOOR_FRACTION / ‖Â‖₂ — only near a turning point of s that lies within h_min·|s'| of zero — where
  * a sign change in the asked direction is the crossing and none is a **grazing**, reported as no crossing. That is the
  * documented tolerance: two crossings closer together than h_min (1e-9 of the mode's fastest time scale) cancel.
@@ -112,6 +118,7 @@ class ModeBasis
   double rounding_ = 0.0;
   ModeMatrixC v_;         // eigenvectors of Â (modal), then a real basis of the nilpotent block's subspace
   ModeVectorC lambda_;    // eigenvalues (modal; 0 for the nilpotent block's coordinates)
+  ModeVector speed_;      // |λ| of each (modal, the nilpotent block's excepted)
   ModeMatrixC v_inv_;     // V⁻¹ (modal)
   ModeVector weight_;     // per eigenvalue: 1, or 2 and 0 for a complex pair (only the first evaluated, doubled)
   int nil_ = 0;           // the order of the nilpotent block (the last nil_ columns of V)
@@ -181,21 +188,38 @@ class LinearMode
   double norm() const { return basis_->norm(); }
 
  private:
-  /// What bounds the curvature |s''| of one output: per mode |wᵀDv_k λ_k g_k| and Re λ_k (modal), or
-  /// ‖(Dw)ᵀÂ‖₂ (Taylor).
+  /// What bounds the derivatives |s''| and |s'''| of one output: per mode |wᵀDv_k λ_k g_k|, |λ_k| and Re λ_k
+  /// (modal), or ‖(Dw)ᵀÂ‖₂ (Taylor: |s''| only).
   struct Curvature
   {
-    ModeVector beta, rate;
-    ModeVector poly;  // |(Dw)·P_j| (j + 1) j: the polynomial part's s'' = Σ_j ± poly_j τ^{j−1}
+    ModeVector beta, speed, rate;
+    ModeVector poly, poly3;  // the polynomial part's s'' = Σ_j ± poly_j τ^{j−1}, s''' = Σ_j ± poly3_j τ^{j−2}
     double wa = 0.0;
+    bool steady = true;  // (modal) the bounds on a window do not grow with its length: no growing mode, no τ in s''
   };
   Curvature curvature(const ModeVector& w) const;
-  /// A bound on |s''| over [lo, lo + h] (x the state at lo).
-  double curvatureBound(const Curvature& k, const ModeVector& x, double lo, double h) const;
+  /// Bounds m2 ≥ max |s''| and m3 ≥ max |s'''| (+inf: none) over [lo, lo + h] (x the state at lo).
+  void curvatureBounds(const Curvature& k, const ModeVector& x, double lo, double h, double* m2, double* m3) const;
+  /// An output's local picture at a window's start lo: its value and first two derivatives, their rounding, and the
+  /// bounds m2, m3 on its second and third derivatives over the window.
+  struct Local
+  {
+    double s, s1, s2, noise0, noise1, noise2, m2, m3;
+  };
+  Local local(const ModeVector& w, double w0, double lo, double h, const Curvature& curv) const;
+  /// What the Taylor models of degree 1 and 2 at a window's start prove about s on [lo, lo + h].
+  enum class Verdict
+  {
+    Clear,     ///< no zero
+    Monotone,  ///< s' keeps its sign: one zero at most
+    Unknown
+  };
+  static Verdict judge(const Local& l, double h);
   /// The first crossing in [lo, hi] (the window's state known at lo), +inf if none; `origin` is where the crossing
-  /// that began the motion lies (NaN: none, see firstCrossing's began_here).
+  /// that began the motion lies (NaN: none, see firstCrossing's began_here); `at_lo` the window's local picture if
+  /// known.
   double searchWindow(const ModeVector& w, double w0, int direction, double lo, double hi, const Curvature& curv,
-                      double floor, double origin) const;
+                      double floor, double origin, const Local* at_lo = nullptr) const;
   /// What rounding can do to the output w·x + w₀ of an evaluated state x (the closed form's error).
   double noise(const ModeVector& w, double w0, const ModeVector& x) const;
   /// What rounding can do to w·v of a rate v = A x + u (or a higher derivative) computed from an evaluated state.

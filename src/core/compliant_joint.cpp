@@ -18,7 +18,9 @@ using compliant_detail::roundingOf;
 namespace
 {
 constexpr double INF = std::numeric_limits<double>::infinity();
-// A segment's event search windows, in units of its fastest time scale 1/‖Â‖₂.
+// A segment's event search windows, in units of its fastest time scale 1/‖Â‖₂: the first FIRST_WINDOW_SCALE long,
+// each next one twice the one before, up to WINDOW_SCALE.
+constexpr double FIRST_WINDOW_SCALE = 4.0;
 constexpr double WINDOW_SCALE = 256.0;
 // A segment without events is re-anchored at its state after this many windows: the closed form's phases (ωτ) stay
 // below ~4000 rad, whose rounding would otherwise grow with the segment's length (a joint gliding in contact for
@@ -523,7 +525,8 @@ void CompliantJoint::beginSegment()
     window = horizon_ - time_;
   }
   const double piece = 0.5 / std::max(motion.norm(), 1e-300);
-  segment_.emplace(Segment{std::move(motion), time_, window, 0.0, INF, -1, std::move(watches), energy_,
+  const double first_window = std::min(window, FIRST_WINDOW_SCALE / std::max(motion.norm(), 1e-300));
+  segment_.emplace(Segment{std::move(motion), time_, window, first_window, 0.0, INF, -1, std::move(watches), energy_,
                            CompliantEnergy(), slide_, piece, 0});
   // The watch `matches` picks becomes the segment's first event, at its start.
   Segment& seg = *segment_;
@@ -610,7 +613,9 @@ void CompliantJoint::beginSegment()
 void CompliantJoint::searchNextWindow()
 {
   Segment& seg = *segment_;
-  const double from = seg.searched, to = seg.searched + seg.window;
+  // (The windows end where the segment is re-anchored: at REANCHOR_WINDOWS longest windows.)
+  const double from = seg.searched, to = std::min(seg.searched + seg.next_window, REANCHOR_WINDOWS * seg.window);
+  seg.next_window = std::min(2.0 * seg.next_window, seg.window);
   // The event that began this segment lies at its start: its own crossing is not searched for again within the
   // search floor (1e-9 of the fastest time scale).
   const double skip = LinearMode::FLOOR_FRACTION / std::max(seg.motion.norm(), 1e-300);

@@ -167,6 +167,11 @@ bool ModeBasis::useBasis(const Eigen::MatrixXcd& v, const Eigen::VectorXcd& lamb
       ++k;
     }
   }
+  speed_.resize(r);
+  for (Eigen::Index k = 0; k < r; ++k)
+  {
+    speed_(k) = std::abs(lambda(k));
+  }
   modal_ = true;
   rounding_ = 64.0 * std::numeric_limits<double>::epsilon() * sv(0) / sv(sv.size() - 1);
   return true;
@@ -697,14 +702,21 @@ LinearMode::Curvature LinearMode::curvature(const ModeVector& w) const
   Curvature k;
   if (basis_->modal_)
   {
-    // s''(τ) = Σ_k (wᵀD v_k) λ_k g_k e^{λ_k τ}: the drift of a zero eigenvalue has no curvature.
+    // s''(τ) = Σ_k (wᵀD v_k) λ_k g_k e^{λ_k τ}, s''' the same with λ_k² — the drift of a zero eigenvalue has neither.
     const Eigen::Index n = x0_.size(), m = basis_->nil_, r = n - m;
-    // (In real arithmetic: std::complex's operations written out, without its checks for infinities; |z| by hypot,
-    // as std::abs computes it.)
+    // (In real arithmetic: std::complex's operations written out, without its checks for infinities.)
     k.beta.resize(r);
+    k.speed.resize(r);
     k.rate.resize(r);
     for (Eigen::Index i = 0; i < r; ++i)
     {
+      k.rate(i) = basis_->lambda_(i).real();
+      k.speed(i) = basis_->speed_(i);
+      if (basis_->weight_(i) == 0.0)
+      {
+        k.beta(i) = 0.0;  // (a pair's conjugate: counted in its partner)
+        continue;
+      }
       double wv_re = 0.0, wv_im = 0.0;  // wᵀD v_i
       for (Eigen::Index j = 0; j < n; ++j)
       {
@@ -715,47 +727,134 @@ LinearMode::Curvature LinearMode::curvature(const ModeVector& w) const
       const std::complex<double> l = basis_->lambda_(i), g = g_(i);
       const double a_re = wv_re * l.real() - wv_im * l.imag(), a_im = wv_re * l.imag() + wv_im * l.real();
       const double b_re = a_re * g.real() - a_im * g.imag(), b_im = a_re * g.imag() + a_im * g.real();
-      k.beta(i) = basis_->weight_(i) * std::hypot(b_re, b_im);  // (a pair's: both terms in the first)
-      k.rate(i) = l.real();
+      // |b| (a pair's: both terms in the first), by hypot only where the squares could overflow or underflow.
+      const double squares = b_re * b_re + b_im * b_im;
+      k.beta(i) =
+          basis_->weight_(i) * (squares > 1e-290 && squares < 1e290 ? std::sqrt(squares) : std::hypot(b_re, b_im));
+      k.steady = k.steady && (k.beta(i) == 0.0 || k.rate(i) <= 0.0);
     }
-    // The polynomial part: s'' = Σ_{j ≥ 1} (Dw)·P_j (j + 1) j τ^{j−1}.
+    // The polynomial part: s'' = Σ_{j ≥ 1} (Dw)·P_j (j + 1) j τ^{j−1}, s''' = Σ_{j ≥ 2} (Dw)·P_j (j + 1) j (j − 1)
+    // τ^{j−2}.
     k.poly = ModeVector::Zero(poly_.cols());
+    k.poly3 = ModeVector::Zero(poly_.cols());
     for (Eigen::Index j = 1; j < poly_.cols(); ++j)
     {
       k.poly(j) = std::fabs(w.cwiseProduct(basis_->bal_).dot(poly_.col(j))) * static_cast<double>((j + 1) * j);
+      k.poly3(j) = k.poly(j) * static_cast<double>(j - 1);
+      k.steady = k.steady && (j < 2 || k.poly(j) == 0.0);
     }
   }
   else
   {
     k.wa = (w.cwiseProduct(basis_->bal_).transpose() * basis_->balanced_).norm();
+    k.steady = false;
   }
   return k;
 }
 
-double LinearMode::curvatureBound(const Curvature& k, const ModeVector& x, double lo, double h) const
+void LinearMode::curvatureBounds(const Curvature& k, const ModeVector& x, double lo, double h, double* m2,
+                                 double* m3) const
 {
+  constexpr double SAFE = 1.0 + 64.0 * std::numeric_limits<double>::epsilon();
   if (basis_->modal_)
   {
     // Each mode's term is largest at one end of the window.
-    double m = 0.0;
+    double b2 = 0.0, b3 = 0.0;
     for (Eigen::Index i = 0; i < k.beta.size(); ++i)
     {
       if (k.beta(i) != 0.0)
       {
-        m += k.beta(i) * std::exp(k.rate(i) * lo + std::max(0.0, k.rate(i) * h));
+        const double term = k.beta(i) * std::exp(k.rate(i) * lo + std::max(0.0, k.rate(i) * h));
+        b2 += term;
+        b3 += term * k.speed(i);
       }
     }
     // The polynomial part's terms are largest at the window's end (τ ≥ 0).
-    double p = 0.0;
+    double p2 = 0.0, p3 = 0.0;
     for (Eigen::Index j = k.poly.size() - 1; j >= 1; --j)
     {
-      p = p * (lo + h) + k.poly(j);
+      p2 = p2 * (lo + h) + k.poly(j);
     }
-    return (m + p) * (1.0 + 64.0 * std::numeric_limits<double>::epsilon());
+    for (Eigen::Index j = k.poly3.size() - 1; j >= 2; --j)
+    {
+      p3 = p3 * (lo + h) + k.poly3(j);
+    }
+    *m2 = (b2 + p2) * SAFE;
+    *m3 = (b3 + p3) * SAFE;
+    return;
   }
   // ‖(Dw)ᵀÂ‖₂ ‖D⁻¹ẋ(lo)‖₂ e^{‖Â‖₂ h}.
   const ModeVector xd = affine(basis_->a_, x, u_);
-  return k.wa * xd.cwiseQuotient(basis_->bal_).norm() * std::exp(basis_->norm_a_ * h);
+  *m2 = k.wa * xd.cwiseQuotient(basis_->bal_).norm() * std::exp(basis_->norm_a_ * h);
+  *m3 = INF;
+}
+
+LinearMode::Local LinearMode::local(const ModeVector& w, double w0, double lo, double h, const Curvature& curv) const
+{
+  Local l;
+  const ModeVector x = state(lo);
+  const ModeVector xd = affine(basis_->a_, x, u_);
+  l.s = w.dot(x) + w0;
+  l.s1 = w.dot(xd);
+  l.noise0 = noise(w, w0, x);
+  l.noise1 = rateNoise(w, xd);
+  curvatureBounds(curv, x, lo, h, &l.m2, &l.m3);
+  l.s2 = 0.0;
+  l.noise2 = 0.0;
+  if (std::isfinite(l.m3))
+  {
+    const ModeVector xdd = basis_->a_ * xd;  // ẍ = A ẋ
+    l.s2 = w.dot(xdd);
+    l.noise2 = rateNoise(w, xdd);
+  }
+  return l;
+}
+
+LinearMode::Verdict LinearMode::judge(const Local& l, double h)
+{
+  // Degree 1: s(lo + t) = s + s' t + R, |R| ≤ ½ m2 t².
+  const double margin = 0.5 * l.m2 * h * h + l.noise0;
+  const double end = l.s + l.s1 * h;
+  if ((l.s > margin && end > margin) || (l.s < -margin && end < -margin))
+  {
+    return Verdict::Clear;  // the linear part keeps one sign beyond the remainder: no zero here
+  }
+  // Degree 2: s(lo + t) = s + s' t + ½ s'' t² + R, |R| ≤ m3 t³/6 — the quadratic's least value on the window (at an
+  // end, or at its vertex) beyond the remainder and the rounding of its coefficients.
+  const bool second = std::isfinite(l.m3);
+  if (second && l.s != 0.0)
+  {
+    const double sign = l.s > 0.0 ? 1.0 : -1.0;
+    double least = std::min(sign * l.s, sign * (l.s + l.s1 * h + 0.5 * l.s2 * h * h));
+    if (sign * l.s2 > 0.0)
+    {
+      const double vertex = -l.s1 / l.s2;
+      if (vertex > 0.0 && vertex < h)
+      {
+        least = std::min(least, sign * (l.s + 0.5 * l.s1 * vertex));
+      }
+    }
+    if (least > l.m3 * h * h * h / 6.0 + l.noise0 + l.noise1 * h + 0.5 * l.noise2 * h * h)
+    {
+      return Verdict::Clear;
+    }
+  }
+  // s' keeps its sign on the window: by degree 1 (|s'(τ) − s'(lo)| ≤ m2 h, s'(lo) beyond its own rounding) or 2
+  // (s'(lo + t) = s' + s'' t + R', |R'| ≤ ½ m3 t²).
+  if (std::fabs(l.s1) > l.m2 * h + l.noise1)
+  {
+    return Verdict::Monotone;
+  }
+  if (second && l.s1 != 0.0)
+  {
+    const double sign = l.s1 > 0.0 ? 1.0 : -1.0;
+    const double least = std::min(sign * l.s1, sign * (l.s1 + l.s2 * h));
+    if (least > 0.5 * l.m3 * h * h + l.noise1 + l.noise2 * h)
+    {
+      return Verdict::Monotone;
+    }
+  }
+  return Verdict::Unknown;
 }
 
 double LinearMode::firstCrossing(const ModeVector& w, double w0, int direction, double horizon, double from,
@@ -789,16 +888,37 @@ double LinearMode::firstCrossing(const ModeVector& w, double w0, int direction, 
   double t = from;
   while (t < horizon)
   {
+    const double rest = horizon - t;
+    if (basis_->modal_ && curv.steady && std::isfinite(rest))
+    {
+      // The bounds do not grow with the window: the longest window the tests settle at once, halving from the rest
+      // of the horizon — or, where none does down to the length below, that length, to be halved by the search.
+      const Local l = local(w, w0, t, rest, curv);
+      const double least = l.m2 > 0.0 ? std::max(std::sqrt(std::fabs(l.s) / l.m2), 1e-3 * scale) : rest;
+      double h = rest;
+      for (int k = 0; k < 64 && h > least && judge(l, h) == Verdict::Unknown; ++k)
+      {
+        h *= 0.5;
+      }
+      h = std::min(std::max(h, least), rest);
+      const double hit = searchWindow(w, w0, direction, t, t + h, curv, floor, origin, &l);
+      if (hit < INF)
+      {
+        return hit;
+      }
+      t += h;
+      continue;
+    }
     // A window the exclusion test is likely to pass: where the remainder bound reaches about |s|.
     const ModeVector x = state(t);
     const double s = w.dot(x) + w0;
-    const double m = curvatureBound(curv, x, t, scale);
+    double m = 0.0, m3 = 0.0;
+    curvatureBounds(curv, x, t, scale, &m, &m3);
     double h = m > 0.0 ? std::sqrt(std::fabs(s) / m) : horizon;
     // (At least a thousandth of the fastest time scale: an output hovering near zero is searched by halving the
-    // window, not by crawling. At most that time scale for the norm bound, which grows as e^{‖Â‖h}; the modal bound
-    // holds on windows of any length and lets the search stride over slow motion, but a window much longer than the
-    // fast modes' scale is mostly halved again: four of them measured best.)
-    h = std::min({std::max(h, 1e-3 * scale), basis_->modal_ ? 4.0 * scale : scale, horizon - t});
+    // window, not by crawling. At most that time scale for the norm bound, which grows as e^{‖Â‖h}, and four of
+    // them for a modal bound with a growing mode.)
+    h = std::min({std::max(h, 1e-3 * scale), basis_->modal_ ? 4.0 * scale : scale, rest});
     const double hit = searchWindow(w, w0, direction, t, t + h, curv, floor, origin);
     if (hit < INF)
     {
@@ -810,21 +930,16 @@ double LinearMode::firstCrossing(const ModeVector& w, double w0, int direction, 
 }
 
 double LinearMode::searchWindow(const ModeVector& w, double w0, int direction, double lo, double hi,
-                                const Curvature& curv, double floor, double origin) const
+                                const Curvature& curv, double floor, double origin, const Local* at_lo) const
 {
-  const ModeVector x = state(lo);
-  const ModeVector xd = affine(basis_->a_, x, u_);
-  const double s = w.dot(x) + w0;
-  const double s1 = w.dot(xd);
   const double h = hi - lo;
-  const double m = curvatureBound(curv, x, lo, h);  // ≥ max |s''| on the window
-  const double rounding = noise(w, w0, x);
-  const double margin = 0.5 * m * h * h + rounding;
-  const double end = s + s1 * h;
-  if ((s > margin && end > margin) || (s < -margin && end < -margin))
+  const Local l = at_lo != nullptr ? *at_lo : local(w, w0, lo, h, curv);  // m2, m3 bound the window's s'', s'''
+  const Verdict verdict = judge(l, h);
+  if (verdict == Verdict::Clear)
   {
-    return INF;  // the linear part keeps one sign beyond the remainder: no zero here
+    return INF;
   }
+  const double s = l.s, s1 = l.s1, m = l.m2, rounding = l.noise0;
   const double s_hi = output(w, w0, hi);
   // The start of a motion begun by this output's own crossing, where the output is within rounding of zero and
   // moving in the asked direction: that crossing, evaluated again — its sign there means nothing. (Only there: any
@@ -842,11 +957,9 @@ double LinearMode::searchWindow(const ModeVector& w, double w0, int direction, d
   {
     return changes ? refine(w, w0, direction, lo, hi) : INF;
   }
-  if (std::fabs(s1) > m * h + rateNoise(w, xd))
+  if (verdict == Verdict::Monotone)
   {
-    // s' keeps its sign on the window (|s'(τ) − s'(lo)| ≤ M h, s'(lo) beyond its own rounding): s is monotone, one
-    // zero at most.
-    return changes ? refine(w, w0, direction, lo, hi) : INF;
+    return changes ? refine(w, w0, direction, lo, hi) : INF;  // one zero at most
   }
   if (h <= floor)
   {
