@@ -116,14 +116,15 @@ class ModeBasis
   double norm_a_ = 0.0;  // ‖Â‖₂
   bool modal_ = false;
   double rounding_ = 0.0;
-  ModeMatrixC v_;         // eigenvectors of Â (modal), then a real basis of the nilpotent block's subspace
-  ModeVectorC lambda_;    // eigenvalues (modal; 0 for the nilpotent block's coordinates)
-  ModeVector speed_;      // |λ| of each (modal, the nilpotent block's excepted)
-  ModeMatrixC v_inv_;     // V⁻¹ (modal)
-  ModeVector weight_;     // per eigenvalue: 1, or 2 and 0 for a complex pair (only the first evaluated, doubled)
-  int nil_ = 0;           // the order of the nilpotent block (the last nil_ columns of V)
-  int poly_terms_ = 0;    // the terms of its series: nil_, or more for a block that is slow but not nilpotent
-  ModeMatrix nilpotent_;  // N: Â restricted to ker Â^K in those coordinates (N^nil_ = 0, or merely small)
+  ModeMatrixC v_;               // eigenvectors of Â (modal), then a real basis of the nilpotent block's subspace
+  ModeVectorC lambda_;          // eigenvalues (modal; 0 for the nilpotent block's coordinates)
+  ModeVector speed_;            // |λ| of each (modal, the nilpotent block's excepted)
+  ModeMatrix dvl_re_, dvl_im_;  // D V Λ (modal, those columns): an output w's modal curvatures are wᵀDVΛ
+  ModeMatrixC v_inv_;           // V⁻¹ (modal)
+  ModeVector weight_;           // per eigenvalue: 1, or 2 and 0 for a complex pair (only the first evaluated, doubled)
+  int nil_ = 0;                 // the order of the nilpotent block (the last nil_ columns of V)
+  int poly_terms_ = 0;          // the terms of its series: nil_, or more for a block that is slow but not nilpotent
+  ModeMatrix nilpotent_;        // N: Â restricted to ker Â^K in those coordinates (N^nil_ = 0, or merely small)
   /// Takes V, Λ (and a nilpotent block of that order in V's last columns) if V is well-conditioned.
   bool useBasis(const Eigen::MatrixXcd& v, const Eigen::VectorXcd& lambda, int nilpotent_order);
   /// The modal form with a polynomial part where Â's zero eigenvalue lacks eigenvectors (see the file comment).
@@ -201,20 +202,23 @@ class LinearMode
   /// Bounds m2 ≥ max |s''| and m3 ≥ max |s'''| (+inf: none) over [lo, lo + h] (x the state at lo).
   void curvatureBounds(const Curvature& k, const ModeVector& x, double lo, double h, double* m2, double* m3) const;
   /// An output's local picture at a window's start lo: its value and first two derivatives, their rounding, and the
-  /// bounds m2, m3 on its second and third derivatives over the window.
+  /// bounds m2, m3 on its second and third derivatives over the window (the second derivative only once asked for).
   struct Local
   {
-    double s, s1, s2, noise0, noise1, noise2, m2, m3;
+    double s = 0.0, s1 = 0.0, s2 = 0.0, noise0 = 0.0, noise1 = 0.0, noise2 = 0.0, m2 = 0.0, m3 = 0.0;
+    ModeVector xd;        // ẋ(lo)
+    bool second = false;  // s2 and noise2 computed
   };
   Local local(const ModeVector& w, double w0, double lo, double h, const Curvature& curv) const;
-  /// What the Taylor models of degree 1 and 2 at a window's start prove about s on [lo, lo + h].
+  /// What the Taylor models of degree 1 and 2 at a window's start prove about s = w·x + w₀ on [lo, lo + h] (the
+  /// second degree's coefficients computed into *l where the first does not settle it).
   enum class Verdict
   {
     Clear,     ///< no zero
     Monotone,  ///< s' keeps its sign: one zero at most
     Unknown
   };
-  static Verdict judge(const Local& l, double h);
+  Verdict judge(const ModeVector& w, Local* l, double h) const;
   /// The first crossing in [lo, hi] (the window's state known at lo), +inf if none; `origin` is where the crossing
   /// that began the motion lies (NaN: none, see firstCrossing's began_here); `at_lo` the window's local picture if
   /// known.
@@ -230,8 +234,9 @@ class LinearMode
 
   std::shared_ptr<const ModeBasis> basis_;
   ModeVector u_, x0_;
-  ModeVector v0_;  // ẋ(0) = Ax₀ + u: the input of the deviation δ = x − x₀ the motion is solved for
-  ModeVectorC g_;  // V⁻¹D⁻¹v₀ (modal)
+  ModeVector v0_;     // ẋ(0) = Ax₀ + u: the input of the deviation δ = x − x₀ the motion is solved for
+  ModeVectorC g_;     // V⁻¹D⁻¹v₀ (modal)
+  ModeVector g_abs_;  // |g| (modal)
   ModeVectorC g_over_lambda_;  // g/λ (modal)
   ModeMatrix poly_;            // P_j = V_N Nʲ g_N / (j + 1)!: the polynomial part Σ_j P_j τ^{j+1} of δ̂ (modal)
   unsigned moving_ = 0;        // bit i: coordinate i moves (with a polynomial part; see the constructor)

@@ -168,9 +168,17 @@ bool ModeBasis::useBasis(const Eigen::MatrixXcd& v, const Eigen::VectorXcd& lamb
     }
   }
   speed_.resize(r);
+  dvl_re_.resize(v.rows(), r);
+  dvl_im_.resize(v.rows(), r);
   for (Eigen::Index k = 0; k < r; ++k)
   {
     speed_(k) = std::abs(lambda(k));
+    for (Eigen::Index j = 0; j < v.rows(); ++j)
+    {
+      const std::complex<double> e = bal_(j) * v(j, k) * lambda(k);
+      dvl_re_(j, k) = e.real();
+      dvl_im_(j, k) = e.imag();
+    }
   }
   modal_ = true;
   rounding_ = 64.0 * std::numeric_limits<double>::epsilon() * sv(0) / sv(sv.size() - 1);
@@ -406,6 +414,11 @@ LinearMode::LinearMode(std::shared_ptr<const ModeBasis> basis, const ModeVector&
         g_(k) = 0.5 * (g_(k) + std::conj(g_(k + 1)));
         g_(k + 1) = std::conj(g_(k));
       }
+    }
+    g_abs_.resize(n);
+    for (Eigen::Index k = 0; k < n; ++k)
+    {
+      g_abs_(k) = std::abs(g_(k));
     }
     g_over_lambda_.resize(n);  // used only where |λτ| ≥ 0.1
     for (Eigen::Index k = 0; k < n; ++k)
@@ -687,14 +700,29 @@ double LinearMode::noise(const ModeVector& w, double w0, const ModeVector& x) co
   // rounding·‖D⁻¹δ‖ (the output sums them with weights |w_i| D_i), and adding x₀ a few ulps of each |x_i|. (Relative
   // to the whole state instead, a joint spinning at 3e4 rad/s had a penetration "within rounding" over its whole
   // 2 mrad excursion, and the search passed two crossings as one grazing.)
+  // (Plain loops: Eigen's expressions carry a dispatch overhead that dominates at these orders.)
   constexpr double EPS = std::numeric_limits<double>::epsilon();
-  return basis_->rounding_ * w.cwiseAbs().dot(basis_->bal_) * (x - x0_).cwiseQuotient(basis_->bal_).norm() +
-         8.0 * EPS * (w.cwiseAbs().dot(x.cwiseAbs()) + std::fabs(w0));
+  double weight = 0.0, deviation = 0.0, size = std::fabs(w0);
+  for (Eigen::Index j = 0; j < x.size(); ++j)
+  {
+    const double d = (x(j) - x0_(j)) / basis_->bal_(j);
+    weight += std::fabs(w(j)) * basis_->bal_(j);
+    deviation += d * d;
+    size += std::fabs(w(j) * x(j));
+  }
+  return basis_->rounding_ * weight * std::sqrt(deviation) + 8.0 * EPS * size;
 }
 
 double LinearMode::rateNoise(const ModeVector& w, const ModeVector& v) const
 {
-  return basis_->rounding_ * w.cwiseAbs().dot(basis_->bal_) * v.cwiseQuotient(basis_->bal_).norm();
+  double weight = 0.0, size = 0.0;
+  for (Eigen::Index j = 0; j < v.size(); ++j)
+  {
+    const double d = v(j) / basis_->bal_(j);
+    weight += std::fabs(w(j)) * basis_->bal_(j);
+    size += d * d;
+  }
+  return basis_->rounding_ * weight * std::sqrt(size);
 }
 
 LinearMode::Curvature LinearMode::curvature(const ModeVector& w) const
@@ -704,7 +732,6 @@ LinearMode::Curvature LinearMode::curvature(const ModeVector& w) const
   {
     // s''(τ) = Σ_k (wᵀD v_k) λ_k g_k e^{λ_k τ}, s''' the same with λ_k² — the drift of a zero eigenvalue has neither.
     const Eigen::Index n = x0_.size(), m = basis_->nil_, r = n - m;
-    // (In real arithmetic: std::complex's operations written out, without its checks for infinities.)
     k.beta.resize(r);
     k.speed.resize(r);
     k.rate.resize(r);
@@ -717,20 +744,17 @@ LinearMode::Curvature LinearMode::curvature(const ModeVector& w) const
         k.beta(i) = 0.0;  // (a pair's conjugate: counted in its partner)
         continue;
       }
-      double wv_re = 0.0, wv_im = 0.0;  // wᵀD v_i
+      double c_re = 0.0, c_im = 0.0;  // wᵀD v_i λ_i
       for (Eigen::Index j = 0; j < n; ++j)
       {
-        const double wb = w(j) * basis_->bal_(j);
-        wv_re += basis_->v_(j, i).real() * wb;
-        wv_im += basis_->v_(j, i).imag() * wb;
+        c_re += basis_->dvl_re_(j, i) * w(j);
+        c_im += basis_->dvl_im_(j, i) * w(j);
       }
-      const std::complex<double> l = basis_->lambda_(i), g = g_(i);
-      const double a_re = wv_re * l.real() - wv_im * l.imag(), a_im = wv_re * l.imag() + wv_im * l.real();
-      const double b_re = a_re * g.real() - a_im * g.imag(), b_im = a_re * g.imag() + a_im * g.real();
-      // |b| (a pair's: both terms in the first), by hypot only where the squares could overflow or underflow.
-      const double squares = b_re * b_re + b_im * b_im;
-      k.beta(i) =
-          basis_->weight_(i) * (squares > 1e-290 && squares < 1e290 ? std::sqrt(squares) : std::hypot(b_re, b_im));
+      // |wᵀD v_i λ_i| |g_i| (a pair's: both terms in the first), by hypot only where the squares could overflow or
+      // underflow.
+      const double squares = c_re * c_re + c_im * c_im;
+      k.beta(i) = basis_->weight_(i) * g_abs_(i) *
+                  (squares > 1e-290 && squares < 1e290 ? std::sqrt(squares) : std::hypot(c_re, c_im));
       k.steady = k.steady && (k.beta(i) == 0.0 || k.rate(i) <= 0.0);
     }
     // The polynomial part: s'' = Σ_{j ≥ 1} (Dw)·P_j (j + 1) j τ^{j−1}, s''' = Σ_{j ≥ 2} (Dw)·P_j (j + 1) j (j − 1)
@@ -799,19 +823,13 @@ LinearMode::Local LinearMode::local(const ModeVector& w, double w0, double lo, d
   l.noise0 = noise(w, w0, x);
   l.noise1 = rateNoise(w, xd);
   curvatureBounds(curv, x, lo, h, &l.m2, &l.m3);
-  l.s2 = 0.0;
-  l.noise2 = 0.0;
-  if (std::isfinite(l.m3))
-  {
-    const ModeVector xdd = basis_->a_ * xd;  // ẍ = A ẋ
-    l.s2 = w.dot(xdd);
-    l.noise2 = rateNoise(w, xdd);
-  }
+  l.xd = xd;
   return l;
 }
 
-LinearMode::Verdict LinearMode::judge(const Local& l, double h)
+LinearMode::Verdict LinearMode::judge(const ModeVector& w, Local* local, double h) const
 {
+  const Local& l = *local;
   // Degree 1: s(lo + t) = s + s' t + R, |R| ≤ ½ m2 t².
   const double margin = 0.5 * l.m2 * h * h + l.noise0;
   const double end = l.s + l.s1 * h;
@@ -822,6 +840,13 @@ LinearMode::Verdict LinearMode::judge(const Local& l, double h)
   // Degree 2: s(lo + t) = s + s' t + ½ s'' t² + R, |R| ≤ m3 t³/6 — the quadratic's least value on the window (at an
   // end, or at its vertex) beyond the remainder and the rounding of its coefficients.
   const bool second = std::isfinite(l.m3);
+  if (second && !l.second)
+  {
+    const ModeVector xdd = basis_->a_ * l.xd;  // ẍ = A ẋ (only where degree 1 did not settle it)
+    local->s2 = w.dot(xdd);
+    local->noise2 = rateNoise(w, xdd);
+    local->second = true;
+  }
   if (second && l.s != 0.0)
   {
     const double sign = l.s > 0.0 ? 1.0 : -1.0;
@@ -892,11 +917,12 @@ double LinearMode::firstCrossing(const ModeVector& w, double w0, int direction, 
     if (basis_->modal_ && curv.steady && std::isfinite(rest))
     {
       // The bounds do not grow with the window: the longest window the tests settle at once, halving from the rest
-      // of the horizon — or, where none does down to the length below, that length, to be halved by the search.
-      const Local l = local(w, w0, t, rest, curv);
+      // of the horizon (arithmetic only) — or, where none does down to where the remainder bound reaches about |s|,
+      // that length, to be halved by the search.
+      Local l = local(w, w0, t, rest, curv);
       const double least = l.m2 > 0.0 ? std::max(std::sqrt(std::fabs(l.s) / l.m2), 1e-3 * scale) : rest;
       double h = rest;
-      for (int k = 0; k < 64 && h > least && judge(l, h) == Verdict::Unknown; ++k)
+      for (int k = 0; k < 64 && h > least && judge(w, &l, h) == Verdict::Unknown; ++k)
       {
         h *= 0.5;
       }
@@ -933,8 +959,8 @@ double LinearMode::searchWindow(const ModeVector& w, double w0, int direction, d
                                 const Curvature& curv, double floor, double origin, const Local* at_lo) const
 {
   const double h = hi - lo;
-  const Local l = at_lo != nullptr ? *at_lo : local(w, w0, lo, h, curv);  // m2, m3 bound the window's s'', s'''
-  const Verdict verdict = judge(l, h);
+  Local l = at_lo != nullptr ? *at_lo : local(w, w0, lo, h, curv);  // m2, m3 bound the window's s'', s'''
+  const Verdict verdict = judge(w, &l, h);
   if (verdict == Verdict::Clear)
   {
     return INF;
