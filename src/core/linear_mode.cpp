@@ -893,16 +893,16 @@ double LinearMode::firstCrossing(const ModeVector& w, double w0, int direction, 
   const Curvature curv = curvature(w);
   const double scale = basis_->norm_a_ > 0.0 ? 1.0 / basis_->norm_a_ : horizon;  // the fastest time scale [s]
   const double floor = FLOOR_FRACTION * scale;
+  const Local start = local(w, w0, from, horizon - from, curv);  // (the first window's, where the bounds are steady)
   {
     // An output that is zero with all its derivatives at the start (wᵀAᵏẋ = 0, k < n: the output does not see the
     // motion at all, e.g. the velocity of a body at rest on which nothing acts) stays zero: it never crosses.
-    const ModeVector x = state(from);
-    ModeVector v = affine(basis_->a_, x, u_);
-    bool flat = std::fabs(w.dot(x) + w0) <= noise(w, w0, x);
+    bool flat = std::fabs(start.s) <= start.noise0;
+    ModeVector v = start.xd;
     for (int k = 0; flat && k < order(); ++k)
     {
       flat = std::fabs(w.dot(v)) <= rateNoise(w, v);
-      v = affine(basis_->a_, v, ModeVector::Zero(v.size()));
+      v = basis_->a_ * v;
     }
     if (flat)
     {
@@ -919,7 +919,7 @@ double LinearMode::firstCrossing(const ModeVector& w, double w0, int direction, 
       // The bounds do not grow with the window: the longest window the tests settle at once, halving from the rest
       // of the horizon (arithmetic only) — or, where none does down to where the remainder bound reaches about |s|,
       // that length, to be halved by the search.
-      Local l = local(w, w0, t, rest, curv);
+      Local l = t == from ? start : local(w, w0, t, rest, curv);
       const double least = l.m2 > 0.0 ? std::max(std::sqrt(std::fabs(l.s) / l.m2), 1e-3 * scale) : rest;
       double h = rest;
       for (int k = 0; k < 64 && h > least && judge(w, &l, h) == Verdict::Unknown; ++k)
