@@ -22,9 +22,9 @@ constexpr double INF = std::numeric_limits<double>::infinity();
 // each next one twice the one before, up to WINDOW_SCALE.
 constexpr double FIRST_WINDOW_SCALE = 4.0;
 constexpr double WINDOW_SCALE = 256.0;
-// A segment without events is re-anchored at its state after this many windows: the closed form's phases (ωτ) stay
-// below ~4000 rad, whose rounding would otherwise grow with the segment's length (a joint gliding in contact for
-// minutes drifted its energy balance by 2e-10 of its energy per second).
+// A segment without events is re-anchored at its state after this many of the longest windows (4096 fast time
+// scales): the closed form's phases (ωτ) stay below ~4000 rad, whose rounding would otherwise grow with the segment's
+// length (a joint gliding in contact for minutes drifted its energy balance by 2e-10 of its energy per second).
 constexpr double REANCHOR_WINDOWS = 16.0;
 
 /// The modes' order — the joint's size and two states per sine, the law's and the load's — within MAX_MODE_ORDER.

@@ -830,8 +830,9 @@ LinearMode::Local LinearMode::local(const ModeVector& w, double w0, double lo, d
 LinearMode::Verdict LinearMode::judge(const ModeVector& w, Local* local, double h) const
 {
   const Local& l = *local;
-  // Degree 1: s(lo + t) = s + s' t + R, |R| ≤ ½ m2 t².
-  const double margin = 0.5 * l.m2 * h * h + l.noise0;
+  // Degree 1: s(lo + t) = s + s' t + R, |R| ≤ ½ m2 t² — beyond the remainder and the rounding of s and of s' t
+  // (the window may be as long as this test allows, so neither rounding may be left out).
+  const double margin = 0.5 * l.m2 * h * h + l.noise0 + l.noise1 * h;
   const double end = l.s + l.s1 * h;
   if ((l.s > margin && end > margin) || (l.s < -margin && end < -margin))
   {
