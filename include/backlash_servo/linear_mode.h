@@ -189,12 +189,12 @@ class LinearMode
   double norm() const { return basis_->norm(); }
 
  private:
-  /// What bounds the derivatives |s''| and |s'''| of one output: per mode |wᵀDv_k λ_k g_k|, |λ_k| and Re λ_k
-  /// (modal), or ‖(Dw)ᵀÂ‖₂ (Taylor: |s''| only).
+  /// What bounds the derivatives |s''| and |s'''| of one output: per mode |wᵀDv_k λ_k g_k| and Re λ_k (modal; |λ_k|
+  /// from the basis), or ‖(Dw)ᵀÂ‖₂ (Taylor: |s''| only).
   struct Curvature
   {
-    ModeVector beta, speed, rate;
-    ModeVector poly, poly3;  // the polynomial part's s'' = Σ_j ± poly_j τ^{j−1}, s''' = Σ_j ± poly3_j τ^{j−2}
+    ModeVector beta, rate;
+    ModeVector poly;  // the polynomial part's s'' = Σ_j ± poly_j τ^{j−1} (and s''' = Σ_j ± poly_j (j − 1) τ^{j−2})
     double wa = 0.0;
     bool steady = true;  // (modal) the bounds on a window do not grow with its length: no growing mode, no τ in s''
   };
@@ -221,9 +221,9 @@ class LinearMode
   Verdict judge(const ModeVector& w, Local* l, double h) const;
   /// The first crossing in [lo, hi] (the window's state known at lo), +inf if none; `origin` is where the crossing
   /// that began the motion lies (NaN: none, see firstCrossing's began_here); `at_lo` the window's local picture if
-  /// known.
+  /// known (completed in place).
   double searchWindow(const ModeVector& w, double w0, int direction, double lo, double hi, const Curvature& curv,
-                      double floor, double origin, const Local* at_lo = nullptr) const;
+                      double floor, double origin, Local* at_lo = nullptr) const;
   /// What rounding can do to the output w·x + w₀ of an evaluated state x (the closed form's error).
   double noise(const ModeVector& w, double w0, const ModeVector& x) const;
   /// What rounding can do to w·v of a rate v = A x + u (or a higher derivative) computed from an evaluated state.

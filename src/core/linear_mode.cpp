@@ -700,21 +700,18 @@ double LinearMode::noise(const ModeVector& w, double w0, const ModeVector& x) co
   // rounding·‖D⁻¹δ‖ (the output sums them with weights |w_i| D_i), and adding x₀ a few ulps of each |x_i|. (Relative
   // to the whole state instead, a joint spinning at 3e4 rad/s had a penetration "within rounding" over its whole
   // 2 mrad excursion, and the search passed two crossings as one grazing.)
-  // (Plain loops: Eigen's expressions carry a dispatch overhead that dominates at these orders.)
   constexpr double EPS = std::numeric_limits<double>::epsilon();
-  double weight = 0.0, deviation = 0.0, size = std::fabs(w0);
+  double size = std::fabs(w0);
   for (Eigen::Index j = 0; j < x.size(); ++j)
   {
-    const double d = (x(j) - x0_(j)) / basis_->bal_(j);
-    weight += std::fabs(w(j)) * basis_->bal_(j);
-    deviation += d * d;
     size += std::fabs(w(j) * x(j));
   }
-  return basis_->rounding_ * weight * std::sqrt(deviation) + 8.0 * EPS * size;
+  return rateNoise(w, x - x0_) + 8.0 * EPS * size;
 }
 
 double LinearMode::rateNoise(const ModeVector& w, const ModeVector& v) const
 {
+  // (Plain loops: Eigen's expressions carry a dispatch overhead that dominates at these orders.)
   double weight = 0.0, size = 0.0;
   for (Eigen::Index j = 0; j < v.size(); ++j)
   {
@@ -733,12 +730,10 @@ LinearMode::Curvature LinearMode::curvature(const ModeVector& w) const
     // s''(τ) = Σ_k (wᵀD v_k) λ_k g_k e^{λ_k τ}, s''' the same with λ_k² — the drift of a zero eigenvalue has neither.
     const Eigen::Index n = x0_.size(), m = basis_->nil_, r = n - m;
     k.beta.resize(r);
-    k.speed.resize(r);
     k.rate.resize(r);
     for (Eigen::Index i = 0; i < r; ++i)
     {
       k.rate(i) = basis_->lambda_(i).real();
-      k.speed(i) = basis_->speed_(i);
       if (basis_->weight_(i) == 0.0)
       {
         k.beta(i) = 0.0;  // (a pair's conjugate: counted in its partner)
@@ -760,11 +755,9 @@ LinearMode::Curvature LinearMode::curvature(const ModeVector& w) const
     // The polynomial part: s'' = Σ_{j ≥ 1} (Dw)·P_j (j + 1) j τ^{j−1}, s''' = Σ_{j ≥ 2} (Dw)·P_j (j + 1) j (j − 1)
     // τ^{j−2}.
     k.poly = ModeVector::Zero(poly_.cols());
-    k.poly3 = ModeVector::Zero(poly_.cols());
     for (Eigen::Index j = 1; j < poly_.cols(); ++j)
     {
       k.poly(j) = std::fabs(w.cwiseProduct(basis_->bal_).dot(poly_.col(j))) * static_cast<double>((j + 1) * j);
-      k.poly3(j) = k.poly(j) * static_cast<double>(j - 1);
       k.steady = k.steady && (j < 2 || k.poly(j) == 0.0);
     }
   }
@@ -790,7 +783,7 @@ void LinearMode::curvatureBounds(const Curvature& k, const ModeVector& x, double
       {
         const double term = k.beta(i) * std::exp(k.rate(i) * lo + std::max(0.0, k.rate(i) * h));
         b2 += term;
-        b3 += term * k.speed(i);
+        b3 += term * basis_->speed_(i);
       }
     }
     // The polynomial part's terms are largest at the window's end (τ ≥ 0).
@@ -799,9 +792,9 @@ void LinearMode::curvatureBounds(const Curvature& k, const ModeVector& x, double
     {
       p2 = p2 * (lo + h) + k.poly(j);
     }
-    for (Eigen::Index j = k.poly3.size() - 1; j >= 2; --j)
+    for (Eigen::Index j = k.poly.size() - 1; j >= 2; --j)
     {
-      p3 = p3 * (lo + h) + k.poly3(j);
+      p3 = p3 * (lo + h) + k.poly(j) * static_cast<double>(j - 1);
     }
     *m2 = (b2 + p2) * SAFE;
     *m3 = (b3 + p3) * SAFE;
@@ -957,10 +950,11 @@ double LinearMode::firstCrossing(const ModeVector& w, double w0, int direction, 
 }
 
 double LinearMode::searchWindow(const ModeVector& w, double w0, int direction, double lo, double hi,
-                                const Curvature& curv, double floor, double origin, const Local* at_lo) const
+                                const Curvature& curv, double floor, double origin, Local* at_lo) const
 {
   const double h = hi - lo;
-  Local l = at_lo != nullptr ? *at_lo : local(w, w0, lo, h, curv);  // m2, m3 bound the window's s'', s'''
+  Local computed;
+  Local& l = at_lo != nullptr ? *at_lo : (computed = local(w, w0, lo, h, curv));  // m2, m3 bound its s'', s'''
   const Verdict verdict = judge(w, &l, h);
   if (verdict == Verdict::Clear)
   {
