@@ -172,7 +172,8 @@ class LinearMode
   double output(const ModeVector& w, double w0, double tau) const;
   /**
    * The first τ in (from, horizon] where s = w·x + w₀ crosses zero in `direction` (+1: from ≤ 0 to > 0, −1: from ≥ 0
-   * to < 0), located to the last bit; +inf if none (a grazing within the floor is none, see the file comment).
+   * to < 0, 0: either — one search where two would visit the same windows), located to the last bit; +inf if none (a
+   * grazing within the floor is none, see the file comment).
    * `began_here`: this output's crossing is the event that began the motion, at `from` — there, within rounding of
    * zero and moving in `direction`, its sign means nothing and is not a crossing.
    */

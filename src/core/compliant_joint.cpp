@@ -504,8 +504,9 @@ void CompliantJoint::beginSegment()
   {
     w = ModeVector::Zero(dim());
     w(l + 1) = 1.0;
-    watches.push_back({w, 0.0, -1, MeshEvent::Maximum, 0});
-    watches.push_back({w, 0.0, +1, MeshEvent::Minimum, 0});
+    // Its turning points, both in one search (direction 0): the load's velocity just before tells a maximum from a
+    // minimum (the watch stands for both).
+    watches.push_back({w, 0.0, 0, MeshEvent::Maximum, 0});
     w = ModeVector::Zero(dim());
     w(l) = 1.0;
     if (std::isfinite(watch_hi_))
@@ -679,10 +680,15 @@ bool CompliantJoint::advanceTo(double t_end, const Observer& observer)
       return false;
     }
     moveTo(seg.event, seg.start + seg.event);
-    const Watch watch = seg.watches[static_cast<std::size_t>(seg.hit)];
+    Watch watch = seg.watches[static_cast<std::size_t>(seg.hit)];
+    const MeshEvent watched = watch.kind;  // (`again` compares the kind watched)
     const double before = seg.motion.state(seg.event * (1.0 - 1e-6))(loadIndex() + 1);
+    if (watch.kind == MeshEvent::Maximum && seg.motion.state(seg.event)(loadIndex() + 1) > 0.0)
+    {
+      watch.kind = MeshEvent::Minimum;  // (the turning points' watch: its velocity crossed upwards)
+    }
     segment_.reset();
-    last_kind_ = static_cast<int>(watch.kind);
+    last_kind_ = static_cast<int>(watched);
     last_sigma_ = watch.sigma;
     last_time_ = time_;
     if ((watch.kind == MeshEvent::Maximum && !(before > 0.0)) || (watch.kind == MeshEvent::Minimum && !(before < 0.0)))

@@ -747,9 +747,12 @@ LinearMode::Curvature LinearMode::curvature(const ModeVector& w) const
       }
       // |wᵀD v_i λ_i| |g_i| (a pair's: both terms in the first), by hypot only where the squares could overflow or
       // underflow.
+      // (An output the mode does not reach — a body's speed in a mode of the other body — has none.)
       const double squares = c_re * c_re + c_im * c_im;
-      k.beta(i) = basis_->weight_(i) * g_abs_(i) *
-                  (squares > 1e-290 && squares < 1e290 ? std::sqrt(squares) : std::hypot(c_re, c_im));
+      const double size = c_re == 0.0 && c_im == 0.0            ? 0.0
+                          : squares > 1e-290 && squares < 1e290 ? std::sqrt(squares)
+                                                                : std::hypot(c_re, c_im);
+      k.beta(i) = basis_->weight_(i) * g_abs_(i) * size;
       k.steady = k.steady && (k.beta(i) == 0.0 || k.rate(i) <= 0.0);
     }
     // The polynomial part: s'' = Σ_{j ≥ 1} (Dw)·P_j (j + 1) j τ^{j−1}, s''' = Σ_{j ≥ 2} (Dw)·P_j (j + 1) j (j − 1)
@@ -879,7 +882,7 @@ LinearMode::Verdict LinearMode::judge(const ModeVector& w, Local* local, double 
 double LinearMode::firstCrossing(const ModeVector& w, double w0, int direction, double horizon, double from,
                                  bool began_here) const
 {
-  if (!(horizon > 0.0) || (direction != 1 && direction != -1))
+  if (!(horizon > 0.0) || (direction != 1 && direction != 0 && direction != -1))
   {
     return INF;
   }
@@ -962,11 +965,13 @@ double LinearMode::searchWindow(const ModeVector& w, double w0, int direction, d
   }
   const double s = l.s, s1 = l.s1, m = l.m2, rounding = l.noise0;
   const double s_hi = output(w, w0, hi);
+  // (Either direction: the one the window's end tells — a crossing can only end on the side the output ends on.)
+  const int dir = direction != 0 ? direction : s_hi > 0.0 ? 1 : -1;
   // The start of a motion begun by this output's own crossing, where the output is within rounding of zero and
   // moving in the asked direction: that crossing, evaluated again — its sign there means nothing. (Only there: any
   // other output found within rounding of zero at a start, moving across, is searched by its signs like anywhere.)
-  const bool behind = lo == origin && std::fabs(s) <= rounding && direction * s1 > 0.0;
-  const bool changes = !behind && direction * s <= 0.0 && direction * s_hi > 0.0;
+  const bool behind = lo == origin && std::fabs(s) <= rounding && dir * s1 > 0.0;
+  const bool changes = !behind && dir * s <= 0.0 && dir * s_hi > 0.0;
   // Within rounding of zero at both ends and in its slope, on a window much shorter than any of the mode's
   // oscillations (or by the bound all along): the output's turning points there cannot be resolved, only a sign
   // change between the ends counts. (Where an output leaves zero to high order — a load set moving from rest — the
@@ -976,16 +981,16 @@ double LinearMode::searchWindow(const ModeVector& w, double w0, int direction, d
   if (std::fabs(s) + std::fabs(s1) * h + 0.5 * m * h * h <= rounding ||
       (short_window && std::fabs(s) <= rounding && std::fabs(s_hi) <= rounding && std::fabs(s1) * h <= rounding))
   {
-    return changes ? refine(w, w0, direction, lo, hi) : INF;
+    return changes ? refine(w, w0, dir, lo, hi) : INF;
   }
   if (verdict == Verdict::Monotone)
   {
-    return changes ? refine(w, w0, direction, lo, hi) : INF;  // one zero at most
+    return changes ? refine(w, w0, dir, lo, hi) : INF;  // one zero at most
   }
   if (h <= floor)
   {
     // Within the floor of a turning point: a sign change is the crossing; none is a grazing (see the file comment).
-    return changes ? refine(w, w0, direction, lo, hi) : INF;
+    return changes ? refine(w, w0, dir, lo, hi) : INF;
   }
   const double mid = lo + 0.5 * h;
   const double first = searchWindow(w, w0, direction, lo, mid, curv, floor, origin);
