@@ -46,10 +46,11 @@
  * either model keeps one sign farther from 0 than its remainder plus the rounding of the evaluated output and its
  * derivatives holds no zero. A window where |s'(a)| > M h, or where s'(a) + s''(a) t keeps its sign beyond ½ M₃ t²,
  * has a derivative of one sign, so s is monotone there: one zero at most, bracketed by the
- * signs at its ends and refined until both ends are adjacent doubles or within a few ulps of the output's terms,
- * where the sign of s means nothing more (Newton's method kept inside the bracket, s' = w·(Ax + u): about six
- * evaluations a crossing; where it stalls, the ITP method — regula falsi made two-sided and never slower than
- * bisection); the end past the crossing is the event. Any other window is halved, earliest half
+ * signs at its ends and refined until the end past the crossing is within a few ulps of the output's terms, where
+ * the sign of s means nothing more, or the ends are adjacent doubles (Newton's method kept inside the bracket, from
+ * the root of the window's quadratic model, s' = w·(Ax + u), each step aimed half that band past the crossing: about
+ * four evaluations a crossing; where it stalls, the ITP method — regula falsi made two-sided and never slower than
+ * bisection); that end is the event. Any other window is halved, earliest half
  * first. Where the bounds do not grow with the window (modal, no growing mode, no τ in s''), each window is the
  * longest these tests settle from one evaluation — halving the rest of the horizon until they do (arithmetic only) —
  * and at least h = √(|s(a)|/M); otherwise h = √(|s(a)|/M), at most 1/‖Â‖₂ (four of them modally); halving stops at
@@ -229,9 +230,10 @@ class LinearMode
   double noise(const ModeVector& w, double w0, const ModeVector& x) const;
   /// What rounding can do to w·v of a rate v = A x + u (or a higher derivative) computed from an evaluated state.
   double rateNoise(const ModeVector& w, const ModeVector& v) const;
-  /// The bracketed crossing in (lo, hi] (direction·s(lo) ≤ 0 < direction·s(hi)) refined to adjacent doubles or to a
-  /// few ulps of the output's terms (Newton, then ITP); returns the end past it.
-  double refine(const ModeVector& w, double w0, int direction, double lo, double hi) const;
+  /// The bracketed crossing in (lo, hi] (direction·s(lo) ≤ 0 < direction·s(hi), `at_lo` the window's local picture at
+  /// lo) refined until the end past it is within a few ulps of the output's terms or the ends are adjacent doubles
+  /// (Newton from the Taylor model's root, then ITP); returns that end.
+  double refine(const ModeVector& w, double w0, int direction, double lo, double hi, const Local& at_lo) const;
 
   std::shared_ptr<const ModeBasis> basis_;
   ModeVector u_, x0_;

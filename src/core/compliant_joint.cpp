@@ -502,11 +502,14 @@ void CompliantJoint::beginSegment()
   }
   if (slide_[1] != 0)  // (a stuck load has no turning points and cannot leave the watched interval)
   {
-    w = ModeVector::Zero(dim());
-    w(l + 1) = 1.0;
-    // Its turning points, both in one search (direction 0): the load's velocity just before tells a maximum from a
-    // minimum (the watch stands for both).
-    watches.push_back({w, 0.0, 0, MeshEvent::Maximum, 0});
+    if (!dry_[1])  // (with dry friction its stop, watched above, is its turning point)
+    {
+      w = ModeVector::Zero(dim());
+      w(l + 1) = 1.0;
+      // Its turning points, both in one search (direction 0): the load's velocity just after tells a maximum from a
+      // minimum (the watch stands for both).
+      watches.push_back({w, 0.0, 0, MeshEvent::Maximum, 0});
+    }
     w = ModeVector::Zero(dim());
     w(l) = 1.0;
     if (std::isfinite(watch_hi_))

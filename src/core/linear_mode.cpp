@@ -981,43 +981,62 @@ double LinearMode::searchWindow(const ModeVector& w, double w0, int direction, d
   if (std::fabs(s) + std::fabs(s1) * h + 0.5 * m * h * h <= rounding ||
       (short_window && std::fabs(s) <= rounding && std::fabs(s_hi) <= rounding && std::fabs(s1) * h <= rounding))
   {
-    return changes ? refine(w, w0, dir, lo, hi) : INF;
+    return changes ? refine(w, w0, dir, lo, hi, l) : INF;
   }
   if (verdict == Verdict::Monotone)
   {
-    return changes ? refine(w, w0, dir, lo, hi) : INF;  // one zero at most
+    return changes ? refine(w, w0, dir, lo, hi, l) : INF;  // one zero at most
   }
   if (h <= floor)
   {
     // Within the floor of a turning point: a sign change is the crossing; none is a grazing (see the file comment).
-    return changes ? refine(w, w0, dir, lo, hi) : INF;
+    return changes ? refine(w, w0, dir, lo, hi, l) : INF;
   }
   const double mid = lo + 0.5 * h;
   const double first = searchWindow(w, w0, direction, lo, mid, curv, floor, origin);
   return first < INF ? first : searchWindow(w, w0, direction, mid, hi, curv, floor, origin);
 }
 
-double LinearMode::refine(const ModeVector& w, double w0, int direction, double lo, double hi) const
+double LinearMode::refine(const ModeVector& w, double w0, int direction, double lo, double hi, const Local& at_lo) const
 {
   // The ITP method (Oliveira & Takahashi, ACM TOMS 2020): regula falsi, truncated a little past the root so that the
   // bracket closes from both sides, projected to within a shrinking distance of the midpoint so that it never takes
-  // more steps than bisection plus one — superlinear in practice. Run down to adjacent doubles, or until both ends
-  // are within a few ulps of the output's terms (the doubles the state is held in cannot place s closer to zero;
-  // bisecting that band to the last bit cost two thirds of all evaluations), and the end past it is returned. (Not
+  // more steps than bisection plus one — superlinear in practice. Run down to adjacent doubles, or until the end past
+  // the crossing is within a few ulps of the output's terms (the doubles the state is held in cannot place s closer
+  // to zero; bisecting that band to the last bit cost two thirds of all evaluations), and that end is returned. (Not
   // the closed form's whole rounding, noise(): a bound for the exclusion test, loose where the motion is fast —
   // stopping there placed a fast joint's crossing 1e-9 s off.)
   const ModeVector x_hi = state(hi);
-  double f_lo = direction * output(w, w0, lo), f_hi = direction * (w.dot(x_hi) + w0);
+  double f_lo = direction * at_lo.s, f_hi = direction * (w.dot(x_hi) + w0);
   const double band =
       4.0 * std::numeric_limits<double>::epsilon() * (w.cwiseAbs().dot(x_hi.cwiseAbs()) + std::fabs(w0));
-  // Newton's method on the bracket first (s' = w·(Ax + u) costs a product beside the evaluation): from the secant's
-  // point, each step kept inside the bracket, and once within the band aimed half a band past the crossing so that
-  // the bracket closes from the other side too. Quadratic near a simple crossing — a few evaluations where the
-  // bracketing method took about fifteen; where it stalls (a crossing at a turning point, s' ≈ 0) the bracketing
-  // method below takes over from the bracket reached.
+  // Newton's method on the bracket first (s' = w·(Ax + u) costs a product beside the evaluation): from the root of
+  // the window's Taylor model at lo (s + s't + ½s''t² where s'' is known, else the line; the secant where neither
+  // lies in the bracket), each step kept inside the bracket and aimed half a band past the crossing, so that it ends
+  // within the band on that side. Quadratic near a simple crossing — a few evaluations where the bracketing method
+  // took about fifteen; where it stalls (a crossing at a turning point, s' ≈ 0) the bracketing method below takes
+  // over from the bracket reached.
   {
     double t = (lo * f_hi - hi * f_lo) / (f_hi - f_lo);
-    for (int j = 0; j < NEWTON_STEPS && (f_hi > band || -f_lo > band); ++j)
+    const double rise = direction * at_lo.s1;
+    if (rise > 0.0)
+    {
+      double step = -f_lo / rise;
+      if (at_lo.second)
+      {
+        // The smaller root of ½ s'' t² + s' t + s = 0 in the cancellation-free form 2|s| / (s' + √(s'² − 2 s s'')).
+        const double disc = rise * rise - 2.0 * f_lo * direction * at_lo.s2;
+        if (disc >= 0.0)
+        {
+          step = -2.0 * f_lo / (rise + std::sqrt(disc));
+        }
+      }
+      if (lo + step > lo && lo + step < hi)
+      {
+        t = lo + step;
+      }
+    }
+    for (int j = 0; j < NEWTON_STEPS && f_hi > band; ++j)
     {
       if (!(t > lo && t < hi))
       {
@@ -1036,15 +1055,14 @@ double LinearMode::refine(const ModeVector& w, double w0, int direction, double 
       {
         break;  // not rising towards the crossing here: leave it to the bracketing method
       }
-      const double past = std::fabs(f) <= band ? 0.5 * band / slope : 0.0;
-      t = t - f / slope + (f > 0.0 ? -past : past);
+      t = t - (f - 0.5 * band) / slope;  // (aimed half a band past the crossing)
     }
   }
   const double eps = 0.5 * std::max(std::nextafter(hi, INF) - hi, std::numeric_limits<double>::denorm_min());
   const double kappa1 = 0.2 / (hi - lo);
   const int n_half = static_cast<int>(std::ceil(std::log2(std::max((hi - lo) / (2.0 * eps), 1.0))));
   const int n_max = n_half + 1;
-  for (int j = 0; j < 400 && (f_hi > band || -f_lo > band); ++j)
+  for (int j = 0; j < 400 && f_hi > band; ++j)
   {
     const double half = lo + 0.5 * (hi - lo);
     if (!(half > lo && half < hi))
