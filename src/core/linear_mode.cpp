@@ -13,11 +13,11 @@ namespace
 {
 constexpr double INF = std::numeric_limits<double>::infinity();
 
-/// a·x + u (plain loops: at these orders Eigen's general product costs more in dispatch than in arithmetic). The
-/// product is summed before u is added, as Eigen does: near an equilibrium the two cancel, and the event search's
-/// windows depend on how the rounding of that difference falls (adding u first made a stiff case halve ten times
-/// as often).
-ModeVector affine(const ModeMatrix& a, const ModeVector& x, const ModeVector& u)
+/// a·x, plus u where given (plain loops: at these orders Eigen's general product costs more in dispatch than in
+/// arithmetic). The product is summed before u is added, as Eigen does: near an equilibrium the two cancel, and the
+/// event search's windows depend on how the rounding of that difference falls (adding u first made a stiff case halve
+/// ten times as often).
+ModeVector product(const ModeMatrix& a, const ModeVector& x, const ModeVector* u = nullptr)
 {
   const Eigen::Index n = x.size();
   ModeVector y(n);
@@ -28,10 +28,13 @@ ModeVector affine(const ModeMatrix& a, const ModeVector& x, const ModeVector& u)
     {
       sum += a(i, j) * x(j);
     }
-    y(i) = sum + u(i);
+    y(i) = u != nullptr ? sum + (*u)(i) : sum;
   }
   return y;
 }
+
+/// a·x + u.
+ModeVector affine(const ModeMatrix& a, const ModeVector& x, const ModeVector& u) { return product(a, x, &u); }
 
 /**
  * a·x + u, as affine() where its terms do not cancel, else as if in twice the working precision, rounded once (Ogita,
@@ -839,7 +842,7 @@ LinearMode::Verdict LinearMode::judge(const ModeVector& w, Local* local, double 
   const bool second = std::isfinite(l.m3);
   if (second && !l.second)
   {
-    const ModeVector xdd = basis_->a_ * l.xd;  // ẍ = A ẋ (only where degree 1 did not settle it)
+    const ModeVector xdd = product(basis_->a_, l.xd);  // ẍ = A ẋ (only where degree 1 did not settle it)
     local->s2 = w.dot(xdd);
     local->noise2 = rateNoise(w, xdd);
     local->second = true;
@@ -899,7 +902,7 @@ double LinearMode::firstCrossing(const ModeVector& w, double w0, int direction, 
     for (int k = 0; flat && k < order(); ++k)
     {
       flat = std::fabs(w.dot(v)) <= rateNoise(w, v);
-      v = basis_->a_ * v;
+      v = product(basis_->a_, v);
     }
     if (flat)
     {
