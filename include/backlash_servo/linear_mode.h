@@ -52,11 +52,12 @@
  * four evaluations a crossing; where it stalls, the ITP method — regula falsi made two-sided and never slower than
  * bisection); that end is the event. Any other window is halved, earliest half
  * first. Where the bounds do not grow with the window (modal, no growing mode, no τ in s''), each window is the
- * longest these tests settle from one evaluation — halving the rest of the horizon until they do (arithmetic only) —
- * and at least h = √(|s(a)|/M); otherwise h = √(|s(a)|/M), at most 1/‖Â‖₂ (four of them modally); halving stops at
- * the floor h_min = FLOOR_FRACTION / ‖Â‖₂ — only near a turning point of s that lies within h_min·|s'| of zero — where
- * a sign change in the asked direction is the crossing and none is a **grazing**, reported as no crossing. That is the
- * documented tolerance: two crossings closer together than h_min (1e-9 of the mode's fastest time scale) cancel.
+ * longest these tests settle from one evaluation — each holds below a length, the roots of their quadratics (the
+ * degree-2 exclusion's cubic by bisection), so arithmetic only — and at least h = √(|s(a)|/M); otherwise h =
+ * √(|s(a)|/M), at most 1/‖Â‖₂ (four of them modally); halving stops at the floor h_min = FLOOR_FRACTION / ‖Â‖₂ — only
+ * near a turning point of s that lies within h_min·|s'| of zero — where a sign change in the asked direction is the
+ * crossing and none is a **grazing**, reported as no crossing. That is the documented tolerance: two crossings closer
+ * together than h_min (1e-9 of the mode's fastest time scale) cancel.
  */
 #pragma once
 
@@ -221,6 +222,10 @@ class LinearMode
     Unknown
   };
   Verdict judge(const ModeVector& w, Local* l, double h) const;
+  /// The longest window (at most `rest` [s]) that judge() settles from *l: each of its tests holds on an interval
+  /// [0, h) of lengths, so the longest is the largest of those — the roots of its quadratics in closed form, the
+  /// degree-2 exclusion's cubic by bisection. (Only where the bounds do not grow with the window.)
+  double reach(const ModeVector& w, Local* l, double rest) const;
   /// The first crossing in [lo, hi] (the window's state known at lo), +inf if none; `origin` is where the crossing
   /// that began the motion lies (NaN: none, see firstCrossing's began_here); `at_lo` the window's local picture if
   /// known (completed in place).

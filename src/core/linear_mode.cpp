@@ -34,7 +34,10 @@ ModeVector product(const ModeMatrix& a, const ModeVector& x, const ModeVector* u
 }
 
 /// a·x + u.
-ModeVector affine(const ModeMatrix& a, const ModeVector& x, const ModeVector& u) { return product(a, x, &u); }
+ModeVector affine(const ModeMatrix& a, const ModeVector& x, const ModeVector& u)
+{
+  return product(a, x, &u);
+}
 
 /**
  * a·x + u, as affine() where its terms do not cancel, else as if in twice the working precision, rounded once (Ogita,
@@ -882,6 +885,73 @@ LinearMode::Verdict LinearMode::judge(const ModeVector& w, Local* local, double 
   return Verdict::Unknown;
 }
 
+double LinearMode::reach(const ModeVector& w, Local* local, double rest) const
+{
+  const Local& l = *local;
+  // The longest h with a h² + b h < c (c > 0): the positive root 2c / (b + √(b² + 4ac)), +inf where none.
+  const auto below = [](double c, double b, double a) {
+    if (!(c > 0.0))
+    {
+      return 0.0;
+    }
+    const double den = b + std::sqrt(b * b + 4.0 * a * c);
+    return den > 0.0 ? 2.0 * c / den : INF;
+  };
+  // Degree 1 (as judge): |s| beyond ½m2h² + noise0 + noise1·h at both ends; |s'| beyond m2·h + noise1.
+  const double a = std::fabs(l.s), b = l.s >= 0.0 ? l.s1 : -l.s1;
+  double best =
+      std::max(std::min(below(a - l.noise0, l.noise1, 0.5 * l.m2), below(a - l.noise0, l.noise1 - b, 0.5 * l.m2)),
+               below(std::fabs(l.s1) - l.noise1, l.m2, 0.0));
+  if (best >= rest || !std::isfinite(l.m3))
+  {
+    return std::min(best, rest);
+  }
+  if (!l.second)
+  {
+    const ModeVector xdd = product(basis_->a_, l.xd);
+    local->s2 = w.dot(xdd);
+    local->noise2 = rateNoise(w, xdd);
+    local->second = true;
+  }
+  // Degree 2, monotone: s' + s''t keeps its sign beyond ½m3t² + noise1 + noise2·t at both ends.
+  const double a1 = std::fabs(l.s1), b1 = l.s1 >= 0.0 ? l.s2 : -l.s2;
+  if (l.s1 != 0.0)
+  {
+    best = std::max(
+        best, std::min(below(a1 - l.noise1, l.noise2, 0.5 * l.m3), below(a1 - l.noise1, l.noise2 - b1, 0.5 * l.m3)));
+  }
+  // Degree 2, exclusion: the quadratic's least value on [0, h] beyond m3h³/6 + noise0 + noise1·h + ½noise2·h² —
+  // falling with h against a rising bound, so it holds below one length, found by bisection (in ratio).
+  if (l.s != 0.0 && best < rest)
+  {
+    const double c = l.s >= 0.0 ? l.s2 : -l.s2;
+    const auto holds = [&](double h) {
+      double least = std::min(a, a + b * h + 0.5 * c * h * h);
+      if (c > 0.0 && -b / c > 0.0 && -b / c < h)
+      {
+        least = std::min(least, a + 0.5 * b * (-b / c));
+      }
+      return least > l.m3 * h * h * h / 6.0 + l.noise0 + l.noise1 * h + 0.5 * l.noise2 * h * h;
+    };
+    if (holds(rest))
+    {
+      return rest;
+    }
+    double ok = best, no = rest;
+    if (holds(ok > 0.0 ? ok * 1.0625 : rest * 1e-3))
+    {
+      ok = ok > 0.0 ? ok * 1.0625 : rest * 1e-3;
+      for (int k = 0; k < 8; ++k)
+      {
+        const double mid = std::sqrt(ok * no);
+        (holds(mid) ? ok : no) = mid;
+      }
+      best = ok;
+    }
+  }
+  return std::min(best, rest);
+}
+
 double LinearMode::firstCrossing(const ModeVector& w, double w0, int direction, double horizon, double from,
                                  bool began_here) const
 {
@@ -916,17 +986,13 @@ double LinearMode::firstCrossing(const ModeVector& w, double w0, int direction, 
     const double rest = horizon - t;
     if (basis_->modal_ && curv.steady && std::isfinite(rest))
     {
-      // The bounds do not grow with the window: the longest window the tests settle at once, halving from the rest
-      // of the horizon (arithmetic only) — or, where none does down to where the remainder bound reaches about |s|,
-      // that length, to be halved by the search.
+      // The bounds do not grow with the window: the longest window the tests settle at once (reach(), arithmetic
+      // only) — but at least where the remainder bound reaches about |s|, a window the search will halve if need be.
+      // (A hair short of a root: there the tests' rounding may go either way.)
       Local l = t == from ? start : local(w, w0, t, rest, curv);
       const double least = l.m2 > 0.0 ? std::max(std::sqrt(std::fabs(l.s) / l.m2), 1e-3 * scale) : rest;
-      double h = rest;
-      for (int k = 0; k < 64 && h > least && judge(w, &l, h) == Verdict::Unknown; ++k)
-      {
-        h *= 0.5;
-      }
-      h = std::min(std::max(h, least), rest);
+      const double longest = rest > least ? reach(w, &l, rest) : rest;
+      const double h = std::min(std::max(longest < rest ? longest * (1.0 - 0x1p-20) : rest, least), rest);
       const double hit = searchWindow(w, w0, direction, t, t + h, curv, floor, origin, &l);
       if (hit < INF)
       {
