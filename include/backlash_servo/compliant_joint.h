@@ -271,6 +271,7 @@ class CompliantJoint
     std::array<int, 2> slide;  // the bodies' slides over the segment (slide_ at its start)
     double piece = 0.0;        // length of a piece [s]
     long pieces_done = 0;
+    double resumed = 0.0;  // local time [s] its watches were set up: 0, or a later event's that changed only them
   };
   int out() const { return 2; }  // index of θ_o, the mesh's output-side angle (θ_c itself with a rigid shaft)
   /// The law or the load has a wave: the modes carry its oscillators.
@@ -319,7 +320,15 @@ class CompliantJoint
   void impact(int sigma);
   /// The basis of a mode's matrix A: computed once and kept (a few modes and drive laws recur all run long).
   std::shared_ptr<const ModeBasis> basisFor(const ModeMatrix& a);
+  /// The outputs watched for events in the current mode from the current state.
+  std::vector<Watch> watchList() const;
   void beginSegment();
+  /// Goes on with the current segment's motion after an event at its local time tau [s] that changed only what is
+  /// watched: its watches set up afresh there.
+  void resumeSegment(double tau);
+  /// An event at the watches' start that the state there already implies (its crossing lay within rounding); a and u
+  /// the mode's ẋ = A x + u.
+  void checkStart(const ModeMatrix& a, const ModeVector& u);
   void searchNextWindow();
   /// The ledger's integrals over [a, b] of the segment's local time (8-point Gauss–Legendre), added to *e.
   void integrate(const Segment& seg, double a, double b, CompliantEnergy* e) const;

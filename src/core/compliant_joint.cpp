@@ -416,18 +416,10 @@ std::shared_ptr<const ModeBasis> CompliantJoint::basisFor(const ModeMatrix& a)
   return bases_.back();
 }
 
-void CompliantJoint::beginSegment()
+std::vector<CompliantJoint::Watch> CompliantJoint::watchList() const
 {
   const double c = s_.mesh_stiffness, d = s_.mesh_damping;
   const int l = loadIndex();
-  if (forced())
-  {
-    setModeState(state());  // the oscillator exact at the segment's start (a function of time alone)
-  }
-  ModeMatrix a;
-  ModeVector u;
-  modeMatrices(mode_, slide_, &a, &u);
-  LinearMode motion(basisFor(a), u, x_);
   std::vector<Watch> watches;
   watches.reserve(12);
   ModeVector w;
@@ -521,6 +513,19 @@ void CompliantJoint::beginSegment()
       watches.push_back({w, -watch_lo_, -1, MeshEvent::WatchExit, -1});
     }
   }
+  return watches;
+}
+
+void CompliantJoint::beginSegment()
+{
+  if (forced())
+  {
+    setModeState(state());  // the oscillator exact at the segment's start (a function of time alone)
+  }
+  ModeMatrix a;
+  ModeVector u;
+  modeMatrices(mode_, slide_, &a, &u);
+  LinearMode motion(basisFor(a), u, x_);
   // Windows of a fixed length from the anchor: long enough for many of the mode's fastest oscillations, short enough
   // that a window's search stays cheap.
   double window = WINDOW_SCALE / std::max(motion.norm(), 1e-300);
@@ -530,17 +535,39 @@ void CompliantJoint::beginSegment()
   }
   const double piece = 0.5 / std::max(motion.norm(), 1e-300);
   const double first_window = std::min(window, FIRST_WINDOW_SCALE / std::max(motion.norm(), 1e-300));
-  segment_.emplace(Segment{std::move(motion), time_, window, first_window, 0.0, INF, -1, std::move(watches), energy_,
+  segment_.emplace(Segment{std::move(motion), time_, window, first_window, 0.0, INF, -1, watchList(), energy_,
                            CompliantEnergy(), slide_, piece, 0});
-  // The watch `matches` picks becomes the segment's first event, at its start.
+  checkStart(a, u);
+}
+
+void CompliantJoint::resumeSegment(double tau)
+{
+  // The same motion on: only what is watched changed (a flank's penetration ended in the free play, a turning
+  // point). Its watches are set up afresh from the state at tau, searched from there in short windows again.
   Segment& seg = *segment_;
-  const ModeVector xd = a * x_ + u;  // ẋ at the start: which way the start's outputs move
+  ModeMatrix a;
+  ModeVector u;
+  modeMatrices(mode_, slide_, &a, &u);
+  seg.watches = watchList();
+  seg.resumed = tau;
+  seg.searched = tau;
+  seg.event = INF;
+  seg.hit = -1;
+  seg.next_window = std::min(seg.window, FIRST_WINDOW_SCALE / std::max(seg.motion.norm(), 1e-300));
+  checkStart(a, u);
+}
+
+void CompliantJoint::checkStart(const ModeMatrix& a, const ModeVector& u)
+{
+  // The watch `matches` picks becomes the event at the watches' start.
+  Segment& seg = *segment_;
+  const ModeVector x = x_, xd = a * x + u;  // the state there, and ẋ: which way the outputs move
   const auto startWith = [&seg](const auto& matches) {
-    for (std::size_t i = 0; i < seg.watches.size() && seg.event != 0.0; ++i)
+    for (std::size_t i = 0; i < seg.watches.size() && seg.event != seg.resumed; ++i)
     {
       if (matches(seg.watches[i]))
       {
-        seg.event = 0.0;
+        seg.event = seg.resumed;
         seg.hit = static_cast<int>(i);
         return;
       }
@@ -562,7 +589,7 @@ void CompliantJoint::beginSegment()
         {
           return false;
         }
-        const double out = r.w.dot(x_) + r.w0, noise = roundingOf(r.w, r.w0, x_);
+        const double out = r.w.dot(x) + r.w0, noise = roundingOf(r.w, r.w0, x);
         return out < -noise || (std::fabs(out) <= noise && r.w.dot(xd) < -roundingOf(r.w, 0.0, xd));
       });
     }
@@ -584,7 +611,7 @@ void CompliantJoint::beginSegment()
   // Dry friction, likewise: a stuck body whose holding torque is beyond its static band (or at its edge and
   // leaving it) breaks away here; a sliding body whose velocity is against its slide (or zero and turning against
   // it) stops here — not one that began to slide at this very instant.
-  for (int b = 0; b < 2 && seg.event != 0.0; ++b)
+  for (int b = 0; b < 2 && seg.event != seg.resumed; ++b)
   {
     if (!dry_[b])
     {
@@ -598,7 +625,7 @@ void CompliantJoint::beginSegment()
           return false;
         }
         // H ∓ T_s in its direction: beyond the band, or at its edge and rising (H̊ from the moving bodies' rates).
-        const double out = e.direction * (e.w.dot(x_) + e.w0), noise = roundingOf(e.w, e.w0, x_);
+        const double out = e.direction * (e.w.dot(x) + e.w0), noise = roundingOf(e.w, e.w0, x);
         return out > noise || (out >= -noise && e.direction * e.w.dot(xd) > roundingOf(e.w, 0.0, xd));
       });
     }
@@ -620,19 +647,20 @@ void CompliantJoint::searchNextWindow()
   // (The windows end where the segment is re-anchored: at REANCHOR_WINDOWS longest windows.)
   const double from = seg.searched, to = std::min(seg.searched + seg.next_window, REANCHOR_WINDOWS * seg.window);
   seg.next_window = std::min(2.0 * seg.next_window, seg.window);
-  // The event that began this segment lies at its start: its own crossing is not searched for again within the
-  // search floor (1e-9 of the fastest time scale).
+  // The event that began this segment (or set up its watches again) lies at their start: its own crossing is not
+  // searched for again within the search floor (1e-9 of the fastest time scale).
   const double skip = LinearMode::FLOOR_FRACTION / std::max(seg.motion.norm(), 1e-300);
+  const double began = seg.start + seg.resumed;
   for (std::size_t i = 0; i < seg.watches.size(); ++i)
   {
     const Watch& watch = seg.watches[i];
     // (A body that began to slide from rest here: its velocity's zero at the start began the motion.)
     const bool again =
-        from == 0.0 &&
-        ((static_cast<int>(watch.kind) == last_kind_ && watch.sigma == last_sigma_ && seg.start == last_time_) ||
-         (watch.kind == MeshEvent::Stop && slide_began_[watch.sigma] == seg.start));
+        from == seg.resumed &&
+        ((static_cast<int>(watch.kind) == last_kind_ && watch.sigma == last_sigma_ && began == last_time_) ||
+         (watch.kind == MeshEvent::Stop && slide_began_[watch.sigma] == began));
     const double tau = seg.motion.firstCrossing(watch.w, watch.w0, watch.direction, std::min(to, seg.event),
-                                                again ? skip : from, again);
+                                                again ? seg.resumed + skip : from, again);
     if (tau < seg.event)
     {
       seg.event = tau;
@@ -682,23 +710,42 @@ bool CompliantJoint::advanceTo(double t_end, const Observer& observer)
       moveTo(local_end, t_end);
       return false;
     }
-    moveTo(seg.event, seg.start + seg.event);
+    const double tau = seg.event;
+    moveTo(tau, seg.start + tau);
     Watch watch = seg.watches[static_cast<std::size_t>(seg.hit)];
     const MeshEvent watched = watch.kind;  // (`again` compares the kind watched)
-    const double before = seg.motion.state(seg.event * (1.0 - 1e-6))(loadIndex() + 1);
-    if (watch.kind == MeshEvent::Maximum && seg.motion.state(seg.event)(loadIndex() + 1) > 0.0)
+    const double before = seg.motion.state(tau * (1.0 - 1e-6))(loadIndex() + 1);
+    if (watch.kind == MeshEvent::Maximum && seg.motion.state(tau)(loadIndex() + 1) > 0.0)
     {
       watch.kind = MeshEvent::Minimum;  // (the turning points' watch: its velocity crossed upwards)
     }
-    segment_.reset();
     last_kind_ = static_cast<int>(watched);
     last_sigma_ = watch.sigma;
     last_time_ = time_;
-    if ((watch.kind == MeshEvent::Maximum && !(before > 0.0)) || (watch.kind == MeshEvent::Minimum && !(before < 0.0)))
+    const MeshMode mode = mode_;
+    const std::array<int, 2> slide = slide_;
+    const double mesh_loss = energy_.mesh_loss;
+    bool stop = false;
+    // (A turning point only where the load moved that way just before — not a load at rest pushed off.)
+    if (!(watch.kind == MeshEvent::Maximum && !(before > 0.0)) &&
+        !(watch.kind == MeshEvent::Minimum && !(before < 0.0)))
     {
-      continue;  // a turning point only where the load moved that way just before (not a load at rest pushed off)
+      stop = handle(watch, observer);
     }
-    if (handle(watch, observer))
+    // An event that changed only what is watched (a turning point; a released flank's penetration ended in the free
+    // play) goes on with the same motion; any other begins a new segment from the state now. (The observer may have
+    // ended the segment already: a new law.)
+    const bool watches_only = watched == MeshEvent::Maximum || watched == MeshEvent::LeavePenetration;
+    if (segment_ && watches_only && mode_ == mode && slide_ == slide)
+    {
+      segment_->at_start.mesh_loss += energy_.mesh_loss - mesh_loss;  // (the ledger is placed from the segment's)
+      resumeSegment(tau);
+    }
+    else
+    {
+      segment_.reset();
+    }
+    if (stop)
     {
       return true;
     }
