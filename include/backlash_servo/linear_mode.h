@@ -16,7 +16,9 @@
  * (a free body under constant torque), O(n²) per evaluation. A zero eigenvalue without a full eigenspace (a body
  * without viscous friction, a free body whose position drives the motor through the drive law, two bodies joined
  * only by a spring) splits the space into invariant parts, ℝⁿ = range Â^K ⊕ ker Â^K (K the eigenvalue's index, both
- * found by SVD of the powers of Â; exact structural zeros only, 1e-12 of the largest singular value): on the range
+ * found by SVD of the powers of Â; exact structural zeros only, 1e-12 of the largest singular value, and the kernel
+ * grown only by chains: Â maps each new direction into ker Â^{k−1} to CHAIN_TOLERANCE of ‖Â‖ — a mode merely slow,
+ * whose powers also fall below that threshold, stays with the diagonalised modes): on the range
  * Â is diagonalised as above, on the kernel it is a nilpotent block N (N^m = 0, m = dim ker Â^K), whose coordinates
  * y obey ẏ = N y + g_N, y(0) = 0, so that
  *   δ̂(τ) = Σ_{λ_k ≠ 0} V_k τ φ₁(λ_kτ) g_k + V_N Σ_{j<m} Nʲ g_N τ^{j+1}/(j + 1)!,
@@ -92,6 +94,9 @@ class ModeBasis
   /// (the blocks decoupled, the slow block's series summed beyond m terms); beyond, the Taylor series.
   static constexpr double EXACT_SPLIT = 1e-14;
   static constexpr double NEAR_SPLIT = 1e-10;
+  /// How far from ker Â^{k−1} (relative to ‖Â‖₂) Â may map a direction that grows ker Â^k: a chain of the zero
+  /// eigenvalue, or a mode slow enough for the slow block's series; a faster one stays with the diagonalised modes.
+  static constexpr double CHAIN_TOLERANCE = 1e-7;
 
   /// @param a the mode's matrix A (n × n, n ≤ MAX_MODE_ORDER, finite) [SI per the state's units]. Throws
   /// std::invalid_argument.

@@ -219,7 +219,20 @@ void ModeBasis::splitNilpotent(const Eigen::MatrixXd& b)
     {
       break;  // ker Â^k no longer grows: the index is k − 1
     }
-    kernel = svd.matrixV().rightCols(n - rank);
+    // Grown by a chain only: Â maps each new direction into ker Â^{k−1} (to CHAIN_TOLERANCE of ‖Â‖, which lets in a
+    // mode the slow block's series can follow). A mode merely slow (Âv = λv, 4e-5 of ‖Â‖, say) also falls below the
+    // rank threshold by Â³, but is no chain: it stays with the modes diagonalised.
+    const Eigen::MatrixXd grown = svd.matrixV().rightCols(n - rank);
+    Eigen::MatrixXd image = b * grown;
+    if (kernel.cols() > 0)
+    {
+      image -= kernel * (kernel.transpose() * image);
+    }
+    if (image.norm() > CHAIN_TOLERANCE * norm_a_)
+    {
+      break;
+    }
+    kernel = grown;
     range = svd.matrixU().leftCols(rank);
   }
   const Eigen::Index m = kernel.cols(), r = n - m;
