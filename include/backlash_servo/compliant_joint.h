@@ -258,6 +258,19 @@ class CompliantJoint
   /// The closed form of the current mode anchored at its start, and how far its events were searched.
   struct Segment
   {
+    /// The mode's closed form built in place from the state x at time `start` (the LinearMode is large: not copied).
+    Segment(std::shared_ptr<const ModeBasis> basis, const ModeVector& u, const ModeVector& x, double start_time,
+            double window_length, double first_window, std::vector<Watch> watch_list, const CompliantEnergy& ledger,
+            const std::array<int, 2>& slides, double piece_length)
+        : motion(std::move(basis), u, x),
+          start(start_time),
+          window(window_length),
+          next_window(first_window),
+          watches(std::move(watch_list)),
+          at_start(ledger),
+          slide(slides),
+          piece(piece_length)
+    {}
     LinearMode motion;
     double start;             // [s]
     double window;            // longest search window [s]

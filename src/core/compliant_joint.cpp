@@ -525,18 +525,18 @@ void CompliantJoint::beginSegment()
   ModeMatrix a;
   ModeVector u;
   modeMatrices(mode_, slide_, &a, &u);
-  LinearMode motion(basisFor(a), u, x_);
+  std::shared_ptr<const ModeBasis> basis = basisFor(a);
+  const double norm = std::max(basis->norm(), 1e-300);  // ‖Â‖₂ [1/s]
   // Windows of a fixed length from the anchor: long enough for many of the mode's fastest oscillations, short enough
   // that a window's search stays cheap.
-  double window = WINDOW_SCALE / std::max(motion.norm(), 1e-300);
+  double window = WINDOW_SCALE / norm;
   if (horizon_ > time_ && horizon_ - time_ < window)
   {
     window = horizon_ - time_;
   }
-  const double piece = 0.5 / std::max(motion.norm(), 1e-300);
-  const double first_window = std::min(window, FIRST_WINDOW_SCALE / std::max(motion.norm(), 1e-300));
-  segment_.emplace(Segment{std::move(motion), time_, window, first_window, 0.0, INF, -1, watchList(), energy_,
-                           CompliantEnergy(), slide_, piece, 0});
+  const double piece = 0.5 / norm;
+  const double first_window = std::min(window, FIRST_WINDOW_SCALE / norm);
+  segment_.emplace(std::move(basis), u, x_, time_, window, first_window, watchList(), energy_, slide_, piece);
   checkStart(a, u);
 }
 
