@@ -227,6 +227,8 @@ class LinearMode
     Unknown
   };
   Verdict judge(const ModeVector& w, Local* l, double h) const;
+  /// s'' = w·Aẋ and its rounding into *l, unless already there.
+  void completeSecond(const ModeVector& w, Local* l) const;
   /// The longest window (at most `rest` [s]) that judge() settles from *l: each of its tests holds on an interval
   /// [0, h) of lengths, so the longest is the largest of those — the roots of its quadratics in closed form, the
   /// degree-2 exclusion's cubic by bisection. (Only where the bounds do not grow with the window.)

@@ -842,6 +842,17 @@ LinearMode::Local LinearMode::local(const ModeVector& w, double w0, double lo, d
   return l;
 }
 
+void LinearMode::completeSecond(const ModeVector& w, Local* local) const
+{
+  if (!local->second)
+  {
+    const ModeVector xdd = product(basis_->a_, local->xd);  // ẍ = A ẋ
+    local->s2 = w.dot(xdd);
+    local->noise2 = rateNoise(w, xdd);
+    local->second = true;
+  }
+}
+
 LinearMode::Verdict LinearMode::judge(const ModeVector& w, Local* local, double h) const
 {
   const Local& l = *local;
@@ -856,12 +867,9 @@ LinearMode::Verdict LinearMode::judge(const ModeVector& w, Local* local, double 
   // Degree 2: s(lo + t) = s + s' t + ½ s'' t² + R, |R| ≤ m3 t³/6 — the quadratic's least value on the window (at an
   // end, or at its vertex) beyond the remainder and the rounding of its coefficients.
   const bool second = std::isfinite(l.m3);
-  if (second && !l.second)
+  if (second)
   {
-    const ModeVector xdd = product(basis_->a_, l.xd);  // ẍ = A ẋ (only where degree 1 did not settle it)
-    local->s2 = w.dot(xdd);
-    local->noise2 = rateNoise(w, xdd);
-    local->second = true;
+    completeSecond(w, local);  // (only where degree 1 did not settle it)
   }
   if (second && l.s != 0.0)
   {
@@ -919,13 +927,7 @@ double LinearMode::reach(const ModeVector& w, Local* local, double rest) const
   {
     return std::min(best, rest);
   }
-  if (!l.second)
-  {
-    const ModeVector xdd = product(basis_->a_, l.xd);
-    local->s2 = w.dot(xdd);
-    local->noise2 = rateNoise(w, xdd);
-    local->second = true;
-  }
+  completeSecond(w, local);
   // Degree 2, monotone: s' + s''t keeps its sign beyond ½m3t² + noise1 + noise2·t at both ends.
   const double a1 = std::fabs(l.s1), b1 = l.s1 >= 0.0 ? l.s2 : -l.s2;
   if (l.s1 != 0.0)
