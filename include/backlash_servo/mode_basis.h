@@ -1,0 +1,111 @@
+/**
+ * @file mode_basis.h
+ * @brief What a linear mode's matrix A determines, computed once and shared by every motion of that mode (the
+ *        closed forms built on it are in linear_mode.h): the balancing, the eigenbasis, and the split of a zero
+ *        eigenvalue that lacks eigenvectors. No ROS dependency.
+ *
+ * **Balancing.** Â = D⁻¹AD, D a diagonal of powers of 2 (Parlett–Reinsch), so that ‖Â‖₂ is near the mode's fastest
+ * frequency and the bounds of the event search (linear_mode.h) are tight.
+ *
+ * **Eigenbasis.** When Â has a complete, well-conditioned eigenbasis, Â = V Λ V⁻¹ (cond(V) ≤
+ * MAX_EIGENBASIS_CONDITION), and motions are evaluated modally.
+ *
+ * **A zero eigenvalue without a full eigenspace** (a body without viscous friction, a free body whose position drives
+ * the motor through the drive law, two bodies joined only by a spring) splits the space into invariant parts,
+ * ℝⁿ = range Â^K ⊕ ker Â^K (K the eigenvalue's index, both found by SVD of the powers of Â; exact structural zeros
+ * only, 1e-12 of the largest singular value, and the kernel grown only by chains: Â maps each new direction into
+ * ker Â^{k−1} to CHAIN_TOLERANCE of ‖Â‖ — a mode merely slow, whose powers also fall below that threshold, stays with
+ * the diagonalised modes): on the range Â is diagonalised as above, on the kernel it is a nilpotent block N
+ * (N^m = 0, m = dim ker Â^K), whose motion is a polynomial.
+ *
+ * **A near split.** When the zero eigenvalue has a neighbour that is merely small (a body's viscous friction f/J ~
+ * 1e-9 of a mesh's frequency: the common drift of bodies in contact decays that slowly), the two parts are coupled
+ * and the block is not nilpotent to within rounding (up to NEAR_SPLIT): the coupling is removed — T⁻¹ÂT = [F C; D S]
+ * block-diagonalised by [I X; Y I] from the Sylvester equations F X − X S = X D X − C, Y F − S Y = D − Y C Y — and
+ * the slow block's series is summed on beyond m terms, to rounding over LinearMode::SERIES_SPAN fast time scales
+ * (taking it as nilpotent resolved the drift to 1e-7 only).
+ *
+ * Otherwise (a defective eigenvalue that is not zero: a critically damped pair) there is no modal form: motions are
+ * their Taylor series (linear_mode.h).
+ */
+#pragma once
+
+#include <Eigen/Dense>
+#include <complex>
+
+namespace backlash_servo
+{
+class LinearMode;
+
+/// The largest order of a linear mode (the compliant joint's are 4 and 6).
+constexpr int MAX_MODE_ORDER = 8;
+/// Vectors and matrices of a mode's order, stored in place (no heap allocation on the event searches' hot paths).
+using ModeVector = Eigen::Matrix<double, Eigen::Dynamic, 1, 0, MAX_MODE_ORDER, 1>;
+using ModeVectorC = Eigen::Matrix<std::complex<double>, Eigen::Dynamic, 1, 0, MAX_MODE_ORDER, 1>;
+using ModeMatrix = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, MAX_MODE_ORDER, MAX_MODE_ORDER>;
+using ModeMatrixC =
+    Eigen::Matrix<std::complex<double>, Eigen::Dynamic, Eigen::Dynamic, 0, MAX_MODE_ORDER, MAX_MODE_ORDER>;
+
+/// What one mode's matrix A determines, computed once: the balancing D, Â = D⁻¹AD and ‖Â‖₂, and the eigenbasis of Â
+/// when it is complete and well-conditioned. Immutable; shared between the motions of that mode.
+class ModeBasis
+{
+ public:
+  /// Eigenbases worse conditioned than this are not used: the Taylor series instead. (A defective eigenvalue's
+  /// computed eigenvectors are parallel to about √ε, a condition near 1e8: the threshold stays well below that.)
+  static constexpr double MAX_EIGENBASIS_CONDITION = 1e6;
+  /// The zero eigenvalue's split (see the file comment), relative to ‖Â‖₂ (to its m-th power for Nᵐ): couplings
+  /// between the subspaces and a remainder Nᵐ up to EXACT_SPLIT are rounding; up to NEAR_SPLIT they are removed
+  /// (the blocks decoupled, the slow block's series summed beyond m terms); beyond, the Taylor series.
+  static constexpr double EXACT_SPLIT = 1e-14;
+  static constexpr double NEAR_SPLIT = 1e-10;
+  /// How far from ker Â^{k−1} (relative to ‖Â‖₂) Â may map a direction that grows ker Â^k: a chain of the zero
+  /// eigenvalue, or a mode slow enough for the slow block's series; a faster one stays with the diagonalised modes.
+  static constexpr double CHAIN_TOLERANCE = 1e-7;
+
+  /// @param a the mode's matrix A (n × n, n ≤ MAX_MODE_ORDER, finite) [SI per the state's units]. Throws
+  /// std::invalid_argument.
+  explicit ModeBasis(const Eigen::MatrixXd& a);
+
+  int order() const { return static_cast<int>(a_.rows()); }
+  const ModeMatrix& matrix() const { return a_; }
+  /// Whether motions are evaluated modally (else by their Taylor series).
+  bool modal() const { return modal_; }
+  /// The order of the modal form's polynomial part (0: none; see the file comment).
+  int polynomialOrder() const { return nil_; }
+  /// ‖Â‖₂ [1/s] of the balanced matrix: the mode's fastest time scale is its inverse.
+  double norm() const { return norm_a_; }
+  /// The eigenvalues of A [1/s].
+  Eigen::VectorXcd eigenvalues() const;
+  /// The relative rounding error of an evaluated state, in the balanced basis (grows with cond(V)).
+  double rounding() const { return rounding_; }
+
+ private:
+  friend class LinearMode;
+  ModeMatrix a_;
+  ModeVector bal_;       // the balancing D (diagonal)
+  ModeMatrix balanced_;  // Â = D⁻¹AD
+  double norm_a_ = 0.0;  // ‖Â‖₂
+  bool modal_ = false;
+  double rounding_ = 0.0;
+  ModeMatrixC v_;               // eigenvectors of Â (modal), then a real basis of the nilpotent block's subspace
+  ModeVectorC lambda_;          // eigenvalues (modal; 0 for the nilpotent block's coordinates)
+  ModeVector speed_;            // |λ| of each (modal, the nilpotent block's excepted)
+  ModeMatrix dvl_re_, dvl_im_;  // D V Λ (modal, those columns): an output w's modal curvatures are wᵀDVΛ
+  ModeMatrixC v_inv_;           // V⁻¹ (modal)
+  ModeVector weight_;           // per eigenvalue: 1, or 2 and 0 for a complex pair (only the first evaluated, doubled)
+  int nil_ = 0;                 // the order of the nilpotent block (the last nil_ columns of V)
+  int poly_terms_ = 0;          // the terms of its series: nil_, or more for a block that is slow but not nilpotent
+  ModeMatrix nilpotent_;        // N: Â restricted to ker Â^K in those coordinates (N^nil_ = 0, or merely small)
+  /// Takes V, Λ (and a nilpotent block of that order in V's last columns) if V is well-conditioned.
+  bool useBasis(const Eigen::MatrixXcd& v, const Eigen::VectorXcd& lambda, int nilpotent_order);
+  /// The modal form with a polynomial part where Â's zero eigenvalue lacks eigenvectors (see the file comment).
+  void splitNilpotent(const Eigen::MatrixXd& b);
+  /// Block-diagonalises T⁻¹ÂT = [F C; D S] (F r × r) by T ← T [I X; Y I] (Sylvester equations for X, Y) and
+  /// recomputes *blocks; false if the blocks could not be separated.
+  bool decouple(Eigen::Index r, Eigen::Index m, Eigen::MatrixXd* t, Eigen::MatrixXd* blocks);
+  /// The terms of the slow block S's series that reach rounding on τ ≤ LinearMode::SERIES_SPAN/‖Â‖₂.
+  int slowTerms(const Eigen::MatrixXd& s) const;
+};
+
+}  // namespace backlash_servo
