@@ -31,6 +31,7 @@
 #pragma once
 
 #include <Eigen/Dense>
+#include <array>
 #include <complex>
 
 namespace backlash_servo
@@ -84,6 +85,7 @@ class ModeBasis
   friend class LinearMode;
   ModeMatrix a_;
   ModeVector bal_;       // the balancing D (diagonal)
+  ModeVector inv_bal_;   // D⁻¹ (exact: powers of 2)
   ModeMatrix balanced_;  // Â = D⁻¹AD
   double norm_a_ = 0.0;  // ‖Â‖₂
   bool modal_ = false;
@@ -94,9 +96,12 @@ class ModeBasis
   ModeMatrix dvl_re_, dvl_im_;  // D V Λ (modal, those columns): an output w's modal curvatures are wᵀDVΛ
   ModeMatrixC v_inv_;           // V⁻¹ (modal)
   ModeVector weight_;           // per eigenvalue: 1, or 2 and 0 for a complex pair (only the first evaluated, doubled)
-  int nil_ = 0;                 // the order of the nilpotent block (the last nil_ columns of V)
-  int poly_terms_ = 0;          // the terms of its series: nil_, or more for a block that is slow but not nilpotent
-  ModeMatrix nilpotent_;        // N: Â restricted to ker Â^K in those coordinates (N^nil_ = 0, or merely small)
+  std::array<int, MAX_MODE_ORDER> active_{};  // the eigenvalues evaluated (weight ≠ 0), in order
+  int n_active_ = 0;
+  ModeMatrix dv_re_, dv_im_;  // D V of those columns (modal): a motion's deviation is D V (τ φ₁(Λτ) g)
+  int nil_ = 0;               // the order of the nilpotent block (the last nil_ columns of V)
+  int poly_terms_ = 0;        // the terms of its series: nil_, or more for a block that is slow but not nilpotent
+  ModeMatrix nilpotent_;      // N: Â restricted to ker Â^K in those coordinates (N^nil_ = 0, or merely small)
   /// Takes V, Λ (and a nilpotent block of that order in V's last columns) if V is well-conditioned.
   bool useBasis(const Eigen::MatrixXcd& v, const Eigen::VectorXcd& lambda, int nilpotent_order);
   /// The modal form with a polynomial part where Â's zero eigenvalue lacks eigenvectors (see the file comment).

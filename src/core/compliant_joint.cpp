@@ -8,6 +8,7 @@
 #include "backlash_servo/gear_mesh.h"
 #include "backlash_servo/linear_mode.h"
 #include "compliant_joint_detail.h"
+#include "mode_products.h"
 
 namespace backlash_servo
 {
@@ -561,7 +562,7 @@ void CompliantJoint::checkStart(const ModeMatrix& a, const ModeVector& u)
 {
   // The watch `matches` picks becomes the event at the watches' start.
   Segment& seg = *segment_;
-  const ModeVector x = x_, xd = a * x + u;  // the state there, and ẋ: which way the outputs move
+  const ModeVector x = x_, xd = mode_detail::affine(a, x, u);  // the state there, and ẋ: which way the outputs move
   const auto startWith = [&seg](const auto& matches) {
     for (std::size_t i = 0; i < seg.watches.size() && seg.event != seg.resumed; ++i)
     {

@@ -88,7 +88,7 @@ LinearMode::LinearMode(std::shared_ptr<const ModeBasis> basis, const ModeVector&
       std::complex<double> sum = 0.0;
       for (Eigen::Index j = 0; j < n; ++j)
       {
-        sum += basis_->v_inv_(k, j) * (v0_(j) / basis_->bal_(j));
+        sum += basis_->v_inv_(k, j) * (v0_(j) * basis_->inv_bal_(j));
       }
       g_(k) = sum;
     }
@@ -103,13 +103,14 @@ LinearMode::LinearMode(std::shared_ptr<const ModeBasis> basis, const ModeVector&
       }
     }
     g_abs_.resize(n);
-    for (Eigen::Index k = 0; k < n; ++k)
-    {
-      g_abs_(k) = std::abs(g_(k));
-    }
     g_over_lambda_.resize(n);  // used only where |λτ| ≥ 0.1
     for (Eigen::Index k = 0; k < n; ++k)
     {
+      // |g| by hypot only where the squares could overflow or underflow (a bound's factor: its last bit is no matter).
+      const double re = g_(k).real(), im = g_(k).imag(), squares = re * re + im * im;
+      g_abs_(k) = re == 0.0 && im == 0.0                ? 0.0
+                  : squares > 1e-290 && squares < 1e290 ? std::sqrt(squares)
+                                                        : std::hypot(re, im);
       const std::complex<double> l = basis_->lambda_(k);
       g_over_lambda_(k) = l == 0.0 ? 0.0 : g_(k) / l;
     }
@@ -290,18 +291,16 @@ ModeVector LinearMode::evaluate(double tau) const
     // (In real arithmetic, the products written out as (a + jb)(c + jd) = (ac − bd) + j(ad + bc) — the same
     // operations as std::complex's, without its checks for infinities, which cost two thirds of the evaluation.)
     const ModeVectorC& lambda = basis_->lambda_;
-    const Eigen::Index r = n - basis_->nil_;
     const ModeVector& weight = basis_->weight_;
+    const int active = basis_->n_active_;
     std::array<double, MAX_MODE_ORDER> e_re{}, e_im{};
-    for (Eigen::Index k = 0; k < r; ++k)
+    for (int c = 0; c < active; ++c)
     {
-      if (weight(k) == 0.0)
-      {
-        continue;  // (a pair's conjugate: counted in its partner's doubled term)
-      }
+      const Eigen::Index k = basis_->active_[static_cast<std::size_t>(c)];  // (a pair's conjugate is not: its
+                                                                            // partner's term is doubled)
       const double re = lambda(k).real() * tau, im = lambda(k).imag() * tau;
-      double a, b;  // e^{λτ} − 1 over λ, or τφ₁(λτ)
-      double c, d;  // g/λ, or g
+      double a, b;    // e^{λτ} − 1 over λ, or τφ₁(λτ)
+      double cr, ci;  // g/λ, or g
       const bool series = re * re + im * im < 0.01;
       if (series)
       {
@@ -330,8 +329,8 @@ ModeVector LinearMode::evaluate(double tau) const
         const double wt = weight(k) * tau;
         a = wt * p_re;
         b = wt * p_im;
-        c = g_(k).real();
-        d = g_(k).imag();
+        cr = g_(k).real();
+        ci = g_(k).imag();
       }
       else
       {
@@ -339,32 +338,33 @@ ModeVector LinearMode::evaluate(double tau) const
         const double mag = std::exp(re);
         a = im == 0.0 ? mag - 1.0 : mag * std::cos(im) - 1.0;
         b = im == 0.0 ? 0.0 : mag * std::sin(im);
-        c = g_over_lambda_(k).real();
-        d = g_over_lambda_(k).imag();
+        cr = g_over_lambda_(k).real();
+        ci = g_over_lambda_(k).imag();
       }
-      const double prod_re = a * c - b * d, prod_im = a * d + b * c;
-      e_re[static_cast<std::size_t>(k)] = series ? prod_re : weight(k) * prod_re;
-      e_im[static_cast<std::size_t>(k)] = series ? prod_im : weight(k) * prod_im;
+      const double prod_re = a * cr - b * ci, prod_im = a * ci + b * cr;
+      e_re[static_cast<std::size_t>(c)] = series ? prod_re : weight(k) * prod_re;
+      e_im[static_cast<std::size_t>(c)] = series ? prod_im : weight(k) * prod_im;
     }
     ModeVector x = x0_;
     const Eigen::Index terms = poly_.cols();
     for (Eigen::Index i = 0; i < n; ++i)
     {
-      double sum = 0.0;
-      for (Eigen::Index k = 0; k < r; ++k)
+      if (!(moving_ & (1u << i)))
       {
-        const std::size_t kk = static_cast<std::size_t>(k);
-        sum += basis_->v_(i, k).real() * e_re[kk] - basis_->v_(i, k).imag() * e_im[kk];
+        continue;
+      }
+      double sum = 0.0;  // (D folded into V: D's powers of 2 scale every term exactly)
+      for (int c = 0; c < active; ++c)
+      {
+        const std::size_t cc = static_cast<std::size_t>(c);
+        sum += basis_->dv_re_(i, c) * e_re[cc] - basis_->dv_im_(i, c) * e_im[cc];
       }
       double p = 0.0;  // Σ_j P_j τ^{j+1} (Horner)
       for (Eigen::Index j = terms - 1; j >= 0; --j)
       {
         p = (p + poly_(i, j)) * tau;
       }
-      if (moving_ & (1u << i))
-      {
-        x(i) += (sum + p) * basis_->bal_(i);
-      }
+      x(i) += sum + p * basis_->bal_(i);
     }
     return x;
   }

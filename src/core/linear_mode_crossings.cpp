@@ -37,7 +37,7 @@ double LinearMode::rateNoise(const ModeVector& w, const ModeVector& v) const
   double weight = 0.0, size = 0.0;
   for (Eigen::Index j = 0; j < v.size(); ++j)
   {
-    const double d = v(j) / basis_->bal_(j);
+    const double d = v(j) * basis_->inv_bal_(j);
     weight += std::fabs(w(j)) * basis_->bal_(j);
     size += d * d;
   }
@@ -106,7 +106,8 @@ void LinearMode::curvatureBounds(const Curvature& k, const ModeVector& x, double
     {
       if (k.beta(i) != 0.0)
       {
-        const double term = k.beta(i) * std::exp(k.rate(i) * lo + std::max(0.0, k.rate(i) * h));
+        const double growth = k.rate(i) * lo + std::max(0.0, k.rate(i) * h);
+        const double term = growth == 0.0 ? k.beta(i) : k.beta(i) * std::exp(growth);
         b2 += term;
         b3 += term * basis_->speed_(i);
       }

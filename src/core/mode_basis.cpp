@@ -68,6 +68,7 @@ ModeBasis::ModeBasis(const Eigen::MatrixXd& a) : a_(a)
     }
   }
   balanced_ = b;
+  inv_bal_ = bal_.cwiseInverse();
   norm_a_ = b.operatorNorm();
   const double eps = std::numeric_limits<double>::epsilon();
   rounding_ = 256.0 * eps;  // the Taylor steps' (a few ulps per step, over the steps of a long motion)
@@ -114,6 +115,24 @@ bool ModeBasis::useBasis(const Eigen::MatrixXcd& v, const Eigen::VectorXcd& lamb
       const std::complex<double> e = bal_(j) * v(j, k) * lambda(k);
       dvl_re_(j, k) = e.real();
       dvl_im_(j, k) = e.imag();
+    }
+  }
+  n_active_ = 0;
+  for (Eigen::Index k = 0; k < r; ++k)
+  {
+    if (weight_(k) != 0.0)
+    {
+      active_[static_cast<std::size_t>(n_active_++)] = static_cast<int>(k);
+    }
+  }
+  dv_re_.resize(v.rows(), n_active_);
+  dv_im_.resize(v.rows(), n_active_);
+  for (int c = 0; c < n_active_; ++c)
+  {
+    for (Eigen::Index j = 0; j < v.rows(); ++j)
+    {
+      dv_re_(j, c) = bal_(j) * v(j, active_[static_cast<std::size_t>(c)]).real();
+      dv_im_(j, c) = bal_(j) * v(j, active_[static_cast<std::size_t>(c)]).imag();
     }
   }
   modal_ = true;
