@@ -124,20 +124,38 @@ class LinearMode
     ModeVector beta, rate;
     ModeVector poly;  // the polynomial part's s'' = Σ_j ± poly_j τ^{j−1} (and s''' = Σ_j ± poly_j (j − 1) τ^{j−2})
     double wa = 0.0;
-    bool steady = true;  // (modal) the bounds on a window do not grow with its length: no growing mode, no τ in s''
+    double weight = 0.0;  // Σ_j |w_j| D_j: the output's share of a balanced vector's rounding (see rateNoise)
+    bool steady = true;   // (modal) the bounds on a window do not grow with its length: no growing mode, no τ in s''
   };
   Curvature curvature(const ModeVector& w) const;
-  /// Bounds m2 ≥ max |s''| and m3 ≥ max |s'''| (+inf: none) over [lo, lo + h] (x the state at lo).
-  void curvatureBounds(const Curvature& k, const ModeVector& x, double lo, double h, double* m2, double* m3) const;
+  /// What every output's local picture at one instant shares: the state, its first two rates, the balanced norms
+  /// their rounding scales with, and each mode's decay there. A search round asks every watched output at the same
+  /// instant first: that one is kept apart from the last of the windows after it.
+  struct Point
+  {
+    double tau = std::numeric_limits<double>::quiet_NaN();
+    ModeVector x, xd, xdd;                                 // x, ẋ = Ax + u, ẍ = Aẋ (xdd once asked for)
+    double dev_norm = 0.0, xd_norm = 0.0, xdd_norm = 0.0;  // ‖D⁻¹(x − x₀)‖, ‖D⁻¹ẋ‖, ‖D⁻¹ẍ‖
+    bool second = false;
+    mutable ModeVector decay;  // (modal) e^{Re λ_k τ}, each computed once asked for (NaN until then)
+  };
+  mutable std::array<Point, 2> points_;  // [0]: where the last search began; [1]: the last window's start
+  /// The picture at tau (kept in the first slot where a search begins there).
+  const Point& pointAt(double tau, bool begins = false) const;
+  /// ‖D⁻¹v‖₂.
+  double balancedNorm(const ModeVector& v) const;
+  /// Bounds m2 ≥ max |s''| and m3 ≥ max |s'''| (+inf: none) over [lo, lo + h] (p the picture at lo).
+  void curvatureBounds(const Curvature& k, const Point& p, double lo, double h, double* m2, double* m3) const;
   /// An output's local picture at a window's start lo: its value and first two derivatives, their rounding, and the
   /// bounds m2, m3 on its second and third derivatives over the window (the second derivative only once asked for).
   struct Local
   {
     double s = 0.0, s1 = 0.0, s2 = 0.0, noise0 = 0.0, noise1 = 0.0, noise2 = 0.0, m2 = 0.0, m3 = 0.0;
-    ModeVector xd;        // ẋ(lo)
-    bool second = false;  // s2 and noise2 computed
+    double lo = 0.0, weight = 0.0;  // the window's start [s]; the output's Curvature::weight
+    ModeVector xd;                  // ẋ(lo)
+    bool second = false;            // s2 and noise2 computed
   };
-  Local local(const ModeVector& w, double w0, double lo, double h, const Curvature& curv) const;
+  Local local(const ModeVector& w, double w0, double lo, double h, const Curvature& curv, bool begins = false) const;
   /// What the Taylor models of degree 1 and 2 at a window's start prove about s = w·x + w₀ on [lo, lo + h] (the
   /// second degree's coefficients computed into *l where the first does not settle it).
   enum class Verdict

@@ -31,22 +31,58 @@ double LinearMode::noise(const ModeVector& w, double w0, const ModeVector& x) co
   return rateNoise(w, x - x0_) + 8.0 * EPS * size;
 }
 
-double LinearMode::rateNoise(const ModeVector& w, const ModeVector& v) const
+double LinearMode::balancedNorm(const ModeVector& v) const
 {
   // (Plain loops: Eigen's expressions carry a dispatch overhead that dominates at these orders.)
-  double weight = 0.0, size = 0.0;
+  double size = 0.0;
   for (Eigen::Index j = 0; j < v.size(); ++j)
   {
     const double d = v(j) * basis_->inv_bal_(j);
-    weight += std::fabs(w(j)) * basis_->bal_(j);
     size += d * d;
   }
-  return basis_->rounding_ * weight * std::sqrt(size);
+  return std::sqrt(size);
+}
+
+double LinearMode::rateNoise(const ModeVector& w, const ModeVector& v) const
+{
+  double weight = 0.0;
+  for (Eigen::Index j = 0; j < v.size(); ++j)
+  {
+    weight += std::fabs(w(j)) * basis_->bal_(j);
+  }
+  return basis_->rounding_ * weight * balancedNorm(v);
+}
+
+const LinearMode::Point& LinearMode::pointAt(double tau, bool begins) const
+{
+  for (const Point& kept : points_)
+  {
+    if (kept.tau == tau)
+    {
+      return kept;
+    }
+  }
+  Point& p = points_[begins ? 0 : 1];
+  p.tau = tau;
+  p.x = state(tau);
+  p.xd = affine(basis_->a_, p.x, u_);
+  p.dev_norm = balancedNorm(p.x - x0_);
+  p.xd_norm = balancedNorm(p.xd);
+  p.second = false;
+  if (basis_->modal_)
+  {
+    p.decay.setConstant(x0_.size() - basis_->nil_, std::numeric_limits<double>::quiet_NaN());
+  }
+  return p;
 }
 
 LinearMode::Curvature LinearMode::curvature(const ModeVector& w) const
 {
   Curvature k;
+  for (Eigen::Index j = 0; j < w.size(); ++j)
+  {
+    k.weight += std::fabs(w(j)) * basis_->bal_(j);
+  }
   if (basis_->modal_)
   {
     // s''(τ) = Σ_k (wᵀD v_k) λ_k g_k e^{λ_k τ}, s''' the same with λ_k² — the drift of a zero eigenvalue has neither.
@@ -94,8 +130,7 @@ LinearMode::Curvature LinearMode::curvature(const ModeVector& w) const
   return k;
 }
 
-void LinearMode::curvatureBounds(const Curvature& k, const ModeVector& x, double lo, double h, double* m2,
-                                 double* m3) const
+void LinearMode::curvatureBounds(const Curvature& k, const Point& p, double lo, double h, double* m2, double* m3) const
 {
   constexpr double SAFE = 1.0 + 64.0 * std::numeric_limits<double>::epsilon();
   if (basis_->modal_)
@@ -106,8 +141,14 @@ void LinearMode::curvatureBounds(const Curvature& k, const ModeVector& x, double
     {
       if (k.beta(i) != 0.0)
       {
-        const double growth = k.rate(i) * lo + std::max(0.0, k.rate(i) * h);
-        const double term = growth == 0.0 ? k.beta(i) : k.beta(i) * std::exp(growth);
+        // (A decaying mode's factor is the instant's; a growing one's grows over the window.)
+        double& decay = p.decay(i);
+        if (k.rate(i) <= 0.0 && std::isnan(decay))
+        {
+          const double growth = k.rate(i) * lo;
+          decay = growth == 0.0 ? 1.0 : std::exp(growth);
+        }
+        const double term = k.rate(i) <= 0.0 ? k.beta(i) * decay : k.beta(i) * std::exp(k.rate(i) * lo + k.rate(i) * h);
         b2 += term;
         b3 += term * basis_->speed_(i);
       }
@@ -127,22 +168,30 @@ void LinearMode::curvatureBounds(const Curvature& k, const ModeVector& x, double
     return;
   }
   // ‖(Dw)ᵀÂ‖₂ ‖D⁻¹ẋ(lo)‖₂ e^{‖Â‖₂ h}.
-  const ModeVector xd = affine(basis_->a_, x, u_);
-  *m2 = k.wa * xd.cwiseQuotient(basis_->bal_).norm() * std::exp(basis_->norm_a_ * h);
+  *m2 = k.wa * p.xd.cwiseQuotient(basis_->bal_).norm() * std::exp(basis_->norm_a_ * h);
   *m3 = INF;
 }
 
-LinearMode::Local LinearMode::local(const ModeVector& w, double w0, double lo, double h, const Curvature& curv) const
+LinearMode::Local LinearMode::local(const ModeVector& w, double w0, double lo, double h, const Curvature& curv,
+                                    bool begins) const
 {
+  constexpr double EPS = std::numeric_limits<double>::epsilon();
+  const Point& p = pointAt(lo, begins);
   Local l;
-  const ModeVector x = state(lo);
-  const ModeVector xd = affine(basis_->a_, x, u_);
-  l.s = w.dot(x) + w0;
-  l.s1 = w.dot(xd);
-  l.noise0 = noise(w, w0, x);
-  l.noise1 = rateNoise(w, xd);
-  curvatureBounds(curv, x, lo, h, &l.m2, &l.m3);
-  l.xd = xd;
+  l.lo = lo;
+  l.weight = curv.weight;
+  l.s = w.dot(p.x) + w0;
+  l.s1 = w.dot(p.xd);
+  // The closed form's rounding (see noise()) and the rate's (see rateNoise()).
+  double size = std::fabs(w0);
+  for (Eigen::Index j = 0; j < p.x.size(); ++j)
+  {
+    size += std::fabs(w(j) * p.x(j));
+  }
+  l.noise0 = basis_->rounding_ * curv.weight * p.dev_norm + 8.0 * EPS * size;
+  l.noise1 = basis_->rounding_ * curv.weight * p.xd_norm;
+  curvatureBounds(curv, p, lo, h, &l.m2, &l.m3);
+  l.xd = p.xd;
   return l;
 }
 
@@ -150,9 +199,25 @@ void LinearMode::completeSecond(const ModeVector& w, Local* local) const
 {
   if (!local->second)
   {
-    const ModeVector xdd = product(basis_->a_, local->xd);  // ẍ = A ẋ
-    local->s2 = w.dot(xdd);
-    local->noise2 = rateNoise(w, xdd);
+    Point& p = points_[points_[0].tau == local->lo ? 0 : 1];
+    const bool here = p.tau == local->lo;  // (the picture the Local was taken from)
+    if (!(here && p.second))
+    {
+      const ModeVector xdd = product(basis_->a_, local->xd);  // ẍ = A ẋ
+      const double norm = balancedNorm(xdd);
+      if (!here)
+      {
+        local->s2 = w.dot(xdd);
+        local->noise2 = basis_->rounding_ * local->weight * norm;
+        local->second = true;
+        return;
+      }
+      p.xdd = xdd;
+      p.xdd_norm = norm;
+      p.second = true;
+    }
+    local->s2 = w.dot(p.xdd);
+    local->noise2 = basis_->rounding_ * local->weight * p.xdd_norm;
     local->second = true;
   }
 }
@@ -282,7 +347,8 @@ double LinearMode::firstCrossing(const ModeVector& w, double w0, int direction, 
   const Curvature curv = curvature(w);
   const double scale = basis_->norm_a_ > 0.0 ? 1.0 / basis_->norm_a_ : horizon;  // the fastest time scale [s]
   const double floor = FLOOR_FRACTION * scale;
-  const Local start = local(w, w0, from, horizon - from, curv);  // (the first window's, where the bounds are steady)
+  const Local start =
+      local(w, w0, from, horizon - from, curv, true);  // (the first window's, where the bounds are steady)
   {
     // An output that is zero with all its derivatives at the start (wᵀAᵏẋ = 0, k < n: the output does not see the
     // motion at all, e.g. the velocity of a body at rest on which nothing acts) stays zero: it never crosses.
@@ -321,10 +387,10 @@ double LinearMode::firstCrossing(const ModeVector& w, double w0, int direction, 
       continue;
     }
     // A window the exclusion test is likely to pass: where the remainder bound reaches about |s|.
-    const ModeVector x = state(t);
-    const double s = w.dot(x) + w0;
+    const Point& p = pointAt(t);
+    const double s = w.dot(p.x) + w0;
     double m = 0.0, m3 = 0.0;
-    curvatureBounds(curv, x, t, scale, &m, &m3);
+    curvatureBounds(curv, p, t, scale, &m, &m3);
     double h = m > 0.0 ? std::sqrt(std::fabs(s) / m) : horizon;
     // (At least a thousandth of the fastest time scale: an output hovering near zero is searched by halving the
     // window, not by crawling. At most that time scale for the norm bound, which grows as e^{‖Â‖h}, and four of
