@@ -48,7 +48,8 @@ using ModeMatrixC =
     Eigen::Matrix<std::complex<double>, Eigen::Dynamic, Eigen::Dynamic, 0, MAX_MODE_ORDER, MAX_MODE_ORDER>;
 
 /// What one mode's matrix A determines, computed once: the balancing D, Â = D⁻¹AD and ‖Â‖₂, and the eigenbasis of Â
-/// when it is complete and well-conditioned. Immutable; shared between the motions of that mode.
+/// when it is complete and well-conditioned. Fixed once built (but for a cache of its outputs' reach); shared between
+/// the motions of that mode.
 class ModeBasis
 {
  public:
@@ -81,6 +82,18 @@ class ModeBasis
   /// The relative rounding error of an evaluated state, in the balanced basis (grows with cond(V)).
   double rounding() const { return rounding_; }
 
+  /// What an output s = w·x + w₀ of this mode's motions owes to the mode alone: how strongly each mode reaches it
+  /// and how the rounding of a balanced vector reaches it.
+  struct OutputReach
+  {
+    ModeVector w;
+    ModeVector size;      // (modal) |wᵀD v_k λ_k| per eigenvalue (0 for a pair's conjugate: counted in its partner)
+    double weight = 0.0;  // Σ_j |w_j| D_j
+  };
+  /// The reach of output w, kept for the last few outputs asked (a joint watches the same few in each mode). Not
+  /// thread-safe: a basis belongs to the one joint whose modes it decomposes.
+  const OutputReach& reach(const ModeVector& w) const;
+
  private:
   friend class LinearMode;
   ModeMatrix a_;
@@ -111,6 +124,8 @@ class ModeBasis
   bool decouple(Eigen::Index r, Eigen::Index m, Eigen::MatrixXd* t, Eigen::MatrixXd* blocks);
   /// The terms of the slow block S's series that reach rounding on τ ≤ LinearMode::SERIES_SPAN/‖Â‖₂.
   int slowTerms(const Eigen::MatrixXd& s) const;
+  mutable std::array<OutputReach, 8> reaches_;
+  mutable std::size_t reaches_next_ = 0, reaches_kept_ = 0;
 };
 
 }  // namespace backlash_servo

@@ -715,7 +715,8 @@ bool CompliantJoint::advanceTo(double t_end, const Observer& observer)
     moveTo(tau, seg.start + tau);
     Watch watch = seg.watches[static_cast<std::size_t>(seg.hit)];
     const MeshEvent watched = watch.kind;  // (`again` compares the kind watched)
-    const double before = seg.motion.state(tau * (1.0 - 1e-6))(loadIndex() + 1);
+    // (The load's velocity just before a turning point: only those need it.)
+    const double before = watched == MeshEvent::Maximum ? seg.motion.state(tau * (1.0 - 1e-6))(loadIndex() + 1) : 0.0;
     if (watch.kind == MeshEvent::Maximum && seg.motion.state(tau)(loadIndex() + 1) > 0.0)
     {
       watch.kind = MeshEvent::Minimum;  // (the turning points' watch: its velocity crossed upwards)

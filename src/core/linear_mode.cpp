@@ -307,11 +307,15 @@ ModeVector LinearMode::evaluate(double tau) const
         // The terms to the tenth, but for those that can no longer change a bit of the sum: each later term is
         // smaller than this one times |z| < 0.1, and one below a quarter of a component's ulp (> 2⁻⁵⁵ of it) leaves
         // that component as it is.
+        // (A zero eigenvalue — a body's drift — has φ₁ = 1 at once.)
+        static constexpr std::array<double, 11> INVERSE = {0.0,       1.0,       1.0 / 2.0, 1.0 / 3.0,
+                                                           1.0 / 4.0, 1.0 / 5.0, 1.0 / 6.0, 1.0 / 7.0,
+                                                           1.0 / 8.0, 1.0 / 9.0, 1.0 / 10.0};
         double p_re = 1.0, p_im = 0.0, t_re = 1.0, t_im = 0.0;  // φ₁ and its series' term
         const double z_abs = std::fabs(re) + std::fabs(im), quarter_ulp = 0x1p-55;
-        for (int j = 2; j <= 10; ++j)
+        for (int j = 2; j <= 10 && z_abs != 0.0; ++j)
         {
-          const double inv = 1.0 / j, z_re = re * inv, z_im = im * inv;
+          const double inv = INVERSE[static_cast<std::size_t>(j)], z_re = re * inv, z_im = im * inv;
           const double next_re = t_re * z_re - t_im * z_im;
           t_im = t_re * z_im + t_im * z_re;
           t_re = next_re;

@@ -79,38 +79,19 @@ const LinearMode::Point& LinearMode::pointAt(double tau, bool begins) const
 LinearMode::Curvature LinearMode::curvature(const ModeVector& w) const
 {
   Curvature k;
-  for (Eigen::Index j = 0; j < w.size(); ++j)
-  {
-    k.weight += std::fabs(w(j)) * basis_->bal_(j);
-  }
+  const ModeBasis::OutputReach& reach = basis_->reach(w);
+  k.weight = reach.weight;
   if (basis_->modal_)
   {
     // s''(τ) = Σ_k (wᵀD v_k) λ_k g_k e^{λ_k τ}, s''' the same with λ_k² — the drift of a zero eigenvalue has neither.
-    const Eigen::Index n = x0_.size(), m = basis_->nil_, r = n - m;
+    const Eigen::Index r = reach.size.size();
     k.beta.resize(r);
     k.rate.resize(r);
     for (Eigen::Index i = 0; i < r; ++i)
     {
+      // |wᵀD v_i λ_i| |g_i| (a pair's: both terms in the first).
       k.rate(i) = basis_->lambda_(i).real();
-      if (basis_->weight_(i) == 0.0)
-      {
-        k.beta(i) = 0.0;  // (a pair's conjugate: counted in its partner)
-        continue;
-      }
-      double c_re = 0.0, c_im = 0.0;  // wᵀD v_i λ_i
-      for (Eigen::Index j = 0; j < n; ++j)
-      {
-        c_re += basis_->dvl_re_(j, i) * w(j);
-        c_im += basis_->dvl_im_(j, i) * w(j);
-      }
-      // |wᵀD v_i λ_i| |g_i| (a pair's: both terms in the first), by hypot only where the squares could overflow or
-      // underflow.
-      // (An output the mode does not reach — a body's speed in a mode of the other body — has none.)
-      const double squares = c_re * c_re + c_im * c_im;
-      const double size = c_re == 0.0 && c_im == 0.0            ? 0.0
-                          : squares > 1e-290 && squares < 1e290 ? std::sqrt(squares)
-                                                                : std::hypot(c_re, c_im);
-      k.beta(i) = basis_->weight_(i) * g_abs_(i) * size;
+      k.beta(i) = basis_->weight_(i) * g_abs_(i) * reach.size(i);
       k.steady = k.steady && (k.beta(i) == 0.0 || k.rate(i) <= 0.0);
     }
     // The polynomial part: s'' = Σ_{j ≥ 1} (Dw)·P_j (j + 1) j τ^{j−1}, s''' = Σ_{j ≥ 2} (Dw)·P_j (j + 1) j (j − 1)

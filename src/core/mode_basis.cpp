@@ -336,6 +336,52 @@ int ModeBasis::slowTerms(const Eigen::MatrixXd& s) const
   return MAX_MODE_ORDER + 1;
 }
 
+const ModeBasis::OutputReach& ModeBasis::reach(const ModeVector& w) const
+{
+  for (std::size_t i = 0; i < reaches_kept_; ++i)
+  {
+    if (reaches_[i].w.size() == w.size() && reaches_[i].w == w)
+    {
+      return reaches_[i];
+    }
+  }
+  OutputReach& o = reaches_[reaches_next_];
+  reaches_next_ = (reaches_next_ + 1) % reaches_.size();
+  reaches_kept_ = std::max(reaches_kept_, reaches_next_ == 0 ? reaches_.size() : reaches_next_);
+  o.w = w;
+  o.weight = 0.0;
+  for (Eigen::Index j = 0; j < w.size(); ++j)
+  {
+    o.weight += std::fabs(w(j)) * bal_(j);
+  }
+  if (modal_)
+  {
+    const Eigen::Index n = w.size(), r = n - nil_;
+    o.size.resize(r);
+    for (Eigen::Index i = 0; i < r; ++i)
+    {
+      if (weight_(i) == 0.0)
+      {
+        o.size(i) = 0.0;
+        continue;
+      }
+      double c_re = 0.0, c_im = 0.0;  // wᵀD v_i λ_i
+      for (Eigen::Index j = 0; j < n; ++j)
+      {
+        c_re += dvl_re_(j, i) * w(j);
+        c_im += dvl_im_(j, i) * w(j);
+      }
+      // By hypot only where the squares could overflow or underflow. (An output the mode does not reach — a body's
+      // speed in a mode of the other body — has none.)
+      const double squares = c_re * c_re + c_im * c_im;
+      o.size(i) = c_re == 0.0 && c_im == 0.0            ? 0.0
+                  : squares > 1e-290 && squares < 1e290 ? std::sqrt(squares)
+                                                        : std::hypot(c_re, c_im);
+    }
+  }
+  return o;
+}
+
 Eigen::VectorXcd ModeBasis::eigenvalues() const
 {
   return Eigen::EigenSolver<Eigen::MatrixXd>(Eigen::MatrixXd(a_)).eigenvalues();
