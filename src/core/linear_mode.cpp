@@ -313,7 +313,17 @@ ModeVector LinearMode::evaluate(double tau) const
                                                            1.0 / 8.0, 1.0 / 9.0, 1.0 / 10.0};
         double p_re = 1.0, p_im = 0.0, t_re = 1.0, t_im = 0.0;  // φ₁ and its series' term
         const double z_abs = std::fabs(re) + std::fabs(im), quarter_ulp = 0x1p-55;
-        for (int j = 2; j <= 10 && z_abs != 0.0; ++j)
+        for (int j = 2; j <= 10 && z_abs != 0.0 && im == 0.0; ++j)
+        {
+          // (A real eigenvalue: the same terms, without their zero imaginary parts.)
+          t_re = t_re * (re * INVERSE[static_cast<std::size_t>(j)]);
+          p_re += t_re;
+          if (j % 3 == 0 && std::fabs(t_re) * z_abs < quarter_ulp * std::fabs(p_re))
+          {
+            break;
+          }
+        }
+        for (int j = 2; j <= 10 && z_abs != 0.0 && im != 0.0; ++j)
         {
           const double inv = INVERSE[static_cast<std::size_t>(j)], z_re = re * inv, z_im = im * inv;
           const double next_re = t_re * z_re - t_im * z_im;
@@ -324,7 +334,7 @@ ModeVector LinearMode::evaluate(double tau) const
           if (j % 3 == 0)  // (at every third term: a check at each cost the compliant D1 servo more than it saved)
           {
             const double tail = (std::fabs(t_re) + std::fabs(t_im)) * z_abs;
-            if (tail < quarter_ulp * std::fabs(p_re) && (im == 0.0 || tail < quarter_ulp * std::fabs(p_im)))
+            if (tail < quarter_ulp * std::fabs(p_re) && tail < quarter_ulp * std::fabs(p_im))
             {
               break;
             }
