@@ -134,9 +134,11 @@ class LinearMode
   struct Point
   {
     double tau = std::numeric_limits<double>::quiet_NaN();
-    ModeVector x, xd, xdd;                                 // x, ẋ = Ax + u, ẍ = Aẋ (xdd once asked for)
-    double dev_norm = 0.0, xd_norm = 0.0, xdd_norm = 0.0;  // ‖D⁻¹(x − x₀)‖, ‖D⁻¹ẋ‖, ‖D⁻¹ẍ‖
-    bool second = false;
+    ModeVector x, xd;                      // x, ẋ = Ax + u
+    double dev_norm = 0.0, xd_norm = 0.0;  // ‖D⁻¹(x − x₀)‖, ‖D⁻¹ẋ‖
+    mutable ModeVector xdd;                // ẍ = Aẋ, once asked for
+    mutable double xdd_norm = 0.0;         // ‖D⁻¹ẍ‖
+    mutable bool second = false;
     mutable ModeVector decay;  // (modal) e^{Re λ_k τ}, each computed once asked for (NaN until then)
   };
   mutable std::array<Point, 2> points_;  // [0]: where the last search began; [1]: the last window's start
@@ -152,7 +154,6 @@ class LinearMode
   {
     double s = 0.0, s1 = 0.0, s2 = 0.0, noise0 = 0.0, noise1 = 0.0, noise2 = 0.0, m2 = 0.0, m3 = 0.0;
     double lo = 0.0, weight = 0.0;  // the window's start [s]; the output's Curvature::weight
-    ModeVector xd;                  // ẋ(lo)
     bool second = false;            // s2 and noise2 computed
   };
   Local local(const ModeVector& w, double w0, double lo, double h, const Curvature& curv, bool begins = false) const;

@@ -172,7 +172,6 @@ LinearMode::Local LinearMode::local(const ModeVector& w, double w0, double lo, d
   l.noise0 = basis_->rounding_ * curv.weight * p.dev_norm + 8.0 * EPS * size;
   l.noise1 = basis_->rounding_ * curv.weight * p.xd_norm;
   curvatureBounds(curv, p, lo, h, &l.m2, &l.m3);
-  l.xd = p.xd;
   return l;
 }
 
@@ -180,21 +179,12 @@ void LinearMode::completeSecond(const ModeVector& w, Local* local) const
 {
   if (!local->second)
   {
-    Point& p = points_[points_[0].tau == local->lo ? 0 : 1];
-    const bool here = p.tau == local->lo;  // (the picture the Local was taken from)
-    if (!(here && p.second))
+    // (The picture the Local was taken from, taken again if another has taken its place since: the same numbers.)
+    const Point& p = pointAt(local->lo);
+    if (!p.second)
     {
-      const ModeVector xdd = product(basis_->a_, local->xd);  // ẍ = A ẋ
-      const double norm = balancedNorm(xdd);
-      if (!here)
-      {
-        local->s2 = w.dot(xdd);
-        local->noise2 = basis_->rounding_ * local->weight * norm;
-        local->second = true;
-        return;
-      }
-      p.xdd = xdd;
-      p.xdd_norm = norm;
+      p.xdd = product(basis_->a_, p.xd);  // ẍ = A ẋ
+      p.xdd_norm = balancedNorm(p.xdd);
       p.second = true;
     }
     local->s2 = w.dot(p.xdd);
@@ -334,7 +324,7 @@ double LinearMode::firstCrossing(const ModeVector& w, double w0, int direction, 
     // An output that is zero with all its derivatives at the start (wᵀAᵏẋ = 0, k < n: the output does not see the
     // motion at all, e.g. the velocity of a body at rest on which nothing acts) stays zero: it never crosses.
     bool flat = std::fabs(start.s) <= start.noise0;
-    ModeVector v = start.xd;
+    ModeVector v = pointAt(from).xd;
     for (int k = 0; flat && k < order(); ++k)
     {
       flat = std::fabs(w.dot(v)) <= rateNoise(w, v);
