@@ -577,8 +577,11 @@ void CompliantJoint::checkStart(const ModeMatrix& a, const ModeVector& u)
   if (mode_ != MeshMode::Free)
   {
     // A contact whose release output (P, or in K2 the penetration) starts below zero beyond rounding, or within it
-    // and falling, releases here, as the segment's first event: its crossing lay within the rounding of this start
-    // (the end of the previous segment, a sample, evaluated again). Not a contact begun at this very instant.
+    // and leaving it downwards, releases here, as the segment's first event: its crossing lay within the rounding of
+    // this start (the end of the previous segment, a sample, evaluated again). Not a contact begun at this very
+    // instant. Within the rounding, the rate alone does not tell which way the output leaves: a contact touched at
+    // the start and pulled off by a stiff shaft may rise by ṡ²/2|s̈|, far below the rounding, before it falls, and
+    // would pull all the while — the side on which it leaves the band decides.
     const int sigma = isForward(mode_) ? 1 : -1;
     const bool just_engaged =
         last_time_ == time_ && last_sigma_ == sigma &&
@@ -591,7 +594,17 @@ void CompliantJoint::checkStart(const ModeMatrix& a, const ModeVector& u)
           return false;
         }
         const double out = r.w.dot(x) + r.w0, noise = roundingOf(r.w, r.w0, x);
-        return out < -noise || (std::fabs(out) <= noise && r.w.dot(xd) < -roundingOf(r.w, 0.0, xd));
+        if (out < -noise || (std::fabs(out) <= noise && r.w.dot(xd) < -roundingOf(r.w, 0.0, xd)))
+        {
+          return true;
+        }
+        if (!(std::fabs(out) <= noise))
+        {
+          return false;
+        }
+        const double horizon = seg.resumed + seg.window;
+        const double up = seg.motion.firstCrossing(r.w, r.w0 - noise, +1, horizon, seg.resumed);
+        return seg.motion.firstCrossing(r.w, r.w0 + noise, -1, std::min(up, horizon), seg.resumed) < up;
       });
     }
   }
