@@ -574,6 +574,14 @@ void CompliantJoint::checkStart(const ModeMatrix& a, const ModeVector& u)
       }
     }
   };
+  // Where an output starts within its rounding band ±noise of zero: the side it leaves the band on first (+1 above,
+  // −1 below, 0 neither within the segment's window).
+  const auto leavesBand = [&seg](const Watch& o, double noise) {
+    const double horizon = seg.resumed + seg.window;
+    const double up = seg.motion.firstCrossing(o.w, o.w0 - noise, +1, horizon, seg.resumed);
+    const double down = seg.motion.firstCrossing(o.w, o.w0 + noise, -1, std::min(up, horizon), seg.resumed);
+    return down < up ? -1 : up < INFINITY ? 1 : 0;
+  };
   if (mode_ != MeshMode::Free)
   {
     // A contact whose release output (P, or in K2 the penetration) starts below zero beyond rounding, or within it
@@ -602,11 +610,21 @@ void CompliantJoint::checkStart(const ModeMatrix& a, const ModeVector& u)
         {
           return false;
         }
-        const double horizon = seg.resumed + seg.window;
-        const double up = seg.motion.firstCrossing(r.w, r.w0 - noise, +1, horizon, seg.resumed);
-        return seg.motion.firstCrossing(r.w, r.w0 + noise, -1, std::min(up, horizon), seg.resumed) < up;
+        return leavesBand(r, noise) < 0;
       });
     }
+    // msl_elastobacklash's sub-mode output (K2: cy − dẏ, KD: dẏ − cy) likewise: past its switch beyond rounding, or
+    // within the rounding and leaving it upwards, switches here — also at an engagement: teeth entering K2 at a
+    // grazing engagement, dẏ and cy both within the rounding of the angles, leave it at once as cy grows. (Leaving
+    // upwards in one sub-mode is leaving downwards in the other: no switching back and forth.)
+    startWith([&](const Watch& m) {
+      if (m.kind != MeshEvent::SubMode)
+      {
+        return false;
+      }
+      const double out = m.w.dot(x) + m.w0, noise = roundingOf(m.w, m.w0, x);
+      return out > noise || (std::fabs(out) <= noise && leavesBand(m, noise) > 0);
+    });
   }
   else
   {

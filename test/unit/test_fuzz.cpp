@@ -130,6 +130,16 @@ TEST(Fuzz, AContactTouchedAtTheStartThatLeavesItsRoundingDownwardsReleasesThere)
   EXPECT_EQ(o.klass, "ok") << o.detail;
 }
 
+// msl_elastobacklash entering K2 (2c·y while d·ẏ > c·y) at a grazing engagement (compliant seed 9 #3543: d·ẏ and c·y
+// both within the 2e-7 N·m rounding of angles of 270 rad): K2's switch output c·y − d·ẏ began at +2e-9, inside the
+// band, so its crossing from ≤ 0 never came and the mesh pressed with 2c·y — twice its law — for the rest of the run.
+// It switches to KD at the engagement now: the output leaves its rounding band upwards.
+TEST(Fuzz, AGrazingEngagementIntoK2LeavesItWhereTheSwitchOutputLeavesItsRoundingUpwards)
+{
+  const fuzz::Outcome o = fuzz::check(fuzz::makeCompliantCase(9, 3543));
+  EXPECT_EQ(o.klass, "ok") << o.detail;
+}
+
 // The gap property's rounding scale includes the set-point θ_R(t) (a ramp runs in a frame moving with it): seed 7
 // #52681, positions crossing zero at 26 rad/s during a ramp to −9.3 rad, the gap 1.7e-15 rad below 0 — rounding of
 // the frame's ~9 rad. A gap out by far more than rounding (a missed impact) is still flagged, with or without a
