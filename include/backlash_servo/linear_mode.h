@@ -177,8 +177,6 @@ class LinearMode
   /// known (completed in place).
   double searchWindow(const ModeVector& w, double w0, int direction, double lo, double hi, const Curvature& curv,
                       double floor, double origin, Local* at_lo = nullptr) const;
-  /// What rounding can do to the output w·x + w₀ of an evaluated state x (the closed form's error).
-  double noise(const ModeVector& w, double w0, const ModeVector& x) const;
   /// What rounding can do to w·v of a rate v = A x + u (or a higher derivative) computed from an evaluated state.
   double rateNoise(const ModeVector& w, const ModeVector& v) const;
   /// The bracketed crossing in (lo, hi] (direction·s(lo) ≤ 0 < direction·s(hi), `at_lo` the window's local picture at

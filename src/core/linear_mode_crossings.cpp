@@ -16,21 +16,6 @@ constexpr double INF = std::numeric_limits<double>::infinity();
 using mode_detail::affine;
 using mode_detail::product;
 
-double LinearMode::noise(const ModeVector& w, double w0, const ModeVector& x) const
-{
-  // The motion is solved as its deviation δ = x − x₀: each balanced coordinate of δ carries an error of about
-  // rounding·‖D⁻¹δ‖ (the output sums them with weights |w_i| D_i), and adding x₀ a few ulps of each |x_i|. (Relative
-  // to the whole state instead, a joint spinning at 3e4 rad/s had a penetration "within rounding" over its whole
-  // 2 mrad excursion, and the search passed two crossings as one grazing.)
-  constexpr double EPS = std::numeric_limits<double>::epsilon();
-  double size = std::fabs(w0);
-  for (Eigen::Index j = 0; j < x.size(); ++j)
-  {
-    size += std::fabs(w(j) * x(j));
-  }
-  return rateNoise(w, x - x0_) + 8.0 * EPS * size;
-}
-
 double LinearMode::balancedNorm(const ModeVector& v) const
 {
   // (Plain loops: Eigen's expressions carry a dispatch overhead that dominates at these orders.)
@@ -45,12 +30,7 @@ double LinearMode::balancedNorm(const ModeVector& v) const
 
 double LinearMode::rateNoise(const ModeVector& w, const ModeVector& v) const
 {
-  double weight = 0.0;
-  for (Eigen::Index j = 0; j < v.size(); ++j)
-  {
-    weight += std::fabs(w(j)) * basis_->bal_(j);
-  }
-  return basis_->rounding_ * weight * balancedNorm(v);
+  return basis_->rounding_ * basis_->reach(w).weight * balancedNorm(v);
 }
 
 const LinearMode::Point& LinearMode::pointAt(double tau, bool begins) const
@@ -163,7 +143,11 @@ LinearMode::Local LinearMode::local(const ModeVector& w, double w0, double lo, d
   l.weight = curv.weight;
   l.s = w.dot(p.x) + w0;
   l.s1 = w.dot(p.xd);
-  // The closed form's rounding (see noise()) and the rate's (see rateNoise()).
+  // The closed form's rounding: the motion is solved as its deviation δ = x − x₀, so each balanced coordinate of δ
+  // carries an error of about rounding·‖D⁻¹δ‖ (the output sums them with weights |w_i| D_i), and adding x₀ a few ulps
+  // of each |x_i|. (Relative to the whole state instead, a joint spinning at 3e4 rad/s had a penetration "within
+  // rounding" over its whole 2 mrad excursion, and the search passed two crossings as one grazing.) The rate's
+  // likewise (see rateNoise()).
   double size = std::fabs(w0);
   for (Eigen::Index j = 0; j < p.x.size(); ++j)
   {
@@ -429,7 +413,7 @@ double LinearMode::refine(const ModeVector& w, double w0, int direction, double 
   // more steps than bisection plus one — superlinear in practice. Run down to adjacent doubles, or until the end past
   // the crossing is within a few ulps of the output's terms (the doubles the state is held in cannot place s closer
   // to zero; bisecting that band to the last bit cost two thirds of all evaluations), and that end is returned. (Not
-  // the closed form's whole rounding, noise(): a bound for the exclusion test, loose where the motion is fast —
+  // the closed form's whole rounding, Local::noise0: a bound for the exclusion test, loose where the motion is fast —
   // stopping there placed a fast joint's crossing 1e-9 s off.)
   const ModeVector x_hi = state(hi);
   double f_lo = direction * at_lo.s, f_hi = direction * (w.dot(x_hi) + w0);
