@@ -25,7 +25,9 @@ inline bool isK2(MeshMode m)
 
 /// What rounding can do to an output w·x + w₀ of a state x whose entries are known to their last bits (the angles or
 /// speeds it is the difference of).
-inline double roundingOf(const ModeVector& w, double w0, const ModeVector& x)
+/// (Templated: a state held as Eigen::VectorXd is read in place, not copied into a ModeVector.)
+template <class W, class X>
+double roundingOf(const Eigen::MatrixBase<W>& w, double w0, const Eigen::MatrixBase<X>& x)
 {
   return 64.0 * std::numeric_limits<double>::epsilon() * (w.cwiseAbs().dot(x.cwiseAbs()) + std::fabs(w0));
 }

@@ -308,11 +308,14 @@ double LinearMode::firstCrossing(const ModeVector& w, double w0, int direction, 
     // An output that is zero with all its derivatives at the start (wᵀAᵏẋ = 0, k < n: the output does not see the
     // motion at all, e.g. the velocity of a body at rest on which nothing acts) stays zero: it never crosses.
     bool flat = std::fabs(start.s) <= start.noise0;
-    ModeVector v = pointAt(from).xd;
-    for (int k = 0; flat && k < order(); ++k)
+    if (flat)
     {
-      flat = std::fabs(w.dot(v)) <= rateNoise(w, v);
-      v = product(basis_->a_, v);
+      ModeVector v = pointAt(from).xd;
+      for (int k = 0; flat && k < order(); ++k)
+      {
+        flat = std::fabs(w.dot(v)) <= rateNoise(w, v);
+        v = product(basis_->a_, v);
+      }
     }
     if (flat)
     {
