@@ -470,6 +470,10 @@ double LinearMode::refine(const ModeVector& w, double w0, int direction, double 
       t = t - (f - 0.5 * band) / slope;  // (aimed half a band past the crossing)
     }
   }
+  if (!(f_hi > band))
+  {
+    return hi;  // (Newton's method ended within the band: the usual case)
+  }
   const double eps = 0.5 * std::max(std::nextafter(hi, INF) - hi, std::numeric_limits<double>::denorm_min());
   const double kappa1 = 0.2 / (hi - lo);
   const int n_half = static_cast<int>(std::ceil(std::log2(std::max((hi - lo) / (2.0 * eps), 1.0))));
