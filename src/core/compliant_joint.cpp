@@ -586,33 +586,33 @@ void CompliantJoint::checkStart(const ModeMatrix& a, const ModeVector& u)
   {
     // A contact whose release output (P, or in K2 the penetration) starts below zero beyond rounding, or within it
     // and leaving it downwards, releases here, as the segment's first event: its crossing lay within the rounding of
-    // this start (the end of the previous segment, a sample, evaluated again). Not a contact begun at this very
-    // instant. Within the rounding, the rate alone does not tell which way the output leaves: a contact touched at
-    // the start and pulled off by a stiff shaft may rise by ṡ²/2|s̈|, far below the rounding, before it falls, and
-    // would pull all the while — the side on which it leaves the band decides.
+    // this start (the end of the previous segment, a sample, evaluated again). Within the rounding, the rate alone
+    // does not tell which way the output leaves: a contact touched at the start and pulled off by a stiff shaft may
+    // rise by ṡ²/2|s̈|, far below the rounding, before it falls, and would pull all the while — the side on which it
+    // leaves the band decides. A contact begun at this very instant is judged by its value and that side alone, not
+    // by its rate: an engagement found within the rounding of a start (teeth touching at rest) whose teeth part at
+    // once — the drive pulling the motor off — would otherwise keep a contact whose release output began below zero
+    // and never crosses it, while its torque, clipped at zero, hides the missed release and the flank it crosses to.
     const int sigma = isForward(mode_) ? 1 : -1;
     const bool just_engaged =
         last_time_ == time_ && last_sigma_ == sigma &&
         (last_kind_ == static_cast<int>(MeshEvent::Engage) || last_kind_ == static_cast<int>(MeshEvent::Reengage));
-    if (!just_engaged)
-    {
-      startWith([&](const Watch& r) {
-        if (r.kind != MeshEvent::Release)
-        {
-          return false;
-        }
-        const double out = r.w.dot(x) + r.w0, noise = roundingOf(r.w, r.w0, x);
-        if (out < -noise || (std::fabs(out) <= noise && r.w.dot(xd) < -roundingOf(r.w, 0.0, xd)))
-        {
-          return true;
-        }
-        if (!(std::fabs(out) <= noise))
-        {
-          return false;
-        }
-        return leavesBand(r, noise) < 0;
-      });
-    }
+    startWith([&](const Watch& r) {
+      if (r.kind != MeshEvent::Release)
+      {
+        return false;
+      }
+      const double out = r.w.dot(x) + r.w0, noise = roundingOf(r.w, r.w0, x);
+      if (out < -noise || (!just_engaged && std::fabs(out) <= noise && r.w.dot(xd) < -roundingOf(r.w, 0.0, xd)))
+      {
+        return true;
+      }
+      if (!(std::fabs(out) <= noise))
+      {
+        return false;
+      }
+      return leavesBand(r, noise) < 0;
+    });
     // msl_elastobacklash's sub-mode output (K2: cy − dẏ, KD: dẏ − cy) likewise: past its switch beyond rounding, or
     // within the rounding and leaving it upwards, switches here — also at an engagement: teeth entering K2 at a
     // grazing engagement, dẏ and cy both within the rounding of the angles, leave it at once as cy grows. (Leaving

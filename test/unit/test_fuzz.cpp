@@ -130,6 +130,21 @@ TEST(Fuzz, AContactTouchedAtTheStartThatLeavesItsRoundingDownwardsReleasesThere)
   EXPECT_EQ(o.klass, "ok") << o.detail;
 }
 
+// An engagement found within the rounding of a start whose teeth part at once (compliant seed 14: #1056, a backward
+// flank touching at rest, a 1.4e6 N·m drive torque pulling the motor off, P = −0.15 N·m at the engagement; #4469, the
+// same with P = −4e-24 N·m on a 7e-6 N·m/rad mesh): the contact was kept because it had just begun, its release output
+// never crossed zero from above, and its torque, clipped at zero, hid the gear crossing the free play into the other
+// flank (5.4e7 N·m of law unapplied at 7.9 µs in #1056). A contact begun at this instant with P below its rounding
+// releases at once.
+TEST(Fuzz, AnEngagementWhoseTeethPartAtOnceReleasesThere)
+{
+  for (const int index : {1056, 4469})
+  {
+    const fuzz::Outcome o = fuzz::check(fuzz::makeCompliantCase(14, index));
+    EXPECT_EQ(o.klass, "ok") << "case " << index << ": " << o.detail;
+  }
+}
+
 // msl_elastobacklash entering K2 (2c·y while d·ẏ > c·y) at a grazing engagement (compliant seed 9 #3543: d·ẏ and c·y
 // both within the 2e-7 N·m rounding of angles of 270 rad): K2's switch output c·y − d·ẏ began at +2e-9, inside the
 // band, so its crossing from ≤ 0 never came and the mesh pressed with 2c·y — twice its law — for the rest of the run.
