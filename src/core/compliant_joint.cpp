@@ -589,10 +589,12 @@ void CompliantJoint::checkStart(const ModeMatrix& a, const ModeVector& u)
     // this start (the end of the previous segment, a sample, evaluated again). Within the rounding, the rate alone
     // does not tell which way the output leaves: a contact touched at the start and pulled off by a stiff shaft may
     // rise by ṡ²/2|s̈|, far below the rounding, before it falls, and would pull all the while — the side on which it
-    // leaves the band decides. A contact begun at this very instant is judged by its value and that side alone, not
-    // by its rate: an engagement found within the rounding of a start (teeth touching at rest) whose teeth part at
-    // once — the drive pulling the motor off — would otherwise keep a contact whose release output began below zero
-    // and never crosses it, while its torque, clipped at zero, hides the missed release and the flank it crosses to.
+    // leaves the band decides. A contact begun at this very instant releases only where its output starts below the
+    // rounding: an engagement found within the rounding of a start (teeth touching at rest) whose teeth part at once
+    // — the drive pulling the motor off — would otherwise keep a contact whose release output began below zero and
+    // never crosses it, while its torque, clipped at zero, hides the missed release and the flank it crosses to.
+    // (Within the band its rate and side are not asked: at a new contact they are rounding, and an output hovering
+    // there — teeth without backlash chattering at rounding level — would be searched down to the floor.)
     const int sigma = isForward(mode_) ? 1 : -1;
     const bool just_engaged =
         last_time_ == time_ && last_sigma_ == sigma &&
@@ -607,7 +609,7 @@ void CompliantJoint::checkStart(const ModeMatrix& a, const ModeVector& u)
       {
         return true;
       }
-      if (!(std::fabs(out) <= noise))
+      if (just_engaged || !(std::fabs(out) <= noise))
       {
         return false;
       }
