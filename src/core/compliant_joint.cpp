@@ -605,7 +605,7 @@ void CompliantJoint::checkStart(const ModeMatrix& a, const ModeVector& u)
         return false;
       }
       const double out = r.w.dot(x) + r.w0, noise = roundingOf(r.w, r.w0, x);
-      if (out < -noise || (!just_engaged && std::fabs(out) <= noise && r.w.dot(xd) < -roundingOf(r.w, 0.0, xd)))
+      if (out < -noise)
       {
         return true;
       }
@@ -613,7 +613,7 @@ void CompliantJoint::checkStart(const ModeMatrix& a, const ModeVector& u)
       {
         return false;
       }
-      return leavesBand(r, noise) < 0;
+      return r.w.dot(xd) < -roundingOf(r.w, 0.0, xd) || leavesBand(r, noise) < 0;
     });
     // msl_elastobacklash's sub-mode output (K2: cy − dẏ, KD: dẏ − cy) likewise: past its switch beyond rounding, or
     // within the rounding and leaving it upwards, switches here — also at an engagement: teeth entering K2 at a
