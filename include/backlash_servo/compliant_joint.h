@@ -342,7 +342,8 @@ class CompliantJoint
   /// An event at the watches' start that the state there already implies (its crossing lay within rounding); a and u
   /// the mode's ẋ = A x + u. An output starting within its rounding band is judged by the side it leaves the band on
   /// (exact searches for s ∓ band crossing outwards), where its rate alone could be turned back inside the band — but
-  /// a contact begun at that very instant releases only where its output starts below the band.
+  /// a contact begun at that very instant releases only where its output starts below the band. A contact kept with
+  /// its release output below zero within the band has that output watched falling past the band.
   void checkStart(const ModeMatrix& a, const ModeVector& u);
   void searchNextWindow();
   /// The ledger's integrals over [a, b] of the segment's local time (8-point Gauss–Legendre), added to *e.

@@ -20,7 +20,8 @@
  *
  * **A near split.** When the zero eigenvalue has a neighbour that is merely small (a body's viscous friction f/J ~
  * 1e-9 of a mesh's frequency: the common drift of bodies in contact decays that slowly), the two parts are coupled
- * and the block is not nilpotent to within rounding (up to NEAR_SPLIT): the coupling is removed — T⁻¹ÂT = [F C; D S]
+ * and the block is not nilpotent to within rounding (up to NEAR_SPLIT, as far as a chain is admitted): the coupling
+ * is removed — T⁻¹ÂT = [F C; D S]
  * block-diagonalised by [I X; Y I] from the Sylvester equations F X − X S = X D X − C, Y F − S Y = D − Y C Y — and
  * the slow block's series is summed on beyond m terms, to rounding over LinearMode::SERIES_SPAN fast time scales
  * (taking it as nilpotent resolved the drift to 1e-7 only).
@@ -58,9 +59,11 @@ class ModeBasis
   static constexpr double MAX_EIGENBASIS_CONDITION = 1e6;
   /// The zero eigenvalue's split (see the file comment), relative to ‖Â‖₂ (to its m-th power for Nᵐ): couplings
   /// between the subspaces and a remainder Nᵐ up to EXACT_SPLIT are rounding; up to NEAR_SPLIT they are removed
-  /// (the blocks decoupled, the slow block's series summed beyond m terms); beyond, the Taylor series.
+  /// (the blocks decoupled, the slow block's series summed beyond m terms; as far as CHAIN_TOLERANCE admits a chain —
+  /// the decoupling is checked, down to EXACT_SPLIT); beyond, the Taylor series, whose bounds on an output are loose
+  /// (the event search then crawls along an output that hovers near zero).
   static constexpr double EXACT_SPLIT = 1e-14;
-  static constexpr double NEAR_SPLIT = 1e-10;
+  static constexpr double NEAR_SPLIT = 1e-7;
   /// How far from ker Â^{k−1} (relative to ‖Â‖₂) Â may map a direction that grows ker Â^k: a chain of the zero
   /// eigenvalue, or a mode slow enough for the slow block's series; a faster one stays with the diagonalised modes.
   static constexpr double CHAIN_TOLERANCE = 1e-7;

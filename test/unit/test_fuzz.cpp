@@ -145,6 +145,19 @@ TEST(Fuzz, AnEngagementWhoseTeethPartAtOnceReleasesThere)
   }
 }
 
+// Teeth without backlash (Δ = 0, undamped, c = 6e3 N·m/rad) pressing with ~1e-13 N·m, inside the 7e-13 N·m rounding
+// of their torque, swap flanks at a sample (compliant seed 14 #5582): the backward contact released there, the
+// forward one engaged at once with P below zero within its rounding, and the new drive torque pulled the motor back —
+// P fell from below zero and never crossed it, and the mesh stayed in the forward contact with its torque clipped at
+// zero while the teeth pressed the backward flank (law −1.8e-5 N·m at 0.27 s). A contact kept with its release output
+// below zero within the rounding releases where it falls past the rounding. (The case also ran 28 s to get there: its
+// modes' slow drift was left to the Taylor series, whose loose bounds crawl along an output near zero.)
+TEST(Fuzz, TeethWithoutBacklashSwappingFlanksAtRoundingReleaseWhenPulledApart)
+{
+  const fuzz::Outcome o = fuzz::check(fuzz::makeCompliantCase(14, 5582));
+  EXPECT_EQ(o.klass, "ok") << o.detail;
+}
+
 // msl_elastobacklash entering K2 (2c·y while d·ẏ > c·y) at a grazing engagement (compliant seed 9 #3543: d·ẏ and c·y
 // both within the 2e-7 N·m rounding of angles of 270 rad): K2's switch output c·y − d·ẏ began at +2e-9, inside the
 // band, so its crossing from ≤ 0 never came and the mesh pressed with 2c·y — twice its law — for the rest of the run.
