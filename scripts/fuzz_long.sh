@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
-# Long property-fuzz run (issue 14): N cases (default 100000) of seed S on every core, counts per outcome class and
-# one example command line per failure class. usage: bash scripts/fuzz_long.sh [N] [SEED] [--compliant]
+# Long property-fuzz run: N cases (default 100000) of seed S on every core, counts per outcome class, one example
+# command line per failure class, and each process's slowest cases.
+# usage: bash scripts/fuzz_long.sh [N] [SEED] [--compliant]
 # (--compliant: the same cases with a compliant mesh and shaft drawn across the envelope, no dry friction)
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -23,3 +24,4 @@ wait
 awk '/^  [a-z_]+ +[0-9]+$/ {n[$1] += $2} END {for (k in n) printf "  %-12s %d\n", k, n[k]}' "$tmp"/*.txt | sort
 grep -h "^example" "$tmp"/*.txt | sort -u -t' ' -k2,2 | head -20 || true
 grep -h "in [0-9.]* s$" "$tmp"/*.txt
+grep -h "^  slowest:" "$tmp"/*.txt

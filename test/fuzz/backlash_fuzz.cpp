@@ -1,4 +1,5 @@
-// backlash_fuzz: runs N property-fuzz cases (fuzz_cases.h) and prints counts per outcome class and examples.
+// backlash_fuzz: runs N property-fuzz cases (fuzz_cases.h) and prints counts per outcome class, examples and the
+// slowest cases (a search that crawls shows up there before it becomes a hang).
 // usage: backlash_fuzz [--cases N] [--seed S] [--first K] [--budget IMPACTS] [--compliant] [--verbose]
 // (--compliant: the cases' joints with a compliant mesh, fuzz::makeCompliantCase)
 #include <chrono>
@@ -39,10 +40,10 @@ int main(int argc, char** argv)
   }
   std::map<std::string, std::uint64_t> counts;
   std::map<std::string, std::string> example;
-  std::uint64_t compensated = 0, profiled = 0;
-  const bool trace =
-      std::getenv("BACKLASH_FUZZ_TRACE") !=
-      nullptr;  // print each case's number before running it  // cases drawn with a compensator, with a command profile
+  std::uint64_t compensated = 0, profiled = 0;  // cases drawn with a compensator, with a command profile
+  const bool trace = std::getenv("BACKLASH_FUZZ_TRACE") != nullptr;  // print each case's number before running it
+  std::multimap<double, std::uint64_t> slowest;                      // wall time [s] → case: the SLOWEST cases
+  constexpr std::size_t SLOWEST = 3;
   const auto start = std::chrono::steady_clock::now();
   for (std::uint64_t i = first; i < first + cases; ++i)
   {
@@ -51,7 +52,13 @@ int main(int argc, char** argv)
     {
       std::fprintf(stderr, "case %llu\n", static_cast<unsigned long long>(i));  // a hang shows its case
     }
+    const auto began = std::chrono::steady_clock::now();
     const fuzz::Outcome o = fuzz::check(c, budget);
+    slowest.emplace(std::chrono::duration<double>(std::chrono::steady_clock::now() - began).count(), i);
+    if (slowest.size() > SLOWEST)
+    {
+      slowest.erase(slowest.begin());
+    }
     ++counts[o.klass];
     compensated += c.drive.compensation != "none";
     profiled += c.profile != nullptr;
@@ -73,6 +80,12 @@ int main(int argc, char** argv)
     std::printf("  %-12s %llu\n", kv.first.c_str(), static_cast<unsigned long long>(kv.second));
     failures += kv.first == "ok" || kv.first == "budget" || kv.first == "diverged" ? 0 : kv.second;
   }
+  std::printf("  slowest:");
+  for (auto it = slowest.rbegin(); it != slowest.rend(); ++it)
+  {
+    std::printf(" case %llu %.2f s;", static_cast<unsigned long long>(it->second), it->first);
+  }
+  std::printf("\n");
   for (const auto& kv : example)
   {
     std::printf("example %s %s\n", kv.first.c_str(), kv.second.c_str());
