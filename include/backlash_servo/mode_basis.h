@@ -12,10 +12,11 @@
  *
  * **A zero eigenvalue without a full eigenspace** (a body without viscous friction, a free body whose position drives
  * the motor through the drive law, two bodies joined only by a spring) splits the space into invariant parts,
- * ℝⁿ = range Â^K ⊕ ker Â^K (K the eigenvalue's index, both found by SVD of the powers of Â; exact structural zeros
- * only, 1e-12 of the largest singular value, and the kernel grown only by chains: Â maps each new direction into
- * ker Â^{k−1} to CHAIN_TOLERANCE of ‖Â‖ — a mode merely slow, whose powers also fall below that threshold, stays with
- * the diagonalised modes): on the range Â is diagonalised as above, on the kernel it is a nilpotent block N
+ * ℝⁿ = range Â^K ⊕ ker Â^K (K the eigenvalue's index, both found by SVD of the powers of Â: singular values to
+ * CHAIN_TOLERANCE of the largest are candidates — structural zeros, and a chain whose end is merely slow — and the
+ * kernel grows by the largest set of the smallest that is a chain: Â maps each new direction into ker Â^{k−1} to
+ * CHAIN_TOLERANCE of ‖Â‖ — a mode merely slow, whose powers also fall below that threshold, stays with the
+ * diagonalised modes): on the range Â is diagonalised as above, on the kernel it is a nilpotent block N
  * (N^m = 0, m = dim ker Â^K), whose motion is a polynomial.
  *
  * **A near split.** When the zero eigenvalue has a neighbour that is merely small (a body's viscous friction f/J ~

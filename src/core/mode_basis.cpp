@@ -157,32 +157,38 @@ void ModeBasis::splitNilpotent(const Eigen::MatrixXd& b)
     power = (b * power).eval();
     const Eigen::JacobiSVD<Eigen::MatrixXd> svd(power, Eigen::ComputeFullU | Eigen::ComputeFullV);
     const auto& sv = svd.singularValues();
-    // Exact zeros of a structurally singular Â (the case this is for) stay within a few ulps of its largest
-    // singular value's; anything larger is an eigenvalue that is merely small and is left to the check below.
+    // The candidates: singular values to CHAIN_TOLERANCE of the largest — exact zeros of a structurally singular Â
+    // (the case this is for) stay within a few ulps of it; a chain whose end is not quite zero (the common drift of
+    // bodies with viscous friction, λ a small fraction of ‖Â‖) gives about |λ|/‖Â‖.
     Eigen::Index rank = 0;
-    while (rank < n && sv(rank) > 1e-12 * sv(0))
+    while (rank < n && sv(rank) > CHAIN_TOLERANCE * sv(0))
     {
       ++rank;
     }
-    if (n - rank == kernel.cols())
-    {
-      break;  // ker Â^k no longer grows: the index is k − 1
-    }
     // Grown by a chain only: Â maps each new direction into ker Â^{k−1} (to CHAIN_TOLERANCE of ‖Â‖, which lets in a
     // mode the slow block's series can follow). A mode merely slow (Âv = λv, 4e-5 of ‖Â‖, say) also falls below the
-    // rank threshold by Â³, but is no chain: it stays with the modes diagonalised.
-    const Eigen::MatrixXd grown = svd.matrixV().rightCols(n - rank);
-    Eigen::MatrixXd image = b * grown;
-    if (kernel.cols() > 0)
+    // threshold by Â³, but is no chain: it stays with the modes diagonalised — the largest set of the smallest
+    // singular directions that is a chain grows the kernel (the slow mode's, with a larger singular value, left out).
+    Eigen::Index grows = 0;
+    for (Eigen::Index d = n - rank; d > kernel.cols() && grows == 0; --d)
     {
-      image -= kernel * (kernel.transpose() * image);
+      const Eigen::MatrixXd grown = svd.matrixV().rightCols(d);
+      Eigen::MatrixXd image = b * grown;
+      if (kernel.cols() > 0)
+      {
+        image -= kernel * (kernel.transpose() * image);
+      }
+      if (image.norm() <= CHAIN_TOLERANCE * norm_a_)
+      {
+        grows = d;
+      }
     }
-    if (image.norm() > CHAIN_TOLERANCE * norm_a_)
+    if (grows == 0)
     {
-      break;
+      break;  // ker Â^k no longer grows by a chain: the index is k − 1
     }
-    kernel = grown;
-    range = svd.matrixU().leftCols(rank);
+    kernel = svd.matrixV().rightCols(grows);
+    range = svd.matrixU().leftCols(n - grows);
   }
   const Eigen::Index m = kernel.cols(), r = n - m;
   if (m == 0)
