@@ -22,10 +22,9 @@
  * **A near split.** When the zero eigenvalue has a neighbour that is merely small (a body's viscous friction f/J ~
  * 1e-9 of a mesh's frequency: the common drift of bodies in contact decays that slowly), the two parts are coupled
  * and the block is not nilpotent to within rounding (up to NEAR_SPLIT, as far as a chain is admitted): the coupling
- * is removed — T⁻¹ÂT = [F C; D S]
- * block-diagonalised by [I X; Y I] from the Sylvester equations F X − X S = X D X − C, Y F − S Y = D − Y C Y — and
- * the slow block's series is summed on beyond m terms, to rounding over LinearMode::SERIES_SPAN fast time scales
- * (taking it as nilpotent resolved the drift to 1e-7 only).
+ * is removed — T⁻¹ÂT = [F C; D S] block-diagonalised by [I X; Y I] from the Sylvester equations
+ * F X − X S = X D X − C, Y F − S Y = D − Y C Y — and the slow block's series is summed on beyond m terms, to rounding
+ * over LinearMode::SERIES_SPAN fast time scales (taking it as nilpotent resolved the drift to 1e-7 only).
  *
  * Otherwise (a defective eigenvalue that is not zero: a critically damped pair) there is no modal form: motions are
  * their Taylor series (linear_mode.h).
