@@ -57,16 +57,17 @@ class ModeBasis
   /// Eigenbases worse conditioned than this are not used: the Taylor series instead. (A defective eigenvalue's
   /// computed eigenvectors are parallel to about √ε, a condition near 1e8: the threshold stays well below that.)
   static constexpr double MAX_EIGENBASIS_CONDITION = 1e6;
-  /// The zero eigenvalue's split (see the file comment), relative to ‖Â‖₂ (to its m-th power for Nᵐ): couplings
-  /// between the subspaces and a remainder Nᵐ up to EXACT_SPLIT are rounding; up to NEAR_SPLIT they are removed
-  /// (the blocks decoupled, the slow block's series summed beyond m terms; as far as CHAIN_TOLERANCE admits a chain —
-  /// the decoupling is checked, down to EXACT_SPLIT); beyond, the Taylor series, whose bounds on an output are loose
-  /// (the event search then crawls along an output that hovers near zero).
-  static constexpr double EXACT_SPLIT = 1e-14;
-  static constexpr double NEAR_SPLIT = 1e-7;
   /// How far from ker Â^{k−1} (relative to ‖Â‖₂) Â may map a direction that grows ker Â^k: a chain of the zero
   /// eigenvalue, or a mode slow enough for the slow block's series; a faster one stays with the diagonalised modes.
+  /// Also the threshold, relative to the largest, of the singular values of Â^k that are candidates for the kernel.
   static constexpr double CHAIN_TOLERANCE = 1e-7;
+  /// The zero eigenvalue's split (see the file comment), relative to ‖Â‖₂ (to its m-th power for Nᵐ): couplings
+  /// between the subspaces and a remainder Nᵐ up to EXACT_SPLIT are rounding; up to NEAR_SPLIT — as far as
+  /// CHAIN_TOLERANCE admits a chain — they are removed (the blocks decoupled, the decoupling checked down to
+  /// EXACT_SPLIT, the slow block's series summed beyond m terms); beyond, the Taylor series, whose bounds on an output
+  /// are loose (the event search then crawls along an output that hovers near zero).
+  static constexpr double EXACT_SPLIT = 1e-14;
+  static constexpr double NEAR_SPLIT = CHAIN_TOLERANCE;
 
   /// @param a the mode's matrix A (n × n, n ≤ MAX_MODE_ORDER, finite) [SI per the state's units]. Throws
   /// std::invalid_argument.

@@ -599,36 +599,26 @@ void CompliantJoint::checkStart(const ModeMatrix& a, const ModeVector& u)
     const bool just_engaged =
         last_time_ == time_ && last_sigma_ == sigma &&
         (last_kind_ == static_cast<int>(MeshEvent::Engage) || last_kind_ == static_cast<int>(MeshEvent::Reengage));
-    startWith([&](const Watch& r) {
+    startWith([&](Watch& r) {
       if (r.kind != MeshEvent::Release)
       {
         return false;
       }
       const double out = r.w.dot(x) + r.w0, noise = roundingOf(r.w, r.w0, x);
-      if (out < -noise)
+      if (out < -noise || (!just_engaged && std::fabs(out) <= noise &&
+                           (r.w.dot(xd) < -roundingOf(r.w, 0.0, xd) || leavesBand(r, noise) < 0)))
       {
         return true;
       }
-      if (just_engaged || !(std::fabs(out) <= noise))
+      // Kept with its output below zero within the rounding: it releases where the output falls past that rounding —
+      // from a start whose sign is rounding, a crossing of zero itself may never come (the output already below it)
+      // while the teeth part, as an engagement's watch waits for y to rise past its rounding.
+      if (out < 0.0)
       {
-        return false;
+        r.w0 += noise;
       }
-      return r.w.dot(xd) < -roundingOf(r.w, 0.0, xd) || leavesBand(r, noise) < 0;
+      return false;
     });
-    // A contact kept with its release output below zero within the rounding releases where the output falls past
-    // that rounding: from a start whose sign is rounding, a crossing of zero itself may never come (the output
-    // already below it) while the teeth part — as an engagement's watch waits for y to rise past its rounding.
-    for (Watch& r : seg.watches)
-    {
-      if (seg.event != seg.resumed && r.kind == MeshEvent::Release)
-      {
-        const double out = r.w.dot(x) + r.w0, noise = roundingOf(r.w, r.w0, x);
-        if (out < 0.0 && out >= -noise)
-        {
-          r.w0 += noise;
-        }
-      }
-    }
     // msl_elastobacklash's sub-mode output (K2: cy − dẏ, KD: dẏ − cy) likewise: past its switch beyond rounding, or
     // within the rounding and leaving it upwards, switches here — also at an engagement: teeth entering K2 at a
     // grazing engagement, dẏ and cy both within the rounding of the angles, leave it at once as cy grows. (Leaving
