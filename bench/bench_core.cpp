@@ -1,8 +1,9 @@
 // Speed and accuracy of the exact core against what users would write instead (bench/baselines.h; scipy in
 // bench/scipy_baseline.py). Prints a table and ratios; exits 1 if the accuracy comparison does not hold.
-// usage: bench_core [--quick] [--reference-out FILE]
+// usage: bench_core [--quick] [--reference-out FILE] | bench_core --tracking (the tracking figures' cost alone)
 #include <sys/resource.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -177,6 +178,49 @@ void jointBenchmarks(double scale)
 /// The thesis grid's costliest points (elastic chatter of a light load: ρ²J_L/J_m = 0.04, e = 1), run as the sweep
 /// runs them (until the verdict settles, ledger off) with the chatter fast path off (the closed form for every
 /// flight: the code before it) and on. Returns false if a verdict or a limit-cycle amplitude (1e-6 rad) differs.
+/// What a backlash_sim run costs beyond its simulation: the tracking figures gathered in the run's own pass
+/// (RunConfig::tracking) against the replay they used to need (runResponse + replayTracking), the D1 servo as
+/// `backlash_sim --duration T` runs it (energy ledger on). Best of three of each (the machine's speed drifts).
+void trackingBenchmarks(double scale)
+{
+  std::printf("\n== tracking figures: in the run's own pass vs a replay (thesis D1, energy ledger on, best of 3)\n");
+  std::printf("%-12s %10s %12s %12s %12s %10s %10s %s\n", "sim [s]", "samples", "alone [ms]", "replay [ms]",
+              "in pass [ms]", "replay/x", "in pass/x", "figures");
+  for (const double duration : {1e4 * scale, 1e5 * scale})
+  {
+    RunConfig c;
+    c.duration = duration;
+    auto best = [](const std::function<void()>& run) {
+      double b = INFINITY;
+      for (int k = 0; k < 3; ++k)
+      {
+        const auto start = std::chrono::steady_clock::now();
+        run();
+        b = std::min(b, std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count());
+      }
+      return b;
+    };
+    RunSummary alone_run;
+    const double alone = best([&]() { alone_run = runResponse(c); });
+    TrackingFigures replayed;
+    double rate = 0.0;
+    const double replay = best([&]() {
+      const RunSummary r = runResponse(c);
+      replayed = replayTracking(c, r, &rate);
+    });
+    RunConfig tracked = c;
+    tracked.tracking = true;
+    RunSummary in_pass_run;
+    const double in_pass = best([&]() { in_pass_run = runResponse(tracked); });
+    const TrackingFigures& f = in_pass_run.tracking;
+    const bool same = f.settling_time == replayed.settling_time && f.rms_error == replayed.rms_error &&
+                      f.steady_rms_error == replayed.steady_rms_error && f.max_error == replayed.max_error &&
+                      f.overshoot == replayed.overshoot && f.rms_torque == replayed.rms_torque;
+    std::printf("%-12.0f %10.0f %12.1f %12.1f %12.1f %10.2f %10.2f %s\n", duration, duration * rate, alone * 1e3,
+                replay * 1e3, in_pass * 1e3, replay / alone, in_pass / alone, same ? "bit-identical" : "DIFFER");
+  }
+}
+
 bool chatterBenchmarks(bool quick)
 {
   std::printf("\n== elastic chatter: the thesis grid's costliest points, until settled (closed form vs fast path)\n");
@@ -356,13 +400,18 @@ int main(int argc, char** argv)
     {
       quick = true;
     }
+    else if (!std::strcmp(argv[i], "--tracking"))
+    {
+      trackingBenchmarks(1.0);  // that table alone
+      return 0;
+    }
     else if (!std::strcmp(argv[i], "--reference-out") && i + 1 < argc)
     {
       reference_out = argv[++i];
     }
     else
     {
-      std::fprintf(stderr, "usage: bench_core [--quick] [--reference-out FILE]\n");
+      std::fprintf(stderr, "usage: bench_core [--quick] [--reference-out FILE] | bench_core --tracking\n");
       return 2;
     }
   }
@@ -454,6 +503,7 @@ int main(int argc, char** argv)
     }
   }
   jointBenchmarks(scale);
+  trackingBenchmarks(scale);
   if (!chatterBenchmarks(quick))
   {
     std::printf("CHATTER CHECK FAILED: the fast path changed a verdict or an amplitude\n");

@@ -163,7 +163,7 @@ class Plant
     }
     watch_lo_ = lo;
     watch_hi_ = hi;
-    segment_.reset();
+    restartSegment();
     if (compliant_.joint)
     {
       watchCompliant();
@@ -217,6 +217,7 @@ class Plant
   /// closed form restarts there. The caller keeps gap, contact and parameters consistent with the new frame.
   void shiftFrame(double dx_load, double dv_load, double dx_motor, double dv_motor)
   {
+    syncLedger();
     state_.load_position += dx_load;
     state_.load_velocity += dv_load;
     state_.motor_position += dx_motor;
@@ -247,7 +248,11 @@ class Plant
   double motorTorque() const { return law_.torque(state_.load_position, state_.time); }
   double meshTorque() const;
   double kineticEnergy() const;
-  const EnergyLedger& energy() const { return energy_; }
+  const EnergyLedger& energy() const
+  {
+    syncLedger();
+    return energy_;
+  }
   void setEnergyTracking(bool on);
   double energyBalanceError() const;
   std::uint64_t impactCount() const { return impacts_; }
@@ -307,7 +312,20 @@ class Plant
     int extrema_emitted = 0;
   };
 
-  void addFlows(const EnergyFlows& flows);
+  void addFlows(const EnergyFlows& flows) { addFlowsTo(&energy_, flows); }
+  static void addFlowsTo(EnergyLedger* ledger, const EnergyFlows& flows);
+  /// The ledger at local time tau [s] of the segment: its start's plus the motion's flows (dry friction split out).
+  EnergyLedger ledgerAt(const Segment& seg, double tau) const;
+  /// A stop inside a segment leaves the ledger to be computed when it is read (ledger_pending_): the closed form's
+  /// flows cost more than the state, and most stops (output samples, node ticks) never read it. The same value, bit
+  /// for bit, as computing it at the stop.
+  void syncLedger() const;
+  /// The closed form restarts (a change of law, parameters, state or frame): the ledger is brought up to now first.
+  void restartSegment()
+  {
+    syncLedger();
+    segment_.reset();
+  }
   /// Builds the segment starting at the current state (after checking a contact still holds).
   void beginSegment();
   /// A new segment from the state now (checked bounded), its start and ledger recorded.
@@ -424,7 +442,8 @@ class Plant
   double period_ = 1.0;              // natural period 2π/ω_n of the current parameters [s] (sets the search windows)
   double watch_lo_ = -std::numeric_limits<double>::infinity();  // the drive's watch interval of θ_c [rad]
   double watch_hi_ = std::numeric_limits<double>::infinity();
-  EnergyLedger energy_;
+  mutable EnergyLedger energy_;        // (brought up to date on demand: syncLedger)
+  mutable bool ledger_pending_ = false;  // energy_ is the segment's start's: its flows up to now not yet added
   std::uint64_t impacts_ = 0;
   std::uint64_t event_budget_ = 0;
   std::uint64_t switches_ = 0;  // rests and watch switches since setState(), counted against the same budget

@@ -15,6 +15,7 @@
 
 #include "backlash_servo/response_monitor.h"
 #include "backlash_servo/simulator.h"
+#include "backlash_servo/steady_state.h"
 #include "backlash_servo/tracking_metrics.h"
 
 namespace backlash_servo
@@ -31,6 +32,10 @@ struct RunConfig
   double max_events = 1e7;     ///< impact budget of the run; exceeded → stopped, verdict unsettled (not a hang)
   double settling_band = 0.0;  ///< error band of the settling figures [rad]; 0 = settlingBand()'s default
   bool short_flights = true;   ///< the chatter fast path (short_flight.h); off only to compare (bench_core)
+  /// The tracking figures (RunSummary::tracking) gathered in the run's own pass, as replayTracking() gives them.
+  bool tracking = false;
+  /// The steady answer of a converged run (RunSummary::steady, steady_state.h); off only where nobody reads it.
+  bool steady_answer = true;
   /// Optional set-point profile θ_R(t); the verdict is judged from its end on, against its final value (a run until
   /// settled lasts at least to its end). A digital drive samples any profile; the continuous law takes steps, points
   /// and (without dry friction) ramps exactly (Simulator::setProfile), sines with a compliant mesh, and refuses moves
@@ -57,6 +62,12 @@ struct RunSummary
   /// against which the verdict judged the maxima.
   double equilibrium = 0.0;
   bool settled = false;  ///< the verdict was settled (not cut off by the duration or the cap)
+  /// Where a converged joint comes to rest and its steady error θ_∞ − θ_R [rad] (steady_state.h): the limit, not
+  /// the offset at the end of the run. Basis None unless the verdict is converged.
+  SteadyAnswer steady;
+  /// With RunConfig::tracking: the tracking figures and their sample rate [Hz] (NaN without).
+  TrackingFigures tracking;
+  double tracking_rate = NAN;
   /// Why the run ended: "settled", "duration" (the requested length), "max_duration" (the cap), "event_budget",
   /// "diverged" (the motion ran away: verdict Diverged).
   std::string stopped_by;
@@ -100,7 +111,7 @@ TrackingMetrics trackingOf(const RunConfig& config, double dt, double t_end);
  * motion for the same simulated time sampled at `*sample_rate` [Hz]: the digital drive's rate, else 100 samples per
  * natural period 2π/ω_n, lowered to keep the replay within 1e6 samples (the rate used is written back). The run
  * itself stays exact and untouched (its stop and events do not depend on the sampling); the figures are a data
- * logger's view of it.
+ * logger's view of it. RunConfig::tracking gives the same figures from the run's own pass, without the replay.
  */
 TrackingFigures replayTracking(const RunConfig& config, const RunSummary& run, double* sample_rate);
 

@@ -171,7 +171,7 @@ void Plant::setState(const State& s)
     n.motor_position = mesh_.motorPosition(s.load_position, std::min(std::max(g, 0.0), delta));
   }
   state_ = n;
-  segment_.reset();
+  restartSegment();
   forced_motor_breakaway_ = 0;
   energy_ = EnergyLedger();
   impacts_ = 0;
@@ -213,7 +213,7 @@ void Plant::setLaw(const MotorInput& law)
   {
     return;
   }
-  segment_.reset();
+  restartSegment();
 }
 
 void Plant::setParams(const ServoParams& params, EventSink* sink, bool frame)
@@ -237,7 +237,7 @@ void Plant::setParams(const ServoParams& params, EventSink* sink, bool frame)
     enterWave(law);
     return;
   }
-  segment_.reset();  // the closed form restarts from the state now
+  restartSegment();  // the closed form restarts from the state now
   const double balance_before = energyBalanceError();
   const double old_gap = gap();
   params_ = params;
@@ -312,6 +312,7 @@ double Plant::kineticEnergy() const
 
 double Plant::energyBalanceError() const
 {
+  syncLedger();
   if (compliant_.joint)
   {
     return compliantBalanceError();
@@ -342,15 +343,25 @@ void Plant::emit(EventSink* sink, EventType type, const ImpactInfo* impact) cons
   sink->onEvent(e);
 }
 
-void Plant::addFlows(const EnergyFlows& f)
+void Plant::addFlowsTo(EnergyLedger* e, const EnergyFlows& f)
 {
-  energy_.input += f.input;
-  energy_.motor_friction += f.motor_friction;
-  energy_.load_friction += f.load_friction;
-  energy_.load_work += f.load_work;
-  energy_.motor_dry_friction += f.motor_dry_friction;
-  energy_.load_dry_friction += f.load_dry_friction;
-  energy_.input_magnitude += std::fabs(f.input);
+  e->input += f.input;
+  e->motor_friction += f.motor_friction;
+  e->load_friction += f.load_friction;
+  e->load_work += f.load_work;
+  e->motor_dry_friction += f.motor_dry_friction;
+  e->load_dry_friction += f.load_dry_friction;
+  e->input_magnitude += std::fabs(f.input);
+}
+
+void Plant::syncLedger() const
+{
+  if (!ledger_pending_)
+  {
+    return;
+  }
+  ledger_pending_ = false;
+  energy_ = ledgerAt(*segment_, state_.time - segment_->start.time);
 }
 
 bool Plant::advanceTo(double t_end, EventSink* sink)
@@ -400,10 +411,12 @@ bool Plant::advanceTo(double t_end, EventSink* sink)
     }
     if (end_time > t_end)
     {
-      // t_end falls inside the segment: evaluate there, keep the segment anchored where it began.
+      // t_end falls inside the segment: evaluate there, keep the segment anchored where it began (the ledger when
+      // it is read).
       const double tau = t_end - seg.start.time;
       emitExtremaUpTo(tau, sink);
-      placeInSegment(tau);
+      placeInSegment(tau, false);
+      ledger_pending_ = track_energy_;
       state_.time = t_end;
       return false;
     }
@@ -418,7 +431,7 @@ bool Plant::advanceTo(double t_end, EventSink* sink)
     if (end == Segment::End::Rest || end == Segment::End::Breakaway)
     {
       const Segment ended = seg;
-      segment_.reset();
+      restartSegment();
       handleRest(ended, sink);
       stalled = state_.time == before ? stalled + 1 : 0;
       if (stalled > MAX_STALLED_ITERATIONS)
@@ -428,7 +441,7 @@ bool Plant::advanceTo(double t_end, EventSink* sink)
       }
       continue;
     }
-    segment_.reset();
+    restartSegment();
     if (end == Segment::End::Separation)
     {
       state_.contact = mesh_.afterSeparation(state_.contact);
@@ -621,6 +634,27 @@ void Plant::applyWatch(Segment& seg) const
   }
 }
 
+EnergyLedger Plant::ledgerAt(const Segment& seg, double tau) const
+{
+  EnergyLedger ledger = seg.energy_at_start;
+  visitMotion(seg, [&](const auto& m) {
+    using M = std::decay_t<decltype(m)>;
+    EnergyFlows flows = m.energy(tau);
+    if (seg.dry && !std::is_same_v<M, StuckMotion>)
+    {
+      // The motion ran with the kinetic friction folded into its inputs: split it back out of them.
+      const double motor_dry = seg.motor_slide * params_.motor_coulomb_friction * flows.motor_displacement;
+      const double load_dry = seg.load_slide * params_.load_coulomb_friction * flows.load_displacement;
+      flows.input += motor_dry;
+      flows.motor_dry_friction = motor_dry;
+      flows.load_work += load_dry;
+      flows.load_dry_friction = load_dry;
+    }
+    addFlowsTo(&ledger, flows);
+  });
+  return ledger;
+}
+
 void Plant::placeInSegment(double tau, bool with_energy)
 {
   const Segment& seg = *segment_;
@@ -634,6 +668,7 @@ void Plant::placeInSegment(double tau, bool with_energy)
     if (track_energy_ && with_energy)
     {
       energy_ = seg.energy_at_start;
+      ledger_pending_ = false;
     }
     return;
   }
@@ -650,23 +685,12 @@ void Plant::placeInSegment(double tau, bool with_energy)
     {
       m.at(tau, &state_);
     }
-    if (track_energy_ && with_energy)
-    {
-      energy_ = seg.energy_at_start;
-      EnergyFlows flows = m.energy(tau);
-      if (seg.dry && !std::is_same_v<M, StuckMotion>)
-      {
-        // The motion ran with the kinetic friction folded into its inputs: split it back out of them.
-        const double motor_dry = seg.motor_slide * params_.motor_coulomb_friction * flows.motor_displacement;
-        const double load_dry = seg.load_slide * params_.load_coulomb_friction * flows.load_displacement;
-        flows.input += motor_dry;
-        flows.motor_dry_friction = motor_dry;
-        flows.load_work += load_dry;
-        flows.load_dry_friction = load_dry;
-      }
-      addFlows(flows);
-    }
   });
+  if (track_energy_ && with_energy)
+  {
+    energy_ = ledgerAt(seg, tau);
+    ledger_pending_ = false;
+  }
   state_.time = t;
 }
 

@@ -86,10 +86,11 @@ void Plant::setLoadWave(const Waveform& wave)
 void Plant::enterWave(const MotorInput& law)
 {
   requireExactWave(params_, "a sinusoidal motor torque (a sine command under the continuous law, or in effort mode)");
+  syncLedger();
   wave_base_ = energy_;  // the ledger so far; the joint's own adds to it
   wave_balance_ = energyBalanceError();
   law_ = law;
-  segment_.reset();
+  restartSegment();
   flight_model_.reset();
   beginCompliant();
   stateToCompliant();
@@ -102,7 +103,7 @@ void Plant::leaveWave()
   compliant_.joint.reset();
   wave_base_ = EnergyLedger();
   wave_balance_ = 0.0;
-  segment_.reset();
+  restartSegment();
   flight_model_.reset();
   if (state_.contact != Contact::Apart)
   {

@@ -3,6 +3,9 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <optional>
+
+#include "backlash_servo/steady_state.h"
 
 namespace backlash_servo
 {
@@ -32,6 +35,90 @@ class Tee : public EventSink
   ResponseMonitor* monitor_;
   EventSink* next_;
 };
+
+/**
+ * The tracking figures gathered in the run's own pass: every advanceTo of the run goes through advanceTo() here,
+ * which stops at the sample times t₀ + k·dt on the way — the plant's closed forms stay anchored where their segments
+ * began, so the run is the same to the bit — and feeds the samples to the accumulator exactly as replayTracking()'s
+ * replay does (a drive's sample due there taken first, as a drive logs its torque).
+ */
+class TrackingPass
+{
+ public:
+  static constexpr double MAX_SAMPLES = 1e6;
+
+  /// rate: samples a second [Hz]; t_end: the run's end as known at the start [s] (+inf: until settled, when the
+  /// pass gives up past MAX_SAMPLES: replayTracking() would lower the rate).
+  TrackingPass(const RunConfig& config, double rate, double t_end)
+      : metrics_(trackingOf(config, 1.0 / rate, t_end)),
+        rate_(rate),
+        dt_(1.0 / rate),
+        t_end_(t_end),
+        t0_(config.initial.time),
+        profile_(config.profile.get()),
+        command_(config.command)
+  {}
+
+  /// Advances sim to t [s], sampling every grid time before it (the run's own sink sees every event).
+  void advanceTo(Simulator& sim, double t, EventSink* sink)
+  {
+    for (double ts = nextTime(); on_ && ts < t; ts = nextTime())
+    {
+      sim.advanceTo(ts, sink);
+      sim.takeSampleDue(sink);
+      add(sim);
+      if (std::isinf(t_end_) && static_cast<double>(next_) > MAX_SAMPLES + 1.0)
+      {
+        on_ = false;  // a run until settled past the sample budget: replayTracking() lowers the rate instead
+      }
+    }
+    sim.advanceTo(t, sink);
+  }
+  /// The sample at the start (the state as constructed: no drive sample taken yet).
+  void start(const Simulator& sim) { add(sim); }
+  /// The last sample, at the run's end (a drive's sample due there taken first; the run's summary is taken).
+  void finish(Simulator& sim)
+  {
+    sim.takeSampleDue(nullptr);
+    add(sim);
+  }
+  /// Every grid sample was taken (not given up past MAX_SAMPLES).
+  bool complete() const { return on_; }
+  double rate() const { return rate_; }
+  /// The run's end assumed at the start [s] (+inf: until settled).
+  double assumedEnd() const { return t_end_; }
+  const TrackingMetrics& metrics() const { return metrics_; }
+
+ private:
+  double nextTime() const { return t0_ + static_cast<double>(next_) * dt_; }
+  void add(const Simulator& sim)
+  {
+    const State& s = sim.state();
+    metrics_.add(s.time, profile_ ? profile_->at(s.time) : command_, s.load_position, sim.motorTorque());
+    ++next_;
+  }
+
+  TrackingMetrics metrics_;
+  double rate_, dt_, t_end_, t0_;
+  const CommandProfile* profile_;
+  double command_;
+  long next_ = 0;  // samples taken, the initial one included
+  bool on_ = true;
+};
+
+/// The tracking figures' sample rate [Hz] before any lowering: the digital drive's rate, else 100 samples per
+/// natural period 2π/ω_n.
+double nominalTrackingRate(const RunConfig& config)
+{
+  return config.drive.sampled() ? config.drive.controller_rate : 100.0 * config.params.naturalFrequency() / (2.0 * PI);
+}
+
+/// replayTracking()'s rate for a run of `simulated` [s]: the nominal rate, lowered to keep within `max_samples`.
+double trackingRateFor(const RunConfig& config, double simulated, double max_samples)
+{
+  const double rate = nominalTrackingRate(config);
+  return simulated * rate > max_samples ? max_samples / simulated : rate;
+}
 }  // namespace
 
 void checkProfile(const RunConfig& config)
@@ -139,13 +226,7 @@ TrackingMetrics trackingOf(const RunConfig& config, double dt, double t_end)
 
 TrackingFigures replayTracking(const RunConfig& config, const RunSummary& run, double* sample_rate)
 {
-  constexpr double MAX_SAMPLES = 1e6;
-  double rate = config.drive.sampled() ? config.drive.controller_rate
-                                       : 100.0 * config.params.naturalFrequency() / (2.0 * 3.14159265358979323846);
-  if (run.simulated * rate > MAX_SAMPLES)
-  {
-    rate = MAX_SAMPLES / run.simulated;
-  }
+  const double rate = trackingRateFor(config, run.simulated, TrackingPass::MAX_SAMPLES);
   *sample_rate = rate;
   const double dt = 1.0 / rate;
   const double t_end = config.initial.time + run.simulated;
@@ -157,6 +238,8 @@ TrackingFigures replayTracking(const RunConfig& config, const RunSummary& run, d
   RunConfig replay = config;
   replay.duration = run.simulated;
   replay.track_energy = false;
+  replay.tracking = false;
+  replay.steady_answer = false;
   const CommandProfile* profile = config.profile.get();
   runResponse(replay, nullptr, dt, [&](const Simulator& sim) {
     const State& s = sim.state();
@@ -194,6 +277,31 @@ Simulator makeSimulator(const RunConfig& config)
   return sim;
 }
 
+namespace
+{
+/// The figures of a run's own pass into out->tracking, or — where they could differ from replayTracking()'s (its rate
+/// lowered after all, its end not the one assumed at the start, a run cut short) — the replay's.
+void finishTracking(const RunConfig& config, TrackingPass* pass, Simulator& sim, RunSummary* out)
+{
+  const double rate = trackingRateFor(config, out->simulated, TrackingPass::MAX_SAMPLES);
+  const double t_end = config.initial.time + out->simulated;
+  const bool same_end =
+      !config.profile || std::min(pass->assumedEnd(), std::max(config.profile->endTime(), config.initial.time)) ==
+                             std::min(t_end, std::max(config.profile->endTime(), config.initial.time));
+  const bool cut_short = out->stopped_by == "event_budget" || out->stopped_by == "diverged" || !(out->simulated > 0.0);
+  if (!pass->complete() || cut_short || rate != pass->rate() || !same_end || sim.state().time != t_end)
+  {
+    out->tracking = replayTracking(config, *out, &out->tracking_rate);
+    return;
+  }
+  pass->finish(sim);
+  out->tracking_rate = rate;
+  const double command = config.profile ? config.profile->finalValue() : config.command;
+  out->tracking = pass->metrics().figures(t_end, 1.0 / rate,
+                                          cycleLeavesBand(out->status, out->cycle, command, pass->metrics().band()));
+}
+}  // namespace
+
 RunSummary runResponse(const RunConfig& config, EventSink* sink, double sample_period, const SampleCallback& on_sample,
                        const ProgressCallback& on_progress)
 {
@@ -205,17 +313,33 @@ RunSummary runResponse(const RunConfig& config, EventSink* sink, double sample_p
   ResponseMonitor monitor(config.params, command, loopEquilibrium(config.params, config.drive, command), config.initial,
                           sim.drive().sampled());
   Tee tee(&monitor, sink);
+  const bool until_settled = config.duration <= 0.0;
+  // The tracking figures in this pass, at the rate replayTracking() would choose when the run's length is known now
+  // (a run until settled: the nominal rate, replayed at a lower one only when it outlasts the sample budget).
+  std::optional<TrackingPass> pass;
+  if (config.tracking)
+  {
+    const double rate = until_settled ? nominalTrackingRate(config)
+                                      : trackingRateFor(config, config.duration, TrackingPass::MAX_SAMPLES);
+    pass.emplace(config, rate, until_settled ? INFINITY : t0 + config.duration);
+    pass->start(sim);
+  }
+  auto advance = [&](double t) {
+    if (pass)
+    {
+      pass->advanceTo(sim, t, &tee);
+    }
+    else
+    {
+      sim.advanceTo(t, &tee);
+    }
+  };
   // With a profile the verdict is judged from its end on, against its final value: a fresh monitor there (a hunt
   // around an intermediate set-point is not the final limit cycle).
   double judge_from = config.profile && config.profile->endTime() > t0 ? config.profile->endTime() : -INFINITY;
-  const bool until_settled = config.duration <= 0.0;
-  double t_stop =
-      t0 +
-      (until_settled
-           ? (config.max_duration > 0.0
-                  ? config.max_duration
-                  : std::max(2000.0 / omega_n, 100.0 * std::max(driveTimeScale(config), plantTimeScale(config.params))))
-           : config.duration);
+  double t_stop = t0 + (until_settled ? (config.max_duration > 0.0 ? config.max_duration
+                                                                   : steadyBudget(config.params, config.drive))
+                                      : config.duration);
   // Without a cap of the user's, a run until settled lasts at least REPETITIONS times the slowest oscillation seen
   // (the longest interval between maxima): a stick–slip hunt or a slow drive loop whose cycle is long against
   // 2π/ω_n (ω_n is the P law's; it means nothing for a PID or a cascade) is given the repetitions its verdict needs.
@@ -233,7 +357,7 @@ RunSummary runResponse(const RunConfig& config, EventSink* sink, double sample_p
     {
       if (judge_from >= sim.state().time && judge_from <= t)
       {
-        sim.advanceTo(judge_from, &tee);
+        advance(judge_from);
         monitor.restartAt(sim.state());
         judge_from = -INFINITY;
       }
@@ -247,7 +371,7 @@ RunSummary runResponse(const RunConfig& config, EventSink* sink, double sample_p
         const double from = sim.state().time;
         for (int k = 1; k < SETTLE_STEPS && !monitor.oscillating(); ++k)
         {
-          sim.advanceTo(from + (t - from) * k / SETTLE_STEPS, &tee);
+          advance(from + (t - from) * k / SETTLE_STEPS);
         }
         if (monitor.oscillating() && judge_from == -INFINITY)
         {
@@ -255,7 +379,7 @@ RunSummary runResponse(const RunConfig& config, EventSink* sink, double sample_p
           break;
         }
       }
-      sim.advanceTo(t, &tee);
+      advance(t);
     }
     catch (const EventBudgetExceeded& e)
     {
@@ -326,6 +450,14 @@ RunSummary runResponse(const RunConfig& config, EventSink* sink, double sample_p
   out.simulated = sim.state().time - t0;
   out.equilibrium = monitor.equilibrium();
   out.settled = monitor.settled();
+  if (config.steady_answer && out.status.verdict == Verdict::Converged)
+  {
+    out.steady = steadyAnswer(sim, config.drive, command, out.equilibrium, monitor.scale());
+  }
+  if (pass)
+  {
+    finishTracking(config, &*pass, sim, &out);
+  }
   return out;
 }
 

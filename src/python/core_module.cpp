@@ -170,16 +170,15 @@ py::object parseJson(const std::string& text)
 
 py::object run(const py::object& config)
 {
-  const RunConfig c = runConfigOf(config);
+  RunConfig c = runConfigOf(config);
+  c.tracking = true;
   std::ostringstream out;
   {
     py::gil_scoped_release release;
     const auto start = std::chrono::steady_clock::now();
     const RunSummary r = runResponse(c);
     const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-    double rate = 0.0;
-    const TrackingFigures tracking = replayTracking(c, r, &rate);
-    writeRunJson(out, c, r, tracking, rate, wall);
+    writeRunJson(out, c, r, wall);
   }
   return parseJson(out.str());
 }

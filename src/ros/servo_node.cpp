@@ -231,6 +231,7 @@ void ServoNode::restartMonitor(const std::string& reason)
   tracked.profile = sim_.controlMode() == ControlMode::Position ? profile_ : nullptr;
   tracking_ = std::make_unique<TrackingMetrics>(trackingOf(tracked, 1.0 / config_.publish_rate, INFINITY));
   announced_ = Verdict::Undecided;
+  steady_ = SteadyAnswer();
   if (running && !reason.empty())
   {
     verdict_reason_ = reason + " at t = " + formatNumber(sim_.state().time) + " s: judging afresh";
@@ -456,7 +457,9 @@ void ServoNode::diagnose(diagnostic_updater::DiagnosticStatusWrapper& status)
   }
   if (verdict.verdict == Verdict::Converged)
   {
-    status.add("steady_error [rad]", formatNumber(sim_.state().load_position - command_));
+    const SteadyAnswer& steady = steadyNow();
+    status.add("steady_error [rad]", std::isnan(steady.error) ? "n/a: " + steady.note : formatNumber(steady.error));
+    status.add("steady_basis", steadyBasisName(steady.basis));
   }
   const TrackingFigures tracking = trackingNow();
   status.add("settling_band [rad]", formatNumber(tracking.band));
@@ -624,6 +627,36 @@ TrackingFigures ServoNode::trackingNow() const
                             cycleLeavesBand(monitor_->status(), monitor_->cycleShape(), command_, tracking_->band()));
 }
 
+const SteadyAnswer& ServoNode::steadyNow()
+{
+  if (monitor_->status().verdict != Verdict::Converged)
+  {
+    steady_ = SteadyAnswer();
+    return steady_;
+  }
+  const bool effort = sim_.controlMode() == ControlMode::Effort;
+  if (steady_.basis == SteadyBasis::None || (effort && steady_.basis == SteadyBasis::Unsettled))
+  {
+    if (!effort)
+    {
+      steady_ = steadyAnswer(sim_, config_.run.drive, command_, monitor_->equilibrium(), monitor_->scale());
+    }
+    else if (sim_.atRestForever())
+    {
+      steady_ = SteadyAnswer();
+      steady_.position = sim_.state().load_position;
+      steady_.error = steady_.position - command_;
+      steady_.basis = SteadyBasis::Held;
+    }
+    else
+    {
+      steady_.basis = SteadyBasis::Unsettled;
+      steady_.note = "effort mode: the external controller's law is unknown";
+    }
+  }
+  return steady_;
+}
+
 void ServoNode::publishLimitCycle(double sim_time, bool maximum, bool diverged)
 {
   const auto& st = monitor_->status();
@@ -639,6 +672,9 @@ void ServoNode::publishLimitCycle(double sim_time, bool maximum, bool diverged)
   m.peak_to_peak = m.detected ? cycle.peak_to_peak : 0.0;
   m.cycle_centre = m.detected ? cycle.centre : 0.0;
   m.equilibrium = monitor_->equilibrium();
+  const SteadyAnswer& steady = steadyNow();
+  m.steady_error = steady.error;
+  m.steady_basis = steady.basis == SteadyBasis::None ? "" : steadyBasisName(steady.basis);
   const TrackingFigures tracking = trackingNow();
   m.settling_band = tracking.band;
   m.settling_time = tracking.settling_time;

@@ -24,6 +24,7 @@
 #include "backlash_servo/BacklashServoConfig.h"
 #include "backlash_servo/response_monitor.h"
 #include "backlash_servo/simulator.h"
+#include "backlash_servo/steady_state.h"
 #include "backlash_servo/step_response.h"
 #include "backlash_servo/tracking_metrics.h"
 #include "node_config.h"
@@ -125,8 +126,12 @@ class ServoNode : public EventSink
   double effort_;             // effort-mode torque [N·m]
   std::unique_ptr<ResponseMonitor> monitor_;   // the same judge as backlash_sim (rest and quiet rules included)
   std::unique_ptr<TrackingMetrics> tracking_;  // the tracking figures since the judgement began (every sample)
+  SteadyAnswer steady_;                        // of the current judgement once converged (steadyNow)
   /// The tracking figures now (settling into the band, steady-state RMS error), as backlash_sim defines them.
   TrackingFigures trackingNow() const;
+  /// The steady answer of the current judgement (steady_state.h), found once when it turns converged; none before.
+  /// In effort mode the external controller's law is unknown: only a joint held for ever has one.
+  const SteadyAnswer& steadyNow();
   Verdict announced_ = Verdict::Undecided;
 
   std::unique_ptr<NodeRecorder> recorder_;  // the node's own bag (record_bag), or null

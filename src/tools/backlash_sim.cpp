@@ -74,7 +74,7 @@ class CsvWriter : public EventSink
   GearMesh mesh_;
 };
 
-/// The tracking figures' line (replayTracking).
+/// The tracking figures' line (RunSummary::tracking).
 void writeTracking(std::ostream& out, const TrackingFigures& t, double rate)
 {
   char settle[64] = "- (still outside at the end)";
@@ -88,6 +88,29 @@ void writeTracking(std::ostream& out, const TrackingFigures& t, double rate)
                 "RMS error %.4g rad, overshoot %.4g rad\n",
                 rate, settle, t.band, t.steady_rms_error, t.rms_error, t.overshoot);
   out << buf;
+}
+
+/// Where a converged joint comes to rest and why that figure: the steady answer in words.
+std::string steadyLine(const RunConfig& c, const RunSummary& r)
+{
+  const SteadyAnswer& s = r.steady;
+  char buf[320];
+  const char* why = s.basis == SteadyBasis::Held ? "held there by dry friction"
+                    : s.basis == SteadyBasis::Limit
+                        ? "where it settles: run on until its remaining travel was within rounding"
+                    : r.equilibrium != c.command ? "the loop's equilibrium under the load torque"
+                                                 : "the loop's equilibrium";
+  if (s.basis == SteadyBasis::Unsettled)
+  {
+    std::snprintf(buf, sizeof buf, "steady error n/a: not at rest (%s); at the end theta_c = %.9g rad", s.note.c_str(),
+                  r.final_state.load_position);
+  }
+  else
+  {
+    std::snprintf(buf, sizeof buf, "comes to rest at theta_c = %.9g rad, steady error %.6g rad (%s)", s.position,
+                  s.error, why);
+  }
+  return buf;
 }
 
 void writeSummary(std::ostream& out, const RunConfig& c, const RunSummary& r, double wall_seconds)
@@ -132,13 +155,7 @@ void writeSummary(std::ostream& out, const RunConfig& c, const RunSummary& r, do
   }
   else if (r.status.verdict == Verdict::Converged)
   {
-    std::snprintf(
-        buf, sizeof buf,
-        "verdict: converges (no limit cycle); at the end theta_c = %.9g rad, steady error %.3g rad%s\n",
-        r.final_state.load_position, r.final_state.load_position - c.command,
-        r.equilibrium != c.command
-            ? (" (the loop's equilibrium under the load torque: " + formatNumber(r.equilibrium) + " rad)").c_str()
-            : "");
+    std::snprintf(buf, sizeof buf, "verdict: converges (no limit cycle); %s\n", steadyLine(c, r).c_str());
   }
   else if (r.status.verdict == Verdict::Diverged)
   {
@@ -198,6 +215,7 @@ int main(int argc, char** argv)
   {
     options.parse(argc, argv);
     config = runConfigFrom(options.keys());
+    config.tracking = true;
     csv_path = options.option("csv");
     sample_rate = options.optionNumber("sample_rate", sample_rate);
     // Above 1 MHz the sample period nears the rounding of the time itself (a rate of 1e308 Hz never advances).
@@ -242,16 +260,14 @@ int main(int argc, char** argv)
     {
       std::cerr << "backlash_sim: stopped: " << result.message << "\n";
     }
-    double tracking_rate = 0.0;
-    const TrackingFigures tracking = replayTracking(config, result, &tracking_rate);
     if (options.given("json"))
     {
-      writeRunJson(std::cout, config, result, tracking, tracking_rate, wall);
+      writeRunJson(std::cout, config, result, wall);
     }
     else
     {
       writeSummary(std::cout, config, result, wall);
-      writeTracking(std::cout, tracking, tracking_rate);
+      writeTracking(std::cout, result.tracking, result.tracking_rate);
     }
     flushStdout();
   }

@@ -5,9 +5,9 @@
 
 namespace backlash_servo
 {
-void writeRunJson(std::ostream& out, const RunConfig& c, const RunSummary& r, const TrackingFigures& tracking,
-                  double tracking_rate, double wall_seconds)
+void writeRunJson(std::ostream& out, const RunConfig& c, const RunSummary& r, double wall_seconds)
 {
+  const TrackingFigures& tracking = r.tracking;
   const ServoParams& p = c.params;
   JsonWriter j(out);
   j.beginObject();
@@ -68,13 +68,15 @@ void writeRunJson(std::ostream& out, const RunConfig& c, const RunSummary& r, co
     j.null("peak_to_peak").null("cycle_centre");
   }
   j.field("equilibrium", r.equilibrium);  // where the loop rests [rad]; the verdict judges maxima against it
-  if (r.status.verdict == Verdict::Converged)
+  // Where a converged joint comes to rest and θ_∞ − θ_R [rad] (null unless found), and how it was found.
+  j.field("steady_position", r.steady.position).field("steady_error", r.steady.error);
+  if (r.steady.basis == SteadyBasis::None)
   {
-    j.field("steady_error", r.final_state.load_position - c.command);  // θ_c − θ_R at the end [rad]
+    j.null("steady_basis");
   }
   else
   {
-    j.null("steady_error");
+    j.field("steady_basis", std::string(steadyBasisName(r.steady.basis)));
   }
   // Tracking figures from a sampled replay of the run (null where they do not apply).
   j.field("settling_band", tracking.band)
@@ -83,7 +85,7 @@ void writeRunJson(std::ostream& out, const RunConfig& c, const RunSummary& r, co
       .field("steady_rms_error", tracking.steady_rms_error)
       .field("max_error", tracking.max_error)
       .field("overshoot", tracking.overshoot)
-      .field("tracking_sample_rate", tracking_rate);
+      .field("tracking_sample_rate", r.tracking_rate);
   j.beginArray("maxima");
   for (const Maximum& m : r.maxima)
   {

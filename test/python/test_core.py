@@ -142,6 +142,20 @@ def test_sweep_equals_backlash_sweep(tmp_path):
     assert "steady_rms_error" in core.sweep(settings, tracking=True)
 
 
+def test_steady_error_is_where_the_joint_comes_to_rest():
+    # The D1 servo (e = 0.8) under −0.3 N·m stops by the state rule 2.6e-6 rad short of its rest: the steady error
+    # is the rest's, ρT_ext/K = −0.3 (K = ρ = 1), in run() and in every sweep row of the same joint.
+    r = core.run({"restitution": 0.8, "load_torque": -0.3})
+    assert r["verdict"] == "converged" and r["steady_basis"] == "equilibrium"
+    assert abs(r["steady_error"] + 0.3) <= 1e-12 * 0.3
+    assert abs(r["final_state"]["load_position"] - 1.0 + 0.3) > 1e-7
+    columns = core.sweep({"restitution": [0.8], "load_torque": [-0.3]})
+    assert columns["steady_error"][0] == r["steady_error"]
+    held = core.run({"restitution": 0.5, "load_coulomb_friction": 0.2, "load_static_friction": 0.2})
+    assert held["steady_basis"] == "held"
+    assert held["steady_error"] == held["final_state"]["load_position"] - 1.0
+
+
 def test_compare_equals_backlash_compare():
     code, out, err = tool("backlash_compare", "--config", WORKBENCH, "--json")
     assert code == 0, err

@@ -299,6 +299,51 @@ class BagReportStretches(unittest.TestCase):
             self.assertAlmostEqual(stretch["rms_error"], amp / math.sqrt(2.0), delta=1e-3)
         self.assertIn("2 stretches between changes", text)
 
+    def test_nan_figures_inside_stretches_and_a_converged_verdicts_text(self):
+        # The node publishes NaN for figures that do not exist yet (a settling time while outside the band): inside
+        # the stretches' list too they are null in the JSON, and a converged verdict's text gives its steady error,
+        # never "error 0 rad, period 0 s".
+        import rospy
+        from backlash_servo.msg import BacklashState, LimitCycleStatus
+        from sensor_msgs.msg import JointState
+        with tempfile.TemporaryDirectory() as d:
+            path = os.path.join(d, "converged.bag")
+            with rosbag.Bag(path, "w") as bag:
+                for i in range(400):
+                    t = i * 0.01
+                    stamp = rospy.Time(t + 1.0)
+                    command = 1.0 if t < 2.0 else 0.5
+                    js = JointState(name=["motor_joint", "load_joint"], position=[command, command], velocity=[0, 0])
+                    js.header.stamp = stamp
+                    bag.write("/joint_states", js, stamp)
+                    bag.write("/backlash_state", BacklashState(sim_time=t, command=command, gap=0.0), stamp)
+                    if i in (100, 200, 300):
+                        m = LimitCycleStatus(sim_time=t, verdict="undecided" if i == 200 else "converged",
+                                             command=command, settling_time=float("nan"),
+                                             steady_rms_error=float("nan"),
+                                             steady_error=-0.3 if i == 100 else float("nan"),
+                                             steady_basis={100: "equilibrium", 200: "", 300: "unsettled"}[i],
+                                             reason="a new command at t = 2 s: judging afresh" if i == 200 else "")
+                        m.header.stamp = stamp
+                        bag.write("/limit_cycle", m, stamp)
+            code, out, err = self.report_of(path, "--json")
+            self.assertEqual(code, 0, err)
+            report = json.loads(out, parse_constant=lambda c: self.fail("non-JSON constant %s" % c))
+            text = self.report_of(path)[1]
+        self.assertEqual(len(report["stretches"]), 2)
+        self.assertIsNone(report["stretches"][0]["node"]["steady_rms_error"])
+        self.assertEqual(report["stretches"][0]["node"]["steady_error"], -0.3)
+        self.assertIsNone(report["node"]["steady_error"])
+        self.assertIsNone(report["node"]["limit_cycle_error"])
+        self.assertIn("node's verdict: converged, steady error n/a", text)
+        self.assertIn("node converged, steady error -0.3 rad (equilibrium)", text)
+        self.assertNotIn("period 0 s", text)
+
+    @staticmethod
+    def report_of(path, *args):
+        p = subprocess.run(["/usr/bin/python3", REPORT, path] + list(args), capture_output=True, text=True)
+        return p.returncode, p.stdout, p.stderr
+
     def test_a_pattern_of_two_maxima(self):
         """x = 0.04 cos(2πt/P) + 0.03 cos(4πt/P + 1): two unequal maxima per period P = 1.6 s. The report finds the
         pattern (2 maxima per period, its period P, not the spacing of maxima) and its peak to peak, checked against

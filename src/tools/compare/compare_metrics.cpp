@@ -88,10 +88,7 @@ CompareMetrics runStrategy(const std::string& name, const RunConfig& config, dou
     m.peak_to_peak = r.cycle.peak_to_peak;
     m.cycle_centre = r.cycle.centre;
   }
-  if (r.status.verdict == Verdict::Converged)
-  {
-    m.steady_error = r.final_state.load_position - final_ref;
-  }
+  m.steady_error = r.steady.error;
   const double simulated = std::max(r.simulated, 1e-300);
   const TrackingFigures f =
       tracking.figures(config.initial.time + r.simulated, dt, cycleLeavesBand(r.status, r.cycle, final_ref, band));

@@ -21,7 +21,7 @@ struct CompareMetrics
   double period = NAN;                    ///< [s] of the whole pattern (sustained oscillations only)
   double peak_to_peak = NAN;              ///< the load's peak-to-peak amplitude in the cycle [rad] (idem)
   double cycle_centre = NAN;              ///< midpoint of the cycle's highest and lowest load position [rad] (idem)
-  double steady_error = NAN;              ///< θ_c − θ_R at the end [rad] (converged only)
+  double steady_error = NAN;              ///< θ_∞ − θ_R [rad] (RunSummary::steady; converged only)
   double settling_time = NAN;             ///< last time |e| > the settling band (settlingBand), after the profile [s]
   double rms_error = NAN;                 ///< √(mean e²) over the run [rad], e = θ_R − θ_c
   double steady_rms_error = NAN;          ///< √(mean e²) after the transient: from the settling time on [rad]

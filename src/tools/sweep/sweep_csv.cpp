@@ -18,7 +18,7 @@
 namespace backlash_servo
 {
 
-std::string sweepRow(const SweepPoint& p, const RunSummary& r, double command, const TrackingFigures* tracking)
+std::string sweepRow(const SweepPoint& p, const RunSummary& r, const TrackingFigures* tracking)
 {
   const bool lc = r.status.verdict == Verdict::LimitCycle || r.status.verdict == Verdict::Irregular;
   // A compliant mesh has contact phases where rigid teeth have impacts: the column counts those.
@@ -29,9 +29,9 @@ std::string sweepRow(const SweepPoint& p, const RunSummary& r, double command, c
                 r.simulated, r.settled ? 1 : 0);
   std::string row = p.columns();
   row += (row.empty() ? "" : ",") + std::string(buf);
-  if (r.status.verdict == Verdict::Converged)
+  if (std::isfinite(r.steady.error))  // (a converged joint that had not come to rest within rounding: empty)
   {
-    std::snprintf(buf, sizeof buf, "%.17g", r.final_state.load_position - command);
+    std::snprintf(buf, sizeof buf, "%.17g", r.steady.error);
     row += buf;
   }
   row += "," + std::to_string(lc ? r.status.multiplicity : 0);  // maxima per period of the pattern
@@ -171,9 +171,9 @@ void checkRow(const std::string& line, const std::vector<std::string>& header, c
     bad("'impacts' is not a whole number");
   }
   const bool converged = cells[v] == "converged";
-  if (converged ? !isNumber(cells[v + 7]) : !cells[v + 7].empty())
+  if (converged ? !cells[v + 7].empty() && !isNumber(cells[v + 7]) : !cells[v + 7].empty())
   {
-    bad("'steady_error' must be a number for a converged point and empty otherwise");
+    bad("'steady_error' must be a number or empty for a converged point and empty otherwise");
   }
   if (cells[v + 8].empty() || cells[v + 8].find_first_not_of("0123456789") != std::string::npos)
   {

@@ -12,11 +12,11 @@
 namespace backlash_servo
 {
 /// The row of one point: its parameter columns, verdict, limit-cycle error [rad], period [s], impacts, simulated
-/// time [s], settled, steady error [rad] (converged runs; empty otherwise).
+/// time [s], settled, steady error θ_∞ − θ_R [rad] (RunSummary::steady: converged runs that came to rest; empty
+/// otherwise).
 /// With `tracking`: then its settling band [rad], settling time [s] (empty when never settled) and steady-state RMS
 /// error [rad].
-std::string sweepRow(const SweepPoint& point, const RunSummary& run, double command,
-                     const TrackingFigures* tracking = nullptr);
+std::string sweepRow(const SweepPoint& point, const RunSummary& run, const TrackingFigures* tracking = nullptr);
 
 /// Points first … last−1 of part K of N (1-based K): contiguous blocks by grid index.
 struct SweepShard

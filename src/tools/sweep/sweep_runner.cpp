@@ -81,13 +81,8 @@ std::string evaluateSweepPoint(const SweepPoint& point, double max_duration, boo
     c.max_duration = max_duration;
   }
   c.track_energy = false;  // verdicts only
+  c.tracking = tracking;
   const RunSummary r = runResponse(c);
-  if (!tracking)
-  {
-    return sweepRow(point, r, c.command);
-  }
-  double rate = 0.0;
-  const TrackingFigures f = replayTracking(c, r, &rate);
-  return sweepRow(point, r, c.command, &f);
+  return sweepRow(point, r, tracking ? &r.tracking : nullptr);
 }
 }  // namespace backlash_servo
