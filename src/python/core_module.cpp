@@ -644,6 +644,12 @@ PYBIND11_MODULE(core, m)
   m.doc() =
       "backlash_servo.core: the exact backlash servo simulator from Python. Configurations are the YAML keys of the "
       "command-line tools and the node (a dict, or the path of a YAML file), in SI units; see docs/python.md.";
+  // pybind11's numpy bindings keep C++ function-local statics (the numpy C API table, the dtypes) whose first use
+  // imports numpy: first made by two threads at once, one waits on the static holding the GIL while the other's
+  // import waits for the GIL — a deadlock. They are made here, while the import holds the GIL for this thread alone.
+  py::module_::import("numpy");
+  (void)py::array_t<double>(0);
+  (void)py::array_t<std::complex<double>>(0);
   py::register_exception<ConfigError>(m, "ConfigError", PyExc_ValueError);
   py::register_exception<InvalidParameterError>(m, "InvalidParameterError", PyExc_ValueError);
   m.def("run", &run, py::arg("config") = py::none(),

@@ -168,6 +168,38 @@ def test_compare_equals_backlash_compare():
             assert theirs[key] == value, (mine["name"], key)
 
 
+FIRST_CALLS = """
+import sys, threading
+import backlash_servo.core as core
+calls = [lambda: core.Simulator({"restitution": 0.6}).sample(1.0, 100.0),
+         lambda: core.sweep({"zeta": [0.2, 0.5], "restitution": [0.0]}),
+         lambda: core.run({"restitution": 0.6, "duration": 5.0}),
+         lambda: core.broadband_response({"controller_rate": 20.0, "restitution": 0.8}, amplitude=0.05,
+                                         prbs_order=6),
+         lambda: core.Simulator({"restitution": 0.6}).sample(1.0, 100.0)]
+errors = []
+def call(f):
+    try:
+        f()
+    except Exception as e:
+        errors.append(repr(e))
+threads = [threading.Thread(target=call, args=(f,)) for f in calls]
+for t in threads:
+    t.start()
+for t in threads:
+    t.join()
+print("answered", len(calls), errors)
+"""
+
+
+def test_first_calls_from_several_threads_at_once_do_not_deadlock():
+    # Each try is a fresh interpreter, where the module's first numpy array is still to be made.
+    for attempt in range(3):
+        p = subprocess.run(["/usr/bin/python3", "-c", FIRST_CALLS], capture_output=True, text=True, timeout=120)
+        assert p.returncode == 0, p.stderr
+        assert p.stdout.strip() == "answered 5 []", p.stdout + p.stderr
+
+
 def test_the_gil_is_released_while_the_core_computes():
     ticks = []
     stop = threading.Event()
