@@ -20,7 +20,8 @@ the same Δt on every run (with a wall-clock epoch of ~1.8e9 s it would round di
 form ``(stamp - previous).to_sec()`` is exact for any epoch.
 
 Params (private, SI): ~kp [N·m/rad], ~ki [N·m/(rad·s)], ~kd [N·m·s/rad], ~torque_limit [N·m] (0 = none),
-~command [rad] (initial set-point θ_R; the ``command`` topic changes it), ~joint [load joint name, default
+~command [rad] (initial set-point θ_R, default the servo's ``backlash_servo/command``; the ``command`` topic
+changes it), ~joint [load joint name, default
 load_joint], ~topic [encoder_states or joint_states, default encoder_states].
 """
 import math
@@ -37,7 +38,8 @@ class PidController:
         self.ki = float(rospy.get_param("~ki", 0.0))
         self.kd = float(rospy.get_param("~kd", 0.0))
         self.limit = float(rospy.get_param("~torque_limit", 0.0))
-        self.command = float(rospy.get_param("~command", 1.0))
+        # θ_R: ~command, else the servo's own set-point (backlash_servo/command beside this node), else 1 rad.
+        self.command = float(rospy.get_param("~command", rospy.get_param("backlash_servo/command", 1.0)))
         self.joint = rospy.get_param("~joint", "load_joint")
         topic = rospy.get_param("~topic", "encoder_states")
         for name, value in (("kp", self.kp), ("ki", self.ki), ("kd", self.kd), ("torque_limit", self.limit),

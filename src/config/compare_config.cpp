@@ -23,7 +23,7 @@ void readKeys(const YAML::Node& map, const std::vector<std::string>& skip, const
     }
     if (findParam(key) == nullptr)
     {
-      throw ConfigError(where + ": unknown key '" + key + "'");
+      throw ConfigError(where + ": unknown key '" + key + "'" + didYouMean(key));
     }
     if (!item.second.IsScalar())
     {

@@ -109,7 +109,14 @@ void FlagParser::parse(int argc, char** argv)
     const bool is_key = std::find(keys_accepted_.begin(), keys_accepted_.end(), key) != keys_accepted_.end();
     if (option == options_.end() && !is_key)
     {
-      throw ConfigError("unknown option " + arg + " (see --help)");
+      std::vector<std::string> names = keys_accepted_;
+      for (const ToolOption& o : options_)
+      {
+        names.push_back(o.name);
+      }
+      const std::string near = nearestName(key, names);
+      throw ConfigError("unknown option " + arg + (near.empty() ? "" : " (did you mean " + flagName(near) + "?)") +
+                        " (see --help)");
     }
     const bool is_switch = option != options_.end() && option->value_name.empty();
     if (is_switch)

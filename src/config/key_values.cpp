@@ -9,6 +9,7 @@
 #include <cmath>
 #include <cstdlib>
 
+#include "backlash_servo/param_table.h"
 #include "backlash_servo/params.h"
 
 namespace backlash_servo
@@ -18,6 +19,73 @@ std::string flagName(const std::string& key)
   std::string f = "--" + key;
   std::replace(f.begin(), f.end(), '_', '-');
   return f;
+}
+
+namespace
+{
+/// Optimal-string-alignment distance: Levenshtein's edits plus the swap of two neighbours ("derivitive" is 1 from
+/// "derivative", "gian" 1 from "gain").
+std::size_t editDistance(const std::string& a, const std::string& b)
+{
+  std::vector<std::vector<std::size_t>> d(a.size() + 1, std::vector<std::size_t>(b.size() + 1));
+  for (std::size_t i = 0; i <= a.size(); ++i)
+  {
+    d[i][0] = i;
+  }
+  for (std::size_t j = 0; j <= b.size(); ++j)
+  {
+    d[0][j] = j;
+  }
+  for (std::size_t i = 1; i <= a.size(); ++i)
+  {
+    for (std::size_t j = 1; j <= b.size(); ++j)
+    {
+      const std::size_t cost = a[i - 1] == b[j - 1] ? 0 : 1;
+      d[i][j] = std::min({d[i - 1][j] + 1, d[i][j - 1] + 1, d[i - 1][j - 1] + cost});
+      if (i > 1 && j > 1 && a[i - 1] == b[j - 2] && a[i - 2] == b[j - 1])
+      {
+        d[i][j] = std::min(d[i][j], d[i - 2][j - 2] + 1);
+      }
+    }
+  }
+  return d[a.size()][b.size()];
+}
+}  // namespace
+
+std::string nearestName(const std::string& name, const std::vector<std::string>& candidates)
+{
+  if (name.size() > 200)
+  {
+    return "";  // (no key is that long: not a typo of one)
+  }
+  std::string best;
+  std::size_t best_distance = std::max<std::size_t>(2, name.size() / 4) + 1;
+  for (const std::string& c : candidates)
+  {
+    const std::size_t distance = editDistance(name, c);
+    if (distance < best_distance)
+    {
+      best = c;
+      best_distance = distance;
+    }
+  }
+  return best;
+}
+
+std::string nearestKey(const std::string& key)
+{
+  std::vector<std::string> keys;
+  for (const ParamSpec& p : parameterTable())
+  {
+    keys.push_back(p.key);
+  }
+  return nearestName(key, keys);
+}
+
+std::string didYouMean(const std::string& key)
+{
+  const std::string near = nearestKey(key);
+  return near.empty() ? "" : " (did you mean '" + near + "'?)";
 }
 
 namespace

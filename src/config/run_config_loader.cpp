@@ -138,7 +138,7 @@ void requireKnownKeys(const KeyValues& kv, const std::string& source)
   {
     if (findParam(item.first) == nullptr)
     {
-      throw ConfigError(source + ": unknown key '" + item.first + "'");
+      throw ConfigError(source + ": unknown key '" + item.first + "'" + didYouMean(item.first));
     }
   }
 }

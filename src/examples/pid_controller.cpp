@@ -7,7 +7,7 @@
 // with y_k the load position of the k-th joint_states message, Δt_k the difference of their stamps [s] (sim time),
 // θ_R from the `command` topic (initial: ~command), u saturated at ±torque_limit with conditional integration.
 // Params (SI): ~kp [N·m/rad], ~ki [N·m/(rad·s)], ~kd [N·m·s/rad], ~torque_limit [N·m] (live via
-// dynamic_reconfigure), ~command [rad], ~joint [name of the load joint, default load_joint], ~delay [0 or 1: answer
+// dynamic_reconfigure), ~command [rad] (default: the servo's backlash_servo/command), ~joint [name of the load joint, default load_joint], ~delay [0 or 1: answer
 // each state with the output computed for the previous one — one sample of transport delay; 0 N·m first].
 #include <dynamic_reconfigure/server.h>
 #include <ros/ros.h>
@@ -27,7 +27,8 @@ class PidController
  public:
   PidController(ros::NodeHandle& nh, ros::NodeHandle& pnh)
   {
-    pnh.param("command", command_, 1.0);
+    // θ_R: ~command, else the servo's own set-point (backlash_servo/command beside this node), else 1 rad.
+    pnh.param("command", command_, nh.param("backlash_servo/command", 1.0));
     pnh.param<std::string>("joint", joint_, "load_joint");
     pnh.param("delay", delay_, 0);
     if (delay_ != 0 && delay_ != 1)

@@ -143,7 +143,8 @@ NodeConfig loadNodeConfig(const ros::NodeHandle& pnh)
       }
       else if (item.second.getType() != XmlRpc::XmlRpcValue::TypeStruct)  // dynamic_reconfigure keeps groups
       {
-        ROS_WARN("backlash_servo_node: ignoring unknown parameter ~%s (typo?)", item.first.c_str());
+        // A typo must not run as the key's default (a derivative gain of 0): refused, the nearest key named.
+        throw ConfigError("~" + item.first + ": unknown parameter" + didYouMean(item.first));
       }
     }
   }

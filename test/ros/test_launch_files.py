@@ -115,6 +115,15 @@ class LaunchFiles(unittest.TestCase):
         self.assertNotIn("bogus", out)
         self.assertIn("publishing /clock, real_time_factor 0, 100 Hz", out)  # the YAML's rate, not the stale 7
 
+    def test_a_typo_in_a_parameter_stops_the_node_naming_the_nearest_key(self):
+        # Running with the key's default instead (a derivative gain of 0: a limit cycle) would be a silent override.
+        with Master(11429) as m:
+            p = subprocess.run(["rosrun", "backlash_servo", "backlash_servo_node", "_derivitive_gain:=0.3",
+                                "_publish_clock:=true", "_real_time_factor:=0", "_stop_after:=1"],
+                               env=env_for(m.port), capture_output=True, text=True, timeout=60)
+        self.assertEqual(p.returncode, 1, p.stdout + p.stderr)
+        self.assertIn("~derivitive_gain: unknown parameter (did you mean 'derivative_gain'?)", p.stdout + p.stderr)
+
     def test_rospy_time_follows_the_simulator_clock(self):
         # The node is the clock: /use_sim_time is set by the launch file's publish_clock arg, rospy.Time.now()
         # follows the node's /clock, and sim time starts at 0.

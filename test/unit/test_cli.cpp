@@ -153,6 +153,11 @@ TEST(Cli, BadInputIsOneClearLineAndExitCode2)
       {"--config /nonexistent.yaml", "cannot read"},
       {"--config " + bad_yaml, "not valid YAML"},
       {"--config " + unknown_key, "backlsh"},
+      // A typo names the nearest key or flag (a transposition and a misspelling are one edit each).
+      {"--config " + writeFile("backlash_sim_typo.yaml", "derivitive_gain: 0.3\n"),
+       "unknown key 'derivitive_gain' (did you mean 'derivative_gain'?)"},
+      {"--derivitive-gain 0.3", "unknown option --derivitive-gain (did you mean --derivative-gain?)"},
+      {"--gian 2", "(did you mean --gain?)"},
       {"--load-coulomb-friction 0.2 --load-static-friction 0.1", "load_static_friction"},
       {"--motor-coulomb-friction -0.1", "motor_coulomb_friction"},
       {"--motor-static-friction inf", "--motor-static-friction"},

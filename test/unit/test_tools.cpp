@@ -664,6 +664,23 @@ TEST(Launch, YamlKeysWinUnlessArgsAreGiven)
   EXPECT_NE(given.find("/robot1/backlash_servo/real_time_factor: 2"), std::string::npos) << given;
   EXPECT_NE(given.find("/robot1/backlash_servo/publish_rate: 50.0"), std::string::npos) << given;
   EXPECT_NE(given.find("/use_sim_time: true"), std::string::npos) << given;
+  // external_controller.launch: the YAML's set-point and lockstep setting are not replaced by unset args (the node
+  // would judge against a command the user never gave); given args win; without either, the launch's defaults.
+  const std::string ext_yaml = "/tmp/backlash_launch_external.yaml";
+  std::ofstream(ext_yaml) << "command: 0.5\nsync: false\n";
+  const std::string ext =
+      "PATH=/usr/bin:$PATH roslaunch --dump-params backlash_servo external_controller.launch config:=" + ext_yaml;
+  const std::string from_file = runCapture(ext + " 2>&1", &code);
+  ASSERT_EQ(code, 0) << from_file;
+  EXPECT_NE(from_file.find("/backlash_servo/command: 0.5"), std::string::npos) << from_file;
+  EXPECT_NE(from_file.find("/backlash_servo/sync: false"), std::string::npos) << from_file;
+  EXPECT_NE(from_file.find("/backlash_servo/publish_rate: 100.0"), std::string::npos) << from_file;
+  EXPECT_EQ(from_file.find("/controller/command"), std::string::npos) << from_file;  // it reads the servo's
+  const std::string ext_given = runCapture(ext + " command:=0.3 sync:=true controller:=python 2>&1", &code);
+  ASSERT_EQ(code, 0) << ext_given;
+  EXPECT_NE(ext_given.find("/backlash_servo/command: 0.3"), std::string::npos) << ext_given;
+  EXPECT_NE(ext_given.find("/controller/command: 0.3"), std::string::npos) << ext_given;
+  EXPECT_NE(ext_given.find("/backlash_servo/sync: true"), std::string::npos) << ext_given;
 }
 
 TEST(Charts, ScriptsRunHeadlessAndWriteImages)

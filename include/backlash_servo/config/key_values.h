@@ -10,6 +10,7 @@
 #include <stdexcept>
 #include <string>
 #include <string_view>
+#include <vector>
 
 namespace YAML
 {
@@ -27,6 +28,14 @@ class ConfigError : public std::runtime_error
 
 /// "--motor-inertia" for "motor_inertia".
 std::string flagName(const std::string& key);
+
+/// The candidate closest to `name` by edit distance (insertions, deletions, substitutions and swaps of neighbours),
+/// if it is close enough to be a typo of it (at most 2 edits, or a quarter of the name's length); "" otherwise.
+std::string nearestName(const std::string& name, const std::vector<std::string>& candidates);
+/// nearestName() over the parameter table's keys.
+std::string nearestKey(const std::string& key);
+/// " (did you mean 'KEY'?)" for nearestKey(key), or "" — the end of an unknown key's message.
+std::string didYouMean(const std::string& key);
 
 /**
  * The YAML document in `path` (a regular file of at most 64 MiB). Throws ConfigError naming `what` ("config file",
