@@ -187,8 +187,11 @@ void ResponseMonitor::check(const State& s, bool drive_winding, bool at_rest_for
   }
   const double last = m.empty() ? start_time_ : m.back().time;
   const double quiet_floor = QUIET_PERIODS * 2.0 * PI / omega_n_;
-  if (s.time - last > std::max(quiet_floor, 5.0 * longest_) &&
-      std::fabs(s.load_position - equilibrium_) <= QUIET_ERROR_FRACTION * scale_)
+  // Quiet means still, too: a load swinging through its equilibrium (a slow saturated oscillation whose period ω_n
+  // does not describe) is not quiet, wherever the check catches it.
+  const double quiet = QUIET_ERROR_FRACTION * scale_;
+  if (s.time - last > std::max(quiet_floor, 5.0 * longest_) && std::fabs(s.load_position - equilibrium_) <= quiet &&
+      std::fabs(s.load_velocity) <= quiet * omega_n_ && std::fabs(rho_ * s.motor_velocity) <= quiet * omega_n_)
   {
     detector_.markAtRest();
     rested_ = true;

@@ -25,11 +25,12 @@ const char* HEADER =
                        --load-friction f_L --restitution e [--backlash D] [--gain K|LO:HI] [--gear-ratio rho|LO:HI]
                        [any servo or drive flag] [--tune KEY] [--find max-gain|gear-ratio] [--json]
 Computes zeta, w_n and the chart coordinates of a motor/gear/load choice and simulates whether it falls into a
-limit cycle (and how big). --find max-gain bisects the largest value of the tuned gain (--tune, default the servo
-gain K [N·m/rad]; any gain of the pid or cascade law, given as --KEY VALUE or --KEY LO:HI) without a limit cycle in
-its range (default value/1000 .. value*1000); --find gear-ratio scans the gear-ratio range (default rho/10 ..
-rho*10) for ratios without a limit cycle. Every other setting (digital drive, dry friction, load torque, ...) is
-simulated as given. SI units; defaults: K = 1, rho = 1, backlash 0.3 rad.
+limit cycle (and how big). --find max-gain scans the tuned gain (--tune, default the servo gain K [N·m/rad]; any
+gain of the pid or cascade law, given as --KEY VALUE or --KEY LO:HI) over its range (default value/1000 ..
+value*1000) at 41 log-spaced values, refines every change of verdict, and reports the intervals without a limit
+cycle, the largest such gain and a design 1 % inside it confirmed by simulation; --find gear-ratio does the same
+for the gear ratio (default rho/10 .. rho*10) and picks the ratio closest to the candidate. Every other setting
+(digital drive, dry friction, load torque, ...) is simulated as given. SI units; defaults: K = 1, rho = 1, backlash 0.3 rad.
 )";
 
 /// The gains --find max-gain can search (--tune KEY): the P gain and every gain of the sampled laws.
@@ -62,8 +63,9 @@ struct Evaluation
   bool diverged = false;  // the loop is unstable: the motion overflowed (counts as not free of limit cycles)
   bool limit_cycle() const
   {
-    // Undecided counts as a limit cycle: a design tool must not promise what it could not show.
-    return run.status.verdict != Verdict::Converged;
+    // Undecided counts as a limit cycle, and so does a convergence whose joint did not come to rest when run on:
+    // a design tool must not promise what it could not show.
+    return run.status.verdict != Verdict::Converged || run.steady.basis == SteadyBasis::Unsettled;
   }
 };
 
@@ -233,24 +235,60 @@ Design parse(int argc, char** argv)
   return d;
 }
 
-/// Largest x in [lo, hi] with no limit cycle, by bisection on log x (verdict assumed monotone: LC above).
-/// Returns {boundary, status}: status 0 found, -1 every value limit-cycles, +1 none does.
-std::pair<double, int> bisect(double lo, double hi, const std::function<bool(double)>& limit_cycles)
+/// Values scanned on a log grid by --find max-gain and --find gear-ratio before each change of verdict is refined.
+constexpr int SCAN_POINTS = 41;
+/// Relative width to which each change of verdict is refined by bisection on log x.
+constexpr double REFINE_TO = 1e-7;
+
+/// The intervals of x in [lo, hi] without a limit cycle, in increasing order: SCAN_POINTS values on a log grid, each
+/// change of verdict between neighbours refined by bisection on log x to REFINE_TO. Whether a joint hunts need not
+/// be monotone in a gain or a ratio, so every change is found, not one; a window of the other verdict narrower than
+/// the grid's step can still be missed.
+std::vector<std::pair<double, double>> freeIntervals(double lo, double hi,
+                                                     const std::function<bool(double)>& limit_cycles)
 {
-  if (limit_cycles(lo))
+  std::vector<double> xs(SCAN_POINTS);
+  std::vector<bool> lc(SCAN_POINTS);
+  for (int i = 0; i < SCAN_POINTS; ++i)
   {
-    return {lo, -1};
+    xs[i] = i == SCAN_POINTS - 1 ? hi : lo * std::pow(hi / lo, static_cast<double>(i) / (SCAN_POINTS - 1));
+    lc[i] = limit_cycles(xs[i]);
   }
-  if (!limit_cycles(hi))
+  std::vector<std::pair<double, double>> free;
+  double start = xs[0];
+  for (int i = 1; i < SCAN_POINTS; ++i)
   {
-    return {hi, 1};
+    if (lc[i] == lc[i - 1])
+    {
+      continue;
+    }
+    double a = xs[i - 1], b = xs[i];
+    for (int it = 0; it < 60 && b / a > 1.0 + REFINE_TO; ++it)
+    {
+      const double mid = std::sqrt(a * b);
+      (limit_cycles(mid) == lc[i - 1] ? a : b) = mid;
+    }
+    if (lc[i])
+    {
+      free.emplace_back(start, a);  // the last value still free
+    }
+    else
+    {
+      start = b;  // the first value free again
+    }
   }
-  for (int i = 0; i < 60 && hi / lo > 1.0 + 1e-7; ++i)
+  if (!lc[SCAN_POINTS - 1])
   {
-    const double mid = std::sqrt(lo * hi);
-    (limit_cycles(mid) ? hi : lo) = mid;
+    free.emplace_back(start, hi);
   }
-  return {lo, 0};
+  return free;
+}
+
+/// A value to design with inside a free interval: 1 % inside its top end when the interval is wide enough, else its
+/// geometric middle.
+double insideTop(const std::pair<double, double>& f)
+{
+  return f.second / f.first > 1.0201 ? std::max(f.first, f.second / 1.01) : std::sqrt(f.first * f.second);
 }
 
 void describe(std::ostream& out, const char* title, const Evaluation& e, const std::string& tune)
@@ -273,7 +311,7 @@ void describe(std::ostream& out, const char* title, const Evaluation& e, const s
                 p.inertiaRatio(), p.frictionRatio(),
                 e.diverged ? "diverged (unstable loop)" : toString(e.run.status.verdict));
   out << buf;
-  if (e.run.status.verdict == Verdict::LimitCycle || e.run.status.verdict == Verdict::Irregular)
+  if (e.run.status.verdict == Verdict::LimitCycle)
   {
     std::snprintf(buf, sizeof buf,
                   ", error %.6g rad (%.3g × backlash), period %.6g s (%d maxima per period); load %.6g rad peak to "
@@ -281,6 +319,19 @@ void describe(std::ostream& out, const char* title, const Evaluation& e, const s
                   e.run.status.error, e.run.status.error / p.backlash, e.run.status.period, e.run.status.multiplicity,
                   e.run.cycle.peak_to_peak, e.run.cycle.centre);
     out << buf;
+  }
+  else if (e.run.status.verdict == Verdict::Irregular)
+  {
+    std::snprintf(buf, sizeof buf,
+                  ", largest error %.6g rad (%.3g × backlash), mean time between maxima %.6g s; load %.6g rad peak "
+                  "to peak about %.9g rad",
+                  e.run.status.error, e.run.status.error / p.backlash, e.run.status.period, e.run.cycle.peak_to_peak,
+                  e.run.cycle.centre);
+    out << buf;
+  }
+  else if (e.run.steady.basis == SteadyBasis::Unsettled)
+  {
+    out << ", but not at rest when run on (" << e.run.steady.note << "): counted as not free of cycles";
   }
   out << "\n";
 }
@@ -316,6 +367,166 @@ void evaluationJson(JsonWriter& j, const char* key, const Evaluation& e, const s
 }
 }  // namespace
 
+namespace
+{
+/// "[a, b] [c, d]" (%.6g each), or " none".
+std::string intervalsText(const std::vector<std::pair<double, double>>& free)
+{
+  std::string out;
+  char buf[80];
+  for (const auto& f : free)
+  {
+    std::snprintf(buf, sizeof buf, " [%.6g, %.6g]", f.first, f.second);
+    out += buf;
+  }
+  return out.empty() ? " none" : out;
+}
+
+void intervalsJson(JsonWriter& j, const char* key, const std::vector<std::pair<double, double>>& free)
+{
+  j.beginArray(key);
+  for (const auto& f : free)
+  {
+    j.beginArray().field(nullptr, f.first).field(nullptr, f.second).endArray();
+  }
+  j.endArray();
+}
+
+/// The transient of a chosen design, as text and JSON fields.
+void reportTransient(const Evaluation& chosen, std::ostream& text, JsonWriter& j)
+{
+  const Transient t = transient(chosen.config);
+  char buf[200];
+  std::snprintf(buf, sizeof buf, "  overshoot %.4g rad, settling time %.4g s into ±%.4g rad\n", t.overshoot,
+                t.settling_time, t.band);
+  text << buf;
+  j.field("overshoot", t.overshoot).field("settling_time", t.settling_time).field("settling_band", t.band);
+}
+
+/// --find max-gain: the intervals of the tuned gain without a limit cycle, the largest such gain, and a design 1 %
+/// inside it confirmed by simulation (with the value just above the largest, unless the range bounds it).
+void findMaxGain(const Design& d, std::ostream& text, JsonWriter& j)
+{
+  const char* unit = param(d.tune).unit;
+  // The smallest cycle met on the way: what the joint does where no value is free of cycles.
+  Evaluation smallest;
+  auto limit_cycles = [&](double k) {
+    Evaluation e = evaluate(d, k, d.rho);
+    const double p2p = e.run.cycle.peak_to_peak;
+    if (e.limit_cycle() && std::isfinite(p2p) && !(smallest.run.cycle.peak_to_peak <= p2p))
+    {
+      smallest = e;
+    }
+    return e.limit_cycle();
+  };
+  const std::vector<std::pair<double, double>> free = freeIntervals(d.gain_lo, d.gain_hi, limit_cycles);
+  char buf[400];
+  std::snprintf(buf, sizeof buf,
+                "%s without a limit cycle in [%g, %g] %s (%d log-spaced values, every change of "
+                "verdict refined to %g):%s\n",
+                d.tune.c_str(), d.gain_lo, d.gain_hi, unit, SCAN_POINTS, REFINE_TO, intervalsText(free).c_str());
+  text << buf;
+  j.beginObject("max_gain");
+  if (free.empty())
+  {
+    j.null("gain").field("range_low", d.gain_lo).field("range_high", d.gain_hi);
+    intervalsJson(j, "intervals", free);
+    std::snprintf(buf, sizeof buf,
+                  "max %s: none — every value scanned in [%g, %g] limit-cycles, hunts irregularly, "
+                  "diverges or is undecided: no %s in this range avoids a limit cycle (change another setting, or the "
+                  "range)\n",
+                  d.tune.c_str(), d.gain_lo, d.gain_hi, d.tune.c_str());
+    text << buf;
+    if (std::isfinite(smallest.run.cycle.peak_to_peak))
+    {
+      describe(text, "  the smallest cycle met", smallest, d.tune);
+      evaluationJson(j, "smallest_cycle", smallest, d.tune);
+    }
+    j.endObject();
+    return;
+  }
+  const std::pair<double, double>& top = free.back();
+  const bool bounded = top.second == d.gain_hi;
+  std::snprintf(buf, sizeof buf, "max %s without a limit cycle: %.6g %s%s\n", d.tune.c_str(), top.second, unit,
+                bounded ? " (bounded by the range: free of cycles up to its end)" : "");
+  text << buf;
+  j.field("gain", top.second).field("tuned", d.tune).field("bounded_by_range", bounded);
+  j.field("range_low", d.gain_lo).field("range_high", d.gain_hi);
+  intervalsJson(j, "intervals", free);
+  // Below the largest value the gain is not free everywhere: what the joint does in each gap (its middle simulated).
+  double from = d.gain_lo;
+  j.beginArray("gaps");
+  for (const auto& f : free)
+  {
+    if (f.first > from)
+    {
+      const Evaluation gap = evaluate(d, std::sqrt(from * f.first), d.rho);
+      const char* verdict = gap.diverged ? "diverged" : toString(gap.run.status.verdict);
+      std::snprintf(buf, sizeof buf, "  not free in (%.6g, %.6g): %s at %.6g%s\n", from, f.first, verdict,
+                    gap.tuned,
+                    gap.run.status.verdict == Verdict::Undecided ? " (not settled within the run)" : "");
+      text << buf;
+      j.beginObject().field("from", from).field("to", f.first).field("verdict", std::string(verdict)).endObject();
+    }
+    from = f.second;
+  }
+  j.endArray();
+  if (!bounded)
+  {
+    const Evaluation above = evaluate(d, top.second * 1.001, d.rho);
+    describe(text, "  check just above (1.001 of it)", above, d.tune);
+    evaluationJson(j, "check_above", above, d.tune);
+  }
+  // The design is confirmed by its own simulation: 1 % inside the interval, else its middle.
+  Evaluation chosen = evaluate(d, insideTop(top), d.rho);
+  if (chosen.limit_cycle())
+  {
+    chosen = evaluate(d, std::sqrt(top.first * top.second), d.rho);
+  }
+  if (chosen.limit_cycle())
+  {
+    text << "chosen design: none confirmed — the interval is too narrow for its inside to be free of cycles too\n";
+    j.null("chosen");
+    j.endObject();
+    return;
+  }
+  std::snprintf(buf, sizeof buf, "chosen design (%.4g of it)", chosen.tuned / top.second);
+  describe(text, buf, chosen, d.tune);
+  evaluationJson(j, "chosen", chosen, d.tune);
+  reportTransient(chosen, text, j);
+  j.endObject();
+}
+
+/// --find gear-ratio: the intervals of ρ without a limit cycle and the ratio closest to the candidate's, 1 % inside
+/// its interval.
+void findGearRatio(const Design& d, std::ostream& text, JsonWriter& j)
+{
+  const std::vector<std::pair<double, double>> free =
+      freeIntervals(d.rho_lo, d.rho_hi, [&](double rho) { return evaluate(d, d.gain, rho).limit_cycle(); });
+  intervalsJson(j, "gear_ratios_without_limit_cycle", free);
+  text << "gear ratios without a limit cycle in [" << d.rho_lo << ", " << d.rho_hi << "]:" << intervalsText(free)
+       << "\n";
+  double best = 0.0;
+  for (const auto& f : free)
+  {
+    // Stay 1 % inside the interval (when it is wide enough) so the choice is not a boundary case.
+    const double margin = f.second / f.first > 1.0201 ? 1.01 : 1.0;
+    const double pick = std::min(std::max(d.rho, f.first * margin), f.second / margin);
+    if (best == 0.0 || std::fabs(std::log(pick / d.rho)) < std::fabs(std::log(best / d.rho)))
+    {
+      best = pick;
+    }
+  }
+  if (best > 0.0)
+  {
+    const Evaluation chosen = evaluate(d, d.gain, best);
+    describe(text, "closest such ratio", chosen, d.tune);
+    evaluationJson(j, "chosen", chosen, d.tune);
+    reportTransient(chosen, text, j);
+  }
+}
+}  // namespace
+
 /// Evaluates the candidate and runs the search asked for, writing the text and JSON reports.
 void design(const Design& d, std::ostringstream& text, std::ostringstream& json_text)
 {
@@ -326,115 +537,11 @@ void design(const Design& d, std::ostringstream& text, std::ostringstream& json_
   evaluationJson(j, "candidate", candidate, d.tune);
   if (d.find == "max-gain")
   {
-    // A candidate without a limit cycle is a known lower bracket (slow integral gains at the range's low end may not
-    // settle within the run and would count as limit cycles).
-    const double lo = !candidate.limit_cycle() && d.gain > d.gain_lo && d.gain < d.gain_hi ? d.gain : d.gain_lo;
-    const auto found = bisect(lo, d.gain_hi, [&](double k) { return evaluate(d, k, d.rho).limit_cycle(); });
-    char buf[300];
-    j.beginObject("max_gain").field("range_low", d.gain_lo).field("range_high", d.gain_hi);
-    if (found.second == -1)
-    {
-      std::snprintf(buf, sizeof buf, "max %s: every value in [%g, %g] limit-cycles\n", d.tune.c_str(), d.gain_lo,
-                    d.gain_hi);
-      text << buf;
-      j.null("gain");
-    }
-    else if (found.second == 1)
-    {
-      std::snprintf(buf, sizeof buf, "max %s: no limit cycle anywhere up to %g (range end)\n", d.tune.c_str(),
-                    d.gain_hi);
-      text << buf;
-      j.field("gain", d.gain_hi).field("bounded_by_range", true);
-    }
-    else
-    {
-      const double k = found.first;
-      const Evaluation below = evaluate(d, k * 0.999, d.rho);
-      const Evaluation above = evaluate(d, k * 1.001, d.rho);
-      const Transient t = transient(below.config);
-      std::snprintf(buf, sizeof buf, "max %s without a limit cycle: %.6g %s (bisection to 1e-7)\n", d.tune.c_str(), k,
-                    param(d.tune).unit);
-      text << buf;
-      describe(text, "  check just below (0.999 of it)", below, d.tune);
-      describe(text, "  check just above (1.001 of it)", above, d.tune);
-      std::snprintf(buf, sizeof buf,
-                    "chosen design (0.999 of it): overshoot %.4g rad (%.3g %%), settling time %.4g s into ±%.4g rad\n",
-                    t.overshoot, 100.0 * t.overshoot, t.settling_time, t.band);
-      text << buf;
-      j.field("gain", k).field("tuned", d.tune);
-      evaluationJson(j, "check_below", below, d.tune);
-      evaluationJson(j, "check_above", above, d.tune);
-      j.field("overshoot", t.overshoot).field("settling_time", t.settling_time).field("settling_band", t.band);
-    }
-    j.endObject();
+    findMaxGain(d, text, j);
   }
   else if (d.find == "gear-ratio")
   {
-    // Scan on a log grid, then refine each change of verdict by bisection.
-    const int n = 41;
-    std::vector<double> rhos(n);
-    std::vector<bool> lc(n);
-    for (int i = 0; i < n; ++i)
-    {
-      rhos[i] = d.rho_lo * std::pow(d.rho_hi / d.rho_lo, static_cast<double>(i) / (n - 1));
-      lc[i] = evaluate(d, d.gain, rhos[i]).limit_cycle();
-    }
-    std::vector<std::pair<double, double>> free;
-    double start = lc[0] ? -1.0 : rhos[0];
-    for (int i = 1; i < n; ++i)
-    {
-      if (lc[i] == lc[i - 1])
-      {
-        continue;
-      }
-      double a = rhos[i - 1], b = rhos[i];
-      for (int it = 0; it < 40 && b / a > 1.0 + 1e-7; ++it)
-      {
-        const double mid = std::sqrt(a * b);
-        (evaluate(d, d.gain, mid).limit_cycle() == lc[i - 1] ? a : b) = mid;
-      }
-      if (lc[i])
-      {
-        free.emplace_back(start, a);
-      }
-      else
-      {
-        start = b;
-      }
-    }
-    if (!lc[n - 1])
-    {
-      free.emplace_back(start, rhos[n - 1]);
-    }
-    j.beginArray("gear_ratios_without_limit_cycle");
-    text << "gear ratios without a limit cycle in [" << d.rho_lo << ", " << d.rho_hi << "]:";
-    double best = 0.0;
-    for (const auto& f : free)
-    {
-      text << " [" << f.first << ", " << f.second << "]";
-      j.beginArray().field(nullptr, f.first).field(nullptr, f.second).endArray();
-      // Stay 1 % inside the interval (when it is wide enough) so the choice is not a boundary case.
-      const double margin = f.second / f.first > 1.0201 ? 1.01 : 1.0;
-      const double pick = std::min(std::max(d.rho, f.first * margin), f.second / margin);
-      if (best == 0.0 || std::fabs(std::log(pick / d.rho)) < std::fabs(std::log(best / d.rho)))
-      {
-        best = pick;
-      }
-    }
-    j.endArray();
-    text << (free.empty() ? " none\n" : "\n");
-    if (best > 0.0)
-    {
-      const Evaluation chosen = evaluate(d, d.gain, best);
-      describe(text, "closest such ratio", chosen, d.tune);
-      const Transient t = transient(chosen.config);
-      char buf[200];
-      std::snprintf(buf, sizeof buf, "  overshoot %.4g rad, settling time %.4g s into ±%.4g rad\n", t.overshoot,
-                    t.settling_time, t.band);
-      text << buf;
-      evaluationJson(j, "chosen", chosen, d.tune);
-      j.field("overshoot", t.overshoot).field("settling_time", t.settling_time).field("settling_band", t.band);
-    }
+    findGearRatio(d, text, j);
   }
   j.endObject();
 }

@@ -369,6 +369,44 @@ TEST(Design, SearchesTheIntegralGainOfASampledPid)
   EXPECT_NE(err.find("--tune"), std::string::npos) << err;
 }
 
+// Whether this robot joint hunts is not monotone in K (a 1 kHz PD on a 17-bit encoder, dry friction, gravity, a
+// 0.5 N·m torque limit: free up to ~110 N·m/rad, hunting above): the answer lists the intervals without a cycle and
+// agrees with backlash_sim at the values it cites — the chosen design converges, the value just above does not, and
+// no interval reaches K = 1000 (a saturated swing there). With integral action every gain hunts (below one encoder
+// count): the answer says so, with the smallest cycle met.
+TEST(Design, TheIntervalsWithoutACycleAgreeWithTheSimulationsTheyCite)
+{
+  const std::string joint =
+      " --motor-inertia 3e-5 --load-inertia 0.12 --motor-friction 5e-5 --load-friction 0.05 --gear-ratio 0.01"
+      " --backlash 0.002618 --restitution 0.3 --load-torque -3.5 --motor-coulomb-friction 0.005"
+      " --load-coulomb-friction 0.2 --control-law pid --controller-rate 1000 --load-encoder-resolution 131072"
+      " --derivative-gain 0.3 --torque-limit 0.5 --command 0.5";
+  int code = 0;
+  const std::string json = runCapture(DESIGN + joint + " --gain 15 --integral-gain 0 --find max-gain --json", &code);
+  ASSERT_EQ(code, 0) << json;
+  std::smatch m;
+  ASSERT_TRUE(std::regex_search(json, m, std::regex("\"max_gain\":\\{[^{]*\"gain\":([0-9.eE+-]+)")));
+  const double k = std::stod(m[1]);
+  EXPECT_GT(k, 100.0);
+  EXPECT_LT(k, 120.0);
+  ASSERT_TRUE(std::regex_search(json, m, std::regex("\"intervals\":\\[(.*?)\\]\\]")));
+  EXPECT_EQ(std::string(m[1]).find("1000"), std::string::npos) << m[1];
+  const std::string chosen = json.substr(json.find("\"chosen\""));
+  EXPECT_EQ(jsonText(chosen, "verdict"), "converged");
+  const std::string at_chosen = runCapture(SIM + " --json" + joint + " --integral-gain 0 --gain " +
+                                           std::to_string(jsonNumber(chosen, "gain")));
+  EXPECT_EQ(jsonText(at_chosen, "verdict"), "converged");
+  for (const double above : {k * 1.01, 1000.0})
+  {
+    const std::string out = runCapture(SIM + " --json" + joint + " --integral-gain 0 --gain " + std::to_string(above));
+    EXPECT_NE(jsonText(out, "verdict"), "converged") << above;
+  }
+  const std::string none = runCapture(DESIGN + joint + " --integral-gain 100 --gain 1:200 --find max-gain", &code);
+  ASSERT_EQ(code, 0) << none;
+  EXPECT_NE(none.find("max gain: none"), std::string::npos) << none;
+  EXPECT_NE(none.find("the smallest cycle met"), std::string::npos) << none;
+}
+
 // --config: a YAML file of the joint's keys (a range LO:HI as on the command line) gives the same answer as the
 // flags, and flags override it.
 TEST(Design, ConfigFileEqualsTheFlags)

@@ -579,3 +579,51 @@ TEST(Tracking, AnEndlessStreamKeepsTheCyclesRms)
   EXPECT_NEAR(f.max_error, a, 1e-9);
 }
 }  // namespace
+
+namespace
+{
+/// A 100:1 robot joint under gravity with dry friction and a 1 kHz PD (no integral action) on a 17-bit load
+/// encoder, its torque limited to 0.5 N·m; `gain` K [N·m/rad].
+RunConfig saturatedRobotJoint(double gain)
+{
+  RunConfig c;
+  ServoParams& p = c.params;
+  p.motor_inertia = 3e-5;
+  p.load_inertia = 0.12;
+  p.motor_friction = 5e-5;
+  p.load_friction = 0.05;
+  p.gear_ratio = 0.01;
+  p.backlash = 0.002618;
+  p.restitution = 0.3;
+  p.load_torque = -3.5;
+  p.motor_coulomb_friction = p.motor_static_friction = 0.005;
+  p.load_coulomb_friction = p.load_static_friction = 0.2;
+  p.gain = gain;
+  c.drive.control_law = "pid";
+  c.drive.controller_rate = 1000.0;
+  c.drive.load_encoder_resolution = 131072;
+  c.drive.derivative_gain = 0.3;
+  c.drive.torque_limit = 0.5;
+  c.command = 0.5;
+  return c;
+}
+}  // namespace
+
+// The quiet rule needs the joint still, not only near its equilibrium: at K = 1000 N·m/rad the torque limit turns
+// the loop into a slow saturated swing (0.14 … 0.87 rad, a period 20 times 2π/ω_n) that a check caught passing
+// through 0.5 rad at 8.6 rad/s once called converged. Brute force: the same joint run for 20 s still swings.
+TEST(Verdicts, ASwingThroughTheEquilibriumIsNotQuiet)
+{
+  const RunSummary r = runResponse(saturatedRobotJoint(1000.0));
+  EXPECT_NE(r.status.verdict, Verdict::Converged);
+  RunConfig longer = saturatedRobotJoint(1000.0);
+  longer.duration = 20.0;
+  longer.steady_answer = false;
+  const RunSummary later = runResponse(longer);
+  EXPECT_GT(std::fabs(later.final_state.load_velocity) + std::fabs(later.final_state.load_position - 0.5), 1e-3);
+  EXPECT_GT(later.impacts, 1000u);
+  // Below the hunting threshold the same joint settles (held by its dry friction).
+  const RunSummary settled = runResponse(saturatedRobotJoint(100.0));
+  EXPECT_EQ(settled.status.verdict, Verdict::Converged);
+  EXPECT_EQ(settled.steady.basis, SteadyBasis::Held);
+}
