@@ -462,8 +462,7 @@ void findMaxGain(const Design& d, std::ostream& text, JsonWriter& j)
     {
       const Evaluation gap = evaluate(d, std::sqrt(from * f.first), d.rho);
       const char* verdict = gap.diverged ? "diverged" : toString(gap.run.status.verdict);
-      std::snprintf(buf, sizeof buf, "  not free in (%.6g, %.6g): %s at %.6g%s\n", from, f.first, verdict,
-                    gap.tuned,
+      std::snprintf(buf, sizeof buf, "  not free in (%.6g, %.6g): %s at %.6g%s\n", from, f.first, verdict, gap.tuned,
                     gap.run.status.verdict == Verdict::Undecided ? " (not settled within the run)" : "");
       text << buf;
       j.beginObject().field("from", from).field("to", f.first).field("verdict", std::string(verdict)).endObject();

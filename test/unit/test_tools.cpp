@@ -393,8 +393,8 @@ TEST(Design, TheIntervalsWithoutACycleAgreeWithTheSimulationsTheyCite)
   EXPECT_EQ(std::string(m[1]).find("1000"), std::string::npos) << m[1];
   const std::string chosen = json.substr(json.find("\"chosen\""));
   EXPECT_EQ(jsonText(chosen, "verdict"), "converged");
-  const std::string at_chosen = runCapture(SIM + " --json" + joint + " --integral-gain 0 --gain " +
-                                           std::to_string(jsonNumber(chosen, "gain")));
+  const std::string at_chosen =
+      runCapture(SIM + " --json" + joint + " --integral-gain 0 --gain " + std::to_string(jsonNumber(chosen, "gain")));
   EXPECT_EQ(jsonText(at_chosen, "verdict"), "converged");
   for (const double above : {k * 1.01, 1000.0})
   {
