@@ -45,12 +45,21 @@ struct RunConfig
   std::shared_ptr<const CommandProfile> profile;
 };
 
+/// A sustained oscillation's size as the loop and a gearbox catalogue see it.
+struct CycleResolution
+{
+  double counts = NAN;       ///< peak to peak in counts of the encoder the loop reads (NaN: ideal sensor, no cycle)
+  double arcmin = NAN;       ///< peak to peak at the load [arcmin] (NaN: no cycle)
+  bool below_count = false;  ///< under one count: a hunt the loop's own sensor cannot see
+};
+
 struct RunSummary
 {
   LimitCycleReport status;
   std::vector<Maximum> maxima;  ///< positive maxima above the command, in time order (a profile: from its end on)
   CycleShape
       cycle;  ///< a sustained oscillation's peak-to-peak amplitude and centre [rad] (ResponseMonitor::cycleShape)
+  CycleResolution resolution;  ///< the cycle in encoder counts and arcmin (cycleResolution(), loopCount())
   std::uint64_t impacts = 0;
   std::uint64_t contact_phases = 0;  ///< contact phases of a compliant mesh (0 with rigid teeth)
   EnergyLedger energy;
@@ -89,6 +98,13 @@ double driveTimeScale(const RunConfig& config);
  * of this and driveTimeScale()).
  */
 double plantTimeScale(const ServoParams& params);
+
+/// One count of the encoder the loop reads, referred to the load [rad]: 2π/N_L with load feedback, ρ·2π/N_m with
+/// motor feedback; 0 for an ideal sensor or the continuous law.
+double loopCount(const RunConfig& config);
+
+/// The resolution figures of `cycle` (CycleShape) for a loop reading `count` [rad] (loopCount()).
+CycleResolution cycleResolution(const CycleShape& cycle, double count);
 
 /**
  * The error band [rad] of a run's settling figures: `settling_band` when set, else the joint's own resolution — the

@@ -173,24 +173,45 @@ double plantTimeScale(const ServoParams& p)
   return slowest;
 }
 
+double loopCount(const RunConfig& config)
+{
+  constexpr double TWO_PI = 6.283185307179586476925;
+  const DriveParams& d = config.drive;
+  if (d.sampled() && d.feedback == "motor" && d.motor_encoder_resolution > 0.0)
+  {
+    return config.params.gear_ratio * TWO_PI / d.motor_encoder_resolution;
+  }
+  if (d.sampled() && d.feedback != "motor" && d.load_encoder_resolution > 0.0)
+  {
+    return TWO_PI / d.load_encoder_resolution;
+  }
+  return 0.0;
+}
+
+CycleResolution cycleResolution(const CycleShape& cycle, double count)
+{
+  CycleResolution r;
+  if (!std::isfinite(cycle.peak_to_peak))
+  {
+    return r;
+  }
+  constexpr double ARCMIN_PER_RAD = 10800.0 / 3.14159265358979323846;
+  r.arcmin = cycle.peak_to_peak * ARCMIN_PER_RAD;
+  if (count > 0.0)
+  {
+    r.counts = cycle.peak_to_peak / count;
+    r.below_count = r.counts < 1.0;
+  }
+  return r;
+}
+
 double settlingBand(const RunConfig& config, double excursion)
 {
   if (config.settling_band > 0.0)
   {
     return config.settling_band;
   }
-  constexpr double TWO_PI = 6.283185307179586476925;
-  const DriveParams& d = config.drive;
-  double count = 0.0;
-  if (d.sampled() && d.feedback == "motor" && d.motor_encoder_resolution > 0.0)
-  {
-    count = config.params.gear_ratio * TWO_PI / d.motor_encoder_resolution;
-  }
-  else if (d.sampled() && d.feedback != "motor" && d.load_encoder_resolution > 0.0)
-  {
-    count = TWO_PI / d.load_encoder_resolution;
-  }
-  const double own = std::max(config.params.backlash, count);
+  const double own = std::max(config.params.backlash, loopCount(config));
   return own > 0.0 ? own : 0.02 * std::max(excursion, 1e-12);
 }
 
@@ -430,6 +451,7 @@ RunSummary runResponse(const RunConfig& config, EventSink* sink, double sample_p
   }
   out.maxima = monitor.maxima();
   out.cycle = monitor.cycleShape();
+  out.resolution = cycleResolution(out.cycle, loopCount(config));
   out.impacts = sim.impactCount();
   out.contact_phases = sim.contactPhases();
   out.energy = sim.energy();

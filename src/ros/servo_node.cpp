@@ -454,6 +454,10 @@ void ServoNode::diagnose(diagnostic_updater::DiagnosticStatusWrapper& status)
     const CycleShape cycle = monitor_->cycleShape();
     status.add("peak_to_peak [rad]", formatNumber(cycle.peak_to_peak));
     status.add("cycle_centre [rad]", formatNumber(cycle.centre));
+    const CycleResolution resolution = resolutionNow(cycle);
+    status.add("peak_to_peak_counts", formatNumber(resolution.counts));
+    status.add("peak_to_peak_arcmin", formatNumber(resolution.arcmin));
+    status.add("below_encoder_resolution", resolution.below_count ? "true" : "false");
   }
   if (verdict.verdict == Verdict::Converged)
   {
@@ -627,6 +631,13 @@ TrackingFigures ServoNode::trackingNow() const
                             cycleLeavesBand(monitor_->status(), monitor_->cycleShape(), command_, tracking_->band()));
 }
 
+CycleResolution ServoNode::resolutionNow(const CycleShape& cycle) const
+{
+  RunConfig read = config_.run;
+  read.params = sim_.params();
+  return cycleResolution(cycle, loopCount(read));
+}
+
 const SteadyAnswer& ServoNode::steadyNow()
 {
   if (monitor_->status().verdict != Verdict::Converged)
@@ -671,6 +682,10 @@ void ServoNode::publishLimitCycle(double sim_time, bool maximum, bool diverged)
   const CycleShape cycle = monitor_->cycleShape();
   m.peak_to_peak = m.detected ? cycle.peak_to_peak : 0.0;
   m.cycle_centre = m.detected ? cycle.centre : 0.0;
+  const CycleResolution resolution = resolutionNow(cycle);
+  m.peak_to_peak_counts = m.detected ? resolution.counts : NAN;
+  m.peak_to_peak_arcmin = m.detected ? resolution.arcmin : NAN;
+  m.below_encoder_resolution = m.detected && resolution.below_count;
   m.equilibrium = monitor_->equilibrium();
   const SteadyAnswer& steady = steadyNow();
   m.steady_error = steady.error;

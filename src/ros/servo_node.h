@@ -132,6 +132,8 @@ class ServoNode : public EventSink
   /// The steady answer of the current judgement (steady_state.h), found once when it turns converged; none before.
   /// In effort mode the external controller's law is unknown: only a joint held for ever has one.
   const SteadyAnswer& steadyNow();
+  /// A cycle's size in counts of the encoder the loop reads and in arcmin (the drive's settings now).
+  CycleResolution resolutionNow(const CycleShape& cycle) const;
   Verdict announced_ = Verdict::Undecided;
 
   std::unique_ptr<NodeRecorder> recorder_;  // the node's own bag (record_bag), or null

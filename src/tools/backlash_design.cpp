@@ -14,6 +14,7 @@
 #include "backlash_servo/param_table.h"
 #include "backlash_servo/step_response.h"
 #include "json_writer.h"
+#include "run_report.h"
 #include "safe_output.h"
 
 using namespace backlash_servo;
@@ -318,7 +319,7 @@ void describe(std::ostream& out, const char* title, const Evaluation& e, const s
                   "peak about %.9g rad",
                   e.run.status.error, e.run.status.error / p.backlash, e.run.status.period, e.run.status.multiplicity,
                   e.run.cycle.peak_to_peak, e.run.cycle.centre);
-    out << buf;
+    out << buf << resolutionText(e.run.resolution);
   }
   else if (e.run.status.verdict == Verdict::Irregular)
   {
@@ -327,7 +328,7 @@ void describe(std::ostream& out, const char* title, const Evaluation& e, const s
                   "to peak about %.9g rad",
                   e.run.status.error, e.run.status.error / p.backlash, e.run.status.period, e.run.cycle.peak_to_peak,
                   e.run.cycle.centre);
-    out << buf;
+    out << buf << resolutionText(e.run.resolution);
   }
   else if (e.run.steady.basis == SteadyBasis::Unsettled)
   {
@@ -363,6 +364,8 @@ void evaluationJson(JsonWriter& j, const char* key, const Evaluation& e, const s
   {
     j.null("peak_to_peak").null("cycle_centre");
   }
+  j.field("peak_to_peak_counts", e.run.resolution.counts).field("peak_to_peak_arcmin", e.run.resolution.arcmin);
+  j.field("below_encoder_resolution", lc && e.run.resolution.below_count);
   j.endObject();
 }
 }  // namespace

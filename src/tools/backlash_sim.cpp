@@ -143,15 +143,17 @@ void writeSummary(std::ostream& out, const RunConfig& c, const RunSummary& r, do
   {
     std::snprintf(buf, sizeof buf,
                   "verdict: LIMIT CYCLE, error %.6g rad, period %.6g s (%d maxima per period); load %.6g rad peak to "
-                  "peak about %.9g rad\n",
-                  r.status.error, r.status.period, r.status.multiplicity, r.cycle.peak_to_peak, r.cycle.centre);
+                  "peak about %.9g rad%s\n",
+                  r.status.error, r.status.period, r.status.multiplicity, r.cycle.peak_to_peak, r.cycle.centre,
+                  resolutionText(r.resolution).c_str());
   }
   else if (r.status.verdict == Verdict::Irregular)
   {
     std::snprintf(buf, sizeof buf,
                   "verdict: IRREGULAR sustained oscillation (maxima never settle), largest error %.6g rad, "
-                  "mean time between maxima %.6g s; load %.6g rad peak to peak about %.9g rad\n",
-                  r.status.error, r.status.period, r.cycle.peak_to_peak, r.cycle.centre);
+                  "mean time between maxima %.6g s; load %.6g rad peak to peak about %.9g rad%s\n",
+                  r.status.error, r.status.period, r.cycle.peak_to_peak, r.cycle.centre,
+                  resolutionText(r.resolution).c_str());
   }
   else if (r.status.verdict == Verdict::Converged)
   {

@@ -1,5 +1,8 @@
 #include "run_report.h"
 
+#include <cmath>
+#include <cstdio>
+
 #include "backlash_servo/param_table.h"
 #include "json_writer.h"
 
@@ -67,6 +70,16 @@ void writeRunJson(std::ostream& out, const RunConfig& c, const RunSummary& r, do
   {
     j.null("peak_to_peak").null("cycle_centre");
   }
+  // The cycle in counts of the encoder the loop reads and in arcmin at the load; whether it is below one count.
+  j.field("peak_to_peak_counts", r.resolution.counts).field("peak_to_peak_arcmin", r.resolution.arcmin);
+  if (lc && std::isfinite(r.resolution.counts))
+  {
+    j.field("below_encoder_resolution", r.resolution.below_count);
+  }
+  else
+  {
+    j.null("below_encoder_resolution");
+  }
   j.field("equilibrium", r.equilibrium);  // where the loop rests [rad]; the verdict judges maxima against it
   // Where a converged joint comes to rest and θ_∞ − θ_R [rad] (null unless found), and how it was found.
   j.field("steady_position", r.steady.position).field("steady_error", r.steady.error);
@@ -133,6 +146,23 @@ void writeRunJson(std::ostream& out, const RunConfig& c, const RunSummary& r, do
   j.field("wall_time", wall_seconds);
   j.endObject();
   out << "\n";
+}
+
+std::string resolutionText(const CycleResolution& r)
+{
+  if (!std::isfinite(r.arcmin))
+  {
+    return "";
+  }
+  char buf[200];
+  if (!std::isfinite(r.counts))
+  {
+    std::snprintf(buf, sizeof buf, " (%.3g arcmin at the load)", r.arcmin);
+    return buf;
+  }
+  std::snprintf(buf, sizeof buf, " (%.3g counts of the encoder the loop reads, %.3g arcmin at the load)%s", r.counts,
+                r.arcmin, r.below_count ? " — below one count: a hunt the loop cannot see" : "");
+  return buf;
 }
 
 }  // namespace backlash_servo

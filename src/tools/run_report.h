@@ -8,6 +8,7 @@
 #pragma once
 
 #include <ostream>
+#include <string>
 
 #include "backlash_servo/step_response.h"
 
@@ -16,4 +17,8 @@ namespace backlash_servo
 /// Writes the JSON object of run `r` of config `c` (one line; `r` run with RunConfig::tracking); wall_seconds [s] is
 /// the run's wall time.
 void writeRunJson(std::ostream& out, const RunConfig& c, const RunSummary& r, double wall_seconds);
+
+/// A sustained oscillation's size beyond radians, for the text reports: " (N counts of the encoder the loop reads,
+/// A arcmin at the load)", and, under one count, that the loop cannot see the hunt; "" without a cycle.
+std::string resolutionText(const CycleResolution& r);
 }  // namespace backlash_servo

@@ -34,9 +34,9 @@ const char* const PROFILE_YAML =
 const char* const PART =
     "# backlash_sweep part 1/1: points [0, 4) of 4, grid 0123456789abcdef\n"
     "zeta,restitution,verdict,limit_cycle,limit_cycle_error,period,impacts,simulated_time,settled,steady_error,"
-    "maxima_per_period,peak_to_peak,cycle_centre\n"
-    "0.3,0,converged,0,0,0,4,80,1,1.5e-17,0,,\n0.3,1,limit_cycle,1,0.05,12.2,23,160.5,1,,1,0.1,1\n"
-    "0.5,0,converged,0,0,0,3,60,1,0,0,,\n0.5,1,undecided,0,0,0,100,2000,0,,0,,\n";
+    "maxima_per_period,peak_to_peak,cycle_centre,peak_to_peak_counts,below_resolution\n"
+    "0.3,0,converged,0,0,0,4,80,1,1.5e-17,0,,,,\n0.3,1,limit_cycle,1,0.05,12.2,23,160.5,1,,1,0.1,1,,\n"
+    "0.5,0,converged,0,0,0,3,60,1,0,0,,,,\n0.5,1,undecided,0,0,0,100,2000,0,,0,,,,\n";
 const char* const COMPARE =
     "motor_inertia: 1.0e-4\nload_inertia: 0.5\nmotor_friction: 1.0e-4\nload_friction: 0.5\ngear_ratio: 0.01\n"
     "backlash: 0.005\nrestitution: 0.5\ncontroller_rate: 1000\ngain: 6\nduration: 2\nsample_rate: 100\n"

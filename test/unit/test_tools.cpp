@@ -90,7 +90,7 @@ TEST(Sweep, EveryRowEqualsASingleBacklashSimRun)
   int cycles = 0;
   for (const auto& r : rows)
   {
-    ASSERT_EQ(r.size(), 16u);  // (steady_error: empty unless converged; maxima_per_period; the cycle's shape)
+    ASSERT_EQ(r.size(), 18u);  // (steady_error: empty unless converged; maxima_per_period; the cycle's shape)
     const std::string json = runCapture(SIM + " --json --zeta " + r[0] + " --inertia-ratio " + r[1] +
                                         " --friction-ratio " + r[2] + " --restitution " + r[3] + " --backlash " + r[4]);
     EXPECT_EQ(r[5], jsonText(json, "verdict")) << r[0] << " " << r[1] << " " << r[3];
@@ -107,6 +107,8 @@ TEST(Sweep, EveryRowEqualsASingleBacklashSimRun)
       EXPECT_EQ(r[14], "");
       EXPECT_EQ(r[15], "");
     }
+    EXPECT_EQ(r[16], "");  // (the continuous law reads an ideal sensor: no counts)
+    EXPECT_EQ(r[17], "");
     cycles += r[6] == "1";
   }
   EXPECT_GT(cycles, 0);
@@ -121,26 +123,28 @@ TEST(Sweep, TrackingColumnsEqualBacklashSimsFigures)
   int code = 0;
   const std::string csv = runCapture(SWEEP + grid + " --jobs 2 2>/dev/null", &code);
   ASSERT_EQ(code, 0);
-  EXPECT_NE(csv.find("cycle_centre,settling_band,settling_time,steady_rms_error\n"), std::string::npos);
+  EXPECT_NE(
+      csv.find("cycle_centre,peak_to_peak_counts,below_resolution,settling_band,settling_time,steady_rms_error\n"),
+      std::string::npos);
   const auto rows = csvRows(csv);
   ASSERT_EQ(rows.size(), 8u);
   int settled = 0;
   for (const auto& r : rows)
   {
-    ASSERT_EQ(r.size(), 19u);
+    ASSERT_EQ(r.size(), 21u);
     const std::string json = runCapture(SIM + " --json --zeta " + r[0] + " --inertia-ratio " + r[1] +
                                         " --friction-ratio " + r[2] + " --restitution " + r[3]);
-    EXPECT_EQ(std::stod(r[16]), jsonNumber(json, "settling_band"));
+    EXPECT_EQ(std::stod(r[18]), jsonNumber(json, "settling_band"));
     if (json.find("\"settling_time\":null") != std::string::npos)
     {
-      EXPECT_EQ(r[17], "");
+      EXPECT_EQ(r[19], "");
     }
     else
     {
-      EXPECT_EQ(std::stod(r[17]), jsonNumber(json, "settling_time"));
+      EXPECT_EQ(std::stod(r[19]), jsonNumber(json, "settling_time"));
       ++settled;
     }
-    EXPECT_EQ(std::stod(r[18]), jsonNumber(json, "steady_rms_error"));
+    EXPECT_EQ(std::stod(r[20]), jsonNumber(json, "steady_rms_error"));
   }
   EXPECT_GT(settled, 0);
   // Shards of the tracking sweep merge into the same bytes.
@@ -405,6 +409,41 @@ TEST(Design, TheIntervalsWithoutACycleAgreeWithTheSimulationsTheyCite)
   ASSERT_EQ(code, 0) << none;
   EXPECT_NE(none.find("max gain: none"), std::string::npos) << none;
   EXPECT_NE(none.find("the smallest cycle met"), std::string::npos) << none;
+}
+
+// A hunt of 6e-6 rad on a 17-bit encoder is an eighth of a count: backlash_sim says so in text and JSON, the design
+// tool in its description of the cycle, a sweep in its columns.
+TEST(Sim, AHuntBelowOneEncoderCountIsSaidSo)
+{
+  const std::string joint =
+      " --motor-inertia 3e-5 --load-inertia 0.12 --motor-friction 5e-5 --load-friction 0.05 --gear-ratio 0.01"
+      " --backlash 0.002618 --restitution 0.3 --load-torque -3.5 --motor-coulomb-friction 0.005"
+      " --load-coulomb-friction 0.2 --control-law pid --controller-rate 1000 --load-encoder-resolution 131072"
+      " --derivative-gain 0.3 --torque-limit 0.5 --command 0.5 --gain 15 --integral-gain 100";
+  int code = 0;
+  const std::string json = runCapture(SIM + joint + " --json", &code);
+  ASSERT_EQ(code, 0) << json;
+  const double count = 2.0 * M_PI / 131072.0;
+  EXPECT_DOUBLE_EQ(jsonNumber(json, "peak_to_peak_counts"), jsonNumber(json, "peak_to_peak") / count);
+  EXPECT_LT(jsonNumber(json, "peak_to_peak_counts"), 1.0);
+  EXPECT_NE(json.find("\"below_encoder_resolution\":true"), std::string::npos) << json;
+  const std::string text = runCapture(SIM + joint, &code);
+  EXPECT_NE(text.find("counts of the encoder the loop reads"), std::string::npos) << text;
+  EXPECT_NE(text.find("below one count: a hunt the loop cannot see"), std::string::npos) << text;
+  const std::string design = runCapture(DESIGN + joint, &code);
+  EXPECT_NE(design.find("below one count"), std::string::npos) << design;
+  const std::string sweep = runCapture(SWEEP + joint + " --restitution 0.3,0.5", &code);
+  ASSERT_EQ(code, 0) << sweep;
+  const auto rows = csvRows(sweep);
+  ASSERT_EQ(rows.size(), 2u);
+  for (const auto& r : rows)
+  {
+    if (r[2] == "1")  // (limit_cycle) the counts and the flag
+    {
+      EXPECT_LT(std::stod(r[r.size() - 2]), 1.0);
+      EXPECT_EQ(r.back(), "1");
+    }
+  }
 }
 
 // --config: a YAML file of the joint's keys (a range LO:HI as on the command line) gives the same answer as the

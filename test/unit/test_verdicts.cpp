@@ -627,3 +627,29 @@ TEST(Verdicts, ASwingThroughTheEquilibriumIsNotQuiet)
   EXPECT_EQ(settled.status.verdict, Verdict::Converged);
   EXPECT_EQ(settled.steady.basis, SteadyBasis::Held);
 }
+
+// The same joint with integral action (K = 15 N·m/rad, K_i = 100 N·m/(rad·s)) hunts by a few µrad: an eighth of a
+// count of the 17-bit encoder its loop reads (2π/131072 rad). The cycle is reported in counts and arcmin, and
+// flagged as one the loop cannot see.
+TEST(Verdicts, AHuntBelowOneEncoderCountIsFlagged)
+{
+  RunConfig c = saturatedRobotJoint(15.0);
+  c.drive.integral_gain = 100.0;
+  const RunSummary r = runResponse(c);
+  ASSERT_TRUE(r.status.verdict == Verdict::Irregular || r.status.verdict == Verdict::LimitCycle);
+  const double count = 2.0 * M_PI / 131072.0;
+  EXPECT_EQ(loopCount(c), count);
+  EXPECT_DOUBLE_EQ(r.resolution.counts, r.cycle.peak_to_peak / count);
+  EXPECT_LT(r.resolution.counts, 1.0);
+  EXPECT_TRUE(r.resolution.below_count);
+  EXPECT_DOUBLE_EQ(r.resolution.arcmin, r.cycle.peak_to_peak * 180.0 / M_PI * 60.0);
+  // A cycle of several counts (the P law above its hunting threshold) is one the loop sees.
+  const RunSummary wide = runResponse(saturatedRobotJoint(200.0));
+  ASSERT_TRUE(wide.status.verdict == Verdict::Irregular || wide.status.verdict == Verdict::LimitCycle);
+  EXPECT_GT(wide.resolution.counts, 1.0);
+  EXPECT_FALSE(wide.resolution.below_count);
+  // With motor feedback one count is ρ·2π/N_m at the load.
+  c.drive.feedback = "motor";
+  c.drive.motor_encoder_resolution = 4096;
+  EXPECT_DOUBLE_EQ(loopCount(c), 0.01 * 2.0 * M_PI / 4096.0);
+}

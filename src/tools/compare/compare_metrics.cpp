@@ -38,19 +38,19 @@ struct ImpactTally : EventSink
 const std::vector<std::string>& metricNames()
 {
   static const std::vector<std::string> names = {
-      "limit_cycle_error", "period",        "peak_to_peak",       "cycle_centre",
-      "steady_error",      "settling_time", "rms_error",          "steady_rms_error",
-      "max_error",         "overshoot",     "impacts_per_second", "impact_energy_per_second",
-      "peak_torque",       "rms_torque"};
+      "limit_cycle_error",        "period",       "peak_to_peak",  "cycle_centre",
+      "peak_to_peak_counts",      "steady_error", "settling_time", "rms_error",
+      "steady_rms_error",         "max_error",    "overshoot",     "impacts_per_second",
+      "impact_energy_per_second", "peak_torque",  "rms_torque"};
   return names;
 }
 
 std::vector<double> metricValues(const CompareMetrics& m)
 {
-  return {m.limit_cycle_error, m.period,        m.peak_to_peak,       m.cycle_centre,
-          m.steady_error,      m.settling_time, m.rms_error,          m.steady_rms_error,
-          m.max_error,         m.overshoot,     m.impacts_per_second, m.impact_energy_per_second,
-          m.peak_torque,       m.rms_torque};
+  return {m.limit_cycle_error,        m.period,       m.peak_to_peak,  m.cycle_centre,
+          m.peak_to_peak_counts,      m.steady_error, m.settling_time, m.rms_error,
+          m.steady_rms_error,         m.max_error,    m.overshoot,     m.impacts_per_second,
+          m.impact_energy_per_second, m.peak_torque,  m.rms_torque};
 }
 
 CompareMetrics runStrategy(const std::string& name, const RunConfig& config, double sample_rate,
@@ -87,6 +87,7 @@ CompareMetrics runStrategy(const std::string& name, const RunConfig& config, dou
     m.period = r.status.period;
     m.peak_to_peak = r.cycle.peak_to_peak;
     m.cycle_centre = r.cycle.centre;
+    m.peak_to_peak_counts = r.resolution.counts;
   }
   m.steady_error = r.steady.error;
   const double simulated = std::max(r.simulated, 1e-300);

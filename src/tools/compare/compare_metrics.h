@@ -17,10 +17,13 @@ struct CompareMetrics
 {
   std::string name;
   std::string verdict;
-  double limit_cycle_error = NAN;         ///< [rad] (sustained oscillations only)
-  double period = NAN;                    ///< [s] of the whole pattern (sustained oscillations only)
-  double peak_to_peak = NAN;              ///< the load's peak-to-peak amplitude in the cycle [rad] (idem)
-  double cycle_centre = NAN;              ///< midpoint of the cycle's highest and lowest load position [rad] (idem)
+  double limit_cycle_error = NAN;  ///< [rad] (sustained oscillations only)
+  double period = NAN;             ///< [s] of the whole pattern (sustained oscillations only)
+  double peak_to_peak = NAN;       ///< the load's peak-to-peak amplitude in the cycle [rad] (idem)
+  double cycle_centre = NAN;       ///< midpoint of the cycle's highest and lowest load position [rad] (idem)
+  /// peak_to_peak in counts of the encoder the loop reads (idem; NaN with an ideal sensor): under 1, a hunt the loop
+  /// cannot see
+  double peak_to_peak_counts = NAN;
   double steady_error = NAN;              ///< θ_∞ − θ_R [rad] (RunSummary::steady; converged only)
   double settling_time = NAN;             ///< last time |e| > the settling band (settlingBand), after the profile [s]
   double rms_error = NAN;                 ///< √(mean e²) over the run [rad], e = θ_R − θ_c

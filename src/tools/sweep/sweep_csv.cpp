@@ -44,6 +44,17 @@ std::string sweepRow(const SweepPoint& p, const RunSummary& r, const TrackingFig
   {
     row += ",,";
   }
+  // The cycle in counts of the encoder the loop reads and whether it is under one (empty: no cycle or an ideal
+  // sensor).
+  if (lc && std::isfinite(r.resolution.counts))
+  {
+    std::snprintf(buf, sizeof buf, ",%.17g,%d", r.resolution.counts, r.resolution.below_count ? 1 : 0);
+    row += buf;
+  }
+  else
+  {
+    row += ",,";
+  }
   if (tracking != nullptr)
   {
     std::snprintf(buf, sizeof buf, ",%.17g,", tracking->band);
@@ -187,13 +198,20 @@ void checkRow(const std::string& line, const std::vector<std::string>& header, c
       bad("'" + header[c] + "' must be a number for an oscillating point and empty otherwise");
     }
   }
+  const bool counted = !cells[v + 11].empty();
+  if (counted ? !oscillating || !isNumber(cells[v + 11]) || (cells[v + 12] != "0" && cells[v + 12] != "1")
+              : !cells[v + 12].empty())
+  {
+    bad("'peak_to_peak_counts' and 'below_resolution' must be a number and 0/1 for an oscillating point read "
+        "through an encoder, and empty otherwise");
+  }
   if (tracking)
   {
-    if (!isNumber(cells[v + 11]))
+    if (!isNumber(cells[v + 13]))
     {
       bad("'settling_band' is not a number");
     }
-    for (std::size_t c : {v + 12, v + 13})
+    for (std::size_t c : {v + 14, v + 15})
     {
       if (!cells[c].empty() && !isNumber(cells[c]))
       {

@@ -13,7 +13,8 @@ namespace backlash_servo
 {
 /// The row of one point: its parameter columns, verdict, limit-cycle error [rad], period [s], impacts, simulated
 /// time [s], settled, steady error θ_∞ − θ_R [rad] (RunSummary::steady: converged runs that came to rest; empty
-/// otherwise).
+/// otherwise), maxima per period, the cycle's peak to peak and centre [rad], its peak to peak in counts of the
+/// encoder the loop reads and whether that is under one count (empty without a cycle or with an ideal sensor).
 /// With `tracking`: then its settling band [rad], settling time [s] (empty when never settled) and steady-state RMS
 /// error [rad].
 std::string sweepRow(const SweepPoint& point, const RunSummary& run, const TrackingFigures* tracking = nullptr);

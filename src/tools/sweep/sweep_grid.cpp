@@ -258,7 +258,7 @@ const std::string& resultColumns()
 {
   static const std::string columns =
       "verdict,limit_cycle,limit_cycle_error,period,impacts,simulated_time,settled,steady_error,maxima_per_period,"
-      "peak_to_peak,cycle_centre";
+      "peak_to_peak,cycle_centre,peak_to_peak_counts,below_resolution";
   return columns;
 }
 
