@@ -68,6 +68,67 @@ struct InlineYaml
   }
 };
 
+/// `v` as a double: any Python or numpy number (int, float, np.float32, np.int64, anything with __float__ or
+/// __index__), not a boolean or text. ConfigError naming `key` otherwise, or when it does not fit a double (10**400).
+double numberOf(const std::string& key, const py::handle& v)
+{
+  const std::string type = py::str(py::type::handle_of(v).attr("__name__"));
+  if (py::isinstance<py::str>(v) || py::isinstance<py::bytes>(v) || py::isinstance<py::bool_>(v) ||
+      !(py::hasattr(v, "__float__") || py::hasattr(v, "__index__")))
+  {
+    throw ConfigError(key + ": expected a number (got " + type + ")");
+  }
+  try
+  {
+    return py::float_(py::reinterpret_borrow<py::object>(v)).cast<double>();
+  }
+  catch (const py::error_already_set&)
+  {
+    throw ConfigError(key + ": the number does not fit a double (got a " + type + " of " +
+                      std::to_string(std::string(py::str(v)).size()) + " digits)");
+  }
+}
+
+/// Whether `v` is a sequence of values for an axis: a list, a tuple, a range or a 1-D numpy array (ConfigError
+/// naming `key` for an array of more dimensions).
+bool isAxis(const std::string& key, const py::handle& v)
+{
+  if (py::isinstance<py::list>(v) || py::isinstance<py::tuple>(v) ||
+      py::isinstance(v, py::module_::import("builtins").attr("range")))
+  {
+    return true;
+  }
+  if (py::hasattr(v, "ndim") && py::hasattr(v, "shape") && !py::isinstance<py::str>(v))
+  {
+    if (py::int_(v.attr("ndim")).cast<long>() == 0)
+    {
+      return false;  // (a numpy scalar)
+    }
+    if (py::int_(v.attr("ndim")).cast<long>() != 1)
+    {
+      throw ConfigError(key + ": an axis must be a flat list of numbers (got an array of " +
+                        std::string(py::str(v.attr("ndim"))) + " dimensions)");
+    }
+    return true;
+  }
+  return false;
+}
+
+/// An axis as the flags' text "a,b,c", every value exact (numberOf each).
+std::string axisText(const std::string& key, const py::handle& values)
+{
+  std::string text;
+  for (const auto& v : values)
+  {
+    if (isAxis(key, v))
+    {
+      throw ConfigError(key + ": an axis must be a flat list of numbers (got a nested list)");
+    }
+    text += (text.empty() ? "" : ",") + formatNumber(numberOf(key, v));
+  }
+  return text;
+}
+
 /// A dict of YAML keys (numbers, booleans, text; a list of numbers for a sweep axis; a list of segments for an
 /// inline profile) or a YAML file path as the key values the tools read. Keys are checked against the parameter
 /// table as a config file's are. `inline_yaml` keeps the file of an inline profile while the values are in use.
@@ -93,14 +154,10 @@ KeyValues keyValuesOf(const py::object& config, InlineYaml* inline_yaml = nullpt
     py::dict copy;  // sweep axes as the flags' text ("a,b,c"); the profile as its list of segments
     for (const auto& item : config.cast<py::dict>())
     {
-      const bool axis = std::string(py::str(item.first)) != "profile" &&
-                        (py::isinstance<py::list>(item.second) || py::isinstance<py::tuple>(item.second));
-      std::string text;
-      for (const auto& v : axis ? item.second : py::tuple())
-      {
-        text += (text.empty() ? "" : ",") + formatNumber(v.cast<double>());
-      }
-      copy[item.first] = axis ? py::object(py::str(text)) : py::reinterpret_borrow<py::object>(item.second);
+      const std::string key = py::str(item.first);
+      const bool axis = key != "profile" && isAxis(key, item.second);
+      copy[item.first] =
+          axis ? py::object(py::str(axisText(key, item.second))) : py::reinterpret_borrow<py::object>(item.second);
     }
     const std::string text = py::str(py::module_::import("json").attr("dumps")(copy));  // JSON is YAML
     std::FILE* f = std::fopen(name, "w");
@@ -110,9 +167,9 @@ KeyValues keyValuesOf(const py::object& config, InlineYaml* inline_yaml = nullpt
     }
     kv.loadYaml(name);
   }
-  else if (py::isinstance<py::str>(config))
+  else if (py::isinstance<py::str>(config) || py::hasattr(config, "__fspath__"))
   {
-    kv.loadYaml(config.cast<std::string>());
+    kv.loadYaml(py::str(py::module_::import("os").attr("fspath")(config)).cast<std::string>());
   }
   else if (py::isinstance<py::dict>(config))
   {
@@ -120,30 +177,26 @@ KeyValues keyValuesOf(const py::object& config, InlineYaml* inline_yaml = nullpt
     {
       const std::string key = py::str(item.first);
       const py::handle value = item.second;
-      if (py::isinstance<py::bool_>(value))
+      if (py::isinstance<py::bool_>(value) || py::isinstance(value, py::module_::import("numpy").attr("bool_")))
       {
-        kv.setBoolean(key, value.cast<bool>());
-      }
-      else if (py::isinstance<py::int_>(value) || py::isinstance<py::float_>(value))
-      {
-        kv.setNumber(key, value.cast<double>());
+        kv.setBoolean(key, py::bool_(py::reinterpret_borrow<py::object>(value)).cast<bool>());
       }
       else if (py::isinstance<py::str>(value))
       {
         kv.set(key, value.cast<std::string>());
       }
-      else if (py::isinstance<py::list>(value) || py::isinstance<py::tuple>(value))
+      else if (isAxis(key, value))
       {
-        std::string text;  // an axis: "a,b,c" with every value exact
-        for (const auto& v : value)
-        {
-          text += (text.empty() ? "" : ",") + formatNumber(v.cast<double>());
-        }
-        kv.set(key, text);
+        kv.set(key, axisText(key, value));  // an axis: "a,b,c" with every value exact
+      }
+      else if (py::hasattr(value, "__float__") || py::hasattr(value, "__index__"))
+      {
+        kv.setNumber(key, numberOf(key, value));
       }
       else
       {
-        throw ConfigError(key + ": expected a number, a boolean, text or a list of numbers");
+        throw ConfigError(key + ": expected a number, a boolean, text or a list of numbers (got " +
+                          std::string(py::str(py::type::handle_of(value).attr("__name__"))) + ")");
       }
     }
   }
@@ -152,7 +205,9 @@ KeyValues keyValuesOf(const py::object& config, InlineYaml* inline_yaml = nullpt
     throw ConfigError("config: expected a dict of keys or the path of a YAML file");
   }
   requireKnownKeys(
-      kv, py::isinstance<py::str>(config) ? "config file '" + config.cast<std::string>() + "'" : std::string("config"));
+      kv, py::isinstance<py::dict>(config) || config.is_none()
+              ? std::string("config")
+              : "config file '" + std::string(py::str(py::module_::import("os").attr("fspath")(config))) + "'");
   return kv;
 }
 

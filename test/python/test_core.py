@@ -142,6 +142,27 @@ def test_sweep_equals_backlash_sweep(tmp_path):
     assert "steady_rms_error" in core.sweep(settings, tracking=True)
 
 
+def test_numpy_values_and_paths_are_taken_as_the_numbers_and_files_they_are(tmp_path):
+    # numpy scalars and 1-D arrays and a pathlib.Path are what Python users pass: the same results as plain values.
+    import pathlib
+    plain = core.run({"restitution": 0.5, "gain": 2, "duration": 20.0})
+    for value in (np.float64(0.5), np.float32(0.5)):  # (0.5: exact in single precision too)
+        assert core.run({"restitution": value, "gain": np.int64(2), "duration": 20.0})["maxima"] == plain["maxima"]
+    axes = core.sweep({"restitution": np.linspace(0.0, 0.8, 3), "zeta": np.array([0.2])})
+    assert list(axes["restitution"]) == [0.0, 0.4, 0.8]
+    assert core.sweep({"restitution": range(0, 1)})["restitution"][0] == 0.0
+    path = tmp_path / "joint.yaml"
+    path.write_text("restitution: 0.5\ngain: 2\nduration: 20.0\n")
+    assert core.run(pathlib.Path(path))["maxima"] == plain["maxima"]
+    # Values that are no number, or too big for one, are refused naming the key.
+    for bad, words in (({"gain": 10 ** 400}, "gain"), ({"restitution": [[0.1, 0.2]]}, "restitution"),
+                       ({"restitution": np.zeros((2, 2))}, "restitution"), ({"gain": object()}, "gain"),
+                       ({"restitution": ["a"]}, "restitution")):
+        with pytest.raises(ValueError, match=words):
+            core.run(bad) if "restitution" not in bad or not isinstance(bad["restitution"], (list, np.ndarray)) \
+                else core.sweep(bad)
+
+
 def test_steady_error_is_where_the_joint_comes_to_rest():
     # The D1 servo (e = 0.8) under −0.3 N·m stops by the state rule 2.6e-6 rad short of its rest: the steady error
     # is the rest's, ρT_ext/K = −0.3 (K = ρ = 1), in run() and in every sweep row of the same joint.
