@@ -1,5 +1,8 @@
 #include "backlash_servo/config/run_config_loader.h"
 
+#include <cmath>
+#include <cstdio>
+
 #include "backlash_servo/config/profile_loader.h"
 #include "backlash_servo/gear_mesh.h"
 #include "backlash_servo/param_table.h"
@@ -230,6 +233,27 @@ RunConfig runConfigFrom(const KeyValues& kv, ControlMode mode)
   // Let the simulator's own validation (gap range, contact consistency) speak now, before any output is written.
   Simulator check(c.params, s, c.command);
   return c;
+}
+
+std::vector<std::string> inputWarnings(const RunConfig& config)
+{
+  std::vector<std::string> out;
+  constexpr double DEGREE = 3.14159265358979323846 / 180.0;  // [rad]
+  const ServoParams& p = config.params;
+  if (p.gear_ratio <= 0.2 && p.backlash > 2.0 * DEGREE)
+  {
+    char buf[400];
+    const double step = std::fabs(config.command - config.initial.load_position);
+    std::snprintf(
+        buf, sizeof buf,
+        "backlash: %g rad is %.3g° at the load%s — a gearbox's backlash is usually a few arcmin (1 arcmin = "
+        "2.909e-4 rad). backlash is in rad: %g° would be %.6g rad",
+        p.backlash, p.backlash / DEGREE,
+        step > 0.0 ? (" (" + formatNumber(std::round(100.0 * p.backlash / step)) + " % of the step)").c_str() : "",
+        p.backlash, p.backlash * DEGREE);
+    out.push_back(buf);
+  }
+  return out;
 }
 
 }  // namespace backlash_servo

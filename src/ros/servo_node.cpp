@@ -163,6 +163,10 @@ ServoNode::ServoNode(ros::NodeHandle& nh, ros::NodeHandle& pnh, const NodeConfig
            modes[static_cast<int>(clock_mode_)], config_.real_time_factor, config_.publish_rate,
            sim_.params().dampingRatio(), sim_.params().naturalFrequency(), sim_.params().backlash,
            sim_.params().restitution);
+  for (const std::string& w : inputWarnings(config_.run))
+  {
+    ROS_WARN("backlash_servo_node: %s", w.c_str());
+  }
 }
 
 BacklashServoConfig ServoNode::currentConfig() const

@@ -554,6 +554,10 @@ int main(int argc, char** argv)
   try
   {
     d = parse(argc, argv);
+    for (const std::string& w : inputWarnings(configOf(d, d.gain, d.rho)))
+    {
+      std::cerr << "backlash_design: warning: " << w << "\n";
+    }
   }
   catch (const std::exception& e)
   {

@@ -218,6 +218,13 @@ int main(int argc, char** argv)
     options.parse(argc, argv);
     config = runConfigFrom(options.keys());
     config.tracking = true;
+    if (!options.given("json"))
+    {
+      for (const std::string& w : inputWarnings(config))
+      {
+        std::cerr << "backlash_sim: warning: " << w << "\n";
+      }
+    }
     csv_path = options.option("csv");
     sample_rate = options.optionNumber("sample_rate", sample_rate);
     // Above 1 MHz the sample period nears the rounding of the time itself (a rate of 1e308 Hz never advances).

@@ -3,6 +3,7 @@
 #include <cmath>
 #include <cstdio>
 
+#include "backlash_servo/config/run_config_loader.h"
 #include "backlash_servo/param_table.h"
 #include "json_writer.h"
 
@@ -80,7 +81,13 @@ void writeRunJson(std::ostream& out, const RunConfig& c, const RunSummary& r, do
   {
     j.null("below_encoder_resolution");
   }
-  j.field("equilibrium", r.equilibrium);  // where the loop rests [rad]; the verdict judges maxima against it
+  j.field("equilibrium", r.equilibrium);
+  j.beginArray("warnings");  // valid values that are probably not what was meant (inputWarnings)
+  for (const std::string& w : inputWarnings(c))
+  {
+    j.field(nullptr, w);
+  }
+  j.endArray();  // where the loop rests [rad]; the verdict judges maxima against it
   // Where a converged joint comes to rest and θ_∞ − θ_R [rad] (null unless found), and how it was found.
   j.field("steady_position", r.steady.position).field("steady_error", r.steady.error);
   if (r.steady.basis == SteadyBasis::None)

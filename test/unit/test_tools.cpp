@@ -446,6 +446,24 @@ TEST(Sim, AHuntBelowOneEncoderCountIsSaidSo)
   }
 }
 
+// Degrees typed as radians (0.15 for a 0.15° backlash: 8.6°) run, with a warning naming the key, the value in
+// degrees and what 0.15° is in rad; a catalogue-sized backlash and the thesis' ρ = 1 joints get none.
+TEST(Sim, ABacklashOfDegreesTypedAsRadiansIsWarnedAbout)
+{
+  const std::string joint =
+      " --motor-inertia 3e-5 --load-inertia 0.12 --motor-friction 5e-5 --load-friction 0.05 --gear-ratio 0.01"
+      " --restitution 0.3 --gain 15 --command 0.5";
+  int code = 0;
+  const std::string err = runCapture(SIM + joint + " --backlash 0.15 2>&1 >/dev/null", &code);
+  EXPECT_EQ(code, 0) << err;
+  EXPECT_NE(err.find("warning: backlash: 0.15 rad is 8.59° at the load (30 % of the step)"), std::string::npos) << err;
+  EXPECT_NE(err.find("0.15° would be 0.00261799 rad"), std::string::npos) << err;
+  const std::string json = runCapture(SIM + joint + " --backlash 0.15 --json", &code);
+  EXPECT_NE(json.find("\"warnings\":[\"backlash: 0.15 rad is 8.59°"), std::string::npos) << json;
+  EXPECT_EQ(runCapture(SIM + joint + " --backlash 0.002618 2>&1 >/dev/null", &code), "");
+  EXPECT_EQ(runCapture(SIM + " 2>&1 >/dev/null", &code), "");  // (the thesis' D1: ρ = 1, Δ = 0.3 rad)
+}
+
 // --config: a YAML file of the joint's keys (a range LO:HI as on the command line) gives the same answer as the
 // flags, and flags override it.
 TEST(Design, ConfigFileEqualsTheFlags)

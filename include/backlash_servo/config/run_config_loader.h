@@ -10,6 +10,7 @@
 #pragma once
 
 #include <string>
+#include <vector>
 
 #include "backlash_servo/config/key_values.h"
 #include "backlash_servo/step_response.h"
@@ -23,6 +24,13 @@ namespace backlash_servo
  * controller), so they need no controller_rate (DriveParams::validate).
  */
 RunConfig runConfigFrom(const KeyValues& kv, ControlMode mode = ControlMode::Position);
+
+/**
+ * Values that are valid but probably not what the user meant, one sentence each naming the key, the value and the
+ * unit: a gearbox's backlash (ρ ≤ 0.2, a reduction of 5:1 or more) above 2° at the load — degrees typed as radians
+ * (0.15 for 0.15° is 8.6°). Empty when nothing looks wrong. The tools print them as warnings and still run.
+ */
+std::vector<std::string> inputWarnings(const RunConfig& config);
 
 /// The Servo keys present in kv into *p, absent ones left as they are (a live change); not validated here
 /// (ServoParams::validate).
