@@ -11,6 +11,7 @@
 #include <string>
 
 #include "backlash_servo/config/key_values.h"
+#include "safe_output.h"
 
 extern char** environ;
 
@@ -38,14 +39,17 @@ int runProgram(const std::vector<std::string>& argv)
   {
     throw std::runtime_error("cannot run '" + argv[0] + "': " + std::strerror(rc));
   }
+  watchChild(pid);
   int status = 0;
   while (::waitpid(pid, &status, 0) < 0)
   {
     if (errno != EINTR)
     {
+      watchChild(0);
       throw std::runtime_error("waiting for '" + argv[0] + "' failed: " + std::strerror(errno));
     }
   }
+  watchChild(0);
   if (WIFSIGNALED(status))
   {
     throw std::runtime_error("'" + argv[0] + "' was killed by signal " + std::to_string(WTERMSIG(status)));
@@ -92,6 +96,7 @@ TemporaryDirectory::TemporaryDirectory(const std::string& prefix)
     throw ConfigError("cannot create a temporary directory in '" + base + "' (TMPDIR): " + std::strerror(errno));
   }
   path_ = tmpl;
+  watchTemporary(path_);
 }
 
 TemporaryDirectory::~TemporaryDirectory()
@@ -99,13 +104,16 @@ TemporaryDirectory::~TemporaryDirectory()
   for (const std::string& f : files_)
   {
     ::unlink(f.c_str());
+    unwatchTemporary(f);
   }
   ::rmdir(path_.c_str());
+  unwatchTemporary(path_);
 }
 
 std::string TemporaryDirectory::file(const std::string& name)
 {
   files_.push_back(path_ + "/" + name);
+  watchTemporary(files_.back());
   return files_.back();
 }
 

@@ -2,6 +2,7 @@
 
 #include <fcntl.h>
 #include <sys/stat.h>
+#include <sys/wait.h>
 #include <unistd.h>
 
 #include <atomic>
@@ -20,10 +21,11 @@ namespace backlash_servo
 namespace
 {
 // ---- temporaries removed on a signal (async-signal-safe: fixed storage, unlink only) ---------------------------
-constexpr int kSlots = 32;
+constexpr int kSlots = 64;
 constexpr int kPathMax = 4096;
 char g_tmp_paths[kSlots][kPathMax];
 std::atomic<bool> g_tmp_used[kSlots];
+std::atomic<pid_t> g_child{0};  // a helper program running (watchChild): ended first, it may still be writing
 
 int registerTemporary(const std::string& path)
 {
@@ -57,11 +59,25 @@ void unregisterTemporary(const std::string& path)
 
 extern "C" void removeTemporariesAndDie(int sig)
 {
+  const pid_t child = g_child.load();
+  if (child > 0)
+  {
+    ::kill(child, SIGTERM);
+    ::waitpid(child, nullptr, 0);
+  }
+  // Files first, then the (then empty) temporary directories: unlink fails on a directory, rmdir on a file.
   for (int i = 0; i < kSlots; ++i)
   {
     if (g_tmp_used[i].load())
     {
       ::unlink(g_tmp_paths[i]);
+    }
+  }
+  for (int i = kSlots - 1; i >= 0; --i)
+  {
+    if (g_tmp_used[i].load())
+    {
+      ::rmdir(g_tmp_paths[i]);
     }
   }
   ::signal(sig, SIG_DFL);
@@ -339,6 +355,21 @@ void publishActiveFile(const std::string& flag, const std::string& path)
     throw std::runtime_error(flag + ": cannot rename '" + active + "' to '" + path + "': " + std::strerror(errno) +
                              "; the recording is kept as '" + active + "'");
   }
+}
+
+void watchTemporary(const std::string& path)
+{
+  registerTemporary(path);
+}
+
+void unwatchTemporary(const std::string& path)
+{
+  unregisterTemporary(path);
+}
+
+void watchChild(pid_t pid)
+{
+  g_child.store(pid);
 }
 
 void removeTemporariesOnSignals()

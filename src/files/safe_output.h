@@ -92,6 +92,13 @@ void publishActiveFile(const std::string& flag, const std::string& path);
  * the program as the signal would have (exit status 128 + signal). For tools whose work cannot stop early.
  */
 void removeTemporariesOnSignals();
+/// A temporary file or directory of the program's own, removed on those signals too (a directory once the files
+/// watched in it are gone); unwatchTemporary() when it is removed or kept.
+void watchTemporary(const std::string& path);
+void unwatchTemporary(const std::string& path);
+/// A helper program this process waits for (0: none): on those signals it is ended, and waited for, before the
+/// temporaries it may be writing are removed.
+void watchChild(pid_t pid);
 
 /// Flushes stdout; throws std::runtime_error when writing it failed (closed pipe, /dev/full).
 void flushStdout();

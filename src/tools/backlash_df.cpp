@@ -262,6 +262,7 @@ int main(int argc, char** argv)
   try
   {
     o = parse(argc, argv);
+    removeTemporariesOnSignals();  // (outputs' temporaries and the work directories go with the process)
     if (!o.png_path.empty())
     {
       // The output is checked and its temporary created before the run.

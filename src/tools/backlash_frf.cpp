@@ -773,6 +773,7 @@ int main(int argc, char** argv)
   try
   {
     o = parse(argc, argv);
+    removeTemporariesOnSignals();  // (outputs' temporaries and the work directories go with the process)
     o.fingerprint = fingerprintOf(argc, argv);
     // Outputs are checked and their temporaries created before the runs.
     if (!o.png_path.empty())

@@ -414,6 +414,7 @@ int main(int argc, char** argv)
   try
   {
     o = parse(argc, argv);
+    removeTemporariesOnSignals();  // (outputs' temporaries and the work directories go with the process)
     if (!o.output_path.empty())
     {
       output =

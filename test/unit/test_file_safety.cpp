@@ -30,6 +30,7 @@ const std::string SWEEP = BACKLASH_SWEEP_EXE;
 const std::string COMPARE = BACKLASH_COMPARE_EXE;
 const std::string RECORD = BACKLASH_RECORD_EXE;
 const std::string PARAMS = BACKLASH_PARAMS_EXE;
+const std::string DF = BACKLASH_DF_EXE;
 const std::string SRC = SOURCE_DIR;
 
 /// A shell word that stays one word whatever it holds.
@@ -283,6 +284,43 @@ TEST_F(OutputSafety, AnInterruptedRunLeavesNoTemporary)
     ASSERT_EQ(::waitpid(pid, &status, 0), pid);
     EXPECT_TRUE(WIFSIGNALED(status) && WTERMSIG(status) == sig) << status;
     EXPECT_EQ(listing(), "c.yaml\n") << "signal " << sig;
+  }
+}
+
+// A tool drawing its chart (a helper program writing into a work directory under $TMPDIR, the output's temporary
+// beside the target) and interrupted then: the helper is ended, the work directory and the temporary removed.
+TEST_F(OutputSafety, AnInterruptedChartLeavesNoWorkDirectoryNorTemporary)
+{
+  const std::string tmp = dir + "/tmpdir";
+  ASSERT_EQ(::mkdir(tmp.c_str(), 0700), 0);
+  for (const int sig : {SIGTERM, SIGINT, SIGHUP})
+  {
+    const pid_t pid = ::fork();
+    ASSERT_GE(pid, 0);
+    if (pid == 0)
+    {
+      if (::chdir(dir.c_str()) != 0 || ::setenv("TMPDIR", tmp.c_str(), 1) != 0)
+      {
+        ::_exit(99);
+      }
+      ::execl(DF.c_str(), DF.c_str(), "--zeta", "0.1", "--inertia-ratio", "1", "--friction-ratio", "0.4",
+              "--restitution", "0", "--backlash", "0.3", "--png", "df.png", static_cast<char*>(nullptr));
+      ::_exit(98);
+    }
+    // Wait (up to 60 s) until the chart's work directory exists, then interrupt the tool.
+    bool seen = false;
+    for (int i = 0; i < 6000 && !seen; ++i)
+    {
+      std::this_thread::sleep_for(std::chrono::milliseconds(10));
+      seen = runCapture("ls -A " + q(tmp)).find("backlash_df.") != std::string::npos;
+    }
+    ASSERT_TRUE(seen) << "signal " << sig;
+    ::kill(pid, sig);
+    int status = 0;
+    ASSERT_EQ(::waitpid(pid, &status, 0), pid);
+    EXPECT_TRUE(WIFSIGNALED(status) && WTERMSIG(status) == sig) << status;
+    EXPECT_EQ(runCapture("ls -A " + q(tmp)), "") << "signal " << sig;
+    EXPECT_EQ(listing(), "c.yaml\ntmpdir\n") << "signal " << sig;
   }
 }
 
