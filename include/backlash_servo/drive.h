@@ -29,6 +29,8 @@ namespace backlash_servo
 /// Settings of the drive (docs/model.md Part 2, "Digital drive"); the P gain K is ServoParams::gain.
 struct DriveParams
 {
+  /// The lowest sample rate of a digital drive [Hz] (a sample every 1000 s); 0 is the continuous law.
+  static constexpr double MIN_CONTROLLER_RATE = 1e-3;
   std::string control_law = "proportional";  ///< proportional | pid | cascade
   double controller_rate = 0.0;              ///< f_s [Hz]; 0 = continuous (proportional only)
   double controller_delay = 0.0;             ///< samples of computation delay, 0 or 1

@@ -218,6 +218,13 @@ void DriveParams::validate(ControlMode mode) const
   {
     throw InvalidParameterError("feedback", "must be load or motor (got '" + feedback + "')");
   }
+  if (sampled() && controller_rate < MIN_CONTROLLER_RATE)
+  {
+    // A sample every 1e300 s is no drive: it would hold its first torque for ever (and run away unchecked).
+    throw InvalidParameterError("controller_rate", "must be 0 (the continuous law) or at least " +
+                                                       formatNumber(MIN_CONTROLLER_RATE) + " Hz (got " +
+                                                       formatNumber(controller_rate) + ")");
+  }
   if (!sampled())
   {
     if (control_law != "proportional")

@@ -162,6 +162,7 @@ TEST(Cli, BadInputIsOneClearLineAndExitCode2)
       {"--motor-coulomb-friction -0.1", "motor_coulomb_friction"},
       {"--motor-static-friction inf", "--motor-static-friction"},
       {"--controller-rate nan", "--controller-rate"},
+      {"--controller-rate 1e-300", "controller_rate: must be 0 (the continuous law) or at least 0.001 Hz (got 1e-300)"},
       {"--controller-rate 100 --controller-delay 2", "controller_delay"},
       {"--control-law bangbang", "--control-law"},
       {"--control-law pid", "controller_rate"},
