@@ -18,6 +18,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <memory>
 #include <sstream>
 #include <string>
 #include <thread>
@@ -51,6 +52,38 @@ using namespace backlash_servo;
 
 namespace
 {
+/// Ctrl-C while the core computes without the GIL: poll() checks Python's signals (taking the GIL) at most every
+/// 50 ms of wall time; on KeyboardInterrupt (or any error a handler raised) it throws Interrupted, which the caller
+/// turns back into that Python error once the GIL is held again (raiseIfInterrupted).
+class SignalWatch
+{
+ public:
+  struct Interrupted
+  {};
+  /// Throws Interrupted when a Python signal handler raised (call without the GIL).
+  void poll()
+  {
+    const auto now = std::chrono::steady_clock::now();
+    if (now - last_ < std::chrono::milliseconds(50))
+    {
+      return;
+    }
+    last_ = now;
+    py::gil_scoped_acquire acquire;
+    if (PyErr_CheckSignals() != 0)
+    {
+      error_ = std::make_unique<py::error_already_set>();  // (fetches the pending Python error)
+      throw Interrupted();
+    }
+  }
+  /// Raises the Python error poll() caught (call with the GIL, after the computation).
+  [[noreturn]] void raise() { throw *error_; }
+
+ private:
+  std::chrono::steady_clock::time_point last_ = std::chrono::steady_clock::now();
+  std::unique_ptr<py::error_already_set> error_;
+};
+
 /// A dict with an inline profile (`profile: [{step: …}, …]`) is written as the YAML file it stands for, which the
 /// profile loader reads as it reads a config file's `profile:` list; removed when this goes out of scope.
 struct InlineYaml
@@ -228,12 +261,25 @@ py::object run(const py::object& config)
   RunConfig c = runConfigOf(config);
   c.tracking = true;
   std::ostringstream out;
+  SignalWatch watch;
+  bool interrupted = false;
   {
     py::gil_scoped_release release;
     const auto start = std::chrono::steady_clock::now();
-    const RunSummary r = runResponse(c);
-    const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-    writeRunJson(out, c, r, wall);
+    try
+    {
+      const RunSummary r = runResponse(c, nullptr, 0.0, nullptr, [&](double) { watch.poll(); });
+      const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+      writeRunJson(out, c, r, wall);
+    }
+    catch (const SignalWatch::Interrupted&)
+    {
+      interrupted = true;
+    }
+  }
+  if (interrupted)
+  {
+    watch.raise();
   }
   return parseJson(out.str());
 }
@@ -260,9 +306,26 @@ py::dict frequencyResponse(const py::object& config, double amplitude, double fr
   s.harmonics = harmonics;
   const RunConfig c = frfConfigOf(config, s.channel);
   FrfPoint p;
+  SignalWatch watch;
+  bool interrupted = false;
   {
     py::gil_scoped_release release;
-    p = measureFrequencyResponse(c, s, amplitude, frequency);
+    p = measureFrequencyResponse(c, s, amplitude, frequency, [&]() {
+      try
+      {
+        watch.poll();
+        return false;
+      }
+      catch (const SignalWatch::Interrupted&)
+      {
+        interrupted = true;
+        return true;  // (the point stops at this period; the error is raised below)
+      }
+    });
+  }
+  if (interrupted)
+  {
+    watch.raise();
   }
   py::dict d;
   d["amplitude"] = p.amplitude;
@@ -579,10 +642,33 @@ class PySimulator
  public:
   explicit PySimulator(const py::object& config) : config_(runConfigOf(config)), sim_(makeSimulator(config_)) {}
 
+  /// Advances to t_end [s] in pieces of a natural period (the motion does not depend on how it is cut), checking
+  /// for Ctrl-C between them.
   void advance(double t_end)
   {
-    py::gil_scoped_release release;
-    sim_.advanceTo(t_end);
+    SignalWatch watch;
+    bool interrupted = false;
+    {
+      py::gil_scoped_release release;
+      const double piece = 2.0 * 3.14159265358979323846 / sim_.params().naturalFrequency();
+      try
+      {
+        while (sim_.state().time < t_end)
+        {
+          const double next = sim_.state().time + piece;
+          sim_.advanceTo(next > sim_.state().time ? std::min(t_end, next) : t_end);  // (a piece below rounding)
+          watch.poll();
+        }
+      }
+      catch (const SignalWatch::Interrupted&)
+      {
+        interrupted = true;
+      }
+    }
+    if (interrupted)
+    {
+      watch.raise();
+    }
   }
 
   /// Samples from now to t_end [s] at `rate` [Hz] (the first sample now): numpy arrays of the state, the gap and
@@ -596,13 +682,40 @@ class PySimulator
     // The sample times of `backlash_sim --csv`: t₀ + k·(1/rate), the last one at t_end.
     const double t0 = sim_.state().time;
     const double period = 1.0 / rate;
-    const long n = t_end >= t0 ? static_cast<long>(std::ceil((t_end - t0) / period - 1e-9)) + 1 : 0;
+    const double count = t_end >= t0 ? std::ceil((t_end - t0) / period - 1e-9) + 1.0 : 0.0;
+    // Each sample holds 9 doubles, then once more in the numpy arrays: 144 bytes.
+    constexpr double MAX_SAMPLES = 1e7, BYTES_PER_SAMPLE = 144.0;
+    if (count > MAX_SAMPLES)
+    {
+      char buf[300];
+      std::snprintf(buf, sizeof buf,
+                    "sample: %.4g samples (%.3g GB) exceed the limit of %.0e samples (%.3g GB): lower the rate or "
+                    "sample a shorter stretch at a time",
+                    count, count * BYTES_PER_SAMPLE / 1e9, MAX_SAMPLES, MAX_SAMPLES * BYTES_PER_SAMPLE / 1e9);
+      throw ConfigError(buf);
+    }
+    const long n = static_cast<long>(count);
     std::vector<double> cols[9];
+    for (std::vector<double>& col : cols)
+    {
+      col.reserve(static_cast<std::size_t>(n));
+    }
+    SignalWatch watch;
+    bool interrupted = false;
     {
       py::gil_scoped_release release;
       const GearMesh mesh(sim_.params().gear_ratio, sim_.params().backlash);
-      for (long k = 0; k < n; ++k)
+      for (long k = 0; k < n && !interrupted; ++k)
       {
+        try
+        {
+          watch.poll();
+        }
+        catch (const SignalWatch::Interrupted&)
+        {
+          interrupted = true;
+          break;
+        }
         sim_.advanceTo(std::min(t0 + static_cast<double>(k) * period, t_end));
         sim_.takeSampleDue();  // (the torque applied from this sample on, as the CLI's CSV has it)
         const State& s = sim_.state();
@@ -622,6 +735,10 @@ class PySimulator
           cols[c].push_back(values[c]);
         }
       }
+    }
+    if (interrupted)
+    {
+      watch.raise();
     }
     static const char* names[9] = {"time", "load_position", "load_velocity", "motor_position", "motor_velocity",
                                    "gap",  "mesh_torque",   "motor_torque",  "contact"};

@@ -221,6 +221,33 @@ def test_first_calls_from_several_threads_at_once_do_not_deadlock():
         assert p.stdout.strip() == "answered 5 []", p.stdout + p.stderr
 
 
+CTRL_C = """
+import os, signal, sys, threading, time
+import backlash_servo.core as core
+threading.Timer(1.0, lambda: os.kill(os.getpid(), signal.SIGINT)).start()
+start = time.time()
+try:
+    core.run({"duration": 1e8}) if sys.argv[1] == "run" else core.Simulator({}).advance(1e8)
+    print("finished")
+except KeyboardInterrupt:
+    print("interrupted after %.3f s" % (time.time() - start))
+"""
+
+
+@pytest.mark.parametrize("call", ["run", "advance"])
+def test_ctrl_c_interrupts_a_long_computation(call):
+    # 1e8 s of the D1 servo take minutes; Ctrl-C at 1 s raises KeyboardInterrupt within a fraction of a second.
+    p = subprocess.run(["/usr/bin/python3", "-c", CTRL_C, call], capture_output=True, text=True, timeout=120)
+    assert p.stdout.startswith("interrupted after"), p.stdout + p.stderr
+    assert float(p.stdout.split()[2]) < 10.0, p.stdout
+
+
+def test_a_sample_request_beyond_memory_is_refused_naming_its_size():
+    with pytest.raises(ValueError, match=r"1e\+12 samples \(1.44e\+05 GB\) exceed the limit"):
+        core.Simulator({}).sample(1e12, 1.0)
+    assert len(core.Simulator({}).sample(10.0, 100.0)["time"]) == 1001
+
+
 def test_the_gil_is_released_while_the_core_computes():
     ticks = []
     stop = threading.Event()
