@@ -350,9 +350,14 @@ FrfPoint measureFrequencyResponse(const RunConfig& config, const FrfSettings& se
   {
     throw InvalidParameterError("tolerance", "must be in (0, 1) (got " + std::to_string(settings.tolerance) + ")");
   }
-  if ((settings.max_periods != 0 && settings.max_periods < 3) || settings.harmonics < 1 || settings.harmonics > 1000)
+  if (settings.max_periods != 0 && settings.max_periods < 3)
   {
-    throw InvalidParameterError("max_periods", "needs max_periods 0 (automatic) or ≥ 3 and harmonics in [1, 1000]");
+    throw InvalidParameterError(
+        "max_periods", "must be 0 (automatic) or at least 3 (got " + std::to_string(settings.max_periods) + ")");
+  }
+  if (settings.harmonics < 1 || settings.harmonics > 1000)
+  {
+    throw InvalidParameterError("harmonics", "must be in [1, 1000] (got " + std::to_string(settings.harmonics) + ")");
   }
   const FrfChannel channel = settings.channel;
   const bool torque = torqueInput(channel), setpoint = setpointInput(channel);

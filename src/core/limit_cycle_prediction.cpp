@@ -301,6 +301,12 @@ void requireDescribable(const RunConfig& config)
   {
     refuse("shaft_stiffness", "a rigid shaft (the compliant mesh's dead zone alone)");
   }
+  if (d.sampled() && d.control_law == "cascade" && !(d.velocity_loop_gain > 0.0 && d.position_loop_gain > 0.0))
+  {
+    refuse(d.velocity_loop_gain > 0.0 ? "position_loop_gain" : "velocity_loop_gain",
+           "a cascade whose position and velocity loops both act: set position_loop_gain > 0 [1/s] and "
+           "velocity_loop_gain > 0 [N·m·s/rad] (without them its loop stiffness K_v·K_p is 0)");
+  }
 }
 
 LimitCyclePrediction predictLimitCycle(const RunConfig& config)

@@ -22,6 +22,7 @@
 #include <sstream>
 #include <string>
 #include <thread>
+#include <tuple>
 #include <vector>
 
 #include "backlash_servo/broadband_response.h"
@@ -471,6 +472,20 @@ py::dict identify(const std::vector<double>& time, const std::vector<double>& mo
     prior.gear_ratio = gear_ratio;
   }
   gear_ratio = prior.gear_ratio;
+  // The settings as the CLI checks its flags: 0 means "from the recording", a value must be a positive number.
+  for (const auto& [key, value, unit] :
+       {std::make_tuple("contact_band", contact_band, "rad"), std::make_tuple("still_speed", still_speed, "rad/s")})
+  {
+    if (!(value >= 0.0 && std::isfinite(value)))
+    {
+      throw ConfigError(std::string(key) + ": must be 0 (from the recording) or > 0 " + unit + " (got " +
+                        formatNumber(value) + ")");
+    }
+  }
+  if (!std::isnan(load_torque))
+  {
+    param("load_torque").check(load_torque);  // (NaN: unknown)
+  }
   Recording r{time, motor_torque, motor_position, load_position};
   IdentificationSettings s;
   s.gear_ratio = gear_ratio;
@@ -756,7 +771,11 @@ class PySimulator
     sim_.setCommand(command);
   }
 
-  void setMotorTorque(double torque) { sim_.setMotorTorque(torque); }
+  void setMotorTorque(double torque)
+  {
+    param("motor_effort").check(torque);  // finite and inside the envelope, as the node's motor_effort topic
+    sim_.setMotorTorque(torque);
+  }
   void setLoadTorqueWave(double amplitude, double frequency, double phase)
   {
     sim_.setLoadTorqueWave(Sinusoid{amplitude, frequency, phase, 0.0});

@@ -80,6 +80,22 @@ def test_errors_are_value_errors_with_the_tools_message(tmp_path):
             assert "\n" not in str(e.value)
 
 
+def test_settings_are_checked_as_the_tools_check_their_flags():
+    # A value the CLI refuses is refused here too, naming the key (never taken, never pybind's cast error).
+    n = 100
+    t = [0.001 * k for k in range(n)]
+    zeros = [0.0] * n
+    for kwargs, words in (({"contact_band": float("nan")}, "contact_band"), ({"contact_band": -1.0}, "contact_band"),
+                          ({"still_speed": float("nan")}, "still_speed"), ({"load_torque": float("inf")},
+                                                                           "load_torque")):
+        with pytest.raises(ValueError, match=words):
+            core.identify(t, zeros, zeros, zeros, gear_ratio=1.0, **kwargs)
+    with pytest.raises(ValueError, match="motor_effort"):
+        core.Simulator({}).set_motor_torque(1e300)
+    with pytest.raises(ValueError, match=r"harmonics: must be in \[1, 1000\] \(got 0\)"):
+        core.frequency_response({"controller_rate": 100.0}, amplitude=0.1, frequency=1.0, harmonics=0)
+
+
 def test_simulator_samples_equal_the_cli_csv(tmp_path):
     path = str(tmp_path / "robot.yaml")
     config = dict(ROBOT, duration=2.0)

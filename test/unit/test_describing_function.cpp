@@ -523,6 +523,13 @@ TEST(DescribingFunction, WhatTheAnalysisDoesNotTakeIsNamed)
   c = base;
   c.params.backlash = 0.0;
   EXPECT_NE(refusal(c).find("backlash"), std::string::npos) << refusal(c);
+  c = base;
+  c.drive.control_law = "cascade";  // (its gains left at 0: no loop to describe)
+  EXPECT_NE(refusal(c).find("velocity_loop_gain"), std::string::npos) << refusal(c);
+  c.drive.velocity_loop_gain = 0.1;
+  EXPECT_NE(refusal(c).find("position_loop_gain"), std::string::npos) << refusal(c);
+  c.drive.position_loop_gain = 10.0;
+  EXPECT_EQ(refusal(c), "accepted");
 }
 
 // The dead zone's harmonic balance on G(s) = k/(s(s + 1)²), real and −k/2 at ω = 1 alone: there N = 2/k, the
