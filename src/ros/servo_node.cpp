@@ -711,6 +711,15 @@ void ServoNode::publishLimitCycle(double sim_time, bool maximum, bool diverged)
   {
     verdict_reason_.clear();  // a verdict reached: nothing pending to explain
   }
+  // A convergence is never withdrawn silently (the load moved again: an external controller's integrator, a joint
+  // breaking away): the message says which verdict it replaces and since when.
+  if (announced_ == Verdict::Converged && st.verdict != Verdict::Converged && fault_.empty())
+  {
+    verdict_reason_ = "the converged verdict of t = " + formatNumber(converged_at_) +
+                      " s is withdrawn: the load moved again (maximum at t = " +
+                      formatNumber(monitor_->maxima().empty() ? sim_time : monitor_->maxima().back().time) + " s)";
+    ROS_WARN("backlash_servo_node: %s", verdict_reason_.c_str());
+  }
   m.reason = verdict_reason_;
   emit(limit_cycle_pub_, limit_cycle_topic_, m);
   if (maximum)
@@ -729,6 +738,7 @@ void ServoNode::publishLimitCycle(double sim_time, bool maximum, bool diverged)
     }
     else if (st.verdict == Verdict::Converged)
     {
+      converged_at_ = sim_time;
       ROS_INFO("converged to the command at t = %.4f s: no limit cycle", sim_time);
     }
   }
