@@ -413,7 +413,9 @@ bool ServoNode::run()
 
 void ServoNode::enterFault(const std::string& what, bool diverged)
 {
-  fault_ = what;
+  // A runaway motion's state is unusable: new parameters cannot go on from it, only ~reset can (said so).
+  fault_ = diverged ? what + " (the motion ran away: ~reset starts again from the initial state)" : what;
+  fault_diverged_ = diverged;
   // /limit_cycle no longer shows the verdict of a motion that has ended: diverged (an unstable loop ran away) or
   // undecided with the fault as its reason.
   monitor_->restartAt(sim_.state());
@@ -1016,6 +1018,7 @@ bool ServoNode::onReset(std_srvs::Trigger::Request&, std_srvs::Trigger::Response
   {
     ROS_INFO("backlash_servo_node: reset clears the simulation error; running again");
     fault_.clear();
+    fault_diverged_ = false;
     reanchorWallClock();
     publishDiagnostics();
   }
@@ -1124,7 +1127,7 @@ void ServoNode::onReconfigure(BacklashServoConfig& c, uint32_t)
   config_ = next;
   reanchorWallClock();
   last_good_ = c;
-  if (!fault_.empty())
+  if (!fault_.empty() && !fault_diverged_)
   {
     ROS_INFO("backlash_servo_node: valid parameters clear the simulation error; running again");
     fault_.clear();

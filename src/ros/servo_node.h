@@ -135,7 +135,8 @@ class ServoNode : public EventSink
   /// A cycle's size in counts of the encoder the loop reads and in arcmin (the drive's settings now).
   CycleResolution resolutionNow(const CycleShape& cycle) const;
   Verdict announced_ = Verdict::Undecided;
-  double converged_at_ = 0.0;  // sim time the latest converged verdict was announced [s]
+  bool fault_diverged_ = false;  // the fault is a runaway motion: only ~reset resumes
+  double converged_at_ = 0.0;    // sim time the latest converged verdict was announced [s]
 
   std::unique_ptr<NodeRecorder> recorder_;  // the node's own bag (record_bag), or null
   ros::Publisher joint_pub_, impact_pub_, state_pub_, limit_cycle_pub_, clock_pub_, encoder_pub_;
