@@ -373,6 +373,14 @@ TEST(Design, SearchesTheIntegralGainOfASampledPid)
   EXPECT_NE(err.find("--tune"), std::string::npos) << err;
 }
 
+/// A 100:1 robot joint under gravity with dry friction, a 1 kHz PID on a 17-bit load encoder and a 0.5 N·m torque
+/// limit (gains given by each test).
+const std::string ROBOT_JOINT =
+    " --motor-inertia 3e-5 --load-inertia 0.12 --motor-friction 5e-5 --load-friction 0.05 --gear-ratio 0.01"
+    " --backlash 0.002618 --restitution 0.3 --load-torque -3.5 --motor-coulomb-friction 0.005"
+    " --load-coulomb-friction 0.2 --control-law pid --controller-rate 1000 --load-encoder-resolution 131072"
+    " --derivative-gain 0.3 --torque-limit 0.5 --command 0.5";
+
 // Whether this robot joint hunts is not monotone in K (a 1 kHz PD on a 17-bit encoder, dry friction, gravity, a
 // 0.5 N·m torque limit: free up to ~110 N·m/rad, hunting above): the answer lists the intervals without a cycle and
 // agrees with backlash_sim at the values it cites — the chosen design converges, the value just above does not, and
@@ -380,11 +388,7 @@ TEST(Design, SearchesTheIntegralGainOfASampledPid)
 // count): the answer says so, with the smallest cycle met.
 TEST(Design, TheIntervalsWithoutACycleAgreeWithTheSimulationsTheyCite)
 {
-  const std::string joint =
-      " --motor-inertia 3e-5 --load-inertia 0.12 --motor-friction 5e-5 --load-friction 0.05 --gear-ratio 0.01"
-      " --backlash 0.002618 --restitution 0.3 --load-torque -3.5 --motor-coulomb-friction 0.005"
-      " --load-coulomb-friction 0.2 --control-law pid --controller-rate 1000 --load-encoder-resolution 131072"
-      " --derivative-gain 0.3 --torque-limit 0.5 --command 0.5";
+  const std::string joint = ROBOT_JOINT;
   int code = 0;
   const std::string json = runCapture(DESIGN + joint + " --gain 15 --integral-gain 0 --find max-gain --json", &code);
   ASSERT_EQ(code, 0) << json;
@@ -415,11 +419,7 @@ TEST(Design, TheIntervalsWithoutACycleAgreeWithTheSimulationsTheyCite)
 // tool in its description of the cycle, a sweep in its columns.
 TEST(Sim, AHuntBelowOneEncoderCountIsSaidSo)
 {
-  const std::string joint =
-      " --motor-inertia 3e-5 --load-inertia 0.12 --motor-friction 5e-5 --load-friction 0.05 --gear-ratio 0.01"
-      " --backlash 0.002618 --restitution 0.3 --load-torque -3.5 --motor-coulomb-friction 0.005"
-      " --load-coulomb-friction 0.2 --control-law pid --controller-rate 1000 --load-encoder-resolution 131072"
-      " --derivative-gain 0.3 --torque-limit 0.5 --command 0.5 --gain 15 --integral-gain 100";
+  const std::string joint = ROBOT_JOINT + " --gain 15 --integral-gain 100";
   int code = 0;
   const std::string json = runCapture(SIM + joint + " --json", &code);
   ASSERT_EQ(code, 0) << json;
