@@ -55,13 +55,9 @@ TEST(Steady, ACompliantRobotJointRingingInContactReportsItsEquilibrium)
 {
   RunConfig c;
   ServoParams& p = c.params;
-  p.motor_inertia = 1e-4;
-  p.load_inertia = 0.5;
+  p = test_helpers::compliantRobotJoint();  // with more friction, a softer mesh and a load torque:
   p.motor_friction = 2e-4;
   p.load_friction = 1.0;
-  p.gain = 6.0;
-  p.gear_ratio = 0.01;
-  p.backlash = 0.005;
   p.load_torque = -2.0;
   p.mesh_stiffness = 1e4;
   p.mesh_damping = 8.585787;
