@@ -413,7 +413,9 @@ TEST_F(SweepInputs, DamagedForgedOrForeignPartsAreRefusedWithOneLine)
   const std::string row1 =
       good1.substr(p1_line.size() + header.size() + 2,
                    good1.find('\n', p1_line.size() + header.size() + 2) - p1_line.size() - header.size() - 2);
-  const std::size_t v = static_cast<std::size_t>(std::count(header.begin(), header.end(), ',')) + 1 - 11;  // verdict
+  // The verdict's column: the number of commas before it in the header.
+  const std::size_t v = static_cast<std::size_t>(
+      std::count(header.begin(), header.begin() + static_cast<std::ptrdiff_t>(header.find("verdict")), ','));
   struct Case
   {
     std::string name, from, to, says;
