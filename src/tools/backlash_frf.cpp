@@ -319,7 +319,26 @@ struct Row
   FrfPoint point;
   FrfPoint linear;  // backlash 0 (with --linear)
   bool has_linear = false;
+  /// Why the point has no figures: its simulation exceeded the event budget or ran away (the other points go on).
+  std::string stopped;
 };
+
+/// The row of a point whose simulation stopped: its amplitude and frequencies, no figures (NaN), not periodic.
+Row stoppedRow(const Options& o, double amplitude, double omega, const std::string& why)
+{
+  Row r;
+  FrfPoint& p = r.point;
+  p.amplitude = amplitude;
+  p.requested_frequency = omega;
+  p.frequency = frfSampling(o.config, o.settings, omega).frequency;
+  for (double* f : {&p.gain, &p.phase, &p.distortion, &p.mean, &p.peak_to_peak, &p.flank_changes, &p.separations})
+  {
+    *f = NAN;
+  }
+  p.response = {NAN, NAN};
+  r.stopped = why;
+  return r;
+}
 
 /// Every (amplitude, frequency) pair, amplitude-major, on `jobs` threads; progress on a terminal.
 std::vector<Row> measureAll(const Options& o)
@@ -342,11 +361,22 @@ std::vector<Row> measureAll(const Options& o)
         const std::size_t at = first + i;  // the point's index in the whole run
         const double a = o.amplitudes[at / o.frequencies.size()], w = o.frequencies[at % o.frequencies.size()];
         const auto stop = [&]() { return failed.load(); };
-        rows[i].point = measureFrequencyResponse(o.config, o.settings, a, w, stop);
-        if (o.linear)
+        try
         {
-          rows[i].linear = measureFrequencyResponse(linear, o.settings, a, w, stop);
-          rows[i].has_linear = true;
+          rows[i].point = measureFrequencyResponse(o.config, o.settings, a, w, stop);
+          if (o.linear)
+          {
+            rows[i].linear = measureFrequencyResponse(linear, o.settings, a, w, stop);
+            rows[i].has_linear = true;
+          }
+        }
+        catch (const EventBudgetExceeded& e)  // one point's impact storm: that point has no figures, the rest go on
+        {
+          rows[i] = stoppedRow(o, a, w, e.what());
+        }
+        catch (const MotionDiverged& e)
+        {
+          rows[i] = stoppedRow(o, a, w, e.what());
         }
         std::lock_guard<std::mutex> g(lock);
         progress.update(++done, count);
@@ -579,6 +609,14 @@ void writeJson(const Options& o, const std::vector<Row>& rows)
     w.field("flank_changes", p.flank_changes);
     w.field("crosses_backlash", p.flank_changes > 0.0);
     w.field("separations", p.separations);
+    if (r.stopped.empty())
+    {
+      w.null("stopped");
+    }
+    else
+    {
+      w.field("stopped", r.stopped);  // why the point has no figures
+    }
     if (r.has_linear)
     {
       w.field("linear_gain", r.linear.gain);
@@ -622,7 +660,11 @@ void writeText(const Options& o, const std::vector<Row>& rows)
   {
     const FrfPoint& p = r.point;
     char state[64];
-    if (p.periodic)
+    if (!r.stopped.empty())
+    {
+      std::snprintf(state, sizeof state, "STOPPED (see below)");
+    }
+    else if (p.periodic)
     {
       std::snprintf(state, sizeof state, p.period_multiple == 1 ? "periodic (%d T)" : "period %dT (%d T run)",
                     p.period_multiple == 1 ? p.periods : p.period_multiple, p.periods);
@@ -652,7 +694,14 @@ void writeText(const Options& o, const std::vector<Row>& rows)
     }
     else
     {
-      std::printf("w = %.6g rad/s: the teeth do not cross the backlash at any amplitude run", rows[f].point.frequency);
+      bool any_measured = false;  // (a stopped point says nothing of the teeth)
+      for (std::size_t i = f; i < rows.size(); i += o.frequencies.size())
+      {
+        any_measured = any_measured || rows[i].stopped.empty();
+      }
+      std::printf(any_measured ? "w = %.6g rad/s: the teeth do not cross the backlash at any amplitude measured"
+                               : "w = %.6g rad/s: every point stopped: nothing measured",
+                  rows[f].point.frequency);
     }
     if (std::isfinite(release[f]))
     {
@@ -812,6 +861,14 @@ int main(int argc, char** argv)
       return runBroadband(o, csv.get(), png.get(), chart_script);
     }
     const std::vector<Row> rows = measureAll(o);
+    for (const Row& r : rows)  // (each stopped point on one line; its row is written without figures)
+    {
+      if (!r.stopped.empty())
+      {
+        std::cerr << "backlash_frf: point A = " << r.point.amplitude << ", w = " << r.point.requested_frequency
+                  << " rad/s stopped, no figures: " << r.stopped << "\n";
+      }
+    }
     if (o.shard_n > 1 || o.shard_k > 1)
     {
       csv->stream() << partLine(o.shard_k, o.shard_n, o.amplitudes.size() * o.frequencies.size(), o.fingerprint)

@@ -1179,6 +1179,44 @@ TEST(FrequencyResponseTool, BacklashPointsCsvChartAndRefusals)
   EXPECT_NE(range.find("--frequency-range"), std::string::npos) << range;
 }
 
+// One point's impact storm (its event budget exceeded) does not abort a multi-point run: that point's row has no
+// figures and says why, every other point is the one a run with the default budget measures, the exit status is 0.
+TEST(FrequencyResponseTool, OnePointsImpactStormLeavesTheOtherPoints)
+{
+  const std::string dir = testing::TempDir();
+  std::ofstream(dir + "frf_budget.yaml") << "restitution: 0.8\nmax_events: 10000\n";
+  const std::string points = " --amplitude 0.05,1 --frequency 0.3,1";
+  int code = 0;
+  const std::string err =
+      runCapture(FRF + " --config " + dir + "frf_budget.yaml" + points + " --csv - 2>&1 >/dev/null", &code);
+  EXPECT_EQ(code, 0) << err;
+  EXPECT_EQ(std::count(err.begin(), err.end(), '\n'), 1) << err;
+  EXPECT_NE(err.find("stopped, no figures: event budget of 10000 impacts exceeded"), std::string::npos) << err;
+  const auto limited =
+      csvRows(runCapture(FRF + " --config " + dir + "frf_budget.yaml" + points + " --csv - 2>/dev/null", &code));
+  const auto full = csvRows(runCapture(FRF + " --restitution 0.8" + points + " --csv - 2>/dev/null", &code));
+  ASSERT_EQ(limited.size(), 4u);
+  ASSERT_EQ(full.size(), 4u);
+  int stopped = 0;
+  for (std::size_t i = 0; i < 4; ++i)
+  {
+    if (limited[i][3].empty())  // (gain)
+    {
+      ++stopped;
+      EXPECT_EQ(limited[i][8], "0");  // not periodic
+    }
+    else
+    {
+      EXPECT_EQ(limited[i], full[i]) << i;
+    }
+  }
+  EXPECT_EQ(stopped, 1);
+  const std::string json =
+      runCapture(FRF + " --config " + dir + "frf_budget.yaml" + points + " --json 2>/dev/null", &code);
+  EXPECT_NE(json.find("\"stopped\":\"event budget of 10000 impacts exceeded"), std::string::npos) << json;
+  EXPECT_NE(json.find("\"stopped\":null"), std::string::npos) << json;
+}
+
 TEST(FrequencyResponseTool, ShardsMergeIntoTheUnshardedCsv)
 {
   // Three parts computed in any order and merged = the CSV of one run; a missing part or a part of another run is
