@@ -94,12 +94,18 @@ struct FrfPoint
   /// H = Y₁/U₁ [output unit per input unit]; for the set-point channels Y₁/T₁, T₁ the fundamental of the motor
   /// torque the drive applied (its law's output with the injection, held), which takes the loops out of the ratio
   std::complex<double> response;
-  double gain = 0.0;           ///< |H|
-  double phase = 0.0;          ///< arg H [rad], in (−π, π]
-  double distortion = 0.0;     ///< √(Σ_{h≥2}|Y_h|²)/|Y₁| [-]
-  double mean = 0.0;           ///< the output's mean over the period [rad or rad/s]
-  double peak_to_peak = 0.0;   ///< the output's range over the period, at the samples [rad or rad/s]
-  bool periodic = false;       ///< the steady state repeated within the tolerance
+  double gain = 0.0;          ///< |H|
+  double phase = 0.0;         ///< arg H [rad], in (−π, π]
+  double distortion = 0.0;    ///< √(Σ_{h≥2}|Y_h|²)/|Y₁| [-]
+  double mean = 0.0;          ///< the output's mean over the period [rad or rad/s]
+  double peak_to_peak = 0.0;  ///< the output's range over the period, at the samples [rad or rad/s]
+  bool periodic = false;      ///< the steady state repeated within the tolerance (or to one count: below)
+  /// The loop reads a quantised encoder and the steady state repeated only to within one count (in the angles; one
+  /// count per sample in the speeds), for three periods running: periodic as far as the loop can tell
+  bool periodic_to_count = false;
+  /// With periodic_to_count: the change of the output at the period starts beyond a steady drift, over the
+  /// output's fundamental amplitude [-] — how much the quantisation lets one period differ from the next
+  double count_spread = NAN;
   int period_multiple = 0;     ///< 1: periodic at T; m = 2…4: subharmonic (repeats after mT); 0: not periodic
   int periods = 0;             ///< periods simulated
   double flank_changes = 0.0;  ///< the teeth changed flank (crossed the backlash) this often per period [1]

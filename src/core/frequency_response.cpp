@@ -439,14 +439,21 @@ FrfPoint measureFrequencyResponse(const RunConfig& config, const FrfSettings& se
     s.advanceTo(sampleTime(k1), sink);
   };
 
-  // Settle: period starts compared until they repeat (every multiple up to MAX_PERIOD_MULTIPLE).
+  // Settle: period starts compared until they repeat (every multiple up to MAX_PERIOD_MULTIPLE). A loop reading a
+  // quantised encoder may never repeat to the tolerance, only to its resolution: period starts that repeat within one
+  // count [rad at the load] (and one count per sample in the speeds) for COUNT_REPEATS comparisons running are
+  // periodic to one count.
+  constexpr int COUNT_REPEATS = 3;
+  const double count = loopCount(config);
   std::vector<Snapshot> starts;
+  std::vector<double> start_outputs;  // the channel's output at each period start
   std::vector<Ranges> ranges;
-  int multiple = 0;
+  int multiple = 0, count_multiple = 0, count_streak = 0;
   long n = 0;
   for (; n <= max_periods; ++n)
   {
     starts.push_back(snapshotOf(sim.state(), rho));
+    start_outputs.push_back(frfOutput(channel, sim.state()));
     for (int m = 1; m <= MAX_PERIOD_MULTIPLE && multiple == 0; ++m)
     {
       const std::size_t um = static_cast<std::size_t>(m), un = static_cast<std::size_t>(n);
@@ -465,7 +472,21 @@ FrfPoint measureFrequencyResponse(const RunConfig& config, const FrfSettings& se
         multiple = m;
       }
     }
-    if (multiple != 0 || n == max_periods || (cancelled && cancelled()))
+    if (multiple == 0 && count > 0.0)
+    {
+      int within = 0;
+      for (int m = 1; m <= MAX_PERIOD_MULTIPLE && within == 0; ++m)
+      {
+        if (n >= 2 * m &&
+            repeats(starts, static_cast<std::size_t>(n), static_cast<std::size_t>(m), count, count * rate, 1.0))
+        {
+          within = m;
+        }
+      }
+      count_streak = within != 0 && within == count_multiple ? count_streak + 1 : (within != 0 ? 1 : 0);
+      count_multiple = within;
+    }
+    if (multiple != 0 || count_streak >= COUNT_REPEATS || n == max_periods || (cancelled && cancelled()))
     {
       break;
     }
@@ -474,9 +495,10 @@ FrfPoint measureFrequencyResponse(const RunConfig& config, const FrfSettings& se
                    [&](const State& s) { r.add(snapshotOf(s, rho)); });
     ranges.push_back(r);
   }
-  out.periodic = multiple != 0;
-  out.period_multiple = multiple;
-  const int m = std::max(1, multiple);
+  out.periodic_to_count = multiple == 0 && count_streak >= COUNT_REPEATS;
+  out.periodic = multiple != 0 || out.periodic_to_count;
+  out.period_multiple = multiple != 0 ? multiple : (out.periodic_to_count ? count_multiple : 0);
+  const int m = std::max(1, out.period_multiple);
   // The analysed window [t_n, t_n + mT]: its breaks found on a copy, then integrated on the original, which passes
   // through the same events bit for bit (the motion does not depend on where it is stopped).
   const long k_begin = n * n_samples, k_end = (n + m) * n_samples;
@@ -593,6 +615,14 @@ FrfPoint measureFrequencyResponse(const RunConfig& config, const FrfSettings& se
   }
   out.distortion = std::abs(coef[1]) > 0.0 ? std::sqrt(distortion) / std::abs(coef[1]) : 0.0;
   out.periods = static_cast<int>(n + m);
+  if (out.periodic_to_count)
+  {
+    // How far the last period starts differ beyond a steady drift, against the output's fundamental amplitude.
+    const std::size_t un = static_cast<std::size_t>(n), um = static_cast<std::size_t>(m);
+    const double second =
+        (start_outputs[un] - start_outputs[un - um]) - (start_outputs[un - um] - start_outputs[un - 2 * um]);
+    out.count_spread = std::abs(coef[1]) > 0.0 ? std::fabs(second) / std::abs(coef[1]) : NAN;
+  }
   return out;
 }
 

@@ -335,6 +335,8 @@ py::dict frequencyResponse(const py::object& config, double amplitude, double fr
   d["response"] = p.response;
   d["gain"] = p.gain;
   d["phase"] = p.phase;
+  d["periodic_to_count"] = p.periodic_to_count;
+  d["count_spread"] = p.count_spread;
   d["distortion"] = p.distortion;
   d["mean"] = p.mean;
   d["peak_to_peak"] = p.peak_to_peak;

@@ -562,7 +562,7 @@ std::string number(double v)
 void writeCsv(std::ostream& out, const std::vector<Row>& rows, bool linear)
 {
   out << "amplitude,requested_frequency,frequency,gain,phase,distortion,mean,peak_to_peak,periodic,period_multiple,"
-         "periods,flank_changes,separations";
+         "periods,flank_changes,separations,periodic_to_count,count_spread";
   if (linear)
   {
     out << ",linear_gain,linear_phase";
@@ -574,7 +574,8 @@ void writeCsv(std::ostream& out, const std::vector<Row>& rows, bool linear)
     out << number(p.amplitude) << "," << number(p.requested_frequency) << "," << number(p.frequency) << ","
         << number(p.gain) << "," << number(p.phase) << "," << number(p.distortion) << "," << number(p.mean) << ","
         << number(p.peak_to_peak) << "," << (p.periodic ? 1 : 0) << "," << p.period_multiple << "," << p.periods << ","
-        << number(p.flank_changes) << "," << number(p.separations);
+        << number(p.flank_changes) << "," << number(p.separations) << "," << (p.periodic_to_count ? 1 : 0) << ","
+        << number(p.count_spread);
     if (linear)
     {
       out << "," << number(r.linear.gain) << "," << number(r.linear.phase);
@@ -609,6 +610,8 @@ void writeJson(const Options& o, const std::vector<Row>& rows)
     w.field("flank_changes", p.flank_changes);
     w.field("crosses_backlash", p.flank_changes > 0.0);
     w.field("separations", p.separations);
+    w.field("periodic_to_count", p.periodic_to_count);
+    w.field("count_spread", p.count_spread);
     if (r.stopped.empty())
     {
       w.null("stopped");
@@ -663,6 +666,10 @@ void writeText(const Options& o, const std::vector<Row>& rows)
     if (!r.stopped.empty())
     {
       std::snprintf(state, sizeof state, "STOPPED (see below)");
+    }
+    else if (p.periodic_to_count)
+    {
+      std::snprintf(state, sizeof state, "to 1 count (%d T, %.2g %%)", p.periods, 100.0 * p.count_spread);
     }
     else if (p.periodic)
     {

@@ -4,6 +4,7 @@
 
 #include <cmath>
 #include <complex>
+#include <cstdio>
 
 #include "backlash_servo/broadband_response.h"
 #include "backlash_servo/command_profile.h"
@@ -672,4 +673,48 @@ TEST(FrequencyResponse, ASineProfileUnderTheContinuousLawIsExact)
   EXPECT_NO_THROW(makeSimulator(rigid));  // rigid teeth take it exactly too …
   rigid.params.motor_coulomb_friction = rigid.params.motor_static_friction = 0.01;
   EXPECT_THROW(makeSimulator(rigid), InvalidParameterError);  // … but not with dry friction
+}
+
+// A loop reading a 17-bit load encoder (a 100:1 robot joint under gravity, a 1 kHz PID): the torque-set-point
+// response repeats only to within one count, which is periodic as far as the loop can tell — said so, with how much
+// one period differs from the next — and its gain is the one the same joint with an ideal encoder gives (strictly
+// periodic), to that spread.
+TEST(FrequencyResponse, ALoopThroughAQuantisedEncoderIsPeriodicToOneCount)
+{
+  RunConfig c;
+  ServoParams& p = c.params;
+  p.motor_inertia = 3e-5;
+  p.load_inertia = 0.12;
+  p.motor_friction = 5e-5;
+  p.load_friction = 0.05;
+  p.gear_ratio = 0.01;
+  p.backlash = 0.002618;
+  p.restitution = 0.3;
+  p.load_torque = -3.5;
+  p.gain = 15.0;
+  c.drive.control_law = "pid";
+  c.drive.controller_rate = 1000.0;
+  c.drive.integral_gain = 100.0;
+  c.drive.derivative_gain = 0.3;
+  c.drive.load_encoder_resolution = 131072;
+  c.command = 0.5;
+  FrfSettings s;
+  s.channel = FrfChannel::SetpointToMotorVelocity;
+  for (const double w : {10.0, 100.0})
+  {
+    const FrfPoint q = measureFrequencyResponse(c, s, 0.05, w);
+    ASSERT_TRUE(q.periodic) << w;
+    EXPECT_TRUE(q.periodic_to_count) << w;
+    EXPECT_LT(q.count_spread, 0.05) << w;
+    RunConfig ideal = c;
+    ideal.drive.load_encoder_resolution = 0.0;
+    const FrfPoint exact = measureFrequencyResponse(ideal, s, 0.05, w);
+    ASSERT_TRUE(exact.periodic) << w;
+    EXPECT_FALSE(exact.periodic_to_count) << w;
+    EXPECT_TRUE(std::isnan(exact.count_spread)) << w;
+    std::printf("w %g: |H| %.6g (ideal %.6g), relative difference %.2e, count spread %.2e, periods %d (ideal %d)\n", w,
+                q.gain, exact.gain, std::abs(q.response - exact.response) / std::abs(exact.response), q.count_spread,
+                q.periods, exact.periods);
+    EXPECT_LT(std::abs(q.response - exact.response), 0.01 * std::abs(exact.response)) << w;
+  }
 }
