@@ -283,6 +283,17 @@ Options parse(int argc, char** argv)
   return o;
 }
 
+/// A cell as an error message shows it: at most 40 characters, control characters (a NUL byte) as '?'.
+std::string shown(const std::string& cell)
+{
+  std::string out = cell.substr(0, 40);
+  for (char& ch : out)
+  {
+    ch = static_cast<unsigned char>(ch) < 0x20 ? '?' : ch;
+  }
+  return cell.size() > 40 ? out + "… (" + std::to_string(cell.size()) + " characters)" : out;
+}
+
 /// The CSV's four columns (by header name; others ignored). Errors name the row and the column.
 Recording readRecording(const std::string& path)
 {
@@ -304,11 +315,20 @@ Recording readRecording(const std::string& path)
   {
     throw ConfigError("--data: '" + path + "' is empty");
   }
+  if (line.compare(0, 3, "\xEF\xBB\xBF") == 0)
+  {
+    line.erase(0, 3);  // (a UTF-8 byte order mark, as spreadsheet programs write it)
+  }
   const std::vector<std::string> header = splitCsvCells(line);
   std::map<std::string, std::size_t> column;
   for (std::size_t i = 0; i < header.size(); ++i)
   {
-    column[header[i]] = i;
+    if (!column.emplace(header[i], i).second)
+    {
+      throw ConfigError("--data: '" + path + "' has the column '" + shown(header[i]) + "' twice (columns " +
+                        std::to_string(column[header[i]] + 1) + " and " + std::to_string(i + 1) +
+                        "): which one is meant?");
+    }
   }
   const std::vector<std::string> need = {"time", "motor_torque", "motor_position", "load_position"};
   for (const std::string& name : need)
@@ -342,10 +362,12 @@ Recording readRecording(const std::string& path)
       const std::size_t i = column[need[c]];
       char* end = nullptr;
       const double v = i < cells.size() ? std::strtod(cells[i].c_str(), &end) : NAN;
-      if (i >= cells.size() || end == cells[i].c_str() || *end != '\0' || !std::isfinite(v))
+      // (the whole cell must be the number: "0.5\0abc" is not 0.5)
+      if (i >= cells.size() || end == cells[i].c_str() || end != cells[i].c_str() + cells[i].size() ||
+          !std::isfinite(v))
       {
         throw ConfigError("--data: row " + std::to_string(row) + ", column " + need[c] + ": '" +
-                          (i < cells.size() ? cells[i] : std::string()) + "' is not a finite number");
+                          shown(i < cells.size() ? cells[i] : std::string()) + "' is not a finite number");
       }
       into[c]->push_back(v);
     }

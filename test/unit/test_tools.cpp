@@ -1466,6 +1466,25 @@ TEST(IdentifyTool, EstimatesAJointFromItsRecordingAndWritesAModelEveryToolReads)
   const std::string nan = runCapture(IDENTIFY + " --data " + dir + "nan.csv --gear-ratio 1 2>&1", &code);
   EXPECT_EQ(code, 2);
   EXPECT_NE(nan.find("row 3, column motor_torque: 'x'"), std::string::npos) << nan;
+  // A CSV as spreadsheets and scripts write it: a byte order mark is read past; a column given twice, a NUL byte
+  // inside a number and a huge field are refused in one short line.
+  const auto refusal = [&](const std::string& name, const std::string& text) {
+    std::ofstream(dir + name) << text;
+    const std::string out = runCapture(IDENTIFY + " --data " + dir + name + " --gear-ratio 1 2>&1", &code);
+    EXPECT_EQ(code, 2) << name;
+    EXPECT_EQ(std::count(out.begin(), out.end(), '\n'), 1) << out;
+    EXPECT_LT(out.size(), 400u) << name;
+    return out;
+  };
+  const std::string header = "time,motor_torque,motor_position,load_position";
+  EXPECT_NE(refusal("bom.csv", "\xEF\xBB\xBF" + header + "\n0,0,0,0\n").find("at least 50 samples"),
+            std::string::npos);  // (the header was read: only the data is short)
+  EXPECT_NE(refusal("dup.csv", header + ",time\n0,0,0,0,1\n").find("the column 'time' twice (columns 1 and 5)"),
+            std::string::npos);
+  EXPECT_NE(refusal("nul.csv", header + "\n0," + std::string("0.5\0abc", 7) + ",0,0\n").find("'0.5?abc'"),
+            std::string::npos);
+  EXPECT_NE(refusal("huge.csv", header + "\n0," + std::string(5000000, '9') + "x,0,0\n").find("(5000001 characters)"),
+            std::string::npos);
   {
     std::ofstream prior(dir + "chart.yaml");
     prior << "zeta: 0.4\ngear_ratio: 1\n";
