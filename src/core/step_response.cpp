@@ -37,10 +37,10 @@ class Tee : public EventSink
 };
 
 /**
- * The tracking figures gathered in the run's own pass: every advanceTo of the run goes through advanceTo() here,
- * which stops at the sample times t₀ + k·dt on the way — the plant's closed forms stay anchored where their segments
- * began, so the run is the same to the bit — and feeds the samples to the accumulator exactly as replayTracking()'s
- * replay does (a drive's sample due there taken first, as a drive logs its torque).
+ * The tracking figures of a run sampled every dt [s] from t₀: in the run's own pass, every advanceTo of the run goes
+ * through advanceTo() here, which stops at the sample times t₀ + k·dt on the way — the plant's closed forms stay
+ * anchored where their segments began, so the run is the same to the bit — and takes each sample as
+ * replayTracking()'s replay does (record(): a drive's sample due there taken first, as a drive logs its torque).
  */
 class TrackingPass
 {
@@ -66,7 +66,7 @@ class TrackingPass
     {
       sim.advanceTo(ts, sink);
       sim.takeSampleDue(sink);
-      add(sim);
+      record(sim);
       if (std::isinf(t_end_) && static_cast<double>(next_) > MAX_SAMPLES + 1.0)
       {
         on_ = false;  // a run until settled past the sample budget: replayTracking() lowers the rate instead
@@ -74,29 +74,34 @@ class TrackingPass
     }
     sim.advanceTo(t, sink);
   }
-  /// The sample at the start (the state as constructed: no drive sample taken yet).
-  void start(const Simulator& sim) { add(sim); }
+  /// One sample: the state of sim now, the reference there and the motor torque.
+  void record(const Simulator& sim)
+  {
+    const State& s = sim.state();
+    metrics_.add(s.time, profile_ ? profile_->at(s.time) : command_, s.load_position, sim.motorTorque());
+    ++next_;
+  }
   /// The last sample, at the run's end (a drive's sample due there taken first; the run's summary is taken).
   void finish(Simulator& sim)
   {
     sim.takeSampleDue(nullptr);
-    add(sim);
+    record(sim);
+  }
+  /// The figures of the samples so far for a run that ended as `run` did (its cycle tells whether it keeps leaving
+  /// the band).
+  TrackingFigures figuresOf(const RunSummary& run) const
+  {
+    const double command = profile_ ? profile_->finalValue() : command_;
+    return metrics_.figures(t0_ + run.simulated, dt_, cycleLeavesBand(run.status, run.cycle, command, metrics_.band()));
   }
   /// Every grid sample was taken (not given up past MAX_SAMPLES).
   bool complete() const { return on_; }
   double rate() const { return rate_; }
   /// The run's end assumed at the start [s] (+inf: until settled).
   double assumedEnd() const { return t_end_; }
-  const TrackingMetrics& metrics() const { return metrics_; }
 
  private:
   double nextTime() const { return t0_ + static_cast<double>(next_) * dt_; }
-  void add(const Simulator& sim)
-  {
-    const State& s = sim.state();
-    metrics_.add(s.time, profile_ ? profile_->at(s.time) : command_, s.load_position, sim.motorTorque());
-    ++next_;
-  }
 
   TrackingMetrics metrics_;
   double rate_, dt_, t_end_, t0_;
@@ -249,25 +254,18 @@ TrackingFigures replayTracking(const RunConfig& config, const RunSummary& run, d
 {
   const double rate = trackingRateFor(config, run.simulated, TrackingPass::MAX_SAMPLES);
   *sample_rate = rate;
-  const double dt = 1.0 / rate;
-  const double t_end = config.initial.time + run.simulated;
-  TrackingMetrics tracking = trackingOf(config, dt, t_end);
+  TrackingPass replayed(config, rate, config.initial.time + run.simulated);
   if (run.stopped_by == "diverged" || !(run.simulated > 0.0))
   {
-    return tracking.figures(t_end, dt);  // nothing to replay (a runaway motion has no tracking figures)
+    return replayed.figuresOf(run);  // nothing to replay (a runaway motion has no tracking figures)
   }
   RunConfig replay = config;
   replay.duration = run.simulated;
   replay.track_energy = false;
   replay.tracking = false;
   replay.steady_answer = false;
-  const CommandProfile* profile = config.profile.get();
-  runResponse(replay, nullptr, dt, [&](const Simulator& sim) {
-    const State& s = sim.state();
-    tracking.add(s.time, profile ? profile->at(s.time) : config.command, s.load_position, sim.motorTorque());
-  });
-  const double command = profile ? profile->finalValue() : config.command;
-  return tracking.figures(t_end, dt, cycleLeavesBand(run.status, run.cycle, command, tracking.band()));
+  runResponse(replay, nullptr, 1.0 / rate, [&](const Simulator& sim) { replayed.record(sim); });
+  return replayed.figuresOf(run);
 }
 
 bool cycleLeavesBand(const LimitCycleReport& status, const CycleShape& cycle, double command, double band)
@@ -317,9 +315,7 @@ void finishTracking(const RunConfig& config, TrackingPass* pass, Simulator& sim,
   }
   pass->finish(sim);
   out->tracking_rate = rate;
-  const double command = config.profile ? config.profile->finalValue() : config.command;
-  out->tracking = pass->metrics().figures(t_end, 1.0 / rate,
-                                          cycleLeavesBand(out->status, out->cycle, command, pass->metrics().band()));
+  out->tracking = pass->figuresOf(*out);
 }
 }  // namespace
 
@@ -343,7 +339,7 @@ RunSummary runResponse(const RunConfig& config, EventSink* sink, double sample_p
     const double rate = until_settled ? nominalTrackingRate(config)
                                       : trackingRateFor(config, config.duration, TrackingPass::MAX_SAMPLES);
     pass.emplace(config, rate, until_settled ? INFINITY : t0 + config.duration);
-    pass->start(sim);
+    pass->record(sim);  // (the state as constructed: no drive sample taken yet)
   }
   auto advance = [&](double t) {
     if (pass)

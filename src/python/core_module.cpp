@@ -53,32 +53,39 @@ using namespace backlash_servo;
 
 namespace
 {
-/// Ctrl-C while the core computes without the GIL: poll() checks Python's signals (taking the GIL) at most every
-/// 50 ms of wall time; on KeyboardInterrupt (or any error a handler raised) it throws Interrupted, which the caller
-/// turns back into that Python error once the GIL is held again (raiseIfInterrupted).
+/// Ctrl-C while the core computes without the GIL: interrupted() checks Python's signals (taking the GIL) at most
+/// every 50 ms of wall time and keeps the error a handler raised (KeyboardInterrupt); the caller stops its work and,
+/// with the GIL held again, raiseIfInterrupted() raises that error.
 class SignalWatch
 {
  public:
+  /// Thrown out of a computation that cannot be stopped by returning (runResponse's progress callback).
   struct Interrupted
   {};
-  /// Throws Interrupted when a Python signal handler raised (call without the GIL).
-  void poll()
+  /// Whether a Python signal handler raised, now or before (call without the GIL).
+  bool interrupted()
   {
     const auto now = std::chrono::steady_clock::now();
-    if (now - last_ < std::chrono::milliseconds(50))
+    if (error_ || now - last_ < std::chrono::milliseconds(50))
     {
-      return;
+      return error_ != nullptr;
     }
     last_ = now;
     py::gil_scoped_acquire acquire;
     if (PyErr_CheckSignals() != 0)
     {
       error_ = std::make_unique<py::error_already_set>();  // (fetches the pending Python error)
-      throw Interrupted();
+    }
+    return error_ != nullptr;
+  }
+  /// Raises the Python error interrupted() kept, if any (call with the GIL, after the computation).
+  void raiseIfInterrupted()
+  {
+    if (error_)
+    {
+      throw *error_;
     }
   }
-  /// Raises the Python error poll() caught (call with the GIL, after the computation).
-  [[noreturn]] void raise() { throw *error_; }
 
  private:
   std::chrono::steady_clock::time_point last_ = std::chrono::steady_clock::now();
@@ -263,25 +270,24 @@ py::object run(const py::object& config)
   c.tracking = true;
   std::ostringstream out;
   SignalWatch watch;
-  bool interrupted = false;
   {
     py::gil_scoped_release release;
     const auto start = std::chrono::steady_clock::now();
     try
     {
-      const RunSummary r = runResponse(c, nullptr, 0.0, nullptr, [&](double) { watch.poll(); });
+      const RunSummary r = runResponse(c, nullptr, 0.0, nullptr, [&](double) {
+        if (watch.interrupted())
+        {
+          throw SignalWatch::Interrupted();
+        }
+      });
       const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
       writeRunJson(out, c, r, wall);
     }
     catch (const SignalWatch::Interrupted&)
-    {
-      interrupted = true;
-    }
+    {}
   }
-  if (interrupted)
-  {
-    watch.raise();
-  }
+  watch.raiseIfInterrupted();
   return parseJson(out.str());
 }
 
@@ -308,26 +314,11 @@ py::dict frequencyResponse(const py::object& config, double amplitude, double fr
   const RunConfig c = frfConfigOf(config, s.channel);
   FrfPoint p;
   SignalWatch watch;
-  bool interrupted = false;
   {
     py::gil_scoped_release release;
-    p = measureFrequencyResponse(c, s, amplitude, frequency, [&]() {
-      try
-      {
-        watch.poll();
-        return false;
-      }
-      catch (const SignalWatch::Interrupted&)
-      {
-        interrupted = true;
-        return true;  // (the point stops at this period; the error is raised below)
-      }
-    });
+    p = measureFrequencyResponse(c, s, amplitude, frequency, [&]() { return watch.interrupted(); });
   }
-  if (interrupted)
-  {
-    watch.raise();
-  }
+  watch.raiseIfInterrupted();
   py::dict d;
   d["amplitude"] = p.amplitude;
   d["frequency"] = p.frequency;
@@ -664,28 +655,16 @@ class PySimulator
   void advance(double t_end)
   {
     SignalWatch watch;
-    bool interrupted = false;
     {
       py::gil_scoped_release release;
       const double piece = 2.0 * 3.14159265358979323846 / sim_.params().naturalFrequency();
-      try
+      while (sim_.state().time < t_end && !watch.interrupted())
       {
-        while (sim_.state().time < t_end)
-        {
-          const double next = sim_.state().time + piece;
-          sim_.advanceTo(next > sim_.state().time ? std::min(t_end, next) : t_end);  // (a piece below rounding)
-          watch.poll();
-        }
-      }
-      catch (const SignalWatch::Interrupted&)
-      {
-        interrupted = true;
+        const double next = sim_.state().time + piece;
+        sim_.advanceTo(next > sim_.state().time ? std::min(t_end, next) : t_end);  // (a piece below rounding)
       }
     }
-    if (interrupted)
-    {
-      watch.raise();
-    }
+    watch.raiseIfInterrupted();
   }
 
   /// Samples from now to t_end [s] at `rate` [Hz] (the first sample now): numpy arrays of the state, the gap and
@@ -718,21 +697,11 @@ class PySimulator
       col.reserve(static_cast<std::size_t>(n));
     }
     SignalWatch watch;
-    bool interrupted = false;
     {
       py::gil_scoped_release release;
       const GearMesh mesh(sim_.params().gear_ratio, sim_.params().backlash);
-      for (long k = 0; k < n && !interrupted; ++k)
+      for (long k = 0; k < n && !watch.interrupted(); ++k)
       {
-        try
-        {
-          watch.poll();
-        }
-        catch (const SignalWatch::Interrupted&)
-        {
-          interrupted = true;
-          break;
-        }
         sim_.advanceTo(std::min(t0 + static_cast<double>(k) * period, t_end));
         sim_.takeSampleDue();  // (the torque applied from this sample on, as the CLI's CSV has it)
         const State& s = sim_.state();
@@ -753,10 +722,7 @@ class PySimulator
         }
       }
     }
-    if (interrupted)
-    {
-      watch.raise();
-    }
+    watch.raiseIfInterrupted();
     static const char* names[9] = {"time", "load_position", "load_velocity", "motor_position", "motor_velocity",
                                    "gap",  "mesh_torque",   "motor_torque",  "contact"};
     py::dict out;

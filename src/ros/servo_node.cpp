@@ -654,16 +654,9 @@ const SteadyAnswer& ServoNode::steadyNow()
   const bool effort = sim_.controlMode() == ControlMode::Effort;
   if (steady_.basis == SteadyBasis::None || (effort && steady_.basis == SteadyBasis::Unsettled))
   {
-    if (!effort)
+    if (!effort || sim_.atRestForever())  // (held for ever: steadyAnswer's first answer, whoever drives)
     {
       steady_ = steadyAnswer(sim_, config_.run.drive, command_, monitor_->equilibrium(), monitor_->scale());
-    }
-    else if (sim_.atRestForever())
-    {
-      steady_ = SteadyAnswer();
-      steady_.position = sim_.state().load_position;
-      steady_.error = steady_.position - command_;
-      steady_.basis = SteadyBasis::Held;
     }
     else
     {
