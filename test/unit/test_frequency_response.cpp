@@ -9,6 +9,7 @@
 #include "backlash_servo/broadband_response.h"
 #include "backlash_servo/command_profile.h"
 #include "backlash_servo/frequency_response.h"
+#include "test_helpers.h"
 
 using namespace backlash_servo;
 using cd = std::complex<double>;
@@ -681,23 +682,8 @@ TEST(FrequencyResponse, ASineProfileUnderTheContinuousLawIsExact)
 // periodic), to that spread.
 TEST(FrequencyResponse, ALoopThroughAQuantisedEncoderIsPeriodicToOneCount)
 {
-  RunConfig c;
-  ServoParams& p = c.params;
-  p.motor_inertia = 3e-5;
-  p.load_inertia = 0.12;
-  p.motor_friction = 5e-5;
-  p.load_friction = 0.05;
-  p.gear_ratio = 0.01;
-  p.backlash = 0.002618;
-  p.restitution = 0.3;
-  p.load_torque = -3.5;
-  p.gain = 15.0;
-  c.drive.control_law = "pid";
-  c.drive.controller_rate = 1000.0;
+  RunConfig c = test_helpers::quantisedRobotJoint(15.0);
   c.drive.integral_gain = 100.0;
-  c.drive.derivative_gain = 0.3;
-  c.drive.load_encoder_resolution = 131072;
-  c.command = 0.5;
   FrfSettings s;
   s.channel = FrfChannel::SetpointToMotorVelocity;
   for (const double w : {10.0, 100.0})

@@ -15,6 +15,7 @@
 #include "backlash_servo/describing_function.h"
 #include "backlash_servo/params.h"
 #include "backlash_servo/simulator.h"
+#include "backlash_servo/step_response.h"
 
 namespace test_helpers
 {
@@ -41,6 +42,30 @@ inline backlash_servo::ServoParams compliantD1()
   p.mesh_stiffness = 1e4;
   p.mesh_damping = 4.461305825858438;
   return p;
+}
+
+/// A 100:1 robot joint under gravity (J_m 3e-5, J_L 0.12 kg·m², Δ 0.15° at the load, −3.5 N·m) stepped to 0.5 rad by
+/// a 1 kHz PD (K_d 0.3 N·m·s/rad) reading a 17-bit load encoder; `gain` K [N·m/rad]. No dry friction, no torque
+/// limit, no integral action: each test adds its own.
+inline backlash_servo::RunConfig quantisedRobotJoint(double gain)
+{
+  backlash_servo::RunConfig c;
+  backlash_servo::ServoParams& p = c.params;
+  p.motor_inertia = 3e-5;
+  p.load_inertia = 0.12;
+  p.motor_friction = 5e-5;
+  p.load_friction = 0.05;
+  p.gear_ratio = 0.01;
+  p.backlash = 0.002618;
+  p.restitution = 0.3;
+  p.load_torque = -3.5;
+  p.gain = gain;
+  c.drive.control_law = "pid";
+  c.drive.controller_rate = 1000.0;
+  c.drive.load_encoder_resolution = 131072;
+  c.drive.derivative_gain = 0.3;
+  c.command = 0.5;
+  return c;
 }
 
 /// The robot joint of config/compare_compliant.yaml: 100:1 gear, 5 mrad backlash at the load, a harmonic drive's mesh

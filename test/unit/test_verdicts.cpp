@@ -586,25 +586,10 @@ namespace
 /// encoder, its torque limited to 0.5 N·m; `gain` K [N·m/rad].
 RunConfig saturatedRobotJoint(double gain)
 {
-  RunConfig c;
-  ServoParams& p = c.params;
-  p.motor_inertia = 3e-5;
-  p.load_inertia = 0.12;
-  p.motor_friction = 5e-5;
-  p.load_friction = 0.05;
-  p.gear_ratio = 0.01;
-  p.backlash = 0.002618;
-  p.restitution = 0.3;
-  p.load_torque = -3.5;
-  p.motor_coulomb_friction = p.motor_static_friction = 0.005;
-  p.load_coulomb_friction = p.load_static_friction = 0.2;
-  p.gain = gain;
-  c.drive.control_law = "pid";
-  c.drive.controller_rate = 1000.0;
-  c.drive.load_encoder_resolution = 131072;
-  c.drive.derivative_gain = 0.3;
+  RunConfig c = test_helpers::quantisedRobotJoint(gain);
+  c.params.motor_coulomb_friction = c.params.motor_static_friction = 0.005;
+  c.params.load_coulomb_friction = c.params.load_static_friction = 0.2;
   c.drive.torque_limit = 0.5;
-  c.command = 0.5;
   return c;
 }
 }  // namespace
