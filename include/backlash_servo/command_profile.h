@@ -1,6 +1,6 @@
 /**
  * @file command_profile.h
- * @brief Command profiles beyond a step: the load set-point θ_R(t) [rad] as a sequence of segments (issue 12).
+ * @brief Command profiles beyond a step: the load set-point θ_R(t) [rad] as a sequence of segments.
  *        A digital drive samples θ_R at its instants, so any profile stays exact. No ROS dependency.
  *
  * Segments start at their `time` [s] from the value the profile has there (v₀) and hold their end value until the

@@ -1,6 +1,6 @@
 /**
  * @file compensator.h
- * @brief Backlash compensators of the digital drive (issue 12): what they add to the position reference or to the
+ * @brief Backlash compensators of the digital drive: what they add to the position reference or to the
  *        torque at each controller sample. They only change the held torque at samples, so every mode keeps its
  *        closed form. No ROS dependency.
  *

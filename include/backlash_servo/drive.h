@@ -114,7 +114,7 @@ class Drive
 };
 
 /**
- * The thesis' continuous proportional law on the load position, optionally saturated and compensated (issue 12):
+ * The thesis' continuous proportional law on the load position, optionally saturated and compensated:
  * \f[ T_m = \mathrm{sat}_{T_{max}}\big(K e + F_{ff}(e) + A\,s(t)\big), \quad e = \theta_R - \theta_c \f]
  * with the friction feed-forward F_ff(e) = F sign(e) for |e| > w, 0 inside (`friction_feedforward`: F =
  * compensation_friction [N·m], w = compensation_width [rad] > 0) and the square dither s(t) = sign(sin 2πft) (+1 at

@@ -442,7 +442,7 @@ class Plant
   double period_ = 1.0;              // natural period 2π/ω_n of the current parameters [s] (sets the search windows)
   double watch_lo_ = -std::numeric_limits<double>::infinity();  // the drive's watch interval of θ_c [rad]
   double watch_hi_ = std::numeric_limits<double>::infinity();
-  mutable EnergyLedger energy_;        // (brought up to date on demand: syncLedger)
+  mutable EnergyLedger energy_;          // (brought up to date on demand: syncLedger)
   mutable bool ledger_pending_ = false;  // energy_ is the segment's start's: its flows up to now not yet added
   std::uint64_t impacts_ = 0;
   std::uint64_t event_budget_ = 0;
@@ -456,7 +456,7 @@ class Plant
   Slide forced_motor_breakaway_ = 0;  // set at a Breakaway: the motor slides this way from rest (no re-decision)
   // Time [s] of the last separation of a rigid mesh (Δ = 0) that ended its segment within the clock's resolution:
   // the mesh torque is crossing zero there, still on the old flank's side by rounding, so the contact test would send
-  // the teeth straight back (fuzz seed 7, nine cases in 1e5 looped without advancing time). The other flank is taken
+  // the teeth straight back (and the plant would loop without advancing time). The other flank is taken
   // at once, where the torque is heading.
   double rigid_flip_time_ = -std::numeric_limits<double>::infinity();
 };

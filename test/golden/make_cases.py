@@ -1,6 +1,6 @@
 #!/usr/bin/python3
-"""Writes sim_cases.txt: the backlash_sim argument lines whose outputs test_golden.cpp pins (recorded before the
-architecture refactor, issue 9). Deterministic (seeded); run once, the file is committed."""
+"""Writes sim_cases.txt: the backlash_sim argument lines whose outputs test_golden.cpp pins. Deterministic (seeded);
+run once, the file is committed."""
 import random
 
 rng = random.Random(20261123)
