@@ -7,8 +7,9 @@
 // with y_k the load position of the k-th joint_states message, Δt_k the difference of their stamps [s] (sim time),
 // θ_R from the `command` topic (initial: ~command), u saturated at ±torque_limit with conditional integration.
 // Params (SI): ~kp [N·m/rad], ~ki [N·m/(rad·s)], ~kd [N·m·s/rad], ~torque_limit [N·m] (live via
-// dynamic_reconfigure), ~command [rad] (default: the servo's backlash_servo/command), ~joint [name of the load joint, default load_joint], ~delay [0 or 1: answer
-// each state with the output computed for the previous one — one sample of transport delay; 0 N·m first].
+// dynamic_reconfigure), ~command [rad] (default: the servo's backlash_servo/command), ~joint [name of the load joint,
+// default load_joint], ~delay [0 or 1: answer each state with the output computed for the previous one — one sample of
+// transport delay; 0 N·m first].
 #include <dynamic_reconfigure/server.h>
 #include <ros/ros.h>
 #include <sensor_msgs/JointState.h>
