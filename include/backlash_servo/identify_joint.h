@@ -7,6 +7,7 @@
  */
 #pragma once
 
+#include <optional>
 #include <set>
 #include <string>
 #include <vector>
@@ -31,14 +32,20 @@ struct IdentifyOptions
   std::set<std::string> keys;
   JointFitMode joint = JointFitMode::Auto;
   JointFitSettings fit;  ///< windows, budget, progress (its keys are chosen here)
+  /// The prior's keys the user stated (the others are unknown: never reported as known, their values placeholders);
+  /// empty optional: every value of the prior is known.
+  std::optional<std::set<std::string>> stated;
 };
 
 /// One estimated parameter.
 struct IdentifiedParameter
 {
   std::string key;
-  Estimate initial;           ///< from the data alone [its unit]
-  Estimate value;             ///< the result: the joint fit's when it fitted this key [its unit]
+  Estimate initial;  ///< from the data alone [its unit]
+  Estimate value;    ///< the result: the joint fit's when it fitted this key [its unit]
+  /// false: this recording does not inform it — `reason` says why; `value` is the prior's when stated, else NaN
+  bool identifiable = true;
+  std::string reason;
   bool in_joint_fit = false;  ///< adjusted by the joint fit
   bool informed = true;       ///< (joint fit) the recording moves the residuals with it
   double largest_correlation = NAN;
@@ -48,7 +55,7 @@ struct IdentifiedParameter
 struct JointIdentification
 {
   InitialEstimates initial;
-  std::vector<IdentifiedParameter> parameters;  ///< in identifiedKeys() order, the ones estimated
+  std::vector<IdentifiedParameter> parameters;  ///< in identifiedKeys() order, every one asked for
   bool joint_fit = false;                       ///< the joint fit ran
   JointFit fit;                                 ///< its report (when it ran)
   std::string restitution_note;                 ///< why the restitution was not estimated (empty: it was)

@@ -65,8 +65,14 @@ struct ServoParams
   double shaft_stiffness = 0.0;            ///< k_s, torsional shaft stiffness [N·m/rad], >= 0 (0 = rigid shaft)
   double shaft_damping = 0.0;              ///< d_s, torsional shaft damping [N·m·s/rad], >= 0
 
-  /// Throws InvalidParameterError naming the first bad field, its value and its allowed range (param_table.h).
+  /// Throws InvalidParameterError naming the first bad field, its value and its allowed range (param_table.h): the
+  /// values (validateValues) and the validated envelope (validateEnvelope).
   void validate() const;
+  /// Each value in its range, static friction at least the Coulomb level, the compliant joint's keys together.
+  void validateValues() const;
+  /// The derived quantities inside the validated envelope (docs/validation.md); without `with_gain` only those that
+  /// do not involve the gain K (the inertia splits): a joint whose loop is not known, as identification gives it.
+  void validateEnvelope(bool with_gain) const;
 
   /// A compliant mesh (mesh_stiffness > 0) instead of rigid teeth with impacts.
   bool compliant() const { return mesh_stiffness > 0.0; }

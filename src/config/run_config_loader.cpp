@@ -1,5 +1,6 @@
 #include "backlash_servo/config/run_config_loader.h"
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 
@@ -118,6 +119,58 @@ void updateServoKeys(const KeyValues& kv, ServoParams* p)
       p->*std::get<double ServoParams::*>(spec->field) = kv.number(spec->key);
     }
   }
+}
+
+IdentificationPrior identificationPriorFrom(const KeyValues& kv)
+{
+  for (const ParamSpec* spec : paramsIn(ParamSection::Chart))
+  {
+    if (kv.has(spec->key))
+    {
+      throw ConfigError("the prior must be in physical form (motor_inertia, …), not the chart form (" +
+                        kv.name(spec->key) + "): the estimates replace physical keys");
+    }
+  }
+  if (!kv.has("gear_ratio"))
+  {
+    throw ConfigError("the gear ratio must be known: give gear_ratio in the prior (or --gear-ratio)");
+  }
+  IdentificationPrior prior;
+  ServoParams& p = prior.params;
+  // Placeholders for what is not stated: no dry friction, no load torque, rigid teeth; the identification replaces
+  // them or reports them unknown.
+  p.motor_static_friction = p.load_static_friction = 0.0;
+  for (const ParamSpec* spec : paramsIn(ParamSection::Servo))
+  {
+    if (kv.has(spec->key))
+    {
+      prior.stated.insert(spec->key);
+    }
+  }
+  updateServoKeys(kv, &p);
+  for (const std::string& key : prior.stated)
+  {
+    const ParamSpec& spec = param(key);
+    if (const auto* field = std::get_if<double ServoParams::*>(&spec.field))
+    {
+      spec.check(p.*(*field));
+    }
+  }
+  // A static level not stated is at least the Coulomb level stated.
+  for (const auto& [stat, coulomb] :
+       {std::make_pair(&ServoParams::motor_static_friction, &ServoParams::motor_coulomb_friction),
+        std::make_pair(&ServoParams::load_static_friction, &ServoParams::load_coulomb_friction)})
+  {
+    p.*stat = std::max(p.*stat, p.*coulomb);
+  }
+  p.validateValues();
+  // The drive's keys each in their range (a node's configuration is a valid prior); the encoders' resolutions say
+  // how the recording's angles were measured.
+  DriveParams drive;
+  readDriveKeys(kv, false, &drive);
+  prior.motor_encoder_resolution = drive.motor_encoder_resolution;
+  prior.load_encoder_resolution = drive.load_encoder_resolution;
+  return prior;
 }
 
 void readDriveKeys(const KeyValues& kv, bool keep_absent, DriveParams* d)

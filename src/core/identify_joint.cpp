@@ -3,11 +3,50 @@
 #include <algorithm>
 #include <cmath>
 #include <map>
+#include <variant>
 
 #include "backlash_servo/identify_mesh.h"
+#include "backlash_servo/param_table.h"
 
 namespace backlash_servo
 {
+namespace
+{
+/// A gain for a joint whose loop is not known: a replay drives it by the recorded torque (the gain acts nowhere), but
+/// the simulator checks the envelope with it — ω_n = max(1 rad/s, 2F/J) keeps ζ ≤ 1/4 inside it.
+double replayGain(const ServoParams& p)
+{
+  const double j = p.totalInertia();
+  const double omega =
+      std::clamp(std::max(1.0, 2.0 * p.totalFriction() / j), 10.0 * NATURAL_FREQUENCY_MIN, 0.1 * NATURAL_FREQUENCY_MAX);
+  return omega * omega * j / p.gear_ratio;
+}
+
+/// Why the recording does not inform `key` (empty: it does).
+std::string notInformedReason(const std::string& key, const InitialEstimates& e, const std::string& restitution_note)
+{
+  if (key == "restitution" && !restitution_note.empty())
+  {
+    return restitution_note;
+  }
+  if (key == "load_torque" && e.load_torque_given)
+  {
+    return "the contact motion went one way only: the load torque is not told from the Coulomb friction";
+  }
+  if (key.find("static_friction") != std::string::npos)
+  {
+    const Estimate& x = key == "motor_static_friction" ? e.motor_static_friction : e.load_static_friction;
+    if (!std::isfinite(x.value))
+    {
+      return key == "motor_static_friction" ? "the motor never rested with the teeth apart"
+                                            : "the pair never rested on a flank (or the motor's level is unknown)";
+    }
+  }
+  return "";
+}
+
+}  // namespace
+
 const std::vector<std::string>& identifiedKeys()
 {
   static const std::vector<std::string> keys = [] {
@@ -83,22 +122,37 @@ JointIdentification identifyJoint(const Recording& data, const IdentificationSet
   // The start: the prior with the initial estimates of the keys chosen (a static level without rests, a restitution
   // without impacts, a load torque the data could not tell from friction: the prior's).
   std::map<std::string, Estimate> chosen;
+  std::vector<IdentifiedParameter> unknown;
   for (const std::string& key : identifiedKeys())
   {
-    const auto x = initial.find(key);
-    if (keys.count(key) == 0 || x == initial.end() || (key == "load_torque" && e.load_torque_given) ||
-        !std::isfinite(x->second.value))
+    if (keys.count(key) == 0)
     {
       continue;
     }
-    chosen[key] = x->second;
+    const auto x = initial.find(key);
     IdentifiedParameter p;
     p.key = key;
+    const std::string why = notInformedReason(key, e, out.restitution_note);
+    if (x == initial.end() || !std::isfinite(x->second.value) || !why.empty())
+    {
+      p.identifiable = false;
+      p.reason = why.empty() ? "the recording does not inform it" : why;
+      const bool stated = !options.stated || options.stated->count(key) != 0;
+      const double prior_value = prior.*std::get<double ServoParams::*>(findParam(key)->field);
+      p.initial = p.value = Estimate{stated ? prior_value : NAN, NAN};
+      unknown.push_back(p);
+      continue;
+    }
+    chosen[key] = x->second;
     p.initial = p.value = x->second;
     out.parameters.push_back(p);
   }
-  const ServoParams start = withEstimates(prior, chosen);
-  start.validate();
+  ServoParams start = withEstimates(prior, chosen);
+  start.validateValues();
+  if (options.stated && options.stated->count("gain") == 0)
+  {
+    start.gain = replayGain(start);
+  }
   // The joint fit (the static levels stay as the rests gave them). Auto: on measured angles only the impact
   // parameters — the replayed windows' anchors, read from the angles, would set the smooth ones more than the data.
   const bool measured = s.contact_band > 0.0;
@@ -132,6 +186,14 @@ JointIdentification identifyJoint(const Recording& data, const IdentificationSet
       fitted[i]->most_correlated_with = f.most_correlated_with;
     }
   }
+  // Every key asked for, in the table's order: the unknown ones beside the estimated.
+  out.parameters.insert(out.parameters.end(), unknown.begin(), unknown.end());
+  const auto order = [](const IdentifiedParameter& p) {
+    return std::find(identifiedKeys().begin(), identifiedKeys().end(), p.key) - identifiedKeys().begin();
+  };
+  std::stable_sort(
+      out.parameters.begin(), out.parameters.end(),
+      [&order](const IdentifiedParameter& a, const IdentifiedParameter& b) { return order(a) < order(b); });
   return out;
 }
 

@@ -28,7 +28,7 @@ std::string formatNumber(double value)
   return buf;
 }
 
-void ServoParams::validate() const
+void ServoParams::validateValues() const
 {
   for (const ParamSpec* spec : paramsIn(ParamSection::Servo))
   {
@@ -76,6 +76,16 @@ void ServoParams::validate() const
               "needs shaft_stiffness > 0 (a rigid shaft has no twist to damp)");
   requireWith(!torsionalShaft() || gear_inertia > 0.0, "shaft_stiffness", shaft_stiffness,
               "needs gear_inertia > 0 (the output gear between the mesh and the shaft)");
+}
+
+void ServoParams::validate() const
+{
+  validateValues();
+  validateEnvelope(true);
+}
+
+void ServoParams::validateEnvelope(bool with_gain) const
+{
   // The derived quantities of the validated envelope (docs/validation.md): outside it the core's promises were not
   // measured. The message names every key the quantity follows from, with its value (an absent key has its default, the
   // thesis' App. D1 value for the mechanics: a robot joint that leaves out motor_friction gets 0.48 N·m·s/rad).
@@ -98,13 +108,14 @@ void ServoParams::validate() const
     refuse("inertia split ρ²J_L/J_m", split, "[0.001, 1000]", {"load_inertia", "motor_inertia", "gear_ratio"});
   }
   const double omega_n = naturalFrequency();
-  if (!(omega_n >= NATURAL_FREQUENCY_MIN * (1.0 - SLACK) && omega_n <= NATURAL_FREQUENCY_MAX * (1.0 + SLACK)))
+  if (with_gain &&
+      !(omega_n >= NATURAL_FREQUENCY_MIN * (1.0 - SLACK) && omega_n <= NATURAL_FREQUENCY_MAX * (1.0 + SLACK)))
   {
     refuse("natural frequency ω_n = √(ρK/J) [rad/s]", omega_n, "[0.001, 10000] rad/s",
            {"gain", "gear_ratio", "motor_inertia", "load_inertia"});
   }
   const double zeta = dampingRatio();
-  if (!(zeta <= DAMPING_RATIO_MAX * (1.0 + SLACK)))
+  if (with_gain && !(zeta <= DAMPING_RATIO_MAX * (1.0 + SLACK)))
   {
     refuse("damping ratio ζ = (f_m + ρ²f_L)/(2ω_n J)", zeta, "[0, 100]",
            {"motor_friction", "load_friction", "gain", "gear_ratio", "motor_inertia", "load_inertia"});
@@ -123,7 +134,7 @@ void ServoParams::validate() const
     }
     const double mu = motor_inertia * jo / (motor_inertia + rho * rho * jo);
     const double contact = std::sqrt(mesh_stiffness / mu) / omega_n;
-    if (!(contact <= COMPLIANT_FREQUENCY_RATIO_MAX * (1.0 + SLACK)))
+    if (with_gain && !(contact <= COMPLIANT_FREQUENCY_RATIO_MAX * (1.0 + SLACK)))
     {
       refuse("contact frequency ratio √(c/μ)/ω_n", contact, "[0, 10000]",
              {"mesh_stiffness", "gear_inertia", "load_inertia", "motor_inertia", "gear_ratio", "gain"});
@@ -137,7 +148,7 @@ void ServoParams::validate() const
       }
       const double shaft =
           std::sqrt(shaft_stiffness * (gear_inertia + load_inertia) / (gear_inertia * load_inertia)) / omega_n;
-      if (!(shaft <= COMPLIANT_FREQUENCY_RATIO_MAX * (1.0 + SLACK)))
+      if (with_gain && !(shaft <= COMPLIANT_FREQUENCY_RATIO_MAX * (1.0 + SLACK)))
       {
         refuse("shaft frequency ratio √(k_s(J_g + J_L)/(J_g J_L))/ω_n", shaft, "[0, 10000]",
                {"shaft_stiffness", "gear_inertia", "load_inertia", "gain", "gear_ratio", "motor_inertia"});

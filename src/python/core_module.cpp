@@ -447,24 +447,22 @@ py::dict identify(const std::vector<double>& time, const std::vector<double>& mo
                   const py::object& prior_config)
 {
   // What is known of the joint: the prior's keys (its mesh_stiffness > 0: a compliant mesh), the gear ratio given.
-  ServoParams prior;
-  bool ratio_known = std::isfinite(gear_ratio);
+  KeyValues kv;
+  InlineYaml inline_yaml;
   if (!prior_config.is_none())
   {
-    InlineYaml inline_yaml;
-    const KeyValues kv = keyValuesOf(prior_config, &inline_yaml);
-    prior = runConfigFrom(kv).params;
-    ratio_known = ratio_known || kv.has("gear_ratio");
-  }
-  if (!ratio_known)
-  {
-    throw InvalidParameterError("gear_ratio", "must be known: give gear_ratio= or gear_ratio in the prior");
+    kv = keyValuesOf(prior_config, &inline_yaml);
   }
   if (std::isfinite(gear_ratio))
   {
-    prior.gear_ratio = gear_ratio;
+    kv.setNumber("gear_ratio", gear_ratio);
   }
-  gear_ratio = prior.gear_ratio;
+  else if (!kv.has("gear_ratio"))
+  {
+    throw InvalidParameterError("gear_ratio", "must be known: give gear_ratio= or gear_ratio in the prior");
+  }
+  const IdentificationPrior prior = identificationPriorFrom(kv);
+  gear_ratio = prior.params.gear_ratio;
   // The settings as the CLI checks its flags: 0 means "from the recording", a value must be a positive number.
   for (const auto& [key, value, unit] :
        {std::make_tuple("contact_band", contact_band, "rad"), std::make_tuple("still_speed", still_speed, "rad/s")})
@@ -494,10 +492,11 @@ py::dict identify(const std::vector<double>& time, const std::vector<double>& mo
   }
   options.joint = joint_fit == "on" ? JointFitMode::On : joint_fit == "off" ? JointFitMode::Off : JointFitMode::Auto;
   options.fit.windows = windows;
+  options.stated = prior.stated;
   JointIdentification result;
   {
     py::gil_scoped_release release;
-    result = identifyJoint(r, s, prior, options);
+    result = identifyJoint(r, s, prior.params, options);
   }
   py::dict d;
   for (const IdentifiedParameter& p : result.parameters)

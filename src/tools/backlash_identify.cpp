@@ -67,6 +67,7 @@ struct Options
   std::string joint_states_topic, motor_joint, load_joint;  // a bag's JointState topic and joint names
   RunConfig prior_config;
   KeyValues prior;
+  IdentificationPrior known;  // the prior as identification reads it
   double gear_ratio = 0.0, contact_band = 0.0, still_speed = 0.0;
   int smoothing = 0;
   bool json = false;
@@ -246,18 +247,9 @@ Options parse(int argc, char** argv)
     throw ConfigError("--data FILE.csv is required: the recording to identify the joint from");
   }
   o.prior = parser.keys();
-  if (o.prior.has("zeta") || o.prior.has("inertia_ratio") || o.prior.has("friction_ratio"))
-  {
-    throw ConfigError(
-        "the prior must be in physical form (motor_inertia, …), not the chart form: the estimates "
-        "replace physical keys");
-  }
-  if (!o.prior.has("gear_ratio"))
-  {
-    throw ConfigError("the gear ratio must be known: give --gear-ratio or gear_ratio in the prior YAML");
-  }
-  // The prior as a whole must be a valid joint (the estimates replace some of its keys).
-  const RunConfig checked = runConfigFrom(o.prior);
+  // What is known: each key in its range; the rest unknown (no defaults, no envelope: the model is checked).
+  const IdentificationPrior checked = identificationPriorFrom(o.prior);
+  o.known = checked;
   o.gear_ratio = checked.params.gear_ratio;
   o.contact_band = parser.optionNumber("contact_band", 0.0);
   if (parser.given("contact_band") && !(o.contact_band > 0.0))
@@ -266,8 +258,8 @@ Options parse(int argc, char** argv)
   }
   if (!parser.given("contact_band"))
   {
-    o.motor_counts = checked.drive.motor_encoder_resolution;
-    o.load_counts = checked.drive.load_encoder_resolution;
+    o.motor_counts = checked.motor_encoder_resolution;
+    o.load_counts = checked.load_encoder_resolution;
   }
   const double smoothing = parser.optionNumber("smoothing", 0.0);
   if (!(smoothing >= 0.0 && smoothing <= 100000.0) || smoothing != std::floor(smoothing))
@@ -554,7 +546,8 @@ int main(int argc, char** argv)
     options.fit.progress = [&progress](int done, int budget) {
       progress.update(static_cast<std::size_t>(done), static_cast<std::size_t>(budget));
     };
-    const JointIdentification result = identifyJoint(data, s, runConfigFrom(o.prior).params, options);
+    options.stated = o.known.stated;
+    const JointIdentification result = identifyJoint(data, s, o.known.params, options);
     progress.finish();
     const InitialEstimates& e = result.initial;
     const std::vector<IdentifiedParameter>& rows = result.parameters;
@@ -579,7 +572,10 @@ int main(int argc, char** argv)
       };
       for (const IdentifiedParameter& r : rows)
       {
-        model.setNumber(r.key, valueOf(r.key));
+        if (r.identifiable)
+        {
+          model.setNumber(r.key, valueOf(r.key));
+        }
       }
       for (const char* stat : {"motor_static_friction", "load_static_friction"})
       {
@@ -588,11 +584,36 @@ int main(int argc, char** argv)
           model.setNumber(stat, valueOf(stat));
         }
       }
-      runConfigFrom(model);  // what every tool will read: refused here (naming the key) rather than there
+      // The prior's drive keys stay when they make a drive; else they describe the recording only (encoders
+      // without a controller rate) and are kept as comments, so that every tool reads the model.
+      bool drive_ok = true;
+      try
+      {
+        DriveParams drive;
+        readDriveKeys(model, false, &drive);
+        drive.validate(ControlMode::Position);
+      }
+      catch (const std::exception&)
+      {
+        drive_ok = false;
+      }
       output->stream() << "# backlash_identify: the joint estimated from " << o.data_path << " (SI units)\n";
       for (const auto& [key, value] : model.keys())
       {
-        output->stream() << key << ": " << value << "\n";
+        const bool recording_only = !drive_ok && param(key).section == ParamSection::Drive;
+        output->stream() << (recording_only ? "# " : "") << key << ": " << value
+                         << (recording_only ? "  (the recording's encoder; not a drive without controller_rate)" : "")
+                         << "\n";
+      }
+      for (const IdentifiedParameter& r : rows)
+      {
+        if (!r.identifiable)
+        {
+          output->stream() << "# " << r.key << ": not identified (" << r.reason << ")"
+                           << (o.known.stated.count(r.key) ? ": the prior's value is kept"
+                                                           : ": give it before simulating")
+                           << "\n";
+        }
       }
       output->commit();
       std::cerr << "backlash_identify: wrote " << o.output_path << "\n";
@@ -610,6 +631,11 @@ int main(int argc, char** argv)
         w.field("standard_error", r.value.standard_error);
         w.field("initial", r.initial.value);
         w.field("initial_standard_error", r.initial.standard_error);
+        w.field("identifiable", r.identifiable);
+        if (!r.identifiable)
+        {
+          w.field("reason", r.reason);
+        }
         if (r.in_joint_fit)
         {
           w.field("informed", r.informed);
@@ -679,7 +705,11 @@ int main(int argc, char** argv)
       for (const IdentifiedParameter& r : rows)
       {
         std::string how;
-        if (r.key.find("static") != std::string::npos)
+        if (!r.identifiable)
+        {
+          how = "not identifiable: " + r.reason;
+        }
+        else if (r.key.find("static") != std::string::npos)
         {
           how = std::isfinite(r.value.standard_error) ? "from the rests (held in the joint fit)"
                                                       : "from the rests: at least this (never seen breaking away)";
@@ -703,12 +733,6 @@ int main(int argc, char** argv)
       }
       std::printf("%-24s %14s %14s    %-10s %-10s %s\n", "zero_offset", "", number(e.zero_offset, 6).c_str(), "", "rad",
                   "(the gap the encoders read on the forward flank)");
-      if (e.load_torque_given)
-      {
-        std::printf(
-            "load_torque: the prior's (the contact motion went one way only: the load torque and the Coulomb "
-            "friction cannot be told apart)\n");
-      }
       std::string kept;
       for (const std::string& key : jointFitKeysFor(result.model))
       {
@@ -716,10 +740,6 @@ int main(int argc, char** argv)
         {
           kept += (kept.empty() ? "" : ", ") + key;
         }
-      }
-      if (!result.restitution_note.empty())
-      {
-        kept += " (the restitution: no impact in the recording)";
       }
       if (!result.model.compliant())
       {

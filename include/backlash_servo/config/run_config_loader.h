@@ -9,6 +9,7 @@
  */
 #pragma once
 
+#include <set>
 #include <string>
 #include <vector>
 
@@ -31,6 +32,24 @@ RunConfig runConfigFrom(const KeyValues& kv, ControlMode mode = ControlMode::Pos
  * (0.15 for 0.15° is 8.6°). Empty when nothing looks wrong. The tools print them as warnings and still run.
  */
 std::vector<std::string> inputWarnings(const RunConfig& config);
+
+/// What a user knows of a joint to identify (backlash_identify's prior YAML, Python's identify(prior=…)).
+struct IdentificationPrior
+{
+  ServoParams params;            ///< the stated keys in place; the others at placeholders, never reported as known
+  std::set<std::string> stated;  ///< the plant keys the prior gives
+  double motor_encoder_resolution = 0.0;  ///< N_m [counts/rev] of the recording's motor angle; 0: not stated
+  double load_encoder_resolution = 0.0;   ///< N_L [counts/rev] of the recording's load angle; 0: not stated
+};
+
+/**
+ * The prior from key values: the gear ratio is required; every other key is optional and checked against its own
+ * range only — nothing is filled from the table's defaults as if known, no drive is needed for the encoders'
+ * resolutions, and the validated envelope is not checked (the identified model is). Throws ConfigError for the chart
+ * form or a missing gear ratio, InvalidParameterError naming a key outside its range or keys that contradict each
+ * other (a static level below its Coulomb level, mesh damping without a mesh).
+ */
+IdentificationPrior identificationPriorFrom(const KeyValues& kv);
 
 /// The Servo keys present in kv into *p, absent ones left as they are (a live change); not validated here
 /// (ServoParams::validate).
