@@ -77,6 +77,8 @@ struct InitialEstimates
   Estimate mesh_stiffness{NAN, NAN};
   Estimate mesh_damping{NAN, NAN};
   bool load_torque_given = false;  ///< contact motion one way only: the load torque was the settings' (not estimated)
+  /// Keys the recording does not inform, with the reason (their estimates NaN).
+  std::map<std::string, std::string> not_identifiable;
   std::size_t contact_samples = 0, apart_samples = 0;
   double contact_rms_residual = 0.0;  ///< [N·m]
   double apart_rms_residual = 0.0;    ///< [N·m]
@@ -97,6 +99,12 @@ struct IdentificationSettings
   /// [N·m]: used when the contact motion goes one way only (a limit cycle pushed from one side, say), where the
   /// Coulomb friction and the load torque cannot be told apart; NaN: none (such a recording is then refused).
   double load_torque_fallback = NAN;
+  /// Measured angles without a smoothing given: the bodies' equations integrated twice over stretches of one phase
+  /// (no derivative of an angle; errors in the angles corrected for) instead of differentiated after the filter.
+  bool integrated = false;
+  /// The encoders' resolutions N_m, N_L [counts/rev] when stated (0: unknown): tried first when the angles' count
+  /// grids are recognised (measured_angles.h).
+  double motor_encoder_resolution = 0.0, load_encoder_resolution = 0.0;
 };
 
 /// A body's motion from its recorded angle: the angle filtered by F (smoothing r), velocity and acceleration by central

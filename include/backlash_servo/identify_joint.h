@@ -14,6 +14,7 @@
 
 #include "backlash_servo/identification.h"
 #include "backlash_servo/joint_fit.h"
+#include "backlash_servo/measured_angles.h"
 
 namespace backlash_servo
 {
@@ -54,12 +55,17 @@ struct IdentifiedParameter
 
 struct JointIdentification
 {
+  MeasuredAngles measurement;       ///< the angles as recognised, the smoothing and band used
+  IdentificationSettings settings;  ///< as used (the smoothing and band from the data unless given)
   InitialEstimates initial;
   std::vector<IdentifiedParameter> parameters;  ///< in identifiedKeys() order, every one asked for
   bool joint_fit = false;                       ///< the joint fit ran
   JointFit fit;                                 ///< its report (when it ran)
   std::string restitution_note;                 ///< why the restitution was not estimated (empty: it was)
   ServoParams model;                            ///< the prior with the estimates in place (T_s ≥ T_c kept)
+  /// Sentences for the user: the identified joint outside the validated envelope (named by its keys), and what that
+  /// skipped.
+  std::vector<std::string> warnings;
 };
 
 /// What can be estimated, in the parameter table's order: the joint fit's keys and the static friction levels.

@@ -5,10 +5,12 @@
 #include <cmath>
 #include <variant>
 
+#include "backlash_servo/measured_angles.h"
 #include "backlash_servo/param_table.h"
 #include "backlash_servo/params.h"
 #include "backlash_servo/replay_windows.h"
 #include "least_squares.h"
+#include "phase_regression.h"
 #include "rest_runs.h"
 
 namespace backlash_servo
@@ -17,6 +19,204 @@ namespace
 {
 /// Samples on each side of a sample whose gap must stay in its phase (the difference stencil, and one more).
 constexpr int STENCIL = 2;
+/// Measured angles: an inertia or Coulomb level with a standard error above this fraction of itself is not
+/// identified.
+constexpr double LOOSEST = 0.1;
+
+/// The gap on each flank [rad].
+struct Flanks
+{
+  double forward = 0.0, backward = 0.0;
+};
+
+/**
+ * Where the gap dwells at each end of its range. Exact angles (band 0): its extremes. Measured ones (without the
+ * `edge` samples at each end, the filter's): from each end of the sorted gaps, the first place where at least
+ * max(20, n/1000) samples lie within twice the band (a few samples beyond a flank — noise, an impact's overshoot —
+ * are passed over), refined to the median of those samples.
+ */
+Flanks locateFlanks(const std::vector<double>& gap, std::size_t edge, double band)
+{
+  if (!(band > 0.0))
+  {
+    const auto [lo, hi] = std::minmax_element(gap.begin(), gap.end());
+    return {*lo, *hi};
+  }
+  const std::size_t skip = std::min(edge, gap.size() / 4);
+  std::vector<double> sorted(gap.begin() + static_cast<long>(skip), gap.end() - static_cast<long>(skip));
+  std::sort(sorted.begin(), sorted.end());
+  const std::size_t enough = std::max<std::size_t>(20, sorted.size() / 1000);
+  const auto median = [&sorted](std::size_t a, std::size_t b) { return sorted[a + (b - a) / 2]; };
+  Flanks out{sorted.front(), sorted.back()};
+  for (std::size_t i = 0; i < sorted.size(); ++i)
+  {
+    const std::size_t j = static_cast<std::size_t>(
+        std::upper_bound(sorted.begin() + static_cast<long>(i), sorted.end(), sorted[i] + 2.0 * band) - sorted.begin());
+    if (j - i >= enough)
+    {
+      out.forward = median(i, j);
+      break;
+    }
+  }
+  for (std::size_t i = sorted.size(); i-- > 0;)
+  {
+    const std::size_t j = static_cast<std::size_t>(
+        std::lower_bound(sorted.begin(), sorted.begin() + static_cast<long>(i) + 1, sorted[i] - 2.0 * band) -
+        sorted.begin());
+    if (i + 1 - j >= enough)
+    {
+      out.backward = median(j, i + 1);
+      break;
+    }
+  }
+  return out;
+}
+
+void need(bool ok, const std::string& key, const std::string& what)
+{
+  if (!ok)
+  {
+    throw InvalidParameterError(key, what);
+  }
+}
+
+/// The standard deviation [rad/s] of the noise in a body's velocity (central difference of the filtered angle at
+/// period h [s]) from the angle's noise (measured_angles.h).
+double velocityNoise(const std::vector<double>& angle, const IdentificationSettings& s, double h)
+{
+  // The filter's kernel (a unit impulse filtered), differenced: its norm carries white noise through.
+  const std::size_t r = static_cast<std::size_t>(std::max(s.smoothing, 0)), width = 4 * r + 3;
+  std::vector<double> impulse(2 * width + 1, 0.0);
+  impulse[width] = 1.0;
+  const std::vector<double> kernel = smoothedSignal(impulse, s.smoothing);
+  double norm = 0.0;
+  for (std::size_t k = 1; k + 1 < kernel.size(); ++k)
+  {
+    const double d = 0.5 * (kernel[k + 1] - kernel[k - 1]);
+    norm += d * d;
+  }
+  return recogniseAngle(angle, s.motor_encoder_resolution).noise * std::sqrt(norm) / h;
+}
+
+/**
+ * Measured angles: the bodies' parameters from the equations integrated twice over stretches of one phase
+ * (phase_regression.h) — stretches of samples in one phase with the motor moving, less `trim` samples at each end
+ * (where the filtered gap's phase is blurred), cut into pieces of 0.2 s. A phase without enough rows leaves its
+ * parameters not identifiable (the reason in out->not_identifiable); both without: nothing to estimate (thrown).
+ */
+void bodiesFromIntegrals(const Recording& d, const IdentificationSettings& s, const std::vector<int>& phase,
+                         const std::vector<double>& velocity, const std::vector<std::size_t>& stills, std::size_t trim,
+                         InitialEstimates* out)
+{
+  const std::size_t n = d.time.size();
+  const double h = (d.time.back() - d.time.front()) / static_cast<double>(n - 1), rho = s.gear_ratio;
+  std::vector<double> sign(n);
+  std::transform(velocity.begin(), velocity.end(), sign.begin(), [](double w) {
+    return w > 0.0 ? 1.0 : w < 0.0 ? -1.0 : 0.0;
+  });
+  Stretches apart, contact;
+  bool forward = false, backward = false;  // contact motion each way
+  std::size_t k = 0;
+  while (k < n)
+  {
+    const auto usable = [&](std::size_t i) { return phase[i] != 2 && stills[i + 1] == stills[i]; };
+    if (!usable(k))
+    {
+      ++k;
+      continue;
+    }
+    std::size_t end = k;
+    while (end < n && usable(end) && phase[end] == phase[k] && sign[end] == sign[k])
+    {
+      ++end;
+    }
+    if (end - k > 2 * trim)
+    {
+      (phase[k] == 0 ? apart : contact).emplace_back(k + trim, end - trim);
+      if (phase[k] != 0)
+      {
+        (sign[k] > 0.0 ? forward : backward) = true;
+      }
+    }
+    k = end;
+  }
+  const std::size_t piece = std::max<std::size_t>(10, static_cast<std::size_t>(0.2 / h));
+  const PhaseRows a = integratedRows(d, sign, apart, piece, 0);
+  const PhaseRows c = integratedRows(d, sign, contact, piece, a.cluster.empty() ? 0 : a.cluster.back() + 1);
+  const bool both_ways = forward && backward;
+  // Contact one way only: the load torque is not told from the Coulomb friction; the settings' (or 0) holds it.
+  const double known_load = both_ways ? NAN : std::isfinite(s.load_torque_fallback) ? s.load_torque_fallback : 0.0;
+  const BodiesFit f =
+      fitBodies(a, c, rho, known_load, recogniseAngle(d.motor_position, s.motor_encoder_resolution).noise);
+  out->apart_samples = f.apart_rows;
+  out->contact_samples = f.contact_rows;
+  out->apart_rms_residual = f.apart_rms;
+  out->contact_rms_residual = f.contact_rms;
+  need(f.apart_rows > 0 || f.contact_rows > 0, "data",
+       "no stretch of steady motion in one phase: the recording needs motion with the teeth in contact and the motor "
+       "crossing the free play (backlash_identify --experiment designs such an excitation)");
+  const bool motor_alone = f.apart_rows > 0, pair = f.contact_rows > 0, split = motor_alone && pair;
+  const char* const keys[7] = {"motor_inertia", "motor_friction", "motor_coulomb_friction",
+                               "load_inertia",  "load_friction",  "load_coulomb_friction",
+                               "load_torque"};
+  Estimate* fields[7] = {&out->motor_inertia, &out->motor_friction, &out->motor_coulomb_friction,
+                         &out->load_inertia,  &out->load_friction,  &out->load_coulomb_friction,
+                         &out->load_torque};
+  for (int j = 0; j < 7; ++j)
+  {
+    *fields[j] = {f.p(j), f.se(j)};
+  }
+  out->load_torque_given = pair && !both_ways;
+  if (!split)
+  {
+    const std::string why =
+        motor_alone ? "the teeth were never seen in contact with the joint moving: only the motor alone is measured"
+                    : "the teeth were never seen apart with the motor moving: only the pair's sums are measured "
+                      "(J_m + ρ²J_L = " +
+                          formatNumber(f.p(0)) + " kg·m², f_m + ρ²f_L = " + formatNumber(f.p(1)) +
+                          " N·m·s/rad, T_cm + ρT_cL = " + formatNumber(f.p(2)) + " N·m)";
+    for (int j = motor_alone ? 3 : 0; j < 6; ++j)
+    {
+      out->not_identifiable[keys[j]] = why;
+      *fields[j] = {NAN, NAN};
+    }
+  }
+  // An inertia or a Coulomb level known to worse than ±LOOSEST of itself (or held at 0) is reported as not
+  // identified, with what the recording gave: a number with a wide error is not a model. The load's level is found
+  // as the pair's less the motor's, so it goes with the motor's.
+  for (int j : {0, 2, 3, 5})
+  {
+    const Estimate x = *fields[j];
+    const bool inertia = j % 3 == 0;
+    if (!std::isfinite(x.value) || out->not_identifiable.count(keys[j]))
+    {
+      continue;
+    }
+    std::string why;
+    if (j >= 3 && out->not_identifiable.count(keys[j - 3]))
+    {
+      why = std::string("the motor's level (") + keys[j - 3] + ") is not identified, and the pair gives only the sum";
+    }
+    else if (x.standard_error > LOOSEST * x.value || f.at_bound[static_cast<std::size_t>(j)])
+    {
+      const std::string what = inertia ? (j == 0 ? "accelerations of the motor alone (the teeth apart)"
+                                                 : "accelerations of the pair (the teeth in contact)")
+                                       : (j == 2 ? "the motor sliding alone both ways (the teeth apart)"
+                                                 : "the pair sliding both ways at more than one speed");
+      why = "the recording gives " + formatNumber(x.value) + " ± " + formatNumber(x.standard_error) +
+            (inertia ? " kg·m²" : " N·m") + ", not within ±10 % (it needs more " + what + ")";
+    }
+    if (!why.empty())
+    {
+      out->not_identifiable[keys[j]] = why;
+      *fields[j] = {NAN, NAN};
+    }
+  }
+  if (out->load_torque_given)
+  {
+    out->load_torque = {known_load, NAN};
+  }
+}
 
 /// The centred mean over 2r + 1 samples (the samples within r of an end keep their value: they are never used).
 std::vector<double> centredMean(const std::vector<double>& x, std::size_t r)
@@ -35,14 +235,6 @@ std::vector<double> centredMean(const std::vector<double>& x, std::size_t r)
     out[k] = (sum[k + r + 1] - sum[k - r]) / static_cast<double>(2 * r + 1);
   }
   return out;
-}
-
-void need(bool ok, const std::string& key, const std::string& what)
-{
-  if (!ok)
-  {
-    throw InvalidParameterError(key, what);
-  }
 }
 
 }  // namespace
@@ -177,21 +369,34 @@ InitialEstimates estimateInitial(const Recording& d, const IdentificationSetting
   const std::size_t n = d.time.size();
   const double h = samplePeriod(d, s);
   const double rho = s.gear_ratio;
+  // The gap as recorded; integrated equations classify by the gap of the filtered angles (quantisation and noise
+  // averaged out) and find the flanks where it dwells.
+  const bool measured = s.contact_band > 0.0;
+  const int filter = s.integrated ? s.smoothing : 0;
+  const std::vector<double> load_angle = smoothedSignal(d.load_position, filter),
+                            motor_angle = smoothedSignal(d.motor_position, filter);
   std::vector<double> gap(n);
   for (std::size_t k = 0; k < n; ++k)
   {
-    gap[k] = d.load_position[k] - rho * d.motor_position[k];
+    gap[k] = load_angle[k] - rho * motor_angle[k];
   }
   InitialEstimates out;
-  const auto [lo, hi] = std::minmax_element(gap.begin(), gap.end());
+  const Flanks flanks =
+      locateFlanks(gap, 2 * static_cast<std::size_t>(filter) + STENCIL, s.integrated ? s.contact_band : 0.0);
+  const double* lo = &flanks.forward;
+  const double* hi = &flanks.backward;
   const double backlash = *hi - *lo;
   out.zero_offset = *lo;
-  const double band = s.contact_band > 0.0 ? s.contact_band : 1e-8 * backlash;
-  // Apart means clear of both flanks: a chatter of short flights (a few µrad) between samples is neither phase.
-  const double margin = std::max(1e-3 * backlash, 4.0 * band);
-  need(backlash > 4.0 * std::max(band, 1e-3 * backlash) && backlash > 0.0, "data",
-       "the gap θ_c − ρθ_m never spans the backlash: the recording needs reversals that carry the motor across the "
-       "free play to both flanks");
+  const double band = measured ? s.contact_band : 1e-8 * backlash;
+  // Apart means clear of both flanks: a chatter of short flights (a few µrad) between samples is neither phase. On
+  // measured angles the band already holds the gap's spread on a flank.
+  const double margin = s.integrated ? 0.5 * band : std::max(1e-3 * backlash, 4.0 * band);
+  need(backlash > 2.0 * (band + margin) && backlash > 0.0, "data",
+       measured ? "the free play is not resolved by the gap θ_c − ρθ_m: its two flanks lie within the gap's "
+                  "measurement band of " +
+                      formatNumber(band) + " rad of each other (finer encoders, or a prior with the backlash)"
+                : "the gap θ_c − ρθ_m never spans the backlash: the recording needs reversals that carry the motor "
+                  "across the free play to both flanks");
   // Derivatives, and each sample's phase (0 apart, +1 forward flank, −1 backward flank, 2 mixed).
   // Every term of the equations filtered by the same F (differences commute with it): D²(Fθ) = F(D²θ) against Fū
   // and F sgn ω — quantisation and noise averaged out, the equations unchanged.
@@ -204,12 +409,22 @@ InitialEstimates estimateInitial(const Recording& d, const IdentificationSetting
   {
     fastest = std::max(fastest, std::fabs(w));
   }
-  const double still = s.still_speed > 0.0 ? s.still_speed : 1e-6 * fastest;
+  // Measured angles: a body reads as moving only beyond four times the velocity's noise after the filter, and a
+  // sample whose filter reaches a standstill is left out (the friction there is the static band's, not ±T_c).
+  const double still = std::max(s.still_speed > 0.0 ? s.still_speed : 1e-6 * fastest,
+                                s.integrated ? 4.0 * velocityNoise(d.motor_position, s, h) : 0.0);
   std::vector<int> phase(n);
   for (std::size_t k = 0; k < n; ++k)
   {
     const double df = gap[k] - *lo, db = *hi - gap[k];
-    phase[k] = df <= band ? 1 : db <= band ? -1 : (df > margin && db > margin) ? 0 : 2;
+    phase[k] = std::fabs(df) <= band ? 1 : std::fabs(db) <= band ? -1 : (df > margin && db > margin) ? 0 : 2;
+    if (s.integrated && phase[k] == 0)
+    {
+      // The recorded gap too: an impact between samples shows as one sample's dip to a flank, which the filter
+      // hides (the teeth bounced: apart on both sides, but the motor's speed jumped).
+      const double raw = d.load_position[k] - rho * d.motor_position[k];
+      phase[k] = raw - *lo > margin && *hi - raw > margin ? 0 : 2;
+    }
   }
   // A sample's phase must hold over the filter's support and the difference stencil.
   const std::size_t reach = STENCIL + 2 * r;
@@ -218,75 +433,103 @@ InitialEstimates estimateInitial(const Recording& d, const IdentificationSetting
   {
     changes[k + 1] = changes[k] + (phase[k] != phase[k - 1] ? 1 : 0);
   }
-  std::vector<std::size_t> contact, apart;
-  for (std::size_t k = reach; k + reach < n; ++k)
+  std::vector<std::size_t> stills(n + 1, 0);  // samples below `still` before each sample (prefix count)
+  for (std::size_t k = 0; k < n; ++k)
   {
-    const bool same = changes[k + reach + 1] == changes[k - reach + 1];
-    if (!same || phase[k] == 2 || std::fabs(wm[k]) <= still)
+    stills[k + 1] = stills[k] + (std::fabs(wm[k]) <= still ? 1 : 0);
+  }
+  // Exact angles: the equations at each sample whose phase holds over its stencil (derivatives by differences).
+  const auto bodiesFromDerivatives = [&]() {
+    std::vector<std::size_t> contact, apart;
+    for (std::size_t k = reach; k + reach < n; ++k)
     {
-      continue;
+      const bool same = changes[k + reach + 1] == changes[k - reach + 1];
+      const bool moving = stills[k + 1] == stills[k];
+      if (!same || phase[k] == 2 || !moving)
+      {
+        continue;
+      }
+      (phase[k] == 0 ? apart : contact).push_back(k);
     }
-    (phase[k] == 0 ? apart : contact).push_back(k);
-  }
-  out.contact_samples = contact.size();
-  out.apart_samples = apart.size();
-  if (contact.size() < 20)
-  {
-    // The gap near the flanks but never held within the band: teeth that give (or angles coarser than the band).
-    std::size_t near = 0;
-    for (std::size_t k = 0; k < n; ++k)
+    out.contact_samples = contact.size();
+    out.apart_samples = apart.size();
+    if (contact.size() < 20)
     {
-      near += std::min(gap[k] - *lo, *hi - gap[k]) <= 0.05 * backlash ? 1 : 0;
+      // The gap near the flanks but never held within the band: teeth that give (or angles coarser than the band).
+      std::size_t near = 0;
+      for (std::size_t k = 0; k < n; ++k)
+      {
+        near += std::min(gap[k] - *lo, *hi - gap[k]) <= 0.05 * backlash ? 1 : 0;
+      }
+      need(near < n / 10, "data",
+           "the gap θ_c − ρθ_m keeps moving near the flanks while the motor drives the load (never within the contact "
+           "band of " +
+               formatNumber(band) +
+               " rad): the mesh looks compliant — give a prior with mesh_stiffness > 0 (a guess) to identify a "
+               "compliant mesh — or, for measured angles, a contact band of their resolution");
     }
-    need(near < n / 10, "data",
-         "the gap θ_c − ρθ_m keeps moving near the flanks while the motor drives the load (never within the contact "
-         "band of " +
-             formatNumber(band) +
-             " rad): the mesh looks compliant — give a prior with mesh_stiffness > 0 (a guess) to identify a "
-             "compliant mesh — or, for measured angles, a contact band of their resolution");
-  }
-  need(contact.size() >= 20, "data",
-       "too few samples with the teeth in contact and moving (" + std::to_string(contact.size()) +
-           "): the recording needs motion while the motor drives the load");
-  need(apart.size() >= 20, "data",
-       "too few samples with the teeth apart and the motor moving (" + std::to_string(apart.size()) +
-           "): the recording needs the motor to cross the free play");
-  // Contact: ū = J α + F ω + C sgn ω + b.
-  Eigen::MatrixXd xc(static_cast<Eigen::Index>(contact.size()), 4);
-  Eigen::VectorXd yc(static_cast<Eigen::Index>(contact.size()));
-  bool both_ways = false;
-  for (std::size_t i = 0; i < contact.size(); ++i)
+    need(contact.size() >= 20, "data",
+         "too few samples with the teeth in contact and moving (" + std::to_string(contact.size()) +
+             "): the recording needs motion while the motor drives the load");
+    need(apart.size() >= 20, "data",
+         "too few samples with the teeth apart and the motor moving (" + std::to_string(apart.size()) +
+             "): the recording needs the motor to cross the free play");
+    // Contact: ū = J α + F ω + C sgn ω + b.
+    Eigen::MatrixXd xc(static_cast<Eigen::Index>(contact.size()), 4);
+    Eigen::VectorXd yc(static_cast<Eigen::Index>(contact.size()));
+    bool both_ways = false;
+    for (std::size_t i = 0; i < contact.size(); ++i)
+    {
+      const std::size_t k = contact[i];
+      both_ways = both_ways || (wm[k] > 0.0) != (wm[contact[0]] > 0.0);
+      xc.row(static_cast<Eigen::Index>(i)) << am[k], wm[k], sg[k], 1.0;
+      yc(static_cast<Eigen::Index>(i)) = ubar[k];
+    }
+    // Contact motion one way only: the Coulomb term and the load torque are one constant, split with the load torque
+    // given (then not estimated).
+    const bool known_load = !both_ways && std::isfinite(s.load_torque_fallback);
+    need(both_ways || known_load, "data",
+         "in contact the joint moved one way only: Coulomb friction and the load torque cannot be told apart (the "
+         "recording needs contact motion in both directions, or give the load torque)");
+    if (known_load)
+    {
+      xc.col(3).setZero();
+      yc.array() += rho * s.load_torque_fallback;  // ū − b, b = −ρT_ext
+      xc.conservativeResize(Eigen::NoChange, 3);
+    }
+    // Apart: ū = J_m α + f_m ω + T_cm sgn ω.
+    Eigen::MatrixXd xa(static_cast<Eigen::Index>(apart.size()), 3);
+    Eigen::VectorXd ya(static_cast<Eigen::Index>(apart.size()));
+    for (std::size_t i = 0; i < apart.size(); ++i)
+    {
+      const std::size_t k = apart[i];
+      xa.row(static_cast<Eigen::Index>(i)) << am[k], wm[k], sg[k];
+      ya(static_cast<Eigen::Index>(i)) = ubar[k];
+    }
+    std::size_t contact_kept = 0, apart_kept = 0;
+    const LeastSquaresFit c = leastSquares(xc, yc, &contact_kept), a = leastSquares(xa, ya, &apart_kept);
+    out.contact_samples = contact_kept;
+    out.apart_samples = apart_kept;
+    const auto combined = [](double x, double y) { return std::sqrt(x * x + y * y); };
+    out.motor_inertia = {a.p(0), a.se(0)};
+    out.motor_friction = {a.p(1), a.se(1)};
+    out.motor_coulomb_friction = {a.p(2), a.se(2)};
+    out.load_inertia = {(c.p(0) - a.p(0)) / (rho * rho), combined(c.se(0), a.se(0)) / (rho * rho)};
+    out.load_friction = {(c.p(1) - a.p(1)) / (rho * rho), combined(c.se(1), a.se(1)) / (rho * rho)};
+    out.load_coulomb_friction = {(c.p(2) - a.p(2)) / rho, combined(c.se(2), a.se(2)) / rho};
+    out.load_torque = known_load ? Estimate{s.load_torque_fallback, NAN} : Estimate{-c.p(3) / rho, c.se(3) / rho};
+    out.load_torque_given = known_load;
+    out.contact_rms_residual = c.rms;
+    out.apart_rms_residual = a.rms;
+  };
+  if (measured && s.integrated)
   {
-    const std::size_t k = contact[i];
-    both_ways = both_ways || (wm[k] > 0.0) != (wm[contact[0]] > 0.0);
-    xc.row(static_cast<Eigen::Index>(i)) << am[k], wm[k], sg[k], 1.0;
-    yc(static_cast<Eigen::Index>(i)) = ubar[k];
+    bodiesFromIntegrals(d, s, phase, wm, stills, 2 * r + 2, &out);
   }
-  // Contact motion one way only: the Coulomb term and the load torque are one constant, split with the load torque
-  // given (then not estimated).
-  const bool known_load = !both_ways && std::isfinite(s.load_torque_fallback);
-  need(both_ways || known_load, "data",
-       "in contact the joint moved one way only: Coulomb friction and the load torque cannot be told apart (the "
-       "recording needs contact motion in both directions, or give the load torque)");
-  if (known_load)
+  else
   {
-    xc.col(3).setZero();
-    yc.array() += rho * s.load_torque_fallback;  // ū − b, b = −ρT_ext
-    xc.conservativeResize(Eigen::NoChange, 3);
+    bodiesFromDerivatives();
   }
-  // Apart: ū = J_m α + f_m ω + T_cm sgn ω.
-  Eigen::MatrixXd xa(static_cast<Eigen::Index>(apart.size()), 3);
-  Eigen::VectorXd ya(static_cast<Eigen::Index>(apart.size()));
-  for (std::size_t i = 0; i < apart.size(); ++i)
-  {
-    const std::size_t k = apart[i];
-    xa.row(static_cast<Eigen::Index>(i)) << am[k], wm[k], sg[k];
-    ya(static_cast<Eigen::Index>(i)) = ubar[k];
-  }
-  std::size_t contact_kept = 0, apart_kept = 0;
-  const LeastSquaresFit c = leastSquares(xc, yc, &contact_kept), a = leastSquares(xa, ya, &apart_kept);
-  out.contact_samples = contact_kept;
-  out.apart_samples = apart_kept;
   const auto combined = [](double x, double y) { return std::sqrt(x * x + y * y); };
   // The backlash between the flanks' typical gaps (medians over the samples in contact on each: quantisation and
   // noise at the extremes do not widen it); the zero offset likewise.
@@ -315,16 +558,6 @@ InitialEstimates estimateInitial(const Recording& d, const IdentificationSetting
   {
     out.backlash = {backlash, band};
   }
-  out.motor_inertia = {a.p(0), a.se(0)};
-  out.motor_friction = {a.p(1), a.se(1)};
-  out.motor_coulomb_friction = {a.p(2), a.se(2)};
-  out.load_inertia = {(c.p(0) - a.p(0)) / (rho * rho), combined(c.se(0), a.se(0)) / (rho * rho)};
-  out.load_friction = {(c.p(1) - a.p(1)) / (rho * rho), combined(c.se(1), a.se(1)) / (rho * rho)};
-  out.load_coulomb_friction = {(c.p(2) - a.p(2)) / rho, combined(c.se(2), a.se(2)) / rho};
-  out.load_torque = known_load ? Estimate{s.load_torque_fallback, NAN} : Estimate{-c.p(3) / rho, c.se(3) / rho};
-  out.load_torque_given = known_load;
-  out.contact_rms_residual = c.rms;
-  out.apart_rms_residual = a.rms;
   // Static friction from the rests: over a sample interval [t_k, t_k+1) the torque u_k is held, so a body at rest
   // over it was held by its static band (|net| ≤ T_s: a lower bound) and the interval where it broke away had
   // |net| > T_s (an upper bound). Teeth apart: the motor alone, net u_k; teeth on a flank: the pair, net u_k + ρT_ext

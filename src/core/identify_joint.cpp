@@ -6,6 +6,7 @@
 #include <variant>
 
 #include "backlash_servo/identify_mesh.h"
+#include "backlash_servo/measured_angles.h"
 #include "backlash_servo/param_table.h"
 
 namespace backlash_servo
@@ -25,6 +26,10 @@ double replayGain(const ServoParams& p)
 /// Why the recording does not inform `key` (empty: it does).
 std::string notInformedReason(const std::string& key, const InitialEstimates& e, const std::string& restitution_note)
 {
+  if (const auto it = e.not_identifiable.find(key); it != e.not_identifiable.end())
+  {
+    return it->second;
+  }
   if (key == "restitution" && !restitution_note.empty())
   {
     return restitution_note;
@@ -72,7 +77,7 @@ std::vector<std::string> identifiedKeysFor(const ServoParams& joint)
   return keys;
 }
 
-JointIdentification identifyJoint(const Recording& data, const IdentificationSettings& s, const ServoParams& prior,
+JointIdentification identifyJoint(const Recording& data, const IdentificationSettings& given, const ServoParams& prior,
                                   const IdentifyOptions& options)
 {
   const std::vector<std::string> meaningful = identifiedKeysFor(prior);
@@ -103,6 +108,13 @@ JointIdentification identifyJoint(const Recording& data, const IdentificationSet
                                 "measured): give a prior without one (shaft_stiffness 0)");
   }
   JointIdentification out;
+  // The angles as measured: the smoothing and the contact band from the data unless given.
+  out.measurement = recogniseMeasurement(data, given);
+  IdentificationSettings s = given;
+  s.smoothing = out.measurement.smoothing;
+  s.contact_band = out.measurement.contact_band;
+  s.integrated = out.measurement.integrated;
+  out.settings = s;
   const InitialEstimates& e = out.initial =
       prior.compliant() ? estimateCompliantInitial(data, s) : estimateInitial(data, s);
   std::map<std::string, Estimate> initial = e.byKey();
@@ -171,7 +183,19 @@ JointIdentification identifyJoint(const Recording& data, const IdentificationSet
     }
   }
   out.model = start;
-  out.joint_fit = !settings.keys.empty();
+  // A model outside the validated envelope is reported, not refused; the simulator is not run on it (no joint fit).
+  bool inside = true;
+  try
+  {
+    start.validateEnvelope(false);
+  }
+  catch (const InvalidParameterError& outside)
+  {
+    out.warnings.push_back(std::string("the identified joint: ") + outside.what() +
+                           (settings.keys.empty() ? "" : " — the joint fit (the simulator) was not run on it"));
+    inside = false;
+  }
+  out.joint_fit = inside && !settings.keys.empty();
   if (out.joint_fit)
   {
     out.fit = fitJoint(data, s, e.zero_offset, start, settings);

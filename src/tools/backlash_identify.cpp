@@ -505,22 +505,6 @@ int main(int argc, char** argv)
     {
       data = readRecording(o.data_path);
     }
-    // Angles on the count grid of the prior's encoders are measured ones: the gap is quantised by both counts.
-    const auto onGrid = [](const std::vector<double>& angle, double counts) {
-      const double per = counts / (2.0 * 3.14159265358979323846);
-      return counts > 0.0 && std::all_of(angle.begin(), angle.end(),
-                                         [per](double x) { return std::fabs(x * per - std::round(x * per)) <= 1e-6; });
-    };
-    const bool motor_grid = onGrid(data.motor_position, o.motor_counts),
-               load_grid = onGrid(data.load_position, o.load_counts);
-    if (motor_grid || load_grid)
-    {
-      const double two_pi = 2.0 * 3.14159265358979323846;
-      o.contact_band = 2.0 * ((motor_grid ? o.gear_ratio * two_pi / o.motor_counts : 0.0) +
-                              (load_grid ? two_pi / o.load_counts : 0.0));
-      std::cerr << "backlash_identify: the angles are the prior's encoder counts: contact band " << o.contact_band
-                << " rad (two counts of the gap)\n";
-    }
   }
   catch (const std::exception& e)
   {
@@ -536,6 +520,8 @@ int main(int argc, char** argv)
     // Contact one way only (a limit cycle pushed from one side): the prior's load torque (default 0) splits it.
     s.load_torque_fallback = o.prior.has("load_torque") ? o.prior.number("load_torque") : 0.0;
     s.still_speed = o.still_speed;
+    s.motor_encoder_resolution = o.motor_counts;
+    s.load_encoder_resolution = o.load_counts;
     IdentifyOptions options;
     options.keys = o.fit;
     options.joint = o.joint_fit == "on"    ? JointFitMode::On
@@ -549,13 +535,17 @@ int main(int argc, char** argv)
     options.stated = o.known.stated;
     const JointIdentification result = identifyJoint(data, s, o.known.params, options);
     progress.finish();
+    for (const std::string& warning : result.warnings)
+    {
+      std::cerr << "backlash_identify: warning: " << warning << "\n";
+    }
     const InitialEstimates& e = result.initial;
     const std::vector<IdentifiedParameter>& rows = result.parameters;
     const JointFit& fit = result.fit;
     const bool joint = result.joint_fit;
     if (png && joint)
     {
-      const ReplayWindows shown(data, s, e.zero_offset, fit.window_starts, fit.window_length);
+      const ReplayWindows shown(data, result.settings, e.zero_offset, fit.window_starts, fit.window_length);
       drawChart(data, s.gear_ratio, shown, fit, chart_script, *png);
     }
     if (png && !joint)
@@ -645,6 +635,22 @@ int main(int argc, char** argv)
         w.endObject();
       }
       w.endObject();
+      const MeasuredAngles& m = result.measurement;
+      w.beginObject("measurement");
+      w.field("motor_encoder_resolution", m.motor.resolution);
+      w.field("motor_noise", m.motor.noise);
+      w.field("load_encoder_resolution", m.load.resolution);
+      w.field("load_noise", m.load.noise);
+      w.field("smoothing", static_cast<long long>(m.smoothing));
+      w.field("contact_band", m.contact_band);
+      w.field("from_data", m.from_data);
+      w.endObject();
+      w.beginArray("warnings");
+      for (const std::string& warning : result.warnings)
+      {
+        w.field(nullptr, warning);
+      }
+      w.endArray();
       w.field("zero_offset", e.zero_offset);
       w.field("load_torque_given", e.load_torque_given);
       w.field("contact_samples", static_cast<long long>(e.contact_samples));
@@ -679,6 +685,7 @@ int main(int argc, char** argv)
     }
     else
     {
+      std::printf("%s\n", result.measurement.summary().c_str());
       if (result.model.compliant())
       {
         std::printf(

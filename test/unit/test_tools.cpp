@@ -1685,7 +1685,7 @@ TEST(IdentifyTool, ADitheredExperimentOnAStickyJoint)
 TEST(IdentifyTool, EncoderCountsFromThePriorSetTheContactBand)
 {
   // Angles on the count grid of the prior's encoders (2^16 counts a turn on both) are measured ones: the contact band
-  // becomes two counts of the gap and the fit that of measured angles (the backlash within two counts); exact angles
+  // follows from their counts and the fit is that of measured angles (the backlash within two counts); exact angles
   // with the same prior keep the exact default.
   const std::string dir = testing::TempDir() + "backlash_identify_counts/";
   ASSERT_EQ(std::system(("rm -rf " + dir + " && mkdir -p " + dir).c_str()), 0);
@@ -1736,13 +1736,20 @@ TEST(IdentifyTool, EncoderCountsFromThePriorSetTheContactBand)
   const std::string measured = runCapture(
       IDENTIFY + " --data " + dir + "counts.csv --config " + dir + "prior.yaml --smoothing 20 --json 2>&1", &code);
   ASSERT_EQ(code, 0) << measured;
-  EXPECT_NE(measured.find("contact band 0.000383"), std::string::npos) << measured;  // 2 (ρ·count + count)
+  // Recognised: both angles on the 2^16-count grid, the contact band from their counts (not the exact default).
   const std::string json = measured.substr(measured.find('{'));
+  const std::string seen = json.substr(json.find("\"measurement\":{"));
+  EXPECT_EQ(jsonNumber(seen, "motor_encoder_resolution"), 65536.0) << json;
+  EXPECT_EQ(jsonNumber(seen, "load_encoder_resolution"), 65536.0) << json;
+  EXPECT_EQ(jsonNumber(seen, "smoothing"), 20.0) << json;
+  EXPECT_GT(jsonNumber(seen, "contact_band"), count) << json;  // (a count's half-width of each angle, and noise)
   EXPECT_NEAR(jsonNumber(json.substr(json.find("\"backlash\":{")), "value"), 0.3, 2.0 * count) << json;
   const std::string exact =
       runCapture(IDENTIFY + " --data " + dir + "exact.csv --config " + dir + "prior.yaml --json 2>&1", &code);
   ASSERT_EQ(code, 0) << exact;
-  EXPECT_EQ(exact.find("contact band"), std::string::npos) << exact;
+  const std::string exact_seen = exact.substr(exact.find("\"measurement\":{"));
+  EXPECT_EQ(jsonNumber(exact_seen, "motor_noise"), 0.0) << exact;
+  EXPECT_EQ(jsonNumber(exact_seen, "contact_band"), 0.0) << exact;
 }
 
 TEST(IdentifyTool, ABagIsConvertedByTheBagReport)
