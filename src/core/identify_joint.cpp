@@ -174,7 +174,10 @@ JointIdentification identifyJoint(const Recording& data, const IdentificationSet
   for (IdentifiedParameter& p : out.parameters)
   {
     const bool fittable = std::find(jointFitKeys().begin(), jointFitKeys().end(), p.key) != jointFitKeys().end();
-    const bool impact = p.key == "backlash" || p.key == "restitution" || p.key.rfind("mesh_", 0) == 0;
+    // (integrated equations: the backlash from where the gap dwells on each flank, which the replays' noisy
+    // anchors would only blur)
+    const bool impact =
+        (p.key == "backlash" && !s.integrated) || p.key == "restitution" || p.key.rfind("mesh_", 0) == 0;
     if (fittable &&
         (options.joint == JointFitMode::On || (options.joint == JointFitMode::Auto && (!measured || impact))))
     {
