@@ -149,6 +149,24 @@ std::vector<double> smoothedSignal(const std::vector<double>& x, int r);
 /// 2√(2 band/α), so only α ≤ 8 band/(0.2 s)² passes for a rest (its torque J α is then far below the friction levels).
 std::size_t minimumRest(const IdentificationSettings& settings, double h);
 
+/// The gap on each flank [rad].
+struct Flanks
+{
+  double forward = 0.0, backward = 0.0;
+};
+
+/**
+ * Where the gap dwells at each end of its range. Exact angles (band 0): its extremes. Measured ones (without the
+ * `edge` samples at each end, the filter's): from each end of the sorted gaps, the first place where at least
+ * max(20, n/1000) samples lie within twice the band [rad] (a few samples beyond a flank — noise, an impact's
+ * overshoot — are passed over), refined to the median of those samples.
+ */
+Flanks locateFlanks(const std::vector<double>& gap, std::size_t edge, double band);
+
+/// A gain K [N·m/rad] for replaying a joint whose loop is not known: a replay drives it by the recorded torque (the
+/// gain acts nowhere), but the simulator checks the envelope with it — ω_n = max(1 rad/s, 2F/J) keeps ζ ≤ 1/4.
+double replayGain(const ServoParams& joint);
+
 /**
  * The initial estimates from the recording. Throws InvalidParameterError naming what is missing: too few samples,
  * non-uniform or non-increasing times, non-finite values, a recording that never touches both flanks (no backlash

@@ -19,58 +19,10 @@ namespace
 {
 /// Samples on each side of a sample whose gap must stay in its phase (the difference stencil, and one more).
 constexpr int STENCIL = 2;
-/// Measured angles: an inertia or Coulomb level with a standard error above this fraction of itself is not
-/// identified.
-constexpr double LOOSEST = 0.1;
-
-/// The gap on each flank [rad].
-struct Flanks
-{
-  double forward = 0.0, backward = 0.0;
-};
-
-/**
- * Where the gap dwells at each end of its range. Exact angles (band 0): its extremes. Measured ones (without the
- * `edge` samples at each end, the filter's): from each end of the sorted gaps, the first place where at least
- * max(20, n/1000) samples lie within twice the band (a few samples beyond a flank — noise, an impact's overshoot —
- * are passed over), refined to the median of those samples.
- */
-Flanks locateFlanks(const std::vector<double>& gap, std::size_t edge, double band)
-{
-  if (!(band > 0.0))
-  {
-    const auto [lo, hi] = std::minmax_element(gap.begin(), gap.end());
-    return {*lo, *hi};
-  }
-  const std::size_t skip = std::min(edge, gap.size() / 4);
-  std::vector<double> sorted(gap.begin() + static_cast<long>(skip), gap.end() - static_cast<long>(skip));
-  std::sort(sorted.begin(), sorted.end());
-  const std::size_t enough = std::max<std::size_t>(20, sorted.size() / 1000);
-  const auto median = [&sorted](std::size_t a, std::size_t b) { return sorted[a + (b - a) / 2]; };
-  Flanks out{sorted.front(), sorted.back()};
-  for (std::size_t i = 0; i < sorted.size(); ++i)
-  {
-    const std::size_t j = static_cast<std::size_t>(
-        std::upper_bound(sorted.begin() + static_cast<long>(i), sorted.end(), sorted[i] + 2.0 * band) - sorted.begin());
-    if (j - i >= enough)
-    {
-      out.forward = median(i, j);
-      break;
-    }
-  }
-  for (std::size_t i = sorted.size(); i-- > 0;)
-  {
-    const std::size_t j = static_cast<std::size_t>(
-        std::lower_bound(sorted.begin(), sorted.begin() + static_cast<long>(i) + 1, sorted[i] - 2.0 * band) -
-        sorted.begin());
-    if (i + 1 - j >= enough)
-    {
-      out.backward = median(j, i + 1);
-      break;
-    }
-  }
-  return out;
-}
+/// Measured angles: an inertia or a Coulomb level with a standard error above this fraction of itself is not
+/// identified (at two standard errors an inertia within 5 %, a Coulomb level within 10 %).
+constexpr double LOOSEST_INERTIA = 0.025;
+constexpr double LOOSEST_LEVEL = 0.05;
 
 void need(bool ok, const std::string& key, const std::string& what)
 {
@@ -146,8 +98,8 @@ void bodiesFromIntegrals(const Recording& d, const IdentificationSettings& s, co
   const bool both_ways = forward && backward;
   // Contact one way only: the load torque is not told from the Coulomb friction; the settings' (or 0) holds it.
   const double known_load = both_ways ? NAN : std::isfinite(s.load_torque_fallback) ? s.load_torque_fallback : 0.0;
-  const BodiesFit f =
-      fitBodies(a, c, rho, known_load, recogniseAngle(d.motor_position, s.motor_encoder_resolution).noise);
+  const AngleMeasurement motor = recogniseAngle(d.motor_position, s.motor_encoder_resolution);
+  const BodiesFit f = fitBodies(a, c, rho, known_load, motor.noise, motor.resolution == 0.0);
   out->apart_samples = f.apart_rows;
   out->contact_samples = f.contact_rows;
   out->apart_rms_residual = f.apart_rms;
@@ -155,61 +107,67 @@ void bodiesFromIntegrals(const Recording& d, const IdentificationSettings& s, co
   need(f.apart_rows > 0 || f.contact_rows > 0, "data",
        "no stretch of steady motion in one phase: the recording needs motion with the teeth in contact and the motor "
        "crossing the free play (backlash_identify --experiment designs such an excitation)");
-  const bool motor_alone = f.apart_rows > 0, pair = f.contact_rows > 0, split = motor_alone && pair;
-  const char* const keys[7] = {"motor_inertia", "motor_friction", "motor_coulomb_friction",
-                               "load_inertia",  "load_friction",  "load_coulomb_friction",
-                               "load_torque"};
-  Estimate* fields[7] = {&out->motor_inertia, &out->motor_friction, &out->motor_coulomb_friction,
-                         &out->load_inertia,  &out->load_friction,  &out->load_coulomb_friction,
+  const char* const keys[7] = {"motor_inertia", "motor_friction",       "motor_coulomb_friction", "load_inertia",
+                               "load_friction", "load_coulomb_friction", "load_torque"};
+  Estimate* fields[7] = {&out->motor_inertia, &out->motor_friction,       &out->motor_coulomb_friction,
+                         &out->load_inertia,  &out->load_friction,        &out->load_coulomb_friction,
                          &out->load_torque};
   for (int j = 0; j < 7; ++j)
   {
     *fields[j] = {f.p(j), f.se(j)};
   }
-  out->load_torque_given = pair && !both_ways;
-  if (!split)
-  {
-    const std::string why =
-        motor_alone ? "the teeth were never seen in contact with the joint moving: only the motor alone is measured"
-                    : "the teeth were never seen apart with the motor moving: only the pair's sums are measured "
-                      "(J_m + ρ²J_L = " +
-                          formatNumber(f.p(0)) + " kg·m², f_m + ρ²f_L = " + formatNumber(f.p(1)) +
-                          " N·m·s/rad, T_cm + ρT_cL = " + formatNumber(f.p(2)) + " N·m)";
-    for (int j = motor_alone ? 3 : 0; j < 6; ++j)
+  out->load_torque_given = f.contact_rows > 0 && !both_ways;
+  // How well each is known: an inertia to LOOSEST_INERTIA, a friction level to LOOSEST_LEVEL of itself, not held
+  // at 0 by the constraint; else the reason, in words.
+  const auto loose = [&](int j) -> std::string {
+    const Estimate& x = *fields[j];
+    const bool inertia = j % 3 == 0;
+    const char* unit = inertia ? " kg·m²" : j % 3 == 1 ? " N·m·s/rad" : " N·m";
+    if (f.at_bound[static_cast<std::size_t>(j)])
     {
-      out->not_identifiable[keys[j]] = why;
+      return "the fit holds it at 0 (it came out below): the recording does not tell it from zero";
+    }
+    const double loosest = inertia ? LOOSEST_INERTIA : LOOSEST_LEVEL;
+    if (!(x.standard_error <= loosest * x.value))
+    {
+      return "the recording gives " + formatNumber(x.value) + " ± " + formatNumber(x.standard_error) + unit +
+             ", not within ±" + formatNumber(100.0 * loosest) + " %";
+    }
+    return "";
+  };
+  // The motor alone splits the pair's sums: without it (no stretch apart, or its inertia not resolved) only the sums
+  // are known, and are given in the reason.
+  std::string unsplit;
+  if (f.apart_rows == 0 || f.contact_rows == 0)
+  {
+    unsplit = f.apart_rows == 0 ? "the teeth were never seen apart with the motor moving"
+                                : "the teeth were never seen in contact with the joint moving";
+  }
+  else if (const std::string why = loose(0); !why.empty())
+  {
+    unsplit = "the motor alone is not resolved (its inertia: " + why + ")";
+  }
+  if (!unsplit.empty())
+  {
+    const std::string sums =
+        f.contact_rows > 0 ? "; the pair gives J_m + ρ²J_L = " + formatNumber(f.p(0)) + " kg·m², f_m + ρ²f_L = " +
+                                 formatNumber(f.p(1)) + " N·m·s/rad, T_cm + ρT_cL = " + formatNumber(f.p(2)) + " N·m"
+                           : "";
+    for (int j = f.apart_rows > 0 && f.contact_rows == 0 ? 3 : 0; j < 6; ++j)
+    {
+      out->not_identifiable[keys[j]] = unsplit + (j >= 3 || f.contact_rows == 0 ? sums : "");
       *fields[j] = {NAN, NAN};
     }
   }
-  // An inertia or a Coulomb level known to worse than ±LOOSEST of itself (or held at 0) is reported as not
-  // identified, with what the recording gave: a number with a wide error is not a model. The load's level is found
-  // as the pair's less the motor's, so it goes with the motor's.
-  for (int j : {0, 2, 3, 5})
+  for (int j = 0; j < 6; ++j)
   {
-    const Estimate x = *fields[j];
-    const bool inertia = j % 3 == 0;
-    if (!std::isfinite(x.value) || out->not_identifiable.count(keys[j]))
+    if (out->not_identifiable.count(keys[j]) == 0)
     {
-      continue;
-    }
-    std::string why;
-    if (j >= 3 && out->not_identifiable.count(keys[j - 3]))
-    {
-      why = std::string("the motor's level (") + keys[j - 3] + ") is not identified, and the pair gives only the sum";
-    }
-    else if (x.standard_error > LOOSEST * x.value || f.at_bound[static_cast<std::size_t>(j)])
-    {
-      const std::string what = inertia ? (j == 0 ? "accelerations of the motor alone (the teeth apart)"
-                                                 : "accelerations of the pair (the teeth in contact)")
-                                       : (j == 2 ? "the motor sliding alone both ways (the teeth apart)"
-                                                 : "the pair sliding both ways at more than one speed");
-      why = "the recording gives " + formatNumber(x.value) + " ± " + formatNumber(x.standard_error) +
-            (inertia ? " kg·m²" : " N·m") + ", not within ±10 % (it needs more " + what + ")";
-    }
-    if (!why.empty())
-    {
-      out->not_identifiable[keys[j]] = why;
-      *fields[j] = {NAN, NAN};
+      if (const std::string why = loose(j); !why.empty())
+      {
+        out->not_identifiable[keys[j]] = why;
+        *fields[j] = {NAN, NAN};
+      }
     }
   }
   if (out->load_torque_given)
@@ -312,6 +270,51 @@ std::vector<double> centredMean(const std::vector<double>& x, std::size_t r)
 }
 
 }  // namespace
+
+Flanks locateFlanks(const std::vector<double>& gap, std::size_t edge, double band)
+{
+  if (!(band > 0.0))
+  {
+    const auto [lo, hi] = std::minmax_element(gap.begin(), gap.end());
+    return {*lo, *hi};
+  }
+  const std::size_t skip = std::min(edge, gap.size() / 4);
+  std::vector<double> sorted(gap.begin() + static_cast<long>(skip), gap.end() - static_cast<long>(skip));
+  std::sort(sorted.begin(), sorted.end());
+  const std::size_t enough = std::max<std::size_t>(20, sorted.size() / 1000);
+  const auto median = [&sorted](std::size_t a, std::size_t b) { return sorted[a + (b - a) / 2]; };
+  Flanks out{sorted.front(), sorted.back()};
+  for (std::size_t i = 0; i < sorted.size(); ++i)
+  {
+    const std::size_t j = static_cast<std::size_t>(
+        std::upper_bound(sorted.begin() + static_cast<long>(i), sorted.end(), sorted[i] + 2.0 * band) - sorted.begin());
+    if (j - i >= enough)
+    {
+      out.forward = median(i, j);
+      break;
+    }
+  }
+  for (std::size_t i = sorted.size(); i-- > 0;)
+  {
+    const std::size_t j = static_cast<std::size_t>(
+        std::lower_bound(sorted.begin(), sorted.begin() + static_cast<long>(i) + 1, sorted[i] - 2.0 * band) -
+        sorted.begin());
+    if (i + 1 - j >= enough)
+    {
+      out.backward = median(j, i + 1);
+      break;
+    }
+  }
+  return out;
+}
+
+double replayGain(const ServoParams& p)
+{
+  const double j = p.totalInertia();
+  const double omega = std::clamp(std::max(1.0, 2.0 * p.totalFriction() / j), 10.0 * NATURAL_FREQUENCY_MIN,
+                                  0.1 * NATURAL_FREQUENCY_MAX);
+  return omega * omega * j / p.gear_ratio;
+}
 
 std::size_t minimumRest(const IdentificationSettings& s, double h)
 {
@@ -464,7 +467,7 @@ InitialEstimates estimateInitial(const Recording& d, const IdentificationSetting
   const double band = measured ? s.contact_band : 1e-8 * backlash;
   // Apart means clear of both flanks: a chatter of short flights (a few µrad) between samples is neither phase. On
   // measured angles the band already holds the gap's spread on a flank.
-  const double margin = s.integrated ? 0.5 * band : std::max(1e-3 * backlash, 4.0 * band);
+  const double margin = s.integrated ? band : std::max(1e-3 * backlash, 4.0 * band);
   need(backlash > 2.0 * (band + margin) && backlash > 0.0, "data",
        measured ? "the free play is not resolved by the gap θ_c − ρθ_m: its two flanks lie within the gap's "
                   "measurement band of " +
@@ -717,7 +720,8 @@ Estimate fitRestitution(const Recording& d, const IdentificationSettings& s, con
   // The initial estimates (static friction as the rests gave it, at least the Coulomb level).
   ServoParams base;
   base.gear_ratio = rho;
-  const ServoParams p = withEstimates(base, e.byKey());
+  ServoParams p = withEstimates(base, e.byKey());
+  p.gain = replayGain(p);
   const std::size_t lead = 20, length = static_cast<std::size_t>(std::ceil(window / h));
   const std::vector<std::size_t> starts =
       ReplayWindows::beforeImpacts(d, rho, e.zero_offset, delta, length, lead, static_cast<std::size_t>(windows));

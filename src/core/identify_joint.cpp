@@ -13,14 +13,19 @@ namespace backlash_servo
 {
 namespace
 {
-/// A gain for a joint whose loop is not known: a replay drives it by the recorded torque (the gain acts nowhere), but
-/// the simulator checks the envelope with it — ω_n = max(1 rad/s, 2F/J) keeps ζ ≤ 1/4 inside it.
-double replayGain(const ServoParams& p)
+/// Measured angles: the restitution's largest standard error for it to be reported [-].
+constexpr double LOOSEST_RESTITUTION = 0.05;
+
+/// The estimate of a body's parameter in `e` (motor_inertia … load_torque).
+Estimate* bodyField(InitialEstimates* e, const std::string& key)
 {
-  const double j = p.totalInertia();
-  const double omega =
-      std::clamp(std::max(1.0, 2.0 * p.totalFriction() / j), 10.0 * NATURAL_FREQUENCY_MIN, 0.1 * NATURAL_FREQUENCY_MAX);
-  return omega * omega * j / p.gear_ratio;
+  return key == "motor_inertia"            ? &e->motor_inertia
+         : key == "load_inertia"           ? &e->load_inertia
+         : key == "motor_friction"         ? &e->motor_friction
+         : key == "load_friction"          ? &e->load_friction
+         : key == "motor_coulomb_friction" ? &e->motor_coulomb_friction
+         : key == "load_coulomb_friction"  ? &e->load_coulomb_friction
+                                           : &e->load_torque;
 }
 
 /// Why the recording does not inform `key` (empty: it does).
@@ -118,13 +123,39 @@ JointIdentification identifyJoint(const Recording& data, const IdentificationSet
   const InitialEstimates& e = out.initial =
       prior.compliant() ? estimateCompliantInitial(data, s) : estimateInitial(data, s);
   std::map<std::string, Estimate> initial = e.byKey();
+  // The bodies as the replays need them: estimated, or stated in the prior; a body's parameter that is neither leaves
+  // nothing to replay (no restitution, no joint fit).
+  InitialEstimates bodies = e;
+  std::string unknown_bodies;
+  for (const char* key : {"motor_inertia", "load_inertia", "motor_friction", "load_friction", "motor_coulomb_friction",
+                          "load_coulomb_friction", "load_torque"})
+  {
+    const bool stated = !options.stated || options.stated->count(key) != 0;
+    Estimate& x = *bodyField(&bodies, key);
+    if (std::isfinite(x.value) && e.not_identifiable.count(key) == 0)
+    {
+      continue;
+    }
+    if (stated)
+    {
+      x = {prior.*std::get<double ServoParams::*>(findParam(key)->field), NAN};
+      continue;
+    }
+    unknown_bodies += (unknown_bodies.empty() ? "" : ", ") + std::string(key);
+  }
   // The restitution of rigid teeth: the simulator replayed over windows around impacts (none: not estimated, the
   // prior's kept).
-  if (keys.count("restitution"))
+  if (keys.count("restitution") && !unknown_bodies.empty())
+  {
+    out.restitution_note = "the replays around the impacts need the bodies' parameters, and " + unknown_bodies +
+                           (unknown_bodies.find(',') == std::string::npos ? " is" : " are") +
+                           " not identified (nor given in the prior)";
+  }
+  else if (keys.count("restitution"))
   {
     try
     {
-      initial["restitution"] = fitRestitution(data, s, e);
+      initial["restitution"] = fitRestitution(data, s, bodies);
     }
     catch (const InvalidParameterError& none)
     {
@@ -198,7 +229,7 @@ JointIdentification identifyJoint(const Recording& data, const IdentificationSet
                            (settings.keys.empty() ? "" : " — the joint fit (the simulator) was not run on it"));
     inside = false;
   }
-  out.joint_fit = inside && !settings.keys.empty();
+  out.joint_fit = inside && unknown_bodies.empty() && !settings.keys.empty();
   if (out.joint_fit)
   {
     out.fit = fitJoint(data, s, e.zero_offset, start, settings);
@@ -211,6 +242,18 @@ JointIdentification identifyJoint(const Recording& data, const IdentificationSet
       fitted[i]->informed = f.informed;
       fitted[i]->largest_correlation = f.largest_correlation;
       fitted[i]->most_correlated_with = f.most_correlated_with;
+    }
+  }
+  // Measured angles: a restitution the replays pin down no better than ±LOOSEST_RESTITUTION is not a model.
+  for (IdentifiedParameter& p : out.parameters)
+  {
+    if (p.key == "restitution" && s.integrated && !(p.value.standard_error <= LOOSEST_RESTITUTION))
+    {
+      p.identifiable = false;
+      p.reason = "the replays around the impacts give " + formatNumber(p.value.value) + " ± " +
+                 formatNumber(p.value.standard_error) + ", not within ±" + formatNumber(LOOSEST_RESTITUTION);
+      const bool stated = !options.stated || options.stated->count(p.key) != 0;
+      p.value = {stated ? prior.restitution : NAN, NAN};
     }
   }
   // Every key asked for, in the table's order: the unknown ones beside the estimated.

@@ -12,8 +12,9 @@ namespace
 constexpr double TWO_PI = 6.283185307179586;
 /// Third differences alternating at least this much (white noise: −3/4, smooth motion: near +1) are noise.
 constexpr double NOISE_CORRELATION = -0.3;
-/// The smoothing [samples] of measured angles.
+/// The smoothing [samples] of measured angles: the least and the widest tried.
 constexpr int CLASSIFYING_SMOOTHING = 2;
+constexpr int WIDEST_CLASSIFYING = 32;
 
 double median(std::vector<double> v)
 {
@@ -108,16 +109,37 @@ MeasuredAngles recogniseMeasurement(const Recording& data, const IdentificationS
   out.from_data = true;
   samplePeriod(data, s);  // (checks the recording)
   const double rho = s.gear_ratio;
-  // The filter classifies the phases and signs the velocity (the equations are integrated, not differentiated):
-  // r = 2 brings the moving gap's noise 4σ_g√(2/(3(2r + 1))) below a still count's half-width √3σ_g.
-  if (s.smoothing == 0)
+  // The band: half a count of each angle on a grid (a body at rest reads one count), four standard deviations of
+  // the filtered noise of the others.
+  const auto count = [](const AngleMeasurement& a) { return a.resolution > 0.0 ? TWO_PI / a.resolution : 0.0; };
+  const auto noise = [](const AngleMeasurement& a) { return a.resolution > 0.0 ? 0.0 : a.noise; };
+  const double half_count = 0.5 * (count(out.load) + rho * count(out.motor));
+  const double sigma = std::hypot(noise(out.load), rho * noise(out.motor));
+  const auto bandFor = [&](int r) { return half_count + 4.0 * sigma * std::sqrt(2.0 / (3.0 * (2.0 * r + 1.0))); };
+  // The filter classifies the phases and signs the velocity (the equations are integrated, not differentiated): the
+  // least of 2, 4, … 32 samples whose band resolves the flanks (four bands apart), so that short flights survive.
+  if (s.smoothing > 0)
   {
-    out.smoothing = CLASSIFYING_SMOOTHING;
+    out.contact_band = bandFor(s.smoothing);
+    return out;
   }
-  // The band: a count's half-width still, four filtered standard deviations moving.
-  const double sigma_g = std::hypot(out.load.noise, rho * out.motor.noise);
-  const double filtered = sigma_g * std::sqrt(2.0 / (3.0 * (2.0 * out.smoothing + 1.0)));
-  out.contact_band = std::sqrt(3.0) * sigma_g + 4.0 * filtered;
+  for (int r = CLASSIFYING_SMOOTHING; r <= WIDEST_CLASSIFYING; r *= 2)
+  {
+    out.smoothing = r;
+    out.contact_band = bandFor(r);
+    const std::vector<double> load = smoothedSignal(data.load_position, r),
+                              motor = smoothedSignal(data.motor_position, r);
+    std::vector<double> gap(load.size());
+    for (std::size_t k = 0; k < gap.size(); ++k)
+    {
+      gap[k] = load[k] - rho * motor[k];
+    }
+    const Flanks flanks = locateFlanks(gap, static_cast<std::size_t>(2 * r + 2), out.contact_band);
+    if (flanks.backward - flanks.forward > 4.0 * out.contact_band)
+    {
+      break;
+    }
+  }
   return out;
 }
 

@@ -126,7 +126,8 @@ PhaseRows integratedRows(const Recording& d, const std::vector<double>& sign, co
   return out;
 }
 
-BodiesFit fitBodies(const PhaseRows& apart, const PhaseRows& contact, double rho, double known_load, double noise)
+BodiesFit fitBodies(const PhaseRows& apart, const PhaseRows& contact, double rho, double known_load, double noise,
+                    bool white)
 {
   constexpr std::size_t FEWEST_ROWS = 20;
   const bool motor_alone = static_cast<std::size_t>(apart.x.rows()) >= FEWEST_ROWS;
@@ -291,10 +292,15 @@ BodiesFit fitBodies(const PhaseRows& apart, const PhaseRows& contact, double rho
   }
   const double g = static_cast<double>(clusters);
   const Eigen::MatrixXd cov = bread * meat * bread * (g > 1.0 ? g / (g - 1.0) : 1.0);
+  // A count's error is white only while the angle crosses counts quickly: on a grid, the correction's own size is
+  // counted as uncertain.
+  const Eigen::VectorXd uncorrected =
+      white ? p : correctedSolve(x, y, Eigen::MatrixXd::Zero(7, 7), free, nullptr);
   for (std::size_t i = 0; i < free.size(); ++i)
   {
-    out.p(free[i]) = p(static_cast<Eigen::Index>(i));
-    out.se(free[i]) = std::sqrt(cov(static_cast<Eigen::Index>(i), static_cast<Eigen::Index>(i)));
+    const Eigen::Index j = static_cast<Eigen::Index>(i);
+    out.p(free[i]) = p(j);
+    out.se(free[i]) = std::hypot(std::sqrt(cov(j, j)), p(j) - uncorrected(j));
   }
   if (std::isfinite(known_load) && pair)
   {

@@ -51,7 +51,9 @@ struct BodiesFit
 };
 
 /// `known_load` (NaN: estimated) holds T_ext; a phase without rows leaves its parameters out (NaN). `noise` [rad]:
-/// the motor angle's white-noise level (measured_angles.h), whose share of XᵀX is subtracted.
-BodiesFit fitBodies(const PhaseRows& apart, const PhaseRows& contact, double rho, double known_load, double noise);
+/// the motor angle's noise level (measured_angles.h), whose share of XᵀX is subtracted; not `white` (the counts of
+/// a grid, correlated while the angle creeps) the correction's size joins each standard error.
+BodiesFit fitBodies(const PhaseRows& apart, const PhaseRows& contact, double rho, double known_load, double noise,
+                    bool white);
 
 }  // namespace backlash_servo

@@ -3,11 +3,44 @@
 #include <algorithm>
 #include <cmath>
 #include <string>
+#include <tuple>
+#include <utility>
 
 #include "backlash_servo/simulator.h"
 
 namespace backlash_servo
 {
+namespace
+{
+/// Measured angles: the samples on each side of an anchor its parabola is fitted over.
+constexpr std::size_t ANCHOR_REACH = 8;
+
+/// The value and slope at sample k of the least-squares parabola through x over [k − m, k + m] (period h [s]).
+std::pair<double, double> localParabola(const std::vector<double>& x, std::size_t k, std::size_t m, double h)
+{
+  if (m == 0 || k + m >= x.size())
+  {
+    return {x[k], 0.0};
+  }
+  // Centred, τ = (i − k): the parabola's odd part gives the slope, its even part the value.
+  double s2 = 0.0, s4 = 0.0, y0 = 0.0, y1 = 0.0, y2 = 0.0;
+  const double count = static_cast<double>(2 * m + 1);
+  for (std::size_t i = k - m; i <= k + m; ++i)
+  {
+    const double tau = static_cast<double>(i) - static_cast<double>(k);
+    s2 += tau * tau;
+    s4 += tau * tau * tau * tau;
+    y0 += x[i];
+    y1 += tau * x[i];
+    y2 += tau * tau * x[i];
+  }
+  const double c = (count * y2 - s2 * y0) / (count * s4 - s2 * s2);  // curvature term
+  const double a = (y0 - c * s2) / count;
+  return {a, y1 / s2 / h};
+}
+
+}  // namespace
+
 ReplayWindows::ReplayWindows(const Recording& data, const IdentificationSettings& settings, double zero_offset,
                              std::vector<std::size_t> starts, std::size_t length)
     : data_(data),
@@ -43,6 +76,14 @@ ReplayWindows::ReplayWindows(const Recording& data, const IdentificationSettings
     a.load_position = data.load_position[k0];
     a.motor_velocity = (data.motor_position[k0 + 1] - data.motor_position[k0 - 1]) / (2.0 * h);
     a.load_velocity = (data.load_position[k0 + 1] - data.load_position[k0 - 1]) / (2.0 * h);
+    if (settings.integrated)
+    {
+      // Measured angles: each angle and its speed from a parabola fitted over the samples around the anchor (the
+      // raw angle's noise would set the replay off by as much).
+      const std::size_t reach = std::min<std::size_t>(ANCHOR_REACH, k0);
+      std::tie(a.motor_position, a.motor_velocity) = localParabola(data.motor_position, k0, reach, h);
+      std::tie(a.load_position, a.load_velocity) = localParabola(data.load_position, k0, reach, h);
+    }
     a.gap = a.load_position - rho_ * a.motor_position - zero_offset_;
     // A body at rest over the anchor's stencil starts at rest, uncorrected: with static friction above the Coulomb
     // level a body at rest and one creeping at 1e-12 rad/s part ways (the one sticks, the other slides on).
