@@ -107,10 +107,11 @@ void bodiesFromIntegrals(const Recording& d, const IdentificationSettings& s, co
   need(f.apart_rows > 0 || f.contact_rows > 0, "data",
        "no stretch of steady motion in one phase: the recording needs motion with the teeth in contact and the motor "
        "crossing the free play (backlash_identify --experiment designs such an excitation)");
-  const char* const keys[7] = {"motor_inertia", "motor_friction",       "motor_coulomb_friction", "load_inertia",
-                               "load_friction", "load_coulomb_friction", "load_torque"};
-  Estimate* fields[7] = {&out->motor_inertia, &out->motor_friction,       &out->motor_coulomb_friction,
-                         &out->load_inertia,  &out->load_friction,        &out->load_coulomb_friction,
+  const char* const keys[7] = {"motor_inertia", "motor_friction", "motor_coulomb_friction",
+                               "load_inertia",  "load_friction",  "load_coulomb_friction",
+                               "load_torque"};
+  Estimate* fields[7] = {&out->motor_inertia, &out->motor_friction, &out->motor_coulomb_friction,
+                         &out->load_inertia,  &out->load_friction,  &out->load_coulomb_friction,
                          &out->load_torque};
   for (int j = 0; j < 7; ++j)
   {
@@ -149,10 +150,10 @@ void bodiesFromIntegrals(const Recording& d, const IdentificationSettings& s, co
   }
   if (!unsplit.empty())
   {
-    const std::string sums =
-        f.contact_rows > 0 ? "; the pair gives J_m + ρ²J_L = " + formatNumber(f.p(0)) + " kg·m², f_m + ρ²f_L = " +
-                                 formatNumber(f.p(1)) + " N·m·s/rad, T_cm + ρT_cL = " + formatNumber(f.p(2)) + " N·m"
-                           : "";
+    const std::string sums = f.contact_rows > 0 ? "; the pair gives J_m + ρ²J_L = " + formatNumber(f.p(0)) +
+                                                      " kg·m², f_m + ρ²f_L = " + formatNumber(f.p(1)) +
+                                                      " N·m·s/rad, T_cm + ρT_cL = " + formatNumber(f.p(2)) + " N·m"
+                                                : "";
     for (int j = f.apart_rows > 0 && f.contact_rows == 0 ? 3 : 0; j < 6; ++j)
     {
       out->not_identifiable[keys[j]] = unsplit + (j >= 3 || f.contact_rows == 0 ? sums : "");
@@ -165,8 +166,8 @@ void bodiesFromIntegrals(const Recording& d, const IdentificationSettings& s, co
     {
       if (const std::string why = loose(j); !why.empty())
       {
+        // (a loose value stays in the estimates, for the replays; it is reported as not identified)
         out->not_identifiable[keys[j]] = why;
-        *fields[j] = {NAN, NAN};
       }
     }
   }
@@ -311,8 +312,8 @@ Flanks locateFlanks(const std::vector<double>& gap, std::size_t edge, double ban
 double replayGain(const ServoParams& p)
 {
   const double j = p.totalInertia();
-  const double omega = std::clamp(std::max(1.0, 2.0 * p.totalFriction() / j), 10.0 * NATURAL_FREQUENCY_MIN,
-                                  0.1 * NATURAL_FREQUENCY_MAX);
+  const double omega =
+      std::clamp(std::max(1.0, 2.0 * p.totalFriction() / j), 10.0 * NATURAL_FREQUENCY_MIN, 0.1 * NATURAL_FREQUENCY_MAX);
   return omega * omega * j / p.gear_ratio;
 }
 

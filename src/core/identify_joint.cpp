@@ -230,9 +230,26 @@ JointIdentification identifyJoint(const Recording& data, const IdentificationSet
     inside = false;
   }
   out.joint_fit = inside && unknown_bodies.empty() && !settings.keys.empty();
-  if (out.joint_fit)
+  if (out.joint_fit && s.integrated)
+  {
+    // Measured angles: a joint fit the simulator refuses (the model outside its envelope) leaves the estimates as
+    // they are, with the reason.
+    try
+    {
+      out.fit = fitJoint(data, s, e.zero_offset, start, settings);
+    }
+    catch (const InvalidParameterError& refused)
+    {
+      out.warnings.push_back(std::string("the joint fit did not run: ") + refused.what());
+      out.joint_fit = false;
+    }
+  }
+  else if (out.joint_fit)
   {
     out.fit = fitJoint(data, s, e.zero_offset, start, settings);
+  }
+  if (out.joint_fit)
+  {
     out.model = out.fit.params;
     for (std::size_t i = 0; i < fitted.size(); ++i)
     {

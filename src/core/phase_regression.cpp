@@ -294,8 +294,7 @@ BodiesFit fitBodies(const PhaseRows& apart, const PhaseRows& contact, double rho
   const Eigen::MatrixXd cov = bread * meat * bread * (g > 1.0 ? g / (g - 1.0) : 1.0);
   // A count's error is white only while the angle crosses counts quickly: on a grid, the correction's own size is
   // counted as uncertain.
-  const Eigen::VectorXd uncorrected =
-      white ? p : correctedSolve(x, y, Eigen::MatrixXd::Zero(7, 7), free, nullptr);
+  const Eigen::VectorXd uncorrected = white ? p : correctedSolve(x, y, Eigen::MatrixXd::Zero(7, 7), free, nullptr);
   for (std::size_t i = 0; i < free.size(); ++i)
   {
     const Eigen::Index j = static_cast<Eigen::Index>(i);
