@@ -120,7 +120,9 @@ MeasuredAngles recogniseMeasurement(const Recording& data, const IdentificationS
   // least of 2, 4, … 32 samples whose band resolves the flanks (four bands apart), so that short flights survive.
   if (s.smoothing > 0)
   {
-    out.contact_band = bandFor(s.smoothing);
+    // The filtered derivatives (a smoothing given): samples in contact within two counts of the gap, so that a
+    // creeping body's count steps stay inside.
+    out.contact_band = 3.0 * half_count + bandFor(s.smoothing);
     return out;
   }
   for (int r = CLASSIFYING_SMOOTHING; r <= WIDEST_CLASSIFYING; r *= 2)

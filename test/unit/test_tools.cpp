@@ -1742,8 +1742,8 @@ TEST(IdentifyTool, EncoderCountsFromThePriorSetTheContactBand)
   EXPECT_EQ(jsonNumber(seen, "motor_encoder_resolution"), 65536.0) << json;
   EXPECT_EQ(jsonNumber(seen, "load_encoder_resolution"), 65536.0) << json;
   EXPECT_EQ(jsonNumber(seen, "smoothing"), 20.0) << json;
-  // Half a count of each angle (ρ = 1): a body at rest reads one count.
-  EXPECT_NEAR(jsonNumber(seen, "contact_band"), count, 1e-12) << json;
+  // Two counts of the gap (ρ = 1: a count of each angle, twice): a creeping body's count steps stay inside.
+  EXPECT_NEAR(jsonNumber(seen, "contact_band"), 4.0 * count, 1e-12) << json;
   EXPECT_NEAR(jsonNumber(json.substr(json.find("\"backlash\":{")), "value"), 0.3, 2.0 * count) << json;
   const std::string exact =
       runCapture(IDENTIFY + " --data " + dir + "exact.csv --config " + dir + "prior.yaml --json 2>&1", &code);
