@@ -150,9 +150,12 @@ void bodiesFromIntegrals(const Recording& d, const IdentificationSettings& s, co
   }
   if (!unsplit.empty())
   {
-    const std::string sums = f.contact_rows > 0 ? "; the pair gives J_m + ρ²J_L = " + formatNumber(f.p(0)) +
-                                                      " kg·m², f_m + ρ²f_L = " + formatNumber(f.p(1)) +
-                                                      " N·m·s/rad, T_cm + ρT_cL = " + formatNumber(f.p(2)) + " N·m"
+    // (with both phases the pair's sums from the split; without stretches apart the motor's columns carry them)
+    const bool both = f.apart_rows > 0;
+    const auto sum = [&](int j, double factor) { return f.p(j) + (both ? factor * f.p(j + 3) : 0.0); };
+    const std::string sums = f.contact_rows > 0 ? "; the pair gives J_m + ρ²J_L = " + formatNumber(sum(0, rho * rho)) +
+                                                      " kg·m², f_m + ρ²f_L = " + formatNumber(sum(1, rho * rho)) +
+                                                      " N·m·s/rad, T_cm + ρT_cL = " + formatNumber(sum(2, rho)) + " N·m"
                                                 : "";
     for (int j = f.apart_rows > 0 && f.contact_rows == 0 ? 3 : 0; j < 6; ++j)
     {
@@ -470,9 +473,11 @@ InitialEstimates estimateInitial(const Recording& d, const IdentificationSetting
   // measured angles the band already holds the gap's spread on a flank.
   const double margin = s.integrated ? band : std::max(1e-3 * backlash, 4.0 * band);
   need(backlash > 2.0 * (band + margin) && backlash > 0.0, "data",
-       measured ? "the free play is not resolved by the gap θ_c − ρθ_m: its two flanks lie within the gap's "
-                  "measurement band of " +
-                      formatNumber(band) + " rad of each other (finer encoders, or a prior with the backlash)"
+       measured ? "the free play is not resolved by the gap θ_c − ρθ_m: its two flanks are not several times the "
+                  "gap's measurement band (" +
+                      formatNumber(band) +
+                      " rad, from the encoders' counts and noise) apart; nothing is estimated without the "
+                      "phases — finer or less noisy encoders are needed"
                 : "the gap θ_c − ρθ_m never spans the backlash: the recording needs reversals that carry the motor "
                   "across the free play to both flanks");
   // Derivatives, and each sample's phase (0 apart, +1 forward flank, −1 backward flank, 2 mixed).

@@ -499,12 +499,33 @@ py::dict identify(const std::vector<double>& time, const std::vector<double>& mo
     result = identifyJoint(r, s, prior.params, options);
   }
   py::dict d;
+  py::dict reasons;
   for (const IdentifiedParameter& p : result.parameters)
   {
     d[p.key.c_str()] = p.value.value;
     d[(p.key + "_standard_error").c_str()] = p.value.standard_error;
     d[(p.key + "_initial").c_str()] = p.initial.value;
+    if (!p.identifiable)
+    {
+      reasons[p.key.c_str()] = p.reason;
+    }
   }
+  d["not_identifiable"] = reasons;
+  const MeasuredAngles& m = result.measurement;
+  py::dict measurement;
+  measurement["motor_encoder_resolution"] = m.motor.resolution;
+  measurement["motor_noise"] = m.motor.noise;
+  measurement["load_encoder_resolution"] = m.load.resolution;
+  measurement["load_noise"] = m.load.noise;
+  measurement["smoothing"] = m.smoothing;
+  measurement["contact_band"] = m.contact_band;
+  d["measurement"] = measurement;
+  py::list warnings;
+  for (const std::string& w : result.warnings)
+  {
+    warnings.append(w);
+  }
+  d["warnings"] = warnings;
   d["zero_offset"] = result.initial.zero_offset;
   d["load_torque_given"] = result.initial.load_torque_given;
   d["contact_samples"] = result.initial.contact_samples;

@@ -474,6 +474,25 @@ def test_identify_recovers_a_joint_from_its_recording():
         core.identify(t, u, m, l)
 
 
+def test_identify_measured_angles_from_a_prior_of_what_is_known():
+    # The recording read through 2^16-count encoders; the prior states only the gear ratio and the resolutions (no
+    # drive, no inertias): accepted, the count grids recognised, each estimate a number or a reason.
+    t, u, m, l = record_joint({"restitution": 0.5, "load_coulomb_friction": 0.1, "load_torque": 0.2}, 30001)
+    q = 2.0 * math.pi / 65536
+    mq, lq = (np.round(np.asarray(x) / q) * q for x in (m, l))
+    prior = {"gear_ratio": 1.0, "motor_encoder_resolution": 65536, "load_encoder_resolution": 65536}
+    e = core.identify(t, u, mq, lq, prior=prior)
+    assert e["measurement"]["motor_encoder_resolution"] == 65536
+    assert e["measurement"]["load_encoder_resolution"] == 65536
+    assert e["measurement"]["contact_band"] > 0.0
+    assert e["backlash"] == pytest.approx(0.3, rel=0.05)
+    for key in ("motor_inertia", "load_inertia", "motor_coulomb_friction", "load_coulomb_friction", "restitution"):
+        assert math.isfinite(e[key]) or e["not_identifiable"][key], key
+    exact = core.identify(t, u, m, l, gear_ratio=1.0, joint_fit="off")
+    assert exact["measurement"]["motor_noise"] == 0.0
+    assert set(exact["not_identifiable"]) <= {"motor_static_friction", "load_static_friction"}  # (no rests here)
+
+
 def test_identify_a_compliant_mesh_when_the_prior_says_so():
     # A prior with mesh_stiffness > 0 selects the compliant joint: its stiffness and damping are estimated (from a
     # guess 5x off), the restitution is not.

@@ -3,6 +3,8 @@
 
 #include "test_helpers.h"
 
+#include "backlash_servo/config/run_config_loader.h"
+
 #include <sys/stat.h>
 #include <sys/wait.h>
 #include <algorithm>
@@ -11,6 +13,7 @@
 #include <cstdlib>
 #include <fstream>
 #include <regex>
+#include <set>
 #include <sstream>
 #include <string>
 
@@ -321,3 +324,49 @@ TEST(Cli, AProfileCsvsFirstRowIsDataUnlessItIsANameHeader)
   }
 }
 }  // namespace
+
+TEST(Cli, AnIdentificationPriorIsWhatTheUserKnows)
+{
+  using namespace backlash_servo;
+  // Only the gear ratio is required; the encoders' resolutions need no drive; keys not given are unknown — the
+  // table's default inertias (whose split with ρ = 0.01 lies outside the validated envelope) are not checked.
+  KeyValues robot;
+  robot.setNumber("gear_ratio", 0.01);
+  robot.setNumber("motor_encoder_resolution", 65536);
+  robot.setNumber("load_encoder_resolution", 4096);
+  const IdentificationPrior prior = identificationPriorFrom(robot);
+  EXPECT_EQ(prior.stated, std::set<std::string>{"gear_ratio"});
+  EXPECT_EQ(prior.motor_encoder_resolution, 65536.0);
+  EXPECT_EQ(prior.load_encoder_resolution, 4096.0);
+  EXPECT_THROW(runConfigFrom(robot), InvalidParameterError);  // (as a joint to simulate it is refused)
+  // A Coulomb level given without its static level: the static level at least the Coulomb one.
+  KeyValues dry = robot;
+  dry.setNumber("motor_coulomb_friction", 0.1);
+  EXPECT_EQ(identificationPriorFrom(dry).params.motor_static_friction, 0.1);
+  // Refused, naming what is wrong: no gear ratio, the chart form, a key outside its range.
+  KeyValues none;
+  none.setNumber("motor_encoder_resolution", 4096);
+  try
+  {
+    identificationPriorFrom(none);
+    ADD_FAILURE() << "a prior without the gear ratio was accepted";
+  }
+  catch (const ConfigError& e)
+  {
+    EXPECT_NE(std::string(e.what()).find("gear ratio"), std::string::npos) << e.what();
+  }
+  KeyValues chart = robot;
+  chart.setNumber("zeta", 0.5);
+  EXPECT_THROW(identificationPriorFrom(chart), ConfigError);
+  KeyValues negative = robot;
+  negative.setNumber("load_inertia", -1.0);
+  try
+  {
+    identificationPriorFrom(negative);
+    ADD_FAILURE() << "a negative inertia was accepted";
+  }
+  catch (const InvalidParameterError& e)
+  {
+    EXPECT_EQ(e.field(), "load_inertia");
+  }
+}
