@@ -40,9 +40,10 @@ const char* HEADER =
        backlash_identify --experiment --config PRIOR.yaml [--duration S] [--travel RAD] [--dither RAD[,HZ]]
                          --output PROFILE.yaml
 Estimates the joint's backlash, inertias, viscous, Coulomb and static friction, load torque and restitution from a
-recording of its own motion. First from the data alone: the backlash from the gap theta_c - rho*theta_m, the rest
-by linear least squares on the phases where the teeth are in contact and where they are apart, the restitution by
-replaying windows around impacts, the static friction from the rests. A prior with mesh_stiffness > 0 says the
+recording of its own motion. The angles' count grids and noise are recognised from the data. First from the data
+alone: the backlash from the gap theta_c - rho*theta_m, the rest by linear least squares on the phases where the teeth
+are in contact and where they are apart (on measured angles the equations integrated over each stretch), the
+restitution by replaying windows around impacts, the static friction from the rests. A prior with mesh_stiffness > 0 says the
 mesh is compliant: its stiffness and damping are estimated instead of the restitution (the bodies from the torque
 balance of the whole joint, the mesh from the torque it passes to the load). Then together (the joint fit): the exact
 simulator replays windows of the recording, each restarted from the measured state, and a least-squares search
@@ -50,7 +51,9 @@ simulator replays windows of the recording, each restarted from the measured sta
 another. FILE.csv has the header time,motor_torque,motor_position,load_position (SI: s, N*m, rad on each body's
 own shaft; other columns are ignored; rows with an `event` are skipped, so backlash_sim's --csv is a recording),
 uniform time steps; the motor torque is the one applied from each sample to the next. FILE.bag is converted by
-backlash_bag_report --recording. The gear ratio must be known (a flag or the prior YAML).
+backlash_bag_report --recording. The prior is what is known: the gear ratio is required (a flag or the prior YAML),
+anything else optional (the encoders' resolutions need no drive); a parameter the recording does not inform is
+reported not identifiable, with the reason.
 --output writes the prior with the estimates in place: a YAML every tool and the node accept.
 --experiment writes instead a command profile that informs the estimates (sines at three speeds, each reversal
 across the backlash), designed from the prior's gain, inertias and backlash, for the node or backlash_sim to run.
@@ -90,12 +93,12 @@ Options parse(int argc, char** argv)
        {"motor_joint", "NAME", "the motor's name in a bag's joint states (default motor_joint)"},
        {"load_joint", "NAME", "the load's name in a bag's joint states (default load_joint)"},
        {"contact_band", "RAD",
-        "a sample is in contact when its gap is this close to a flank [rad] (default: two counts of the gap when the "
-        "angles lie on the count grid of the prior's encoder resolutions, else 1e-8 of the backlash, for exact data; "
-        "give the gap's quantisation and noise for measured data)"},
+        "a sample is in contact when its gap is this close to a flank [rad] (default: from the angles' count grids "
+        "and noise, recognised in the data; 1e-8 of the backlash for exact angles)"},
        {"smoothing", "R",
-        "for quantised or noisy angles: every term filtered by the centred mean over 2R+1 samples, twice (default 0: "
-        "none)"},
+        "measured angles the older way: every term filtered by the centred mean over 2R+1 samples, twice, and "
+        "differentiated (default: the equations integrated, no smoothing of them; the phases read through a filter "
+        "chosen from the data)"},
        {"still_speed", "W",
         "samples where the motor turns slower than this [rad/s] are left out (default 1e-6 of its fastest)"},
        {"json", "", "one JSON object on stdout"},
@@ -569,7 +572,11 @@ int main(int argc, char** argv)
       }
       for (const char* stat : {"motor_static_friction", "load_static_friction"})
       {
-        if (valueOf(stat) != model.number(stat, 0.0))  // (absent: the table's default, 0)
+        const bool unknown = std::any_of(rows.begin(), rows.end(), [stat](const IdentifiedParameter& r) {
+          return r.key == stat && !r.identifiable;
+        });
+        // (absent: the table's default, 0; a level not identified is left to the tools' default, the Coulomb level)
+        if (!unknown && valueOf(stat) != model.number(stat, 0.0))
         {
           model.setNumber(stat, valueOf(stat));
         }
