@@ -77,6 +77,8 @@ struct InitialEstimates
   Estimate mesh_stiffness{NAN, NAN};
   Estimate mesh_damping{NAN, NAN};
   bool load_torque_given = false;  ///< contact motion one way only: the load torque was the settings' (not estimated)
+  /// Measured angles: the phases were read at the load's count edges (the gap did not resolve the free play).
+  bool phases_from_edges = false;
   /// Keys the recording does not inform, with the reason (their estimates NaN).
   std::map<std::string, std::string> not_identifiable;
   std::size_t contact_samples = 0, apart_samples = 0;

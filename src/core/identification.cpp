@@ -22,6 +22,8 @@ constexpr int STENCIL = 2;
 /// Measured angles: an inertia or a Coulomb level with a standard error above this fraction of itself is not
 /// identified (at two standard errors an inertia within 5 %, a Coulomb level within 10 %).
 constexpr double LOOSEST_INERTIA = 0.025;
+/// Measured angles: the fewest pieces of a phase whose cluster-robust standard errors are trusted.
+constexpr std::size_t FEWEST_PIECES = 20;
 constexpr double LOOSEST_LEVEL = 0.05;
 
 void need(bool ok, const std::string& key, const std::string& what)
@@ -144,6 +146,11 @@ void bodiesFromIntegrals(const Recording& d, const IdentificationSettings& s, co
     unsplit = f.apart_rows == 0 ? "the teeth were never seen apart with the motor moving"
                                 : "the teeth were never seen in contact with the joint moving";
   }
+  else if (f.apart_pieces < FEWEST_PIECES)
+  {
+    unsplit = "the motor alone is seen in " + std::to_string(f.apart_pieces) + " stretches apart only (at least " +
+              std::to_string(FEWEST_PIECES) + " make its standard errors trustworthy)";
+  }
   else if (const std::string why = loose(0); !why.empty())
   {
     unsplit = "the motor alone is not resolved (its inertia: " + why + ")";
@@ -152,10 +159,15 @@ void bodiesFromIntegrals(const Recording& d, const IdentificationSettings& s, co
   {
     // (with both phases the pair's sums from the split; without stretches apart the motor's columns carry them)
     const bool both = f.apart_rows > 0;
-    const auto sum = [&](int j, double factor) { return f.p(j) + (both ? factor * f.p(j + 3) : 0.0); };
-    const std::string sums = f.contact_rows > 0 ? "; the pair gives J_m + ρ²J_L = " + formatNumber(sum(0, rho * rho)) +
-                                                      " kg·m², f_m + ρ²f_L = " + formatNumber(sum(1, rho * rho)) +
-                                                      " N·m·s/rad, T_cm + ρT_cL = " + formatNumber(sum(2, rho)) + " N·m"
+    // (each with its standard error; with both phases the two parts' errors combined as if independent)
+    const auto sum = [&](int j, double factor, const char* unit) {
+      const double value = f.p(j) + (both ? factor * f.p(j + 3) : 0.0);
+      const double error = both ? std::hypot(f.se(j), factor * f.se(j + 3)) : f.se(j);
+      return formatNumber(value) + " ± " + formatNumber(error) + unit;
+    };
+    const std::string sums = f.contact_rows > 0 ? "; the pair gives J_m + ρ²J_L = " + sum(0, rho * rho, " kg·m²") +
+                                                      ", f_m + ρ²f_L = " + sum(1, rho * rho, " N·m·s/rad") +
+                                                      ", T_cm + ρT_cL = " + sum(2, rho, " N·m")
                                                 : "";
     for (int j = f.apart_rows > 0 && f.contact_rows == 0 ? 3 : 0; j < 6; ++j)
     {
@@ -252,6 +264,120 @@ double flankError(const std::vector<double>& forward, const std::vector<double>&
     }
   }
   return std::sqrt(variance);
+}
+
+/// The phases read at the load's count edges (edgePhases).
+struct EdgePhases
+{
+  bool resolved = false;                 ///< the edges' gaps fall in two clusters a backlash apart
+  double forward = 0.0, backward = 0.0;  ///< the clusters [rad]
+  Estimate backlash;                     ///< [rad]
+  std::vector<int> phase;                ///< +1 / −1 on a flank between two edges there, else 2 (unknown)
+};
+
+/**
+ * A load angle on a coarse count grid and a fine motor angle: at each change of the load's count (an edge, between
+ * samples k − 1 and k) the load is on the boundary between the two counts, so the gap there is the boundary less ρ
+ * times the motor's angle at the interval's middle — known to the motor's resolution and its motion over half a
+ * sample, however coarse the load's counts (the encoder's rounding convention shifts every edge alike). In contact
+ * these gaps crowd at the two flanks; the backlash is the distance between their modes. Between two consecutive edges
+ * on one flank, the motor moving one way all along, the teeth are taken to be in contact there. (Flights are not
+ * resolved this way: no sample is apart.)
+ */
+EdgePhases edgePhases(const Recording& d, const IdentificationSettings& s, const std::vector<double>& velocity,
+                      double still)
+{
+  EdgePhases out;
+  const std::size_t n = d.time.size();
+  const AngleMeasurement load = recogniseAngle(d.load_position, s.load_encoder_resolution);
+  if (!(load.resolution > 0.0))
+  {
+    return out;  // (noisy load angles have no clean edges)
+  }
+  const double q = 6.283185307179586 / load.resolution, rho = s.gear_ratio;
+  std::vector<std::size_t> at;
+  std::vector<double> gaps, motion;
+  for (std::size_t k = 1; k < n; ++k)
+  {
+    const double step = d.load_position[k] - d.load_position[k - 1];
+    if (step != 0.0 && std::fabs(step) < 1.5 * q)
+    {
+      at.push_back(k);
+      gaps.push_back(0.5 * (d.load_position[k] + d.load_position[k - 1]) -
+                     0.5 * rho * (d.motor_position[k] + d.motor_position[k - 1]));
+      motion.push_back(0.5 * rho * std::fabs(d.motor_position[k] - d.motor_position[k - 1]));
+    }
+  }
+  if (gaps.size() < 40)
+  {
+    return out;
+  }
+  // The band: two standard deviations of an edge's gap — the crossing's instant uniform in its interval, so the
+  // motor's typical motion over half a sample m gives σ = m/√3 — and a count of the motor referred to the load. The
+  // flanks are resolved three bands apart (each cluster spans ±m, 0.87 of a band).
+  std::vector<double> sorted = motion;
+  std::nth_element(sorted.begin(), sorted.begin() + static_cast<long>(sorted.size() / 2), sorted.end());
+  const AngleMeasurement motor = recogniseAngle(d.motor_position, s.motor_encoder_resolution);
+  const double band = 2.0 * sorted[sorted.size() / 2] / std::sqrt(3.0) + rho * std::sqrt(12.0) * motor.noise;
+  const Flanks flanks = locateFlanks(gaps, 0, band);
+  if (!(flanks.backward - flanks.forward > 3.0 * band))
+  {
+    return out;
+  }
+  std::vector<double> on_forward, on_backward;
+  std::vector<int> side(gaps.size(), 2);
+  for (std::size_t i = 0; i < gaps.size(); ++i)
+  {
+    side[i] = std::fabs(gaps[i] - flanks.forward) <= band ? 1 : std::fabs(gaps[i] - flanks.backward) <= band ? -1 : 2;
+    (side[i] == 1 ? on_forward : on_backward).push_back(gaps[i]);
+    if (side[i] == 2)
+    {
+      on_backward.pop_back();
+    }
+  }
+  if (on_forward.size() < 20 || on_backward.size() < 20)
+  {
+    return out;
+  }
+  out.resolved = true;
+  out.forward = halfSampleMode(on_forward);
+  out.backward = halfSampleMode(on_backward);
+  // The error, as for the gap's flanks (flankError): each flank's scatter over its edges, its median's, and how far
+  // the median leans from the mode (teeth that chatter on a flank skew its edges into the play).
+  double variance = 0.0;
+  for (const std::vector<double>* flank : {&on_forward, &on_backward})
+  {
+    std::vector<double> v = *flank;
+    std::nth_element(v.begin(), v.begin() + static_cast<long>(v.size() / 2), v.end());
+    const double centre = v[v.size() / 2], lean = centre - halfSampleMode(*flank);
+    for (double& g : v)
+    {
+      g = std::fabs(g - centre);
+    }
+    std::nth_element(v.begin(), v.begin() + static_cast<long>(v.size() / 2), v.end());
+    const double sigma = 1.4826 * v[v.size() / 2];
+    variance += sigma * sigma * (1.0 + 1.5708 / static_cast<double>(v.size())) + lean * lean;
+  }
+  out.backlash = {out.backward - out.forward, std::sqrt(variance)};
+  out.phase.assign(n, 2);
+  for (std::size_t i = 0; i + 1 < at.size(); ++i)
+  {
+    if (side[i] == 2 || side[i] != side[i + 1])
+    {
+      continue;
+    }
+    bool one_way = true;
+    for (std::size_t k = at[i]; k < at[i + 1] && one_way; ++k)
+    {
+      one_way = std::fabs(velocity[k]) > still && (velocity[k] > 0.0) == (velocity[at[i]] > 0.0);
+    }
+    if (one_way)
+    {
+      std::fill(out.phase.begin() + static_cast<long>(at[i]), out.phase.begin() + static_cast<long>(at[i + 1]),
+                side[i]);
+    }
+  }
+  return out;
 }
 
 /// The centred mean over 2r + 1 samples (the samples within r of an end keep their value: they are never used).
@@ -472,17 +598,8 @@ InitialEstimates estimateInitial(const Recording& d, const IdentificationSetting
   // Apart means clear of both flanks: a chatter of short flights (a few µrad) between samples is neither phase. On
   // measured angles the band already holds the gap's spread on a flank.
   const double margin = s.integrated ? band : std::max(1e-3 * backlash, 4.0 * band);
-  need(backlash > 2.0 * (band + margin) && backlash > 0.0, "data",
-       measured ? "the free play is not resolved by the gap θ_c − ρθ_m: its two flanks are not several times the "
-                  "gap's measurement band (" +
-                      formatNumber(band) +
-                      " rad, from the encoders' counts and noise) apart; nothing is estimated without the "
-                      "phases — finer or less noisy encoders are needed"
-                : "the gap θ_c − ρθ_m never spans the backlash: the recording needs reversals that carry the motor "
-                  "across the free play to both flanks");
-  // Derivatives, and each sample's phase (0 apart, +1 forward flank, −1 backward flank, 2 mixed).
-  // Every term of the equations filtered by the same F (differences commute with it): D²(Fθ) = F(D²θ) against Fū
-  // and F sgn ω — quantisation and noise averaged out, the equations unchanged.
+  // Derivatives (every term of the equations filtered by the same F: differences commute with it, D²(Fθ) = F(D²θ)
+  // against Fū and F sgn ω — quantisation and noise averaged out, the equations unchanged).
   const std::size_t r = static_cast<std::size_t>(s.smoothing);
   const BodyMotion motor = differentiate(d.motor_position, h, s.smoothing);
   const std::vector<double>&theta = motor.angle, &wm = motor.velocity, &am = motor.acceleration, &sg = motor.sign;
@@ -496,8 +613,20 @@ InitialEstimates estimateInitial(const Recording& d, const IdentificationSetting
   // sample whose filter reaches a standstill is left out (the friction there is the static band's, not ±T_c).
   const double still = std::max(s.still_speed > 0.0 ? s.still_speed : 1e-6 * fastest,
                                 s.integrated ? 4.0 * velocityNoise(d.motor_position, s, h) : 0.0);
-  std::vector<int> phase(n);
-  for (std::size_t k = 0; k < n; ++k)
+  // A free play the gap does not resolve may show at the load's count edges (a coarse load encoder, a fine motor's).
+  const EdgePhases edges =
+      s.integrated && !(backlash > 2.0 * (band + margin)) ? edgePhases(d, s, wm, still) : EdgePhases{};
+  need((backlash > 2.0 * (band + margin) && backlash > 0.0) || edges.resolved, "data",
+       measured ? "the free play is not resolved by the gap θ_c − ρθ_m: its two flanks are not several times the "
+                  "gap's measurement band (" +
+                      formatNumber(band) +
+                      " rad, from the encoders' counts and noise) apart; nothing is estimated without the "
+                      "phases — finer or less noisy encoders are needed"
+                : "the gap θ_c − ρθ_m never spans the backlash: the recording needs reversals that carry the motor "
+                  "across the free play to both flanks");
+  // Each sample's phase (0 apart, +1 forward flank, −1 backward flank, 2 mixed or unknown).
+  std::vector<int> phase = edges.resolved ? edges.phase : std::vector<int>(n, 0);
+  for (std::size_t k = 0; k < n && !edges.resolved; ++k)
   {
     const double df = gap[k] - *lo, db = *hi - gap[k];
     phase[k] = std::fabs(df) <= band ? 1 : std::fabs(db) <= band ? -1 : (df > margin && db > margin) ? 0 : 2;
@@ -661,6 +790,12 @@ InitialEstimates estimateInitial(const Recording& d, const IdentificationSetting
   else
   {
     out.backlash = {backlash, band};
+  }
+  if (edges.resolved)
+  {
+    out.zero_offset = edges.forward;
+    out.backlash = edges.backlash;
+    out.phases_from_edges = true;
   }
   // Static friction from the rests: over a sample interval [t_k, t_k+1) the torque u_k is held, so a body at rest
   // over it was held by its static band (|net| ≤ T_s: a lower bound) and the interval where it broke away had

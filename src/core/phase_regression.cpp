@@ -230,6 +230,7 @@ BodiesFit fitBodies(const PhaseRows& apart, const PhaseRows& contact, double rho
     {
       if (piece_rms[c] <= limit)
       {
+        ++(spans[c].first < na ? out.apart_pieces : out.contact_pieces);
         for (Eigen::Index i = spans[c].first; i < spans[c].second; ++i)
         {
           keep.push_back(i);

@@ -651,6 +651,7 @@ int main(int argc, char** argv)
       w.field("smoothing", static_cast<long long>(m.smoothing));
       w.field("contact_band", m.contact_band);
       w.field("from_data", m.from_data);
+      w.field("phases_from_load_edges", e.phases_from_edges);
       w.endObject();
       w.beginArray("warnings");
       for (const std::string& warning : result.warnings)
@@ -693,6 +694,12 @@ int main(int argc, char** argv)
     else
     {
       std::printf("%s\n", result.measurement.summary().c_str());
+      if (e.phases_from_edges)
+      {
+        std::printf(
+            "the gap does not resolve the free play: its flanks read at the load's count edges (the motor's angle "
+            "there); flights not resolved\n");
+      }
       if (result.model.compliant())
       {
         std::printf(

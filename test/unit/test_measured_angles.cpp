@@ -6,6 +6,7 @@
 #include <cmath>
 #include <cstdio>
 #include <random>
+#include <sstream>
 #include <string>
 
 #include "../../src/core/phase_regression.h"
@@ -186,4 +187,46 @@ TEST(MeasuredAngles, AJointReadThroughNoisyEncodersIsIdentifiedWithoutFlags)
     const double sum = std::stod(load.reason.substr(at + std::string("J_m + ρ²J_L = ").size()));
     EXPECT_NEAR(sum, p.motor_inertia + p.gear_ratio * p.gear_ratio * p.load_inertia, 0.01) << load.reason;
   }
+}
+
+TEST(MeasuredAngles, ABacklashOfTwoLoadCountsIsFoundAtTheLoadsCountEdges)
+{
+  // The backlash 1.5 counts of a 4096-count load encoder, the motor's 2^20 counts a turn: the gap's band (half a count
+  // of each angle) does not resolve the flanks, but at each change of the load's count the gap is known to the motor's
+  // resolution — the backlash within 5 % with the truth within four standard errors, and the pair (the teeth in
+  // contact between edges on one flank) gives J_m + ρ²J_L = 1 kg·m² within 5 %, the truth within four of its
+  // standard errors.
+  ServoParams p = dryFrictionJoint();
+  p.restitution = 0.3;
+  p.backlash = 1.5 * TWO_PI / 4096.0;
+  Recording r = recordJoint(p, 60.0, 1000.0, 1.0);
+  const double ql = TWO_PI / 4096.0, qm = TWO_PI / 1048576.0;
+  for (std::size_t k = 0; k < r.time.size(); ++k)
+  {
+    r.load_position[k] = ql * std::round(r.load_position[k] / ql);
+    r.motor_position[k] = qm * std::round(r.motor_position[k] / qm);
+  }
+  IdentificationSettings s;
+  s.gear_ratio = p.gear_ratio;
+  s.load_encoder_resolution = 4096.0;
+  s.motor_encoder_resolution = 1048576.0;
+  ServoParams prior;
+  IdentifyOptions options;
+  options.stated = std::set<std::string>{"gear_ratio"};
+  const JointIdentification id = identifyJoint(r, s, prior, options);
+  EXPECT_TRUE(id.initial.phases_from_edges);
+  const IdentifiedParameter& backlash = parameter(id, "backlash");
+  ASSERT_TRUE(backlash.identifiable);
+  EXPECT_NEAR(backlash.value.value, p.backlash, 0.05 * p.backlash);
+  EXPECT_LE(std::fabs(backlash.value.value - p.backlash), 4.0 * backlash.value.standard_error);
+  const IdentifiedParameter& load = parameter(id, "load_inertia");
+  ASSERT_FALSE(load.identifiable);
+  const std::size_t at = load.reason.find("J_m + ρ²J_L = ");
+  ASSERT_NE(at, std::string::npos) << load.reason;
+  std::istringstream sum(load.reason.substr(at + std::string("J_m + ρ²J_L = ").size()));
+  double value = 0.0, error = 0.0;
+  std::string plus_minus;
+  sum >> value >> plus_minus >> error;
+  EXPECT_NEAR(value, 1.0, 0.05) << load.reason;
+  EXPECT_LE(std::fabs(value - 1.0), 4.0 * error) << load.reason;
 }
