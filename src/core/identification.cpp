@@ -22,6 +22,10 @@ constexpr int STENCIL = 2;
 /// Measured angles: an inertia or a Coulomb level with a standard error above this fraction of itself is not
 /// identified (at two standard errors an inertia within 5 %, a Coulomb level within 10 %).
 constexpr double LOOSEST_INERTIA = 0.025;
+/// Measured angles: the backlash with a standard error above this fraction of itself is not identified.
+constexpr double LOOSEST_BACKLASH = 0.05;
+/// Measured angles: the fewest samples of the teeth driving on a flank for it to count as reached.
+constexpr std::size_t FEWEST_DRIVEN = 100;
 /// Measured angles: the fewest pieces of a phase whose cluster-robust standard errors are trusted.
 constexpr std::size_t FEWEST_PIECES = 20;
 constexpr double LOOSEST_LEVEL = 0.05;
@@ -165,10 +169,14 @@ void bodiesFromIntegrals(const Recording& d, const IdentificationSettings& s, co
       const double error = both ? std::hypot(f.se(j), factor * f.se(j + 3)) : f.se(j);
       return formatNumber(value) + " ± " + formatNumber(error) + unit;
     };
-    const std::string sums = f.contact_rows > 0 ? "; the pair gives J_m + ρ²J_L = " + sum(0, rho * rho, " kg·m²") +
-                                                      ", f_m + ρ²f_L = " + sum(1, rho * rho, " N·m·s/rad") +
-                                                      ", T_cm + ρT_cL = " + sum(2, rho, " N·m")
-                                                : "";
+    const std::string sums =
+        f.contact_rows > 0
+            ? "; the pair gives J_m + ρ²J_L = " + sum(0, rho * rho, " kg·m²") +
+                  ", f_m + ρ²f_L = " + sum(1, rho * rho, " N·m·s/rad") + ", T_cm + ρT_cL = " + sum(2, rho, " N·m") +
+                  (out->load_torque_given
+                       ? " (the contact went one way: the load torque taken as " + formatNumber(known_load) + " N·m)"
+                       : "")
+            : "";
     for (int j = f.apart_rows > 0 && f.contact_rows == 0 ? 3 : 0; j < 6; ++j)
     {
       out->not_identifiable[keys[j]] = unsplit + (j >= 3 || f.contact_rows == 0 ? sums : "");
@@ -266,6 +274,28 @@ double flankError(const std::vector<double>& forward, const std::vector<double>&
   return std::sqrt(variance);
 }
 
+/// The samples in runs on a flank (phase ±1, one flank per run) longer than 2·trim + 6 (what a stretch keeps of
+/// them): the teeth held on that flank, not the gap turning there in flight.
+std::vector<bool> drivenMask(const std::vector<int>& phase, std::size_t trim)
+{
+  std::vector<bool> driven(phase.size(), false);
+  std::size_t first = 0;
+  for (std::size_t k = 0; k <= phase.size(); ++k)
+  {
+    const bool on = k < phase.size() && (phase[k] == 1 || phase[k] == -1);
+    if (on && k > first && phase[k] == phase[first])
+    {
+      continue;
+    }
+    if (k > first && (phase[first] == 1 || phase[first] == -1) && k - first > 2 * trim + 6)
+    {
+      std::fill(driven.begin() + static_cast<long>(first), driven.begin() + static_cast<long>(k), true);
+    }
+    first = k;
+  }
+  return driven;
+}
+
 /// The phases read at the load's count edges (edgePhases).
 struct EdgePhases
 {
@@ -342,8 +372,8 @@ EdgePhases edgePhases(const Recording& d, const IdentificationSettings& s, const
   out.resolved = true;
   out.forward = halfSampleMode(on_forward);
   out.backward = halfSampleMode(on_backward);
-  // The error, as for the gap's flanks (flankError): each flank's scatter over its edges, its median's, and how far
-  // the median leans from the mode (teeth that chatter on a flank skew its edges into the play).
+  // The error: each mode's scatter over its edges (the crossing's instant is uniform in its interval: no bias), how
+  // far its median leans from it (teeth that chatter on a flank skew its edges into the play).
   double variance = 0.0;
   for (const std::vector<double>* flank : {&on_forward, &on_backward})
   {
@@ -356,8 +386,11 @@ EdgePhases edgePhases(const Recording& d, const IdentificationSettings& s, const
     }
     std::nth_element(v.begin(), v.begin() + static_cast<long>(v.size() / 2), v.end());
     const double sigma = 1.4826 * v[v.size() / 2];
-    variance += sigma * sigma * (1.0 + 1.5708 / static_cast<double>(v.size())) + lean * lean;
+    variance += 1.5708 * sigma * sigma / static_cast<double>(v.size()) + lean * lean;
   }
+  // (and how far each mode lies from where the extreme crowd of edges was found)
+  variance += (out.forward - flanks.forward) * (out.forward - flanks.forward) +
+              (out.backward - flanks.backward) * (out.backward - flanks.backward);
   out.backlash = {out.backward - out.forward, std::sqrt(variance)};
   out.phase.assign(n, 2);
   for (std::size_t i = 0; i + 1 < at.size(); ++i)
@@ -748,6 +781,26 @@ InitialEstimates estimateInitial(const Recording& d, const IdentificationSetting
     out.contact_rms_residual = c.rms;
     out.apart_rms_residual = a.rms;
   };
+  // A flank the teeth never drove on (the gap only turned there, in flight) is no flank: its samples are no phase, and
+  // the backlash is only bounded by the gap's range.
+  std::string unreached;
+  const std::vector<bool> driven = drivenMask(phase, 2 * r + 2);
+  if (measured && s.integrated && !edges.resolved)
+  {
+    for (const int flank : {1, -1})
+    {
+      std::size_t count = 0;
+      for (std::size_t k = 0; k < n; ++k)
+      {
+        count += driven[k] && phase[k] == flank ? 1 : 0;
+      }
+      if (count < FEWEST_DRIVEN)
+      {
+        unreached = flank == 1 ? "forward" : "backward";
+        std::replace(phase.begin(), phase.end(), flank, 2);
+      }
+    }
+  }
   if (measured && s.integrated)
   {
     bodiesFromIntegrals(d, s, phase, wm, stills, 2 * r + 2, &out);
@@ -759,9 +812,14 @@ InitialEstimates estimateInitial(const Recording& d, const IdentificationSetting
   const auto combined = [](double x, double y) { return std::sqrt(x * x + y * y); };
   // The backlash between the flanks' typical gaps (medians over the samples in contact on each: quantisation and
   // noise at the extremes do not widen it); the zero offset likewise.
+  // (integrated equations: the gap while the teeth drive the load on a flank, not where it turns in flight)
   std::vector<double> on_forward, on_backward;
   for (std::size_t k = 0; k < n; ++k)
   {
+    if (s.integrated && !driven[k])
+    {
+      continue;
+    }
     if (phase[k] == 1)
     {
       on_forward.push_back(gap[k]);
@@ -784,7 +842,12 @@ InitialEstimates estimateInitial(const Recording& d, const IdentificationSetting
       // Where the samples on a flank crowd (its mode): the medians lean into the play, as the band also holds the
       // samples of short flights and small rebounds beside the flank.
       out.zero_offset = halfSampleMode(on_forward);
-      out.backlash = {halfSampleMode(on_backward) - out.zero_offset, flankError(on_forward, on_backward, d, s)};
+      const double backward = halfSampleMode(on_backward);
+      // (and how far each mode lies from where the gap's extreme crowd was found: a gap that hovers beside a flank
+      // moves the one but not the other)
+      out.backlash = {backward - out.zero_offset,
+                      std::hypot(flankError(on_forward, on_backward, d, s), out.zero_offset - flanks.forward,
+                                 backward - flanks.backward)};
     }
   }
   else
@@ -796,6 +859,20 @@ InitialEstimates estimateInitial(const Recording& d, const IdentificationSetting
     out.zero_offset = edges.forward;
     out.backlash = edges.backlash;
     out.phases_from_edges = true;
+  }
+  if (s.integrated && unreached.empty() && !(out.backlash.standard_error <= LOOSEST_BACKLASH * out.backlash.value))
+  {
+    out.not_identifiable["backlash"] = "the recording gives " + formatNumber(out.backlash.value) + " ± " +
+                                       formatNumber(out.backlash.standard_error) + " rad, not within ±" +
+                                       formatNumber(100.0 * LOOSEST_BACKLASH) +
+                                       " % (the flanks' gaps are spread by noise or a load hovering beside them)";
+  }
+  if (!unreached.empty())
+  {
+    out.not_identifiable["backlash"] = "the teeth never drove on the " + unreached +
+                                       " flank (the gap only turned there): the backlash is at least " +
+                                       formatNumber(backlash) + " rad, the gap's range";
+    out.backlash = {NAN, NAN};
   }
   // Static friction from the rests: over a sample interval [t_k, t_k+1) the torque u_k is held, so a body at rest
   // over it was held by its static band (|net| ≤ T_s: a lower bound) and the interval where it broke away had

@@ -16,10 +16,11 @@ namespace
 /// Measured angles: the restitution's largest standard error for it to be reported [-].
 constexpr double LOOSEST_RESTITUTION = 0.05;
 
-/// The estimate of a body's parameter in `e` (motor_inertia … load_torque).
+/// The estimate of a parameter the replays need in `e` (backlash, motor_inertia … load_torque).
 Estimate* bodyField(InitialEstimates* e, const std::string& key)
 {
-  return key == "motor_inertia"            ? &e->motor_inertia
+  return key == "backlash"                 ? &e->backlash
+         : key == "motor_inertia"          ? &e->motor_inertia
          : key == "load_inertia"           ? &e->load_inertia
          : key == "motor_friction"         ? &e->motor_friction
          : key == "load_friction"          ? &e->load_friction
@@ -127,8 +128,8 @@ JointIdentification identifyJoint(const Recording& data, const IdentificationSet
   // nothing to replay (no restitution, no joint fit).
   InitialEstimates bodies = e;
   std::string unknown_bodies;
-  for (const char* key : {"motor_inertia", "load_inertia", "motor_friction", "load_friction", "motor_coulomb_friction",
-                          "load_coulomb_friction", "load_torque"})
+  for (const char* key : {"backlash", "motor_inertia", "load_inertia", "motor_friction", "load_friction",
+                          "motor_coulomb_friction", "load_coulomb_friction", "load_torque"})
   {
     const bool stated = !options.stated || options.stated->count(key) != 0;
     Estimate& x = *bodyField(&bodies, key);
@@ -147,8 +148,8 @@ JointIdentification identifyJoint(const Recording& data, const IdentificationSet
   // prior's kept).
   if (keys.count("restitution") && !unknown_bodies.empty())
   {
-    out.restitution_note = "the replays around the impacts need the bodies' parameters, and " + unknown_bodies +
-                           (unknown_bodies.find(',') == std::string::npos ? " is" : " are") +
+    out.restitution_note = "the replays around the impacts need the backlash and the bodies' parameters, and " +
+                           unknown_bodies + (unknown_bodies.find(',') == std::string::npos ? " is" : " are") +
                            " not identified (nor given in the prior)";
   }
   else if (keys.count("restitution"))
