@@ -145,6 +145,17 @@ void bodiesFromIntegrals(const Recording& d, const IdentificationSettings& s, co
   // The motor alone splits the pair's sums: without it (no stretch apart, or its inertia not resolved) only the sums
   // are known, and are given in the reason.
   std::string unsplit;
+  if (f.swamped)
+  {
+    for (int j = 0; j < 7; ++j)
+    {
+      out->not_identifiable[keys[j]] =
+          "the angles' noise swamps the motion within the stretches of one phase (corrected for it, the equations "
+          "determine nothing): finer or less noisy encoders, or larger motions, are needed";
+      *fields[j] = {NAN, NAN};
+    }
+    return;
+  }
   if (f.apart_rows == 0 || f.contact_rows == 0)
   {
     unsplit = f.apart_rows == 0 ? "the teeth were never seen apart with the motor moving"

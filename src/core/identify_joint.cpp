@@ -176,7 +176,24 @@ JointIdentification identifyJoint(const Recording& data, const IdentificationSet
     const auto x = initial.find(key);
     IdentifiedParameter p;
     p.key = key;
-    const std::string why = notInformedReason(key, e, out.restitution_note);
+    std::string why = notInformedReason(key, e, out.restitution_note);
+    if (why.empty() && x != initial.end() && std::isfinite(x->second.value))
+    {
+      // An estimate outside its key's range (a level below zero is zero within its scatter, see withEstimates) is
+      // not what the data say of it.
+      const ParamSpec& spec = *findParam(key);
+      const double v = spec.range.lower == 0.0 ? std::max(0.0, x->second.value) : x->second.value;
+      try
+      {
+        spec.check(v);
+      }
+      catch (const InvalidParameterError& outside)
+      {
+        why = "the estimate " + formatNumber(x->second.value) +
+              " lies outside the key's range: the recording does "
+              "not determine it";
+      }
+    }
     if (x == initial.end() || !std::isfinite(x->second.value) || !why.empty())
     {
       p.identifiable = false;
@@ -222,7 +239,11 @@ JointIdentification identifyJoint(const Recording& data, const IdentificationSet
   bool inside = true;
   try
   {
-    start.validateEnvelope(false);
+    // (only a model whose inertias are known: estimated or stated)
+    if (unknown_bodies.find("inertia") == std::string::npos)
+    {
+      start.validateEnvelope(false);
+    }
   }
   catch (const InvalidParameterError& outside)
   {

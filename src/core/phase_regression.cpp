@@ -63,6 +63,16 @@ Eigen::VectorXd correctedSolve(const Eigen::MatrixXd& x, const Eigen::VectorXd& 
   const Eigen::MatrixXd xf = x(Eigen::all, free);
   const Eigen::VectorXd scale = xf.colwise().norm().transpose().cwiseMax(1e-300);
   const Eigen::MatrixXd normal = (xf.transpose() * xf - noise(free, free)).cwiseQuotient(scale * scale.transpose());
+  // The noise's share may not exceed what the rows hold: corrected normal equations that are not positive definite
+  // say the noise swamps the motion (NaN: nothing determined).
+  if (Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(normal, Eigen::EigenvaluesOnly).eigenvalues().minCoeff() <= 0.0)
+  {
+    if (inverse)
+    {
+      *inverse = Eigen::MatrixXd::Constant(xf.cols(), xf.cols(), NAN);
+    }
+    return Eigen::VectorXd::Constant(xf.cols(), NAN);
+  }
   const Eigen::MatrixXd inv = normal.inverse().cwiseQuotient(scale * scale.transpose());
   if (inverse)
   {
@@ -223,7 +233,8 @@ BodiesFit fitBodies(const PhaseRows& apart, const PhaseRows& contact, double rho
     }
     std::vector<double> sorted = piece_rms;
     std::nth_element(sorted.begin(), sorted.begin() + static_cast<long>(sorted.size() / 2), sorted.end());
-    const double limit = 5.0 * sorted[sorted.size() / 2];
+    const double median = sorted[sorted.size() / 2];
+    const double limit = std::isfinite(median) ? 5.0 * median : INFINITY;  // (nothing determined: nothing dropped)
     std::vector<Eigen::Index> keep;
     std::vector<std::size_t> kept_cluster;
     for (std::size_t c = 0; c < spans.size(); ++c)
@@ -292,6 +303,7 @@ BodiesFit fitBodies(const PhaseRows& apart, const PhaseRows& contact, double rho
     }
   }
   const double g = static_cast<double>(clusters);
+  out.swamped = !p.allFinite();
   const Eigen::MatrixXd cov = bread * meat * bread * (g > 1.0 ? g / (g - 1.0) : 1.0);
   // A count's error is white only while the angle crosses counts quickly: on a grid, the correction's own size is
   // counted as uncertain.

@@ -49,6 +49,7 @@ struct BodiesFit
   std::size_t apart_rows = 0, contact_rows = 0;
   std::size_t pieces_dropped = 0;  // fitting beyond 5 × the median piece's rms (an impact unseen between samples)
   std::size_t apart_pieces = 0, contact_pieces = 0;  // kept: the clusters of the standard errors
+  bool swamped = false;  // the angle's noise exceeds what the rows hold (the corrected equations not positive definite)
 };
 
 /// `known_load` (NaN: estimated) holds T_ext; a phase without rows leaves its parameters out (NaN). `noise` [rad]:
