@@ -110,9 +110,17 @@ void bodiesFromIntegrals(const Recording& d, const IdentificationSettings& s, co
   out->contact_samples = f.contact_rows;
   out->apart_rms_residual = f.apart_rms;
   out->contact_rms_residual = f.contact_rms;
-  need(f.apart_rows > 0 || f.contact_rows > 0, "data",
-       "no stretch of steady motion in one phase: the recording needs motion with the teeth in contact and the motor "
-       "crossing the free play (backlash_identify --experiment designs such an excitation)");
+  if (f.apart_rows == 0 && f.contact_rows == 0)
+  {
+    for (const char* key : {"motor_inertia", "motor_friction", "motor_coulomb_friction", "load_inertia",
+                            "load_friction", "load_coulomb_friction", "load_torque"})
+    {
+      out->not_identifiable[key] =
+          "no stretch of steady motion in one phase: the bodies need motion with the teeth in contact and the motor "
+          "crossing the free play (backlash_identify --experiment designs such an excitation)";
+    }
+    return;
+  }
   const char* const keys[7] = {"motor_inertia", "motor_friction", "motor_coulomb_friction",
                                "load_inertia",  "load_friction",  "load_coulomb_friction",
                                "load_torque"};
@@ -919,6 +927,17 @@ InitialEstimates estimateInitial(const Recording& d, const IdentificationSetting
     out.load_static_friction = {
         (combined_static.value - out.motor_static_friction.value) / rho,
         combined(combined_static.standard_error, out.motor_static_friction.standard_error) / rho};
+  }
+  // Nothing at all: say what the recording lacks (the backlash's reason and the bodies').
+  const bool nothing = out.not_identifiable.count("backlash") && out.not_identifiable.count("motor_inertia") &&
+                       out.not_identifiable.count("load_inertia") &&
+                       out.not_identifiable.count("motor_coulomb_friction") &&
+                       out.not_identifiable.count("load_coulomb_friction");
+  if (nothing)
+  {
+    throw InvalidParameterError("data", "nothing can be estimated from this recording — the backlash: " +
+                                            out.not_identifiable.at("backlash") +
+                                            "; the bodies: " + out.not_identifiable.at("motor_inertia"));
   }
   return out;
 }
