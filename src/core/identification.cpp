@@ -19,6 +19,8 @@ namespace
 {
 /// Samples on each side of a sample whose gap must stay in its phase (the difference stencil, and one more).
 constexpr int STENCIL = 2;
+/// The shortest sample period a recording may have [s] (below it the differences' h² underflows the angles).
+constexpr double MIN_SAMPLE_PERIOD = 1e-9;
 /// Measured angles: an inertia or a Coulomb level with a standard error above this fraction of itself is not
 /// identified (at two standard errors an inertia within 5 %, a Coulomb level within 10 %).
 constexpr double LOOSEST_INERTIA = 0.025;
@@ -521,6 +523,8 @@ double samplePeriod(const Recording& d, const IdentificationSettings& s)
   need(std::isfinite(s.gear_ratio) && s.gear_ratio > 0.0, "gear_ratio", "must be known and > 0 (give it in the prior)");
   const double h = (d.time.back() - d.time.front()) / static_cast<double>(n - 1);
   need(h > 0.0 && std::isfinite(h), "time", "must increase");
+  need(h >= MIN_SAMPLE_PERIOD, "time",
+       "the samples are " + formatNumber(h) + " s apart, below 1 ns: is the time column in seconds?");
   for (std::size_t k = 0; k < n; ++k)
   {
     need(std::isfinite(d.time[k]) && std::isfinite(d.motor_torque[k]) && std::isfinite(d.motor_position[k]) &&
@@ -935,9 +939,9 @@ InitialEstimates estimateInitial(const Recording& d, const IdentificationSetting
                        out.not_identifiable.count("load_coulomb_friction");
   if (nothing)
   {
-    throw InvalidParameterError("data", "nothing can be estimated from this recording — the backlash: " +
-                                            out.not_identifiable.at("backlash") +
-                                            "; the bodies: " + out.not_identifiable.at("motor_inertia"));
+    throw InvalidParameterError(
+        "data", "nothing can be estimated from this recording — the backlash: " + out.not_identifiable.at("backlash") +
+                    "; the bodies: " + out.not_identifiable.at("motor_inertia"));
   }
   return out;
 }
@@ -949,9 +953,14 @@ std::vector<ProfileSegment> identificationExperiment(const ServoParams& params, 
   need(dither_amplitude == 0.0 || (std::isfinite(dither_frequency) && dither_frequency > 0.0), "dither",
        "the frequency must be > 0 Hz");
   need(std::isfinite(duration) && duration > 0.0, "duration", "must be > 0 s");
-  need(std::isfinite(travel) && travel >= 3.0 * params.backlash && travel > 0.0, "travel",
-       "must be at least three times the backlash (" + std::to_string(3.0 * params.backlash) +
-           " rad): every reversal must carry the motor across the free play");
+  need(params.backlash > 0.0, "backlash",
+       "the prior's backlash is 0 (rigid teeth): give a guess of it, from which the experiment's travel (three "
+       "backlashes at least) and its reversals are designed");
+  need(std::isfinite(travel) && travel >= 3.0 * params.backlash, "travel",
+       "must be at least three times the backlash (" + formatNumber(3.0 * params.backlash) +
+           " rad): every reversal must carry the motor across the free play (got " + formatNumber(travel) + ")");
+  // (the command stays within the set-point's range)
+  param("command").check(travel);
   const double wn = params.naturalFrequency(), pi = 3.14159265358979323846;
   const double fractions[3] = {1.0 / 8.0, 1.0 / 3.0, 1.0 / 1.5}, amplitudes[3] = {1.0, 1.0, 0.5};
   std::vector<ProfileSegment> out;

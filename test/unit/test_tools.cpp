@@ -1638,6 +1638,29 @@ TEST(IdentifyTool, ExperimentInformsTheEstimates)
       &code);
   EXPECT_EQ(code, 2);
   EXPECT_NE(narrow.find("travel"), std::string::npos) << narrow;
+  // A travel beyond the set-point's range, and a prior with rigid teeth (nothing to design the travel from), are
+  // refused naming the key.
+  const std::string far = runCapture(
+      IDENTIFY + " --experiment --config " + dir + "prior.yaml --travel 1e12 --output " + dir + "far.yaml 2>&1", &code);
+  EXPECT_EQ(code, 2);
+  EXPECT_NE(far.find("command"), std::string::npos) << far;
+  std::ofstream(dir + "rigid.yaml") << known << "backlash: 0\n";
+  const std::string rigid = runCapture(
+      IDENTIFY + " --experiment --config " + dir + "rigid.yaml --output " + dir + "rigid_exp.yaml 2>&1", &code);
+  EXPECT_EQ(code, 2);
+  EXPECT_NE(rigid.find("backlash: the prior's backlash is 0"), std::string::npos) << rigid;
+  // Time steps far below a nanosecond (times not in seconds) are refused, naming the column.
+  {
+    std::ofstream tiny(dir + "tiny.csv");
+    tiny << "time,motor_torque,motor_position,load_position\n";
+    for (int k = 0; k < 100; ++k)
+    {
+      tiny << k << "e-303,0.1,0,0\n";
+    }
+  }
+  const std::string tiny = runCapture(IDENTIFY + " --data " + dir + "tiny.csv --gear-ratio 1 2>&1", &code);
+  EXPECT_EQ(code, 2);
+  EXPECT_NE(tiny.find("time: the samples are"), std::string::npos) << tiny;
 }
 
 TEST(IdentifyTool, ADitheredExperimentOnAStickyJoint)
