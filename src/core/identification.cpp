@@ -897,6 +897,18 @@ InitialEstimates estimateInitial(const Recording& d, const IdentificationSetting
                                        formatNumber(backlash) + " rad, the gap's range";
     out.backlash = {NAN, NAN};
   }
+  // The phases follow from the flanks: where these are not located to the backlash's ±5 %, samples read apart may be
+  // in contact and the split between the bodies is not trusted (the pair's sums, from the samples on a flank, stay).
+  if (s.integrated && out.not_identifiable.count("backlash") && !out.not_identifiable.count("motor_inertia"))
+  {
+    for (const char* key : {"motor_inertia", "motor_friction", "motor_coulomb_friction", "load_inertia",
+                            "load_friction", "load_coulomb_friction"})
+    {
+      out.not_identifiable[key] =
+          "the flanks are not located well enough to tell the teeth apart from in contact (the backlash is not "
+          "identified), so the split between the bodies is not trusted";
+    }
+  }
   // Static friction from the rests: over a sample interval [t_k, t_k+1) the torque u_k is held, so a body at rest
   // over it was held by its static band (|net| ≤ T_s: a lower bound) and the interval where it broke away had
   // |net| > T_s (an upper bound). Teeth apart: the motor alone, net u_k; teeth on a flank: the pair, net u_k + ρT_ext
