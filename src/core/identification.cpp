@@ -786,15 +786,16 @@ InitialEstimates estimateInitial(const Recording& d, const IdentificationSetting
     out.load_friction = {(c.p(1) - a.p(1)) / (rho * rho), combined(c.se(1), a.se(1)) / (rho * rho)};
     out.load_coulomb_friction = {(c.p(2) - a.p(2)) / rho, combined(c.se(2), a.se(2)) / rho};
     out.load_torque = known_load ? Estimate{s.load_torque_fallback, NAN} : Estimate{-c.p(3) / rho, c.se(3) / rho};
-    // A level that came out below zero by more than two standard errors is not what the data say of it, but a sign
-    // that the model does not fit these samples (noise the filter left, a phase misread).
+    // Measured angles: a level that came out below zero by more than two standard errors is not what the data say
+    // of it, but a sign that the model does not fit these samples (noise the filter left, a phase misread). (Exact
+    // angles: a level a hair below zero is zero, and the model takes it so.)
     for (const auto& [key, x] :
          {std::make_pair("motor_inertia", out.motor_inertia), std::make_pair("load_inertia", out.load_inertia),
           std::make_pair("motor_friction", out.motor_friction), std::make_pair("load_friction", out.load_friction),
           std::make_pair("motor_coulomb_friction", out.motor_coulomb_friction),
           std::make_pair("load_coulomb_friction", out.load_coulomb_friction)})
     {
-      if (x.value < -2.0 * x.standard_error)
+      if (measured && x.value < -2.0 * x.standard_error)
       {
         out.not_identifiable[key] = "it came out negative (" + formatNumber(x.value) + " ± " +
                                     formatNumber(x.standard_error) + "): these samples do not fit the model";
