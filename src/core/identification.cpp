@@ -40,9 +40,16 @@ void need(bool ok, const std::string& key, const std::string& what)
   }
 }
 
+/// The median of the samples (the upper middle one of an even count).
+double median(std::vector<double> v)
+{
+  std::nth_element(v.begin(), v.begin() + static_cast<long>(v.size() / 2), v.end());
+  return v[v.size() / 2];
+}
+
 /// The standard deviation [rad/s] of the noise in a body's velocity (central difference of the filtered angle at
-/// period h [s]) from the angle's noise (measured_angles.h).
-double velocityNoise(const std::vector<double>& angle, const IdentificationSettings& s, double h)
+/// period h [s]) from the angle's noise σ [rad] (measured_angles.h).
+double velocityNoise(double noise, const IdentificationSettings& s, double h)
 {
   // The filter's kernel (a unit impulse filtered), differenced: its norm carries white noise through.
   const std::size_t r = static_cast<std::size_t>(std::max(s.smoothing, 0)), width = 4 * r + 3;
@@ -55,7 +62,7 @@ double velocityNoise(const std::vector<double>& angle, const IdentificationSetti
     const double d = 0.5 * (kernel[k + 1] - kernel[k - 1]);
     norm += d * d;
   }
-  return recogniseAngle(angle, s.motor_encoder_resolution).noise * std::sqrt(norm) / h;
+  return noise * std::sqrt(norm) / h;
 }
 
 /**
@@ -66,7 +73,7 @@ double velocityNoise(const std::vector<double>& angle, const IdentificationSetti
  */
 void bodiesFromIntegrals(const Recording& d, const IdentificationSettings& s, const std::vector<int>& phase,
                          const std::vector<double>& velocity, const std::vector<std::size_t>& stills, std::size_t trim,
-                         InitialEstimates* out)
+                         const AngleMeasurement& motor, InitialEstimates* out)
 {
   const std::size_t n = d.time.size();
   const double h = (d.time.back() - d.time.front()) / static_cast<double>(n - 1), rho = s.gear_ratio;
@@ -106,7 +113,6 @@ void bodiesFromIntegrals(const Recording& d, const IdentificationSettings& s, co
   const bool both_ways = forward && backward;
   // Contact one way only: the load torque is not told from the Coulomb friction; the settings' (or 0) holds it.
   const double known_load = both_ways ? NAN : std::isfinite(s.load_torque_fallback) ? s.load_torque_fallback : 0.0;
-  const AngleMeasurement motor = recogniseAngle(d.motor_position, s.motor_encoder_resolution);
   const BodiesFit f = fitBodies(a, c, rho, known_load, motor.noise, motor.resolution == 0.0);
   out->apart_samples = f.apart_rows;
   out->contact_samples = f.contact_rows;
@@ -249,43 +255,43 @@ double halfSampleMode(std::vector<double> v)
   return sum / static_cast<double>(b - a);
 }
 
+/// How the samples on a flank spread: σ by their median absolute deviation, and how far their median leans from their
+/// mode (the samples of short flights and rebounds beside a flank pull the one, not the other) [rad].
+struct FlankSpread
+{
+  double sigma = 0.0, lean = 0.0;
+};
+
+FlankSpread flankSpread(const std::vector<double>& flank)
+{
+  const double centre = median(flank);
+  std::vector<double> deviation(flank.size());
+  std::transform(flank.begin(), flank.end(), deviation.begin(), [centre](double g) { return std::fabs(g - centre); });
+  return {1.4826 * median(deviation), centre - halfSampleMode(flank)};
+}
+
 /**
  * The standard error [rad] of the backlash between the modes of the filtered gap on each flank: each flank's scatter
- * σ (by the median absolute deviation) and its median's 1.2533 σ/√n_eff (n_eff the samples over the filter's width
- * 4r + 1), how far
- * its median leans from its mode (the samples of short flights and rebounds beside it), and for angles on a count
- * grid without noise a count's uniform spread q/√12 on each flank (a body at rest reads the same count: its error does
- * not average out).
+ * σ and its median's 1.2533 σ/√n_eff (n_eff the samples over the filter's width 4r + 1), how far its median leans from
+ * its mode, and for angles on a count grid without noise (`motor`, `load` as recognised) a count's uniform spread q/√12
+ * on each flank (a body at rest reads the same count: its error does not average out).
  */
-double flankError(const std::vector<double>& forward, const std::vector<double>& backward, const Recording& d,
-                  const IdentificationSettings& s)
+double flankError(const std::vector<double>& forward, const std::vector<double>& backward,
+                  const AngleMeasurement& motor, const AngleMeasurement& load, const IdentificationSettings& s)
 {
-  const auto median = [](std::vector<double> v) {
-    std::nth_element(v.begin(), v.begin() + static_cast<long>(v.size() / 2), v.end());
-    return v[v.size() / 2];
-  };
   const double width = 4.0 * std::max(s.smoothing, 0) + 1.0;
   double variance = 0.0;
   for (const std::vector<double>* flank : {&forward, &backward})
   {
-    const double centre = median(*flank);
-    // The lean of the median from the mode: how far the samples beside the flank could move it.
-    const double lean = centre - halfSampleMode(*flank);
-    variance += lean * lean;
-    std::vector<double> deviation(flank->size());
-    std::transform(flank->begin(), flank->end(), deviation.begin(),
-                   [centre](double g) { return std::fabs(g - centre); });
-    const double sigma = 1.4826 * median(deviation);
-    // The scatter of the median, and one sample's scatter for where the crowd's centre lies (the filtered gap's
-    // noise is not symmetric about a flank the teeth bounce off: no narrower claim is made).
-    variance += sigma * sigma * (1.0 + 1.5708 * width / static_cast<double>(flank->size()));
+    const FlankSpread spread = flankSpread(*flank);
+    variance += spread.lean * spread.lean;
+    // The median's scatter, and one sample's scatter for where the crowd's centre lies (the filtered gap's noise is
+    // not symmetric about a flank the teeth bounce off: no narrower claim is made).
+    variance += spread.sigma * spread.sigma * (1.0 + 1.5708 * width / static_cast<double>(flank->size()));
   }
   constexpr double TWO_PI = 6.283185307179586;
-  for (const auto& [angle, counts, factor] :
-       {std::make_tuple(&d.load_position, s.load_encoder_resolution, 1.0),
-        std::make_tuple(&d.motor_position, s.motor_encoder_resolution, s.gear_ratio)})
+  for (const auto& [m, factor] : {std::make_pair(load, 1.0), std::make_pair(motor, s.gear_ratio)})
   {
-    const AngleMeasurement m = recogniseAngle(*angle, counts);
     if (m.resolution > 0.0)
     {
       const double q = factor * TWO_PI / m.resolution;
@@ -336,11 +342,10 @@ struct EdgePhases
  * resolved this way: no sample is apart.)
  */
 EdgePhases edgePhases(const Recording& d, const IdentificationSettings& s, const std::vector<double>& velocity,
-                      double still)
+                      double still, const AngleMeasurement& motor, const AngleMeasurement& load)
 {
   EdgePhases out;
   const std::size_t n = d.time.size();
-  const AngleMeasurement load = recogniseAngle(d.load_position, s.load_encoder_resolution);
   if (!(load.resolution > 0.0))
   {
     return out;  // (noisy load angles have no clean edges)
@@ -366,10 +371,7 @@ EdgePhases edgePhases(const Recording& d, const IdentificationSettings& s, const
   // The band: two standard deviations of an edge's gap — the crossing's instant uniform in its interval, so the
   // motor's typical motion over half a sample m gives σ = m/√3 — and a count of the motor referred to the load. The
   // flanks are resolved three bands apart (each cluster spans ±m, 0.87 of a band).
-  std::vector<double> sorted = motion;
-  std::nth_element(sorted.begin(), sorted.begin() + static_cast<long>(sorted.size() / 2), sorted.end());
-  const AngleMeasurement motor = recogniseAngle(d.motor_position, s.motor_encoder_resolution);
-  const double band = 2.0 * sorted[sorted.size() / 2] / std::sqrt(3.0) + rho * std::sqrt(12.0) * motor.noise;
+  const double band = 2.0 * median(motion) / std::sqrt(3.0) + rho * std::sqrt(12.0) * motor.noise;
   const Flanks flanks = locateFlanks(gaps, 0, band);
   if (!(flanks.backward - flanks.forward > 3.0 * band))
   {
@@ -398,16 +400,8 @@ EdgePhases edgePhases(const Recording& d, const IdentificationSettings& s, const
   double variance = 0.0;
   for (const std::vector<double>* flank : {&on_forward, &on_backward})
   {
-    std::vector<double> v = *flank;
-    std::nth_element(v.begin(), v.begin() + static_cast<long>(v.size() / 2), v.end());
-    const double centre = v[v.size() / 2], lean = centre - halfSampleMode(*flank);
-    for (double& g : v)
-    {
-      g = std::fabs(g - centre);
-    }
-    std::nth_element(v.begin(), v.begin() + static_cast<long>(v.size() / 2), v.end());
-    const double sigma = 1.4826 * v[v.size() / 2];
-    variance += 1.5708 * sigma * sigma / static_cast<double>(v.size()) + lean * lean;
+    const FlankSpread spread = flankSpread(*flank);
+    variance += 1.5708 * spread.sigma * spread.sigma / static_cast<double>(flank->size()) + spread.lean * spread.lean;
   }
   // (and how far each mode lies from where the extreme crowd of edges was found)
   variance += (out.forward - flanks.forward) * (out.forward - flanks.forward) +
@@ -635,6 +629,11 @@ InitialEstimates estimateInitial(const Recording& d, const IdentificationSetting
   // The gap as recorded; integrated equations classify by the gap of the filtered angles (quantisation and noise
   // averaged out) and find the flanks where it dwells.
   const bool measured = s.contact_band > 0.0;
+  // Integrated equations: each angle's count grid and noise, recognised once (measured_angles.h).
+  const AngleMeasurement motor_seen = s.integrated ? recogniseAngle(d.motor_position, s.motor_encoder_resolution)
+                                                   : AngleMeasurement{},
+                         load_seen = s.integrated ? recogniseAngle(d.load_position, s.load_encoder_resolution)
+                                                  : AngleMeasurement{};
   const int filter = s.integrated ? s.smoothing : 0;
   const std::vector<double> load_angle = smoothedSignal(d.load_position, filter),
                             motor_angle = smoothedSignal(d.motor_position, filter);
@@ -668,10 +667,11 @@ InitialEstimates estimateInitial(const Recording& d, const IdentificationSetting
   // Measured angles: a body reads as moving only beyond four times the velocity's noise after the filter, and a
   // sample whose filter reaches a standstill is left out (the friction there is the static band's, not ±T_c).
   const double still = std::max(s.still_speed > 0.0 ? s.still_speed : 1e-6 * fastest,
-                                s.integrated ? 4.0 * velocityNoise(d.motor_position, s, h) : 0.0);
+                                s.integrated ? 4.0 * velocityNoise(motor_seen.noise, s, h) : 0.0);
   // A free play the gap does not resolve may show at the load's count edges (a coarse load encoder, a fine motor's).
-  const EdgePhases edges =
-      s.integrated && !(backlash > 2.0 * (band + margin)) ? edgePhases(d, s, wm, still) : EdgePhases{};
+  const EdgePhases edges = s.integrated && !(backlash > 2.0 * (band + margin))
+                               ? edgePhases(d, s, wm, still, motor_seen, load_seen)
+                               : EdgePhases{};
   need((backlash > 2.0 * (band + margin) && backlash > 0.0) || edges.resolved, "data",
        measured ? "the free play is not resolved by the gap θ_c − ρθ_m: its two flanks are not several times the "
                   "gap's measurement band (" +
@@ -827,7 +827,7 @@ InitialEstimates estimateInitial(const Recording& d, const IdentificationSetting
   }
   if (measured && s.integrated)
   {
-    bodiesFromIntegrals(d, s, phase, wm, stills, 2 * r + 2, &out);
+    bodiesFromIntegrals(d, s, phase, wm, stills, 2 * r + 2, motor_seen, &out);
   }
   else
   {
@@ -853,10 +853,6 @@ InitialEstimates estimateInitial(const Recording& d, const IdentificationSetting
       on_backward.push_back(gap[k]);
     }
   }
-  const auto median = [](std::vector<double> v) {
-    std::nth_element(v.begin(), v.begin() + static_cast<long>(v.size() / 2), v.end());
-    return v[v.size() / 2];
-  };
   if (!on_forward.empty() && !on_backward.empty())
   {
     out.zero_offset = median(on_forward);
@@ -870,8 +866,8 @@ InitialEstimates estimateInitial(const Recording& d, const IdentificationSetting
       // (and how far each mode lies from where the gap's extreme crowd was found: a gap that hovers beside a flank
       // moves the one but not the other)
       out.backlash = {backward - out.zero_offset,
-                      std::hypot(flankError(on_forward, on_backward, d, s), out.zero_offset - flanks.forward,
-                                 backward - flanks.backward)};
+                      std::hypot(flankError(on_forward, on_backward, motor_seen, load_seen, s),
+                                 out.zero_offset - flanks.forward, backward - flanks.backward)};
     }
   }
   else
