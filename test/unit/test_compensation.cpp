@@ -1,4 +1,4 @@
-// Compensators of the digital drive and command profiles (issue 12), against the flank geometry of the backlash and
+// Compensators of the digital drive and command profiles, against the flank geometry of the backlash and
 // formulas written here.
 #include <gtest/gtest.h>
 
@@ -460,7 +460,7 @@ double rampResponse(double t, double zeta, double w)
 }
 }  // namespace
 
-// The continuous law takes a ramp exactly (issue 12): Δ = 0, the rigid servo J θ̈ + F θ̇ + K θ = K θ_R(t) under
+// The continuous law takes a ramp exactly: Δ = 0, the rigid servo J θ̈ + F θ̇ + K θ = K θ_R(t) under
 // θ_R rising at v from t_a to t_b, then held: θ_c = v [g(t − t_a) − g(t − t_b)] with g the closed-form unit-ramp
 // response — to 1e-12 rad at every output sample, in output chunks that cut the ramp anywhere.
 TEST(Profile, ContinuousLawTakesARampExactly)

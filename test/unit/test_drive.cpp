@@ -1,4 +1,4 @@
-// The digital drive (docs/model.md Part 2; issue 10 items 3-5): sampling with a zero-order hold, delay, encoders,
+// The digital drive (docs/model.md Part 2): sampling with a zero-order hold, delay, encoders,
 // P / PID / cascade, saturation — against closed forms and limits written here. The reference cases of
 // test/joint_cases/reference_cases.json run in test_tools.cpp (JointCases).
 #include <gtest/gtest.h>

@@ -1,4 +1,4 @@
-// Never crash, hang or lie (issue 14), in the core: live changes that used to stall the simulator, overflowing
+// Never crash, hang or lie, in the core: live changes that used to stall the simulator, overflowing
 // inputs, impact storms.
 #include <gtest/gtest.h>
 
@@ -139,7 +139,7 @@ TEST(Robustness, RigidMeshWithALoadTorqueDoesNotFlipFlanksForEver)
 
 TEST(Robustness, RigidMeshWhoseMeshTorqueCrossesZeroWithinTheClockTakesTheOtherFlank)
 {
-  // Fuzz seed 7 #75234 (one of nine Δ = 0 cases in 1e5, all digital drives or dry friction): the mesh torque crosses
+  // A rigid mesh (Δ = 0) under a digital drive or dry friction, as random joints meet it: the mesh torque crosses
   // zero within the clock's resolution; the segment on the flank it leaves ends at once, while the contact test on
   // the other flank still sees the old sign (1e-14 N·m, above its rounding) — the flanks took turns at one instant.
   ServoParams p;
