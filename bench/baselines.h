@@ -17,7 +17,7 @@
 
 #include <boost/numeric/odeint.hpp>
 
-#include "backlash_servo/params.h"
+#include "backlash_servo/model/params.h"
 #include "maxima.h"
 
 namespace bench

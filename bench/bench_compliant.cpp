@@ -26,8 +26,8 @@
 #include <string>
 #include <vector>
 
-#include "backlash_servo/drive.h"
-#include "backlash_servo/simulator.h"
+#include "backlash_servo/drive/drive.h"
+#include "backlash_servo/simulation/simulator.h"
 #include "maxima.h"
 
 using namespace backlash_servo;

@@ -13,10 +13,10 @@
 #include <string>
 #include <vector>
 
-#include "backlash_servo/gear_mesh.h"
-#include "backlash_servo/impact.h"
-#include "backlash_servo/short_flight.h"
-#include "backlash_servo/step_response.h"
+#include "backlash_servo/model/gear_mesh.h"
+#include "backlash_servo/rigid/impact.h"
+#include "backlash_servo/rigid/short_flight.h"
+#include "backlash_servo/simulation/step_response.h"
 #include "baselines.h"
 
 using namespace backlash_servo;

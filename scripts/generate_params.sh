@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# After a change of the parameter table (src/core/param_table.cpp): rebuilds backlash_params and rewrites the files
+# After a change of the parameter table (src/core/model/param_table.cpp): rebuilds backlash_params and rewrites the files
 # that derive from the table (cfg/BacklashServo.cfg, docs/parameters.md).
 set -euo pipefail
 cd "$(dirname "$0")/.."

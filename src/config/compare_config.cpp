@@ -5,7 +5,7 @@
 #include "backlash_servo/config/key_values.h"
 #include "backlash_servo/config/profile_loader.h"
 #include "backlash_servo/config/run_config_loader.h"
-#include "backlash_servo/param_table.h"
+#include "backlash_servo/model/param_table.h"
 
 namespace backlash_servo
 {

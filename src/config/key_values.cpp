@@ -9,8 +9,8 @@
 #include <cmath>
 #include <cstdlib>
 
-#include "backlash_servo/param_table.h"
-#include "backlash_servo/params.h"
+#include "backlash_servo/model/param_table.h"
+#include "backlash_servo/model/params.h"
 
 namespace backlash_servo
 {

@@ -11,7 +11,7 @@
 
 #include "backlash_servo/config/key_values.h"
 #include "backlash_servo/config/safe_input.h"
-#include "backlash_servo/params.h"
+#include "backlash_servo/model/params.h"
 
 namespace backlash_servo
 {

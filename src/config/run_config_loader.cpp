@@ -5,9 +5,9 @@
 #include <cstdio>
 
 #include "backlash_servo/config/profile_loader.h"
-#include "backlash_servo/gear_mesh.h"
-#include "backlash_servo/param_table.h"
-#include "backlash_servo/simulator.h"
+#include "backlash_servo/model/gear_mesh.h"
+#include "backlash_servo/model/param_table.h"
+#include "backlash_servo/simulation/simulator.h"
 
 namespace backlash_servo
 {

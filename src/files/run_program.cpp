@@ -1,4 +1,4 @@
-#include "run_program.h"
+#include "backlash_servo/files/run_program.h"
 
 #include <spawn.h>
 #include <sys/wait.h>
@@ -11,7 +11,7 @@
 #include <string>
 
 #include "backlash_servo/config/key_values.h"
-#include "safe_output.h"
+#include "backlash_servo/files/safe_output.h"
 
 extern char** environ;
 

@@ -1,4 +1,4 @@
-#include "safe_output.h"
+#include "backlash_servo/files/safe_output.h"
 
 #include <fcntl.h>
 #include <sys/stat.h>

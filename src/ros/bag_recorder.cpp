@@ -21,7 +21,7 @@
 #include <thread>
 #include <vector>
 
-#include "safe_output.h"
+#include "backlash_servo/files/safe_output.h"
 #include "wall_throttle.h"
 
 namespace

@@ -4,7 +4,7 @@
 #include <xmlrpcpp/XmlRpcValue.h>
 
 #include "backlash_servo/config/run_config_loader.h"
-#include "backlash_servo/param_table.h"
+#include "backlash_servo/model/param_table.h"
 
 namespace backlash_servo
 {

@@ -9,7 +9,7 @@
 #include <stdexcept>
 #include <utility>
 
-#include "safe_output.h"
+#include "backlash_servo/files/safe_output.h"
 #include "wall_throttle.h"
 
 namespace backlash_servo

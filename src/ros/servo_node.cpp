@@ -15,7 +15,7 @@
 #include "backlash_servo/ImpactEvent.h"
 #include "backlash_servo/LimitCycleStatus.h"
 #include "backlash_servo/config/run_config_loader.h"
-#include "backlash_servo/param_table.h"
+#include "backlash_servo/model/param_table.h"
 #include "launch_end.h"
 #include "wall_throttle.h"
 

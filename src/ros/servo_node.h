@@ -22,11 +22,11 @@
 #include <memory>
 
 #include "backlash_servo/BacklashServoConfig.h"
-#include "backlash_servo/response_monitor.h"
-#include "backlash_servo/simulator.h"
-#include "backlash_servo/steady_state.h"
-#include "backlash_servo/step_response.h"
-#include "backlash_servo/tracking_metrics.h"
+#include "backlash_servo/simulation/response_monitor.h"
+#include "backlash_servo/simulation/simulator.h"
+#include "backlash_servo/simulation/steady_state.h"
+#include "backlash_servo/simulation/step_response.h"
+#include "backlash_servo/simulation/tracking_metrics.h"
 #include "node_config.h"
 #include "node_recorder.h"
 

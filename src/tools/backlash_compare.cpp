@@ -15,13 +15,13 @@
 
 #include "backlash_servo/config/compare_config.h"
 #include "backlash_servo/config/key_values.h"
-#include "backlash_servo/param_table.h"
-#include "compare/compare_metrics.h"
-#include "json_writer.h"
-#include "part_files.h"
+#include "backlash_servo/files/json_writer.h"
+#include "backlash_servo/files/part_files.h"
+#include "backlash_servo/files/run_program.h"
+#include "backlash_servo/files/safe_output.h"
+#include "backlash_servo/model/param_table.h"
+#include "backlash_servo/studies/compare_metrics.h"
 #include "progress.h"
-#include "run_program.h"
-#include "safe_output.h"
 
 using namespace backlash_servo;
 

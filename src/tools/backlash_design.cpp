@@ -11,11 +11,11 @@
 
 #include "backlash_servo/config/flag_parser.h"
 #include "backlash_servo/config/run_config_loader.h"
-#include "backlash_servo/param_table.h"
-#include "backlash_servo/step_response.h"
-#include "json_writer.h"
-#include "run_report.h"
-#include "safe_output.h"
+#include "backlash_servo/files/json_writer.h"
+#include "backlash_servo/files/safe_output.h"
+#include "backlash_servo/model/param_table.h"
+#include "backlash_servo/simulation/step_response.h"
+#include "backlash_servo/studies/run_report.h"
 
 using namespace backlash_servo;
 

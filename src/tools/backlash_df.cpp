@@ -13,11 +13,11 @@
 
 #include "backlash_servo/config/flag_parser.h"
 #include "backlash_servo/config/run_config_loader.h"
-#include "backlash_servo/limit_cycle_prediction.h"
-#include "backlash_servo/simulator.h"
-#include "json_writer.h"
-#include "run_program.h"
-#include "safe_output.h"
+#include "backlash_servo/files/json_writer.h"
+#include "backlash_servo/files/run_program.h"
+#include "backlash_servo/files/safe_output.h"
+#include "backlash_servo/frequency/limit_cycle_prediction.h"
+#include "backlash_servo/simulation/simulator.h"
 
 using namespace backlash_servo;
 

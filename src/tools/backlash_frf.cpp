@@ -16,16 +16,16 @@
 #include <thread>
 #include <vector>
 
-#include "backlash_servo/broadband_response.h"
 #include "backlash_servo/config/flag_parser.h"
 #include "backlash_servo/config/run_config_loader.h"
-#include "backlash_servo/frequency_response.h"
+#include "backlash_servo/files/json_writer.h"
+#include "backlash_servo/files/part_files.h"
+#include "backlash_servo/files/run_program.h"
+#include "backlash_servo/files/safe_output.h"
+#include "backlash_servo/frequency/broadband_response.h"
+#include "backlash_servo/frequency/frequency_response.h"
 #include "frf/broadband_report.h"
-#include "json_writer.h"
-#include "part_files.h"
 #include "progress.h"
-#include "run_program.h"
-#include "safe_output.h"
 
 using namespace backlash_servo;
 

@@ -19,14 +19,14 @@
 #include "backlash_servo/config/flag_parser.h"
 #include "backlash_servo/config/run_config_loader.h"
 #include "backlash_servo/config/safe_input.h"
-#include "backlash_servo/identification.h"
-#include "backlash_servo/identify_joint.h"
-#include "backlash_servo/param_table.h"
-#include "backlash_servo/replay_windows.h"
-#include "json_writer.h"
+#include "backlash_servo/files/json_writer.h"
+#include "backlash_servo/files/run_program.h"
+#include "backlash_servo/files/safe_output.h"
+#include "backlash_servo/identification/identification.h"
+#include "backlash_servo/identification/identify_joint.h"
+#include "backlash_servo/identification/replay_windows.h"
+#include "backlash_servo/model/param_table.h"
 #include "progress.h"
-#include "run_program.h"
-#include "safe_output.h"
 
 using namespace backlash_servo;
 

@@ -8,7 +8,7 @@
 #include <vector>
 
 #include "backlash_servo/config/flag_parser.h"
-#include "backlash_servo/param_table.h"
+#include "backlash_servo/model/param_table.h"
 
 using namespace backlash_servo;
 
@@ -72,7 +72,8 @@ bool wanted(const ParamSpec& p, const std::string& sections)
 void printCfg(std::ostream& out)
 {
   out << "#!/usr/bin/env python3\n"
-         "# GENERATED from the parameter table (src/core/param_table.cpp) by scripts/generate_params.sh: do not edit.\n"
+         "# GENERATED from the parameter table (src/core/model/param_table.cpp) by scripts/generate_params.sh: do not "
+         "edit.\n"
          "# Live-tunable parameters of backlash_servo_node (dynamic_reconfigure). SI units. No min/max: the node\n"
          "# validates every value against the table and refuses a bad one with a message naming it, instead of the\n"
          "# silent clamping dynamic_reconfigure applies to slider bounds.\n"

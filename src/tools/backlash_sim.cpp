@@ -12,12 +12,12 @@
 
 #include "backlash_servo/config/flag_parser.h"
 #include "backlash_servo/config/run_config_loader.h"
-#include "backlash_servo/gear_mesh.h"
-#include "backlash_servo/modes.h"
-#include "json_writer.h"
+#include "backlash_servo/files/json_writer.h"
+#include "backlash_servo/files/safe_output.h"
+#include "backlash_servo/model/gear_mesh.h"
+#include "backlash_servo/rigid/modes.h"
+#include "backlash_servo/studies/run_report.h"
 #include "progress.h"
-#include "run_report.h"
-#include "safe_output.h"
 
 using namespace backlash_servo;
 

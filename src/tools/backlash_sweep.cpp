@@ -14,12 +14,12 @@
 
 #include "backlash_servo/config/flag_parser.h"
 #include "backlash_servo/config/safe_input.h"
-#include "part_files.h"
+#include "backlash_servo/files/part_files.h"
+#include "backlash_servo/files/safe_output.h"
+#include "backlash_servo/studies/sweep_csv.h"
+#include "backlash_servo/studies/sweep_grid.h"
+#include "backlash_servo/studies/sweep_runner.h"
 #include "progress.h"
-#include "safe_output.h"
-#include "sweep/sweep_csv.h"
-#include "sweep/sweep_grid.h"
-#include "sweep/sweep_runner.h"
 
 using namespace backlash_servo;
 

@@ -14,8 +14,8 @@
 #include <sstream>
 #include <string>
 
-#include "backlash_servo/command_profile.h"
-#include "backlash_servo/simulator.h"
+#include "backlash_servo/drive/command_profile.h"
+#include "backlash_servo/simulation/simulator.h"
 
 namespace fuzz
 {

@@ -32,10 +32,10 @@
 #include "backlash_servo/config/key_values.h"
 #include "backlash_servo/config/profile_loader.h"
 #include "backlash_servo/config/run_config_loader.h"
-#include "backlash_servo/gear_mesh.h"
-#include "backlash_servo/param_table.h"
-#include "backlash_servo/step_response.h"
-#include "sweep/sweep_csv.h"
+#include "backlash_servo/model/gear_mesh.h"
+#include "backlash_servo/model/param_table.h"
+#include "backlash_servo/simulation/step_response.h"
+#include "backlash_servo/studies/sweep_csv.h"
 
 using namespace backlash_servo;
 

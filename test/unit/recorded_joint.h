@@ -5,8 +5,8 @@
 #include <algorithm>
 #include <cmath>
 
-#include "backlash_servo/identification.h"
-#include "backlash_servo/simulator.h"
+#include "backlash_servo/identification/identification.h"
+#include "backlash_servo/simulation/simulator.h"
 
 namespace backlash_servo
 {

@@ -8,8 +8,8 @@
 #include <utility>
 #include <vector>
 
-#include "backlash_servo/drive.h"
-#include "backlash_servo/step_response.h"
+#include "backlash_servo/drive/drive.h"
+#include "backlash_servo/simulation/step_response.h"
 
 using namespace backlash_servo;
 

@@ -8,9 +8,9 @@
 #include <cmath>
 #include <vector>
 
-#include "backlash_servo/compliant_joint.h"
-#include "backlash_servo/drive.h"
-#include "backlash_servo/simulator.h"
+#include "backlash_servo/drive/drive.h"
+#include "backlash_servo/simulation/simulator.h"
+#include "compliant/compliant_joint.h"
 #include "test_helpers.h"
 
 namespace

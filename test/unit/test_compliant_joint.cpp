@@ -9,8 +9,8 @@
 #include <string>
 #include <vector>
 
-#include "backlash_servo/compliant_joint.h"
-#include "backlash_servo/step_response.h"
+#include "backlash_servo/simulation/step_response.h"
+#include "compliant/compliant_joint.h"
 #include "test_helpers.h"
 
 namespace

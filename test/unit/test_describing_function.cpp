@@ -10,11 +10,11 @@
 #include <string>
 #include <vector>
 
-#include "backlash_servo/describing_function.h"
-#include "backlash_servo/drive.h"
-#include "backlash_servo/driven_backlash.h"
-#include "backlash_servo/limit_cycle_prediction.h"
-#include "backlash_servo/params.h"
+#include "backlash_servo/drive/drive.h"
+#include "backlash_servo/frequency/describing_function.h"
+#include "backlash_servo/frequency/driven_backlash.h"
+#include "backlash_servo/frequency/limit_cycle_prediction.h"
+#include "backlash_servo/model/params.h"
 #include "test_helpers.h"
 
 namespace

@@ -5,7 +5,7 @@
 
 #include <cmath>
 
-#include "backlash_servo/step_response.h"
+#include "backlash_servo/simulation/step_response.h"
 #include "test_helpers.h"
 
 namespace

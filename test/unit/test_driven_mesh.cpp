@@ -11,8 +11,8 @@
 #include <functional>
 #include <string>
 
-#include "backlash_servo/driven_mesh.h"
-#include "backlash_servo/params.h"
+#include "backlash_servo/frequency/driven_mesh.h"
+#include "backlash_servo/model/params.h"
 
 using namespace backlash_servo;
 

@@ -7,8 +7,8 @@
 #include <random>
 #include <string>
 
-#include "backlash_servo/drive.h"
-#include "backlash_servo/simulator.h"
+#include "backlash_servo/drive/drive.h"
+#include "backlash_servo/simulation/simulator.h"
 
 using namespace backlash_servo;
 

@@ -6,8 +6,8 @@
 #include <cmath>
 #include <vector>
 
-#include "backlash_servo/modes.h"
-#include "backlash_servo/step_response.h"
+#include "backlash_servo/rigid/modes.h"
+#include "backlash_servo/simulation/step_response.h"
 #include "test_helpers.h"
 
 using namespace backlash_servo;

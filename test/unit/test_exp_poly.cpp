@@ -3,7 +3,7 @@
 
 #include <cmath>
 
-#include "backlash_servo/exp_poly.h"
+#include "backlash_servo/numerics/exp_poly.h"
 
 using namespace backlash_servo;
 

@@ -17,7 +17,7 @@
 #include <thread>
 #include <vector>
 
-#include "safe_output.h"
+#include "backlash_servo/files/safe_output.h"
 #include "test_helpers.h"
 
 namespace

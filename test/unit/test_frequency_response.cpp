@@ -6,9 +6,9 @@
 #include <complex>
 #include <cstdio>
 
-#include "backlash_servo/broadband_response.h"
-#include "backlash_servo/command_profile.h"
-#include "backlash_servo/frequency_response.h"
+#include "backlash_servo/drive/command_profile.h"
+#include "backlash_servo/frequency/broadband_response.h"
+#include "backlash_servo/frequency/frequency_response.h"
 #include "test_helpers.h"
 
 using namespace backlash_servo;

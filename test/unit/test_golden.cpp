@@ -12,7 +12,7 @@
 #include <string>
 #include <vector>
 
-#include "backlash_servo/simulator.h"
+#include "backlash_servo/simulation/simulator.h"
 #include "test_helpers.h"
 
 namespace

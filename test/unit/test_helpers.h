@@ -12,10 +12,10 @@
 #include <string>
 #include <vector>
 
-#include "backlash_servo/describing_function.h"
-#include "backlash_servo/params.h"
-#include "backlash_servo/simulator.h"
-#include "backlash_servo/step_response.h"
+#include "backlash_servo/frequency/describing_function.h"
+#include "backlash_servo/model/params.h"
+#include "backlash_servo/simulation/simulator.h"
+#include "backlash_servo/simulation/step_response.h"
 
 namespace test_helpers
 {

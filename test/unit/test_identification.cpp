@@ -8,11 +8,11 @@
 #include <random>
 #include <utility>
 
-#include "backlash_servo/command_profile.h"
-#include "backlash_servo/drive.h"
-#include "backlash_servo/identification.h"
-#include "backlash_servo/identify_joint.h"
-#include "backlash_servo/simulator.h"
+#include "backlash_servo/drive/command_profile.h"
+#include "backlash_servo/drive/drive.h"
+#include "backlash_servo/identification/identification.h"
+#include "backlash_servo/identification/identify_joint.h"
+#include "backlash_servo/simulation/simulator.h"
 #include "recorded_joint.h"
 
 using namespace backlash_servo;

@@ -10,10 +10,10 @@
 
 #include <variant>
 
-#include "backlash_servo/identify_joint.h"
-#include "backlash_servo/identify_mesh.h"
-#include "backlash_servo/joint_fit.h"
-#include "backlash_servo/param_table.h"
+#include "backlash_servo/identification/identify_joint.h"
+#include "backlash_servo/identification/joint_fit.h"
+#include "backlash_servo/model/param_table.h"
+#include "identification/identify_mesh.h"
 #include "recorded_joint.h"
 
 using namespace backlash_servo;

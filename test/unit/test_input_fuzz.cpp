@@ -20,8 +20,8 @@
 #include "backlash_servo/config/compare_config.h"
 #include "backlash_servo/config/key_values.h"
 #include "backlash_servo/config/profile_loader.h"
-#include "backlash_servo/params.h"
-#include "sweep/sweep_csv.h"
+#include "backlash_servo/model/params.h"
+#include "backlash_servo/studies/sweep_csv.h"
 
 namespace
 {

@@ -6,10 +6,10 @@
 #include <cstdio>
 #include <random>
 
-#include "backlash_servo/identification.h"
-#include "backlash_servo/joint_fit.h"
-#include "backlash_servo/replay_windows.h"
-#include "backlash_servo/simulator.h"
+#include "backlash_servo/identification/identification.h"
+#include "backlash_servo/identification/joint_fit.h"
+#include "backlash_servo/identification/replay_windows.h"
+#include "backlash_servo/simulation/simulator.h"
 #include "recorded_joint.h"
 
 using namespace backlash_servo;

@@ -3,8 +3,8 @@
 
 #include <cmath>
 
-#include "backlash_servo/limit_cycle.h"
-#include "backlash_servo/step_response.h"
+#include "backlash_servo/simulation/limit_cycle.h"
+#include "backlash_servo/simulation/step_response.h"
 #include "test_helpers.h"
 
 using namespace backlash_servo;

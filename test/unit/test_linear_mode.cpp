@@ -9,8 +9,8 @@
 #include <limits>
 #include <vector>
 
-#include "../../src/core/gauss_legendre.h"
-#include "backlash_servo/linear_mode.h"
+#include "numerics/gauss_legendre.h"
+#include "numerics/linear_mode.h"
 
 namespace
 {

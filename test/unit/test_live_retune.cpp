@@ -5,7 +5,7 @@
 #include <cmath>
 #include <vector>
 
-#include "backlash_servo/simulator.h"
+#include "backlash_servo/simulation/simulator.h"
 #include "test_helpers.h"
 
 namespace

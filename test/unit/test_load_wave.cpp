@@ -10,9 +10,9 @@
 #include <string>
 #include <vector>
 
-#include "backlash_servo/compliant_joint.h"
-#include "backlash_servo/plant.h"
-#include "backlash_servo/simulator.h"
+#include "backlash_servo/plant/plant.h"
+#include "backlash_servo/simulation/simulator.h"
+#include "compliant/compliant_joint.h"
 #include "test_helpers.h"
 
 namespace

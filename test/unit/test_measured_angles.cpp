@@ -9,10 +9,10 @@
 #include <sstream>
 #include <string>
 
-#include "../../src/core/phase_regression.h"
-#include "backlash_servo/identify_joint.h"
-#include "backlash_servo/measured_angles.h"
-#include "backlash_servo/param_table.h"
+#include "backlash_servo/identification/identify_joint.h"
+#include "backlash_servo/identification/measured_angles.h"
+#include "backlash_servo/model/param_table.h"
+#include "identification/phase_regression.h"
 #include "recorded_joint.h"
 
 using namespace backlash_servo;

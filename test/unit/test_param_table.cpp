@@ -14,7 +14,7 @@
 #include "backlash_servo/config/compare_config.h"
 #include "backlash_servo/config/flag_parser.h"
 #include "backlash_servo/config/run_config_loader.h"
-#include "backlash_servo/param_table.h"
+#include "backlash_servo/model/param_table.h"
 #include "test_helpers.h"
 
 namespace

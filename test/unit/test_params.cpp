@@ -4,7 +4,7 @@
 #include <cmath>
 #include <limits>
 
-#include "backlash_servo/params.h"
+#include "backlash_servo/model/params.h"
 
 using namespace backlash_servo;
 

@@ -5,9 +5,9 @@
 #include <cmath>
 #include <vector>
 
-#include "backlash_servo/impact.h"
-#include "backlash_servo/modes.h"
-#include "backlash_servo/step_response.h"
+#include "backlash_servo/rigid/impact.h"
+#include "backlash_servo/rigid/modes.h"
+#include "backlash_servo/simulation/step_response.h"
 #include "test_helpers.h"
 
 using namespace backlash_servo;

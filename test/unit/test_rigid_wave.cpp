@@ -9,11 +9,11 @@
 #include <complex>
 #include <vector>
 
-#include "backlash_servo/command_profile.h"
-#include "backlash_servo/compliant_joint.h"
-#include "backlash_servo/drive.h"
-#include "backlash_servo/plant.h"
-#include "backlash_servo/simulator.h"
+#include "backlash_servo/drive/command_profile.h"
+#include "backlash_servo/drive/drive.h"
+#include "backlash_servo/plant/plant.h"
+#include "backlash_servo/simulation/simulator.h"
+#include "compliant/compliant_joint.h"
 #include "test_helpers.h"
 
 namespace

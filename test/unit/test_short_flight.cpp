@@ -8,10 +8,10 @@
 #include <memory>
 #include <random>
 
-#include "backlash_servo/modes.h"
-#include "backlash_servo/plant.h"
-#include "backlash_servo/short_flight.h"
-#include "backlash_servo/step_response.h"
+#include "backlash_servo/plant/plant.h"
+#include "backlash_servo/rigid/modes.h"
+#include "backlash_servo/rigid/short_flight.h"
+#include "backlash_servo/simulation/step_response.h"
 #include "test_helpers.h"
 
 using namespace backlash_servo;

@@ -3,7 +3,7 @@
 
 #include <cmath>
 
-#include "backlash_servo/step_response.h"
+#include "backlash_servo/simulation/step_response.h"
 
 using namespace backlash_servo;
 

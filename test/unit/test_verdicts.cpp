@@ -9,8 +9,8 @@
 #include <random>
 #include <string>
 
-#include "backlash_servo/simulator.h"
-#include "backlash_servo/step_response.h"
+#include "backlash_servo/simulation/simulator.h"
+#include "backlash_servo/simulation/step_response.h"
 #include "test_helpers.h"
 
 namespace

@@ -25,9 +25,9 @@
 #include <string>
 #include <vector>
 
-#include "backlash_servo/command_profile.h"
 #include "backlash_servo/config/key_values.h"
-#include "backlash_servo/step_response.h"
+#include "backlash_servo/drive/command_profile.h"
+#include "backlash_servo/simulation/step_response.h"
 
 namespace backlash_servo
 {

@@ -10,7 +10,7 @@
 #include <vector>
 
 #include "backlash_servo/config/key_values.h"
-#include "backlash_servo/param_table.h"
+#include "backlash_servo/model/param_table.h"
 
 namespace backlash_servo
 {

@@ -18,7 +18,7 @@
 #include <memory>
 #include <string>
 
-#include "backlash_servo/command_profile.h"
+#include "backlash_servo/drive/command_profile.h"
 
 namespace YAML
 {

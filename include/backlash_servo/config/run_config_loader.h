@@ -14,7 +14,7 @@
 #include <vector>
 
 #include "backlash_servo/config/key_values.h"
-#include "backlash_servo/step_response.h"
+#include "backlash_servo/simulation/step_response.h"
 
 namespace backlash_servo
 {

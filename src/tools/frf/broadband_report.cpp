@@ -4,8 +4,8 @@
 #include <cstdio>
 #include <sstream>
 
-#include "json_writer.h"
-#include "part_files.h"
+#include "backlash_servo/files/json_writer.h"
+#include "backlash_servo/files/part_files.h"
 
 namespace backlash_servo
 {

@@ -5,7 +5,7 @@
 #include <string>
 #include <vector>
 
-#include "backlash_servo/broadband_response.h"
+#include "backlash_servo/frequency/broadband_response.h"
 
 namespace backlash_servo
 {

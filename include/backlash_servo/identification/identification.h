@@ -1,0 +1,211 @@
+/**
+ * @file identification.h
+ * @brief The joint identified from a recording of its own motion: the start of a fit — backlash, inertias, viscous and
+ *        Coulomb friction and the load torque estimated from the data alone, by linear least squares on the phases
+ *        where the equations of motion are linear in the parameters. No ROS dependency.
+ *
+ * **Recording.** Samples at a uniform period h: time t_k [s], motor torque u_k [N·m] (held over [t_k, t_{k+1}), as a
+ * drive applies it), motor angle θ_m,k and load angle θ_c,k [rad] on their own shafts; the gear ratio ρ is known.
+ *
+ * **Derivatives.** ω_k = (θ_{k+1} − θ_{k−1})/(2h), α_k = (θ_{k+1} − 2θ_k + θ_{k−1})/h²: the second difference
+ * averages the acceleration over [t_{k−1}, t_{k+1}], where the held torque was u_{k−1} then u_k, so it is regressed
+ * on ū_k = (u_{k−1} + u_k)/2 (exact for a body without friction; O(h) otherwise). With `smoothing` r every term —
+ * the angle before its differences, ū, and sgn ω — is filtered by the same F (the centred mean over 2r + 1 samples,
+ * twice): differences commute with F, so the equations hold for the filtered terms, with quantisation and noise
+ * averaged out.
+ *
+ * **Phases.** The gap g = θ_c − ρθ_m lies in [g₀, g₀ + Δ] (g₀: where the encoders' zeros put the forward flank):
+ * Δ̂ = max g − min g and ĝ₀ = min g once the recording touched both flanks. A sample is in **contact** when its gap and
+ * those of its two neighbours on each side lie within `contact_band` of one flank (no impact in its stencil), **apart**
+ * when all five lie clear of both flanks by max(1e-3 Δ̂, 4 contact_band) (a chatter of short flights near a flank is
+ * neither); samples where a body stands (|ω| below `still_speed`) are left out
+ * (the sign of its dry friction is unknown).
+ * - contact (one body on the motor shaft): ū = J α_m + F ω_m + C sgn(ω_m) + b, J = J_m + ρ²J_L, F = f_m + ρ²f_L,
+ *   C = T_cm + ρT_cL, b = −ρT_ext;
+ * - apart, the motor alone: ū = J_m α_m + f_m ω_m + T_cm sgn(ω_m);
+ * so J_L = (J − J_m)/ρ², f_L = (F − f_m)/ρ², T_cL = (C − T_cm)/ρ, T_ext = −b/ρ. Each least-squares fit gives its
+ * parameters' standard errors σ√diag((XᵀX)⁻¹) (σ² the residual variance), carried to the derived ones.
+ *
+ * **Static friction** from the rests (estimateInitial below); the restitution needs the simulator as the model
+ * (fitRestitution below); a compliant mesh has its own estimates (identify_mesh.h).
+ */
+#pragma once
+
+#include <cmath>
+#include <map>
+#include <string>
+#include <vector>
+
+#include "backlash_servo/drive/command_profile.h"
+#include "backlash_servo/model/params.h"
+
+namespace backlash_servo
+{
+/// A recording of the joint (SI): equal lengths, uniform time steps.
+struct Recording
+{
+  std::vector<double> time;            ///< t_k [s]
+  std::vector<double> motor_torque;    ///< u_k [N·m], held over [t_k, t_{k+1})
+  std::vector<double> motor_position;  ///< θ_m [rad] on the motor shaft
+  std::vector<double> load_position;   ///< θ_c [rad] on the load shaft
+};
+
+/// One estimated quantity.
+struct Estimate
+{
+  double value = 0.0;           ///< [its unit]
+  double standard_error = 0.0;  ///< [its unit]; NaN when the data do not inform it
+};
+
+struct InitialEstimates
+{
+  Estimate backlash;                ///< Δ [rad]
+  double zero_offset = 0.0;         ///< g₀: the gap the encoders read on the forward flank [rad]
+  Estimate motor_inertia;           ///< J_m [kg·m²]
+  Estimate load_inertia;            ///< J_L [kg·m²]
+  Estimate motor_friction;          ///< f_m [N·m·s/rad]
+  Estimate load_friction;           ///< f_L [N·m·s/rad]
+  Estimate motor_coulomb_friction;  ///< T_cm [N·m]
+  Estimate load_coulomb_friction;   ///< T_cL [N·m]
+  Estimate load_torque;             ///< T_ext [N·m]
+  /// T_sm [N·m] from the motor's rests with the teeth apart (NaN: none seen; standard error NaN: never seen
+  /// breaking away, the value is a lower bound).
+  Estimate motor_static_friction{NAN, NAN};
+  /// T_sL [N·m] from the pair's rests on a flank, less the motor's share (NaN: no rest of either kind).
+  Estimate load_static_friction{NAN, NAN};
+  /// A compliant mesh (identify_mesh.h): c [N·m/rad] and d [N·m·s/rad] (NaN: rigid teeth, not estimated).
+  Estimate mesh_stiffness{NAN, NAN};
+  Estimate mesh_damping{NAN, NAN};
+  bool load_torque_given = false;  ///< contact motion one way only: the load torque was the settings' (not estimated)
+  /// Measured angles: the phases were read at the load's count edges (the gap did not resolve the free play).
+  bool phases_from_edges = false;
+  /// Keys the recording does not inform, with the reason (their estimates NaN).
+  std::map<std::string, std::string> not_identifiable;
+  std::size_t contact_samples = 0, apart_samples = 0;
+  double contact_rms_residual = 0.0;  ///< [N·m]
+  double apart_rms_residual = 0.0;    ///< [N·m]
+
+  /// The estimates by parameter key (backlash, motor_inertia, …, load_torque; the mesh's when estimated).
+  std::map<std::string, Estimate> byKey() const;
+};
+
+struct IdentificationSettings
+{
+  double gear_ratio = 1.0;  ///< ρ [-] (known)
+  double contact_band = 0.0;  ///< [rad]; 0 = 1e-8 Δ̂ (noise-free data: a contact keeps the gap to rounding, a chatter of
+                              ///< short flights does not) — give the encoders' resolution for measured data
+  double still_speed = 0.0;  ///< [rad/s]; 0 = 1e-6 of the largest motor speed
+  /// r [samples]: every term filtered by the centred mean over 2r + 1 samples, twice, before the fits (quantised or
+  /// noisy angles); a sample then needs its phase over 4r + 5 samples. 0: none (exact data).
+  int smoothing = 0;
+  /// [N·m]: used when the contact motion goes one way only (a limit cycle pushed from one side, say), where the
+  /// Coulomb friction and the load torque cannot be told apart; NaN: none (such a recording is then refused).
+  double load_torque_fallback = NAN;
+  /// Measured angles without a smoothing given: the bodies' equations integrated twice over stretches of one phase
+  /// (no derivative of an angle; errors in the angles corrected for) instead of differentiated after the filter.
+  bool integrated = false;
+  /// The encoders' resolutions N_m, N_L [counts/rev] when stated (0: unknown): tried first when the angles' count
+  /// grids are recognised (measured_angles.h).
+  double motor_encoder_resolution = 0.0, load_encoder_resolution = 0.0;
+};
+
+/// A body's motion from its recorded angle: the angle filtered by F (smoothing r), velocity and acceleration by central
+/// differences [rad, rad/s, rad/s²] (0 at the ends) and F sgn ω [-].
+struct BodyMotion
+{
+  std::vector<double> angle, velocity, acceleration, sign;
+};
+
+/// Checks the recording (at least 50 samples, equal columns, finite values, uniform increasing times, a known gear
+/// ratio, a smoothing that fits) and returns its sample period h [s]; throws InvalidParameterError naming what is
+/// wrong.
+double samplePeriod(const Recording& data, const IdentificationSettings& settings);
+
+/// The body's filtered angle and its differences (sample period h [s], smoothing r [samples]).
+BodyMotion differentiate(const std::vector<double>& angle, double h, int smoothing);
+
+/// ū_k = (u_{k−1} + u_k)/2 filtered by F [N·m]: the torque the second difference at sample k averages.
+std::vector<double> meanTorque(const Recording& data, int smoothing);
+
+/// The joint `joint` with the estimates in place (keys of the parameter table; NaN values skipped): levels bounded
+/// below by 0 (friction, the mesh's coefficients) that came out below it are 0 within their scatter, and each body's
+/// static friction is at least its Coulomb level.
+ServoParams withEstimates(ServoParams joint, const std::map<std::string, Estimate>& estimates);
+
+/// Bounds on a static friction level from rests: the largest net torque that held the body [N·m] (−1: no rest) and
+/// the smallest that broke it away (∞: never seen breaking away).
+struct RestBounds
+{
+  double low = -1.0, high = INFINITY;
+  /// The level: the middle of [low, high] with the standard error of a uniform spread over it; {low, NaN} when it
+  /// never broke away (a lower bound); NaN when there was no rest or the bounds cross (noise, not friction).
+  Estimate level() const;
+};
+
+/// The smoothing filter F of `IdentificationSettings::smoothing` r: the centred mean over 2r + 1 samples, twice (a
+/// triangle 4r + 1 samples wide); the samples within 2r of an end keep their values (they are never used).
+std::vector<double> smoothedSignal(const std::vector<double>& x, int r);
+
+/// The fewest samples a rest lasts [samples] at sample period h [s]: 10, at least the smoothing's support 4r + 5,
+/// and with measured data (a contact band given) 0.2 s — a reversal at acceleration α stays within the band for
+/// 2√(2 band/α), so only α ≤ 8 band/(0.2 s)² passes for a rest (its torque J α is then far below the friction levels).
+std::size_t minimumRest(const IdentificationSettings& settings, double h);
+
+/// The gap on each flank [rad].
+struct Flanks
+{
+  double forward = 0.0, backward = 0.0;
+};
+
+/**
+ * Where the gap dwells at each end of its range. Exact angles (band 0): its extremes. Measured ones (without the
+ * `edge` samples at each end, the filter's): from each end of the sorted gaps, the first place where at least
+ * max(20, n/1000) samples lie within twice the band [rad] (a few samples beyond a flank — noise, an impact's
+ * overshoot — are passed over), refined to the median of those samples.
+ */
+Flanks locateFlanks(const std::vector<double>& gap, std::size_t edge, double band);
+
+/// A gain K [N·m/rad] for replaying a joint whose loop is not known: a replay drives it by the recorded torque (the
+/// gain acts nowhere), but the simulator checks the envelope with it — ω_n = max(1 rad/s, 2F/J) keeps ζ ≤ 1/4.
+double replayGain(const ServoParams& joint);
+
+/**
+ * The initial estimates from the recording. Throws InvalidParameterError naming what is missing: too few samples,
+ * non-uniform or non-increasing times, non-finite values, a recording that never touches both flanks (no backlash
+ * to measure: reversals that cross it are needed), or too few samples in contact or apart to fit (each phase needs
+ * motion in both directions).
+ */
+InitialEstimates estimateInitial(const Recording& data, const IdentificationSettings& settings);
+
+/**
+ * The coefficient of restitution, fitted with the simulator as the model (the initial estimates for everything else,
+ * static friction at the Coulomb level): windows of the recording that begin with the teeth apart shortly before an
+ * impact (up to `windows` of them, spread over the recording) are replayed from the measured state — angles as
+ * recorded, velocities by central differences, the gap taken relative to the estimated zero offset and clamped into
+ * [0, Δ̂] — under the recorded torque, for `window` [s] each; e minimises the summed squared difference of the load
+ * angle from the recording (golden-section search on [0, 1]: derivative-free, since an impact sequence is not smooth
+ * in e). Re-anchoring each window on the measured state keeps the replay from parting from the recording, which an
+ * impacting joint replayed open-loop over the whole recording would. Its standard error comes from the objective's
+ * curvature at the minimum and the residual variance. Throws InvalidParameterError when the recording has no impact
+ * to fit on.
+ */
+Estimate fitRestitution(const Recording& data, const IdentificationSettings& settings, const InitialEstimates& initial,
+                        double window = 0.2, int windows = 40);
+
+/**
+ * An experiment that informs the initial estimates, as a command profile for the position loop (the node and
+ * backlash_sim replay it): three sines of the command about its start θ₀, one after the other, each a third of
+ * `duration` [s], amplitude `travel` [rad] (the largest excursion allowed; at least 3Δ so that every reversal carries
+ * the motor across the free play) at ω_n/8, ω_n/3 and (half the amplitude) ω_n/1.5, ω_n the loop's natural frequency
+ * under the P gain K (params.naturalFrequency()). The slow sine moves the joint in contact both ways at low
+ * acceleration (viscous and Coulomb friction, the load torque); the faster ones accelerate it (the inertias); every
+ * reversal crosses the backlash (Δ, and the motor alone while the teeth are apart). A dither (`dither_amplitude`
+ * a_d [rad] at `dither_frequency` f_d [Hz], 0: none) rides on every sine: a torque K a_d oscillating faster than the
+ * loop follows keeps a body from sticking at the slow reversals (stick-slip hides the Coulomb level) — at the price
+ * of the rests the static levels come from. Throws InvalidParameterError for a duration ≤ 0, a travel below 3Δ, or
+ * a dither amplitude < 0 or without a frequency > 0.
+ */
+std::vector<ProfileSegment> identificationExperiment(const ServoParams& params, double duration, double travel,
+                                                     double dither_amplitude = 0.0, double dither_frequency = 0.0);
+
+}  // namespace backlash_servo

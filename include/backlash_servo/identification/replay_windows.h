@@ -1,0 +1,90 @@
+/**
+ * @file replay_windows.h
+ * @brief Short windows of a recording replayed by the exact simulator from the measured state: the model side of every
+ *        fit that uses the simulator (the restitution, the joint fit). No ROS dependency.
+ *
+ * An impacting joint replayed open-loop over a whole recording parts from it within seconds even with the true
+ * parameters (its motion is chaotic: a 1e-12 change grows to mrad), so each window starts again from the state
+ * measured at its first sample k₀ and runs `length` samples under the recorded torque (effort mode, the torque held
+ * from each sample to the next):
+ * - angles θ_m, θ_c as recorded at k₀, velocities by central differences of the recorded angles — never filtered: the
+ *   smoothing blurs an angle and its velocity across an impact, and a fit then mistakes the blur for the impact's
+ *   physics (16-bit angles with smoothing 20 in the anchors: e 0.5 fitted as 0.97); their noise is what the fitted
+ *   velocity corrections absorb;
+ * - the gap g = θ_c − ρθ_m − g₀ (g₀ the zero offset: the gap the encoders read on the forward flank) decides the
+ *   teeth: within the contact band of 0 → forward contact, of Δ (or beyond) → backward contact, the common velocity
+ *   (ω_c + ρω_m)/2; otherwise apart, g clamped into [0, Δ]; with a compliant mesh (mesh_stiffness > 0) the angles and
+ *   velocities as measured, a gap beyond a flank being the mesh's penetration;
+ * - the encoders' offset is put back before comparing: the residuals are simulated − measured of ρθ_m and θ_c, both
+ *   on the load shaft [rad], at samples k₀+1 … k₀+length.
+ */
+#pragma once
+
+#include <cstddef>
+#include <vector>
+
+#include "backlash_servo/identification/identification.h"
+#include "backlash_servo/model/params.h"
+
+namespace backlash_servo
+{
+class ReplayWindows
+{
+ public:
+  /// `starts`: each window's first sample (≥ 1), `length` [samples] ≥ 1; windows must end inside the recording.
+  /// Throws InvalidParameterError when they do not, or when there is no window.
+  ReplayWindows(const Recording& data, const IdentificationSettings& settings, double zero_offset,
+                std::vector<std::size_t> starts, std::size_t length);
+
+  /// Windows that begin `lead` samples before the gap reaches a flank from clear of both (margin 1e-3 Δ), windows
+  /// not overlapping, at most `count` spread evenly over those found (none: empty).
+  static std::vector<std::size_t> beforeImpacts(const Recording& data, double gear_ratio, double zero_offset,
+                                                double backlash, std::size_t length, std::size_t lead,
+                                                std::size_t count);
+  /// `count` windows spread evenly over the recording (fewer when it is short).
+  static std::vector<std::size_t> spread(std::size_t samples, std::size_t length, std::size_t count);
+
+  /// Corrections per window to its anchor's velocities ω_m, ω_c [rad/s]: a fit may estimate them with the
+  /// parameters, since velocities differenced from the angles are an anchor's weakest part (O(h²) on smooth motion,
+  /// wrong across an impact, noisy with the angles). With the teeth in contact their mean is the pair's velocity. A
+  /// body at rest over the anchor's stencil (its angle within the contact band) starts at rest, uncorrected.
+  static constexpr std::size_t CORRECTIONS = 2;
+
+  /// The residuals of the joint `params` (rigid teeth or a compliant mesh without a torsional shaft; effort mode): per
+  /// window, per sample, ρθ_m then θ_c
+  /// (`load_only`: θ_c alone) [rad], with the anchors corrected by `corrections` (CORRECTIONS per window, or null).
+  /// A window whose simulation refuses (a parameter out of range) throws.
+  void residuals(const ServoParams& params, std::vector<double>* out, bool load_only = false,
+                 const std::vector<double>* corrections = nullptr) const;
+  /// One window's residuals (both angles, 2·length values), its anchor corrected by `corrections` (CORRECTIONS
+  /// values, or null).
+  void windowResiduals(const ServoParams& params, std::size_t window, const double* corrections,
+                       std::vector<double>* out) const;
+
+  /// The simulated angles of the joint `params` at every sample of the windows, NaN outside them (for charts):
+  /// θ_m [rad] and θ_c [rad].
+  void simulate(const ServoParams& params, std::vector<double>* motor, std::vector<double>* load,
+                const std::vector<double>* corrections = nullptr) const;
+
+  const std::vector<std::size_t>& starts() const { return starts_; }
+  std::size_t length() const { return length_; }
+  /// Residuals per evaluation (both angles).
+  std::size_t size() const { return 2 * starts_.size() * length_; }
+
+ private:
+  struct Anchor
+  {
+    double time, motor_position, motor_velocity, load_position, load_velocity, gap;
+    bool motor_still, load_still;  // at rest over the stencil: velocity 0, not corrected
+  };
+  template <class Visit>
+  void replayWindow(const ServoParams& params, std::size_t window, const double* corrections, Visit visit) const;
+
+  const Recording& data_;
+  double rho_, band_, zero_offset_;
+  std::vector<std::size_t> starts_;
+  std::size_t length_;
+  std::vector<Anchor> anchors_;
+};
+
+}  // namespace backlash_servo

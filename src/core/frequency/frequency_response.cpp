@@ -1,0 +1,646 @@
+#include "backlash_servo/frequency/frequency_response.h"
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <memory>
+#include <vector>
+
+#include "backlash_servo/drive/command_profile.h"
+#include "compliant/compliant_joint.h"
+#include "numerics/gauss_legendre.h"
+
+namespace backlash_servo
+{
+namespace
+{
+constexpr double PI = 3.14159265358979323846;
+/// An exact sine's period is observed at this many instants (the steady-state test, the Fourier pieces' cuts).
+constexpr int CONTINUOUS_POINTS = 64;
+/// Subharmonics looked for: a response repeating after up to this many periods.
+constexpr int MAX_PERIOD_MULTIPLE = 4;
+
+/// Records the instants where the output or its slope may jump (impacts, contacts, separations, rests) and the
+/// flank changes (the teeth crossing the backlash).
+class BreakSink : public EventSink
+{
+ public:
+  void onEvent(const Event& e) override
+  {
+    int flank = 0;
+    switch (e.type)
+    {
+      case EventType::Impact:
+        flank = e.impact.wall == Contact::Forward ? 1 : -1;
+        breaks.push_back(e.state.time);
+        break;
+      case EventType::Engagement:
+        flank = e.state.contact == Contact::Forward ? 1 : (e.state.contact == Contact::Backward ? -1 : 0);
+        breaks.push_back(e.state.time);
+        break;
+      case EventType::Separation:
+        ++separations;
+        breaks.push_back(e.state.time);
+        break;
+      case EventType::Rest:
+        breaks.push_back(e.state.time);
+        break;
+      default:
+        break;
+    }
+    if (flank != 0)
+    {
+      flanks.push_back(flank);
+    }
+  }
+  /// Changes of flank around the periodic window (its last flank is followed by its first).
+  long flankChanges() const
+  {
+    long n = 0;
+    for (std::size_t i = 0; i < flanks.size(); ++i)
+    {
+      n += flanks[i] != flanks[(i + 1) % flanks.size()] ? 1 : 0;
+    }
+    return n;
+  }
+  std::vector<double> breaks;
+  long separations = 0;
+  std::vector<int> flanks;  // the flank (+1 forward, −1 backward) of each impact or engagement, in order
+};
+
+/// The quantities compared from one period start to the next.
+struct Snapshot
+{
+  std::array<double, 2> position{};  // θ_c, ρθ_m: may advance by the same amount each period
+  std::array<double, 5> level{};     // gap, twist [rad]; ω_c, ρω_m, twist rate [rad/s]: must repeat
+};
+
+Snapshot snapshotOf(const State& s, double rho)
+{
+  Snapshot n;
+  n.position = {s.load_position, rho * s.motor_position};
+  n.level = {s.load_position - rho * s.motor_position, s.shaft_twist, s.load_velocity, rho * s.motor_velocity,
+             s.shaft_twist_rate};
+  return n;
+}
+
+/// Ranges over a period of the snapshot's quantities (from the samples): the scales of the repeat test.
+struct Ranges
+{
+  std::array<double, 7> lo, hi;
+  Ranges() { reset(); }
+  void reset()
+  {
+    lo.fill(INFINITY);
+    hi.fill(-INFINITY);
+  }
+  void add(const Snapshot& s)
+  {
+    const std::array<double, 7> v = {s.position[0], s.position[1], s.level[0], s.level[1],
+                                     s.level[2],    s.level[3],    s.level[4]};
+    for (std::size_t i = 0; i < v.size(); ++i)
+    {
+      lo[i] = std::min(lo[i], v[i]);
+      hi[i] = std::max(hi[i], v[i]);
+    }
+  }
+  double range(std::size_t i) const { return hi[i] >= lo[i] ? hi[i] - lo[i] : 0.0; }
+  /// The angle scale [rad] (positions, gap, twist) and the speed scale [rad/s].
+  double angleScale() const { return std::max({range(0), range(1), range(2), range(3)}); }
+  double speedScale() const { return std::max({range(4), range(5), range(6)}); }
+};
+
+/// Whether the period starts n − 2m, n − m, n repeat: levels equal, positions advancing by the same step, each
+/// within tol of its scale (plus the rounding of the values themselves).
+bool repeats(const std::vector<Snapshot>& s, std::size_t n, std::size_t m, double angle_scale, double speed_scale,
+             double tol)
+{
+  const Snapshot &a = s[n - 2 * m], &b = s[n - m], &c = s[n];
+  const auto close = [&](double x, double y, double scale, double magnitude) {
+    return std::fabs(x - y) <= tol * scale + 64.0 * 2.2e-16 * magnitude;
+  };
+  for (std::size_t i = 0; i < 2; ++i)
+  {
+    const double mag = std::max({std::fabs(a.position[i]), std::fabs(b.position[i]), std::fabs(c.position[i])});
+    if (!close(c.position[i] - b.position[i], b.position[i] - a.position[i], angle_scale, mag))
+    {
+      return false;
+    }
+  }
+  for (std::size_t i = 0; i < 5; ++i)
+  {
+    const double scale = i < 2 ? angle_scale : speed_scale;
+    if (!close(c.level[i], b.level[i], scale, std::max(std::fabs(b.level[i]), std::fabs(c.level[i]))))
+    {
+      return false;
+    }
+  }
+  return true;
+}
+
+}  // namespace
+
+const char* toString(FrfChannel c)
+{
+  switch (c)
+  {
+    case FrfChannel::CommandToLoadPosition:
+      return "command:load_position";
+    case FrfChannel::TorqueToMotorVelocity:
+      return "motor_torque:motor_velocity";
+    case FrfChannel::TorqueToLoadVelocity:
+      return "motor_torque:load_velocity";
+    case FrfChannel::SetpointToMotorVelocity:
+      return "torque_setpoint:motor_velocity";
+    case FrfChannel::SetpointToLoadVelocity:
+      return "torque_setpoint:load_velocity";
+    case FrfChannel::LoadTorqueToLoadPosition:
+      return "load_torque:load_position";
+  }
+  return "?";
+}
+
+FrfChannel frfChannelFrom(const std::string& name, const std::string& key)
+{
+  for (FrfChannel c :
+       {FrfChannel::CommandToLoadPosition, FrfChannel::TorqueToMotorVelocity, FrfChannel::TorqueToLoadVelocity,
+        FrfChannel::SetpointToMotorVelocity, FrfChannel::SetpointToLoadVelocity, FrfChannel::LoadTorqueToLoadPosition})
+  {
+    if (name == toString(c))
+    {
+      return c;
+    }
+  }
+  throw InvalidParameterError(key, "'" + name +
+                                       "' is not a channel: command:load_position, motor_torque:motor_velocity, "
+                                       "motor_torque:load_velocity, torque_setpoint:motor_velocity, "
+                                       "torque_setpoint:load_velocity or load_torque:load_position");
+}
+
+double excitationRate(const RunConfig& config, FrfChannel channel, double injection_rate)
+{
+  if (loadTorqueInput(channel))
+  {
+    if (injection_rate != 0.0)
+    {
+      throw InvalidParameterError("injection_rate",
+                                  "the load torque's sine is applied itself, not sampled: leave injection_rate out");
+    }
+    if (!config.drive.sampled())
+    {
+      throw InvalidParameterError("controller_rate", "the load torque's sine has no rate without a digital drive");
+    }
+    return config.drive.controller_rate;  // (its period spans whole samples of the drive)
+  }
+  if (setpointInput(channel))
+  {
+    if (!config.drive.sampled())
+    {
+      throw InvalidParameterError("controller_rate",
+                                  "the torque set-point is the digital drive's: give a "
+                                  "controller_rate > 0 Hz");
+    }
+    if (injection_rate != 0.0 && injection_rate != config.drive.controller_rate)
+    {
+      throw InvalidParameterError("injection_rate",
+                                  "the set-point is injected at the drive's own samples "
+                                  "(controller_rate): leave injection_rate out");
+    }
+    return config.drive.controller_rate;
+  }
+  if (!torqueInput(channel))
+  {
+    if (!config.drive.sampled())
+    {
+      throw InvalidParameterError("controller_rate",
+                                  "the command channel needs a digital drive (controller_rate > 0 Hz), which samples "
+                                  "the excitation exactly; the continuous law takes no sine");
+    }
+    return config.drive.controller_rate;
+  }
+  const double rate = injection_rate > 0.0
+                          ? injection_rate
+                          : (config.drive.sampled() ? config.drive.controller_rate : DEFAULT_INJECTION_RATE);
+  if (!std::isfinite(rate))
+  {
+    throw InvalidParameterError("injection_rate", "must be finite");
+  }
+  return rate;
+}
+
+double slowestTimeScale(const RunConfig& config, FrfChannel channel)
+{
+  return std::max({plantTimeScale(config.params), driveTimeScale(config),
+                   torqueInput(channel) ? 0.0 : 1.0 / config.params.naturalFrequency()});
+}
+
+std::shared_ptr<const CommandProfile> speedOffsetProfile(const RunConfig& config, double speed, double duration)
+{
+  if (speed == 0.0)
+  {
+    return nullptr;
+  }
+  ProfileSegment ramp;
+  ramp.kind = ProfileSegment::Kind::Ramp;
+  ramp.time = config.initial.time;
+  ramp.duration = duration;
+  ramp.target = config.command + speed * ramp.duration;
+  return std::make_shared<const CommandProfile>(config.command, std::vector<ProfileSegment>{ramp});
+}
+
+double frfOutput(FrfChannel c, const State& s)
+{
+  switch (c)
+  {
+    case FrfChannel::CommandToLoadPosition:
+    case FrfChannel::LoadTorqueToLoadPosition:
+      return s.load_position;
+    case FrfChannel::TorqueToMotorVelocity:
+    case FrfChannel::SetpointToMotorVelocity:
+      return s.motor_velocity;
+    case FrfChannel::TorqueToLoadVelocity:
+    case FrfChannel::SetpointToLoadVelocity:
+      return s.load_velocity;
+  }
+  return NAN;
+}
+
+double fastestRate(const ServoParams& p)
+{
+  const double rho2 = p.gear_ratio * p.gear_ratio;
+  double rate = std::max({p.naturalFrequency(), p.motor_friction / p.motor_inertia,
+                          p.load_friction / (p.load_inertia + (p.torsionalShaft() ? 0.0 : p.gear_inertia))});
+  if (p.compliant())
+  {
+    // The mesh couples the motor (J_m/ρ² at the load shaft) with the output gear (and the load behind a rigid shaft).
+    const double out = p.torsionalShaft() ? p.gear_inertia : p.load_inertia + p.gear_inertia;
+    const double inv_mu = rho2 / p.motor_inertia + (out > 0.0 ? 1.0 / out : 0.0);
+    rate = std::max({rate, std::sqrt(p.mesh_stiffness * inv_mu), p.mesh_damping * inv_mu});
+  }
+  if (p.torsionalShaft() && p.gear_inertia > 0.0)
+  {
+    const double inv = 1.0 / p.gear_inertia + 1.0 / p.load_inertia;
+    rate = std::max({rate, std::sqrt(p.shaft_stiffness * inv), p.shaft_damping * inv});
+  }
+  return rate;
+}
+
+FrfSampling frfSampling(const RunConfig& config, const FrfSettings& settings, double omega)
+{
+  if (!(std::isfinite(omega) && omega > 0.0))
+  {
+    throw InvalidParameterError("frequency", "must be finite and > 0 rad/s (got " + std::to_string(omega) + ")");
+  }
+  const bool torque = torqueInput(settings.channel);
+  FrfSampling out;
+  // The sine itself: the command under the continuous law, or the torque when asked for. Its
+  // period is then observed at CONTINUOUS_POINTS instants (the steady-state test and the Fourier pieces' cuts).
+  if (setpointInput(settings.channel) && settings.continuous)
+  {
+    throw InvalidParameterError("continuous",
+                                "the set-point injection is the digital drive's, sampled at its "
+                                "controller_rate: leave continuous out");
+  }
+  const bool load = loadTorqueInput(settings.channel);
+  if (load && settings.continuous)
+  {
+    throw InvalidParameterError("continuous", "the load torque's sine is always the sine itself: leave continuous out");
+  }
+  out.continuous = torque ? settings.continuous : !setpointInput(settings.channel) && !config.drive.sampled();
+  if (out.continuous || load)
+  {
+    requireExactWave(config.params, torque ? "an exact sine torque (--continuous)"
+                                    : load ? "a sine load torque"
+                                           : "a sine command");
+  }
+  out.rate = out.continuous ? CONTINUOUS_POINTS * omega / (2.0 * PI)
+                            : excitationRate(config, settings.channel, settings.injection_rate);
+  const double per_period = out.continuous ? CONTINUOUS_POINTS : 2.0 * PI * out.rate / omega;
+  if (per_period < 3.5)
+  {
+    throw InvalidParameterError("frequency", std::to_string(omega) + " rad/s is above a quarter of the sample rate (" +
+                                                 std::to_string(out.rate) + " Hz): at most " +
+                                                 std::to_string(2.0 * PI * out.rate / 4.0) + " rad/s");
+  }
+  if (per_period > 1e9)
+  {
+    throw InvalidParameterError("frequency", std::to_string(omega) + " rad/s puts more than 1e9 samples in a period");
+  }
+  out.samples_per_period = std::lround(per_period);
+  out.frequency = out.continuous ? omega : 2.0 * PI * out.rate / static_cast<double>(out.samples_per_period);
+  return out;
+}
+
+FrfPoint measureFrequencyResponse(const RunConfig& config, const FrfSettings& settings, double amplitude, double omega,
+                                  const std::function<bool()>& cancelled)
+{
+  if (!(std::isfinite(amplitude) && amplitude > 0.0))
+  {
+    throw InvalidParameterError("amplitude", "must be finite and > 0 (got " + std::to_string(amplitude) + ")");
+  }
+  if (!(std::isfinite(omega) && omega > 0.0))
+  {
+    throw InvalidParameterError("frequency", "must be finite and > 0 rad/s (got " + std::to_string(omega) + ")");
+  }
+  if (!std::isfinite(settings.offset))
+  {
+    throw InvalidParameterError("offset", "must be finite");
+  }
+  if (!(settings.tolerance > 0.0 && settings.tolerance < 1.0))
+  {
+    throw InvalidParameterError("tolerance", "must be in (0, 1) (got " + std::to_string(settings.tolerance) + ")");
+  }
+  if (settings.max_periods != 0 && settings.max_periods < 3)
+  {
+    throw InvalidParameterError(
+        "max_periods", "must be 0 (automatic) or at least 3 (got " + std::to_string(settings.max_periods) + ")");
+  }
+  if (settings.harmonics < 1 || settings.harmonics > 1000)
+  {
+    throw InvalidParameterError("harmonics", "must be in [1, 1000] (got " + std::to_string(settings.harmonics) + ")");
+  }
+  const FrfChannel channel = settings.channel;
+  const bool torque = torqueInput(channel), setpoint = setpointInput(channel);
+  const FrfSampling sampling = frfSampling(config, settings, omega);
+  const bool continuous = sampling.continuous;
+  const double rate = sampling.rate;
+  const long n_samples = sampling.samples_per_period;
+  FrfPoint out;
+  out.amplitude = amplitude;
+  out.requested_frequency = omega;
+  out.samples_per_period = static_cast<int>(n_samples);
+  out.frequency = sampling.frequency;
+  const double w = out.frequency, period = static_cast<double>(n_samples) / rate;
+  const double t0 = config.initial.time, rho = config.params.gear_ratio;
+  long max_periods = settings.max_periods;
+  if (max_periods == 0)
+  {
+    max_periods = static_cast<long>(
+        std::min(1e7, std::max(1000.0, std::ceil(AUTO_SETTLING_SCALES * slowestTimeScale(config, channel) / period))));
+  }
+  const auto sampleTime = [&](long k) { return t0 + static_cast<double>(k) / rate; };
+  // The input at sample k, its phase from k mod N (exact however long the run).
+  const auto inputAt = [&](long k) {
+    return settings.offset + amplitude * std::sin(2.0 * PI * static_cast<double>(k % n_samples) / n_samples);
+  };
+
+  RunConfig run = config;
+  run.track_energy = false;
+  run.duration = 0.0;
+  const bool load = loadTorqueInput(channel);
+  if (load)
+  {
+    // The loop holds the configured command; the load torque's constant part is the offset on top of load_torque.
+    run.profile.reset();
+    run.params.load_torque += settings.offset;
+  }
+  else if (setpoint)
+  {
+    run.profile = speedOffsetProfile(config, settings.offset,
+                                     period * (static_cast<double>(max_periods) + MAX_PERIOD_MULTIPLE + 2.0));
+  }
+  else if (!torque && !continuous)
+  {
+    ProfileSegment sine;
+    sine.kind = ProfileSegment::Kind::Sine;
+    sine.time = t0;
+    sine.amplitude = amplitude;
+    sine.frequency = rate / static_cast<double>(n_samples);
+    sine.duration = period * (static_cast<double>(max_periods) + MAX_PERIOD_MULTIPLE + 2.0);
+    run.profile = std::make_shared<const CommandProfile>(settings.offset, std::vector<ProfileSegment>{sine});
+  }
+  Simulator sim = makeSimulator(run);
+  if (setpoint)
+  {
+    sim.sampledDrive()->setInjection(amplitude, n_samples);  // (the next sample is sample 0, at t₀)
+  }
+  const bool held = torque && !continuous;  // the torque set sample by sample
+  if (load)
+  {
+    sim.setLoadTorqueWave(Sinusoid{amplitude, w, 0.0, t0});
+  }
+  else if (continuous)
+  {
+    const Sinusoid wave{amplitude, w, 0.0, t0};
+    torque ? sim.setMotorTorque(settings.offset, wave) : sim.setCommandWave(settings.offset, wave);
+  }
+  // Advances sim over samples [k0, k1), applying a held torque input at each; `each` sees the state at every sample.
+  const auto advanceSamples = [&](Simulator& s, long k0, long k1, EventSink* sink, const auto& each) {
+    for (long k = k0; k < k1; ++k)
+    {
+      s.advanceTo(sampleTime(k), sink);
+      each(s.state());
+      if (held)
+      {
+        s.setMotorTorque(inputAt(k), sink);
+        s.setInputHorizon(sampleTime(k + 1));
+      }
+    }
+    s.advanceTo(sampleTime(k1), sink);
+  };
+
+  // Settle: period starts compared until they repeat (every multiple up to MAX_PERIOD_MULTIPLE). A loop reading a
+  // quantised encoder may never repeat to the tolerance, only to its resolution: period starts that repeat within one
+  // count [rad at the load] (and one count per sample in the speeds) for COUNT_REPEATS comparisons running are
+  // periodic to one count.
+  constexpr int COUNT_REPEATS = 3;
+  const double count = loopCount(config);
+  std::vector<Snapshot> starts;
+  std::vector<double> start_outputs;  // the channel's output at each period start
+  std::vector<Ranges> ranges;
+  int multiple = 0, count_multiple = 0, count_streak = 0;
+  long n = 0;
+  for (; n <= max_periods; ++n)
+  {
+    starts.push_back(snapshotOf(sim.state(), rho));
+    start_outputs.push_back(frfOutput(channel, sim.state()));
+    for (int m = 1; m <= MAX_PERIOD_MULTIPLE && multiple == 0; ++m)
+    {
+      const std::size_t um = static_cast<std::size_t>(m), un = static_cast<std::size_t>(n);
+      if (un < 2 * um)
+      {
+        continue;
+      }
+      double angle = 0.0, speed = 0.0;
+      for (std::size_t j = un - 2 * um; j < un; ++j)
+      {
+        angle = std::max(angle, ranges[j].angleScale());
+        speed = std::max(speed, ranges[j].speedScale());
+      }
+      if (repeats(starts, un, um, angle, speed, settings.tolerance))
+      {
+        multiple = m;
+      }
+    }
+    if (multiple == 0 && count > 0.0)
+    {
+      int within = 0;
+      for (int m = 1; m <= MAX_PERIOD_MULTIPLE && within == 0; ++m)
+      {
+        if (n >= 2 * m &&
+            repeats(starts, static_cast<std::size_t>(n), static_cast<std::size_t>(m), count, count * rate, 1.0))
+        {
+          within = m;
+        }
+      }
+      count_streak = within != 0 && within == count_multiple ? count_streak + 1 : (within != 0 ? 1 : 0);
+      count_multiple = within;
+    }
+    if (multiple != 0 || count_streak >= COUNT_REPEATS || n == max_periods || (cancelled && cancelled()))
+    {
+      break;
+    }
+    Ranges r;
+    advanceSamples(sim, n * n_samples, (n + 1) * n_samples, nullptr,
+                   [&](const State& s) { r.add(snapshotOf(s, rho)); });
+    ranges.push_back(r);
+  }
+  out.periodic_to_count = multiple == 0 && count_streak >= COUNT_REPEATS;
+  out.periodic = multiple != 0 || out.periodic_to_count;
+  out.period_multiple = multiple != 0 ? multiple : (out.periodic_to_count ? count_multiple : 0);
+  const int m = std::max(1, out.period_multiple);
+  // The analysed window [t_n, t_n + mT]: its breaks found on a copy, then integrated on the original, which passes
+  // through the same events bit for bit (the motion does not depend on where it is stopped).
+  const long k_begin = n * n_samples, k_end = (n + m) * n_samples;
+  out.settled_at = sampleTime(k_begin);
+  out.settled_state = sim.state();
+  BreakSink breaks;
+  {
+    Simulator probe = sim;
+    advanceSamples(probe, k_begin, k_end, &breaks, [](const State&) {});
+  }
+  out.flank_changes = static_cast<double>(breaks.flankChanges()) / m;
+  out.separations = static_cast<double>(breaks.separations) / m;
+  const double h_max = 0.5 / std::max(fastestRate(config.params), 1e-300);
+  const int harmonics = settings.harmonics;
+  std::vector<std::complex<double>> y(static_cast<std::size_t>(harmonics) + 1, 0.0);
+  std::complex<double> torque_line = 0.0;  // ∫ T_m e^{−jω(t − t₀)}: the set-point channels' input
+  std::complex<double> mesh_line = 0.0;    // ∫ Q e^{−jω(t − t₀)}
+  double mesh_sum = 0.0, mesh_lo = INFINITY, mesh_hi = -INFINITY;
+  double lo = INFINITY, hi = -INFINITY;
+  std::size_t next_break = 0;
+  for (long k = k_begin; k < k_end; ++k)
+  {
+    const double ta = sampleTime(k), tb = sampleTime(k + 1);
+    sim.advanceTo(ta);
+    const double at_sample = frfOutput(channel, sim.state());
+    lo = std::min(lo, at_sample);
+    hi = std::max(hi, at_sample);
+    const double q_sample = sim.plant().meshTorque();
+    mesh_lo = std::min(mesh_lo, q_sample);
+    mesh_hi = std::max(mesh_hi, q_sample);
+    if (held)
+    {
+      sim.setMotorTorque(inputAt(k));
+      sim.setInputHorizon(tb);
+    }
+    // The interval's pieces: cut at its breaks, each no longer than h_max.
+    std::vector<double> cuts = {ta};
+    while (next_break < breaks.breaks.size() && breaks.breaks[next_break] <= ta)
+    {
+      ++next_break;
+    }
+    while (next_break < breaks.breaks.size() && breaks.breaks[next_break] < tb)
+    {
+      if (breaks.breaks[next_break] > cuts.back())
+      {
+        cuts.push_back(breaks.breaks[next_break]);
+      }
+      ++next_break;
+    }
+    cuts.push_back(tb);
+    const double phase0 = 2.0 * PI * static_cast<double>(k % n_samples) / static_cast<double>(n_samples);
+    for (std::size_t c = 0; c + 1 < cuts.size(); ++c)
+    {
+      const double len = cuts[c + 1] - cuts[c];
+      const long pieces = std::max(1L, static_cast<long>(std::ceil(len / h_max)));
+      const double h = len / static_cast<double>(pieces);
+      for (long p = 0; p < pieces; ++p)
+      {
+        const double a = cuts[c] + h * static_cast<double>(p);
+        for (int i = 0; i < 8; ++i)
+        {
+          const double t = a + 0.5 * h * (1.0 + GAUSS_NODE[i]);
+          sim.advanceTo(t);
+          const double v = frfOutput(channel, sim.state());
+          const double theta = phase0 + w * (t - ta);
+          const double wt = GAUSS_WEIGHT[i] * 0.5 * h;
+          y[0] += wt * v;
+          for (int j = 1; j <= harmonics; ++j)
+          {
+            y[static_cast<std::size_t>(j)] += wt * v * std::polar(1.0, -j * theta);
+          }
+          if (setpoint)
+          {
+            torque_line += wt * sim.plant().motorTorque() * std::polar(1.0, -theta);
+          }
+          const double q = sim.plant().meshTorque();
+          mesh_sum += wt * q;
+          mesh_line += wt * q * std::polar(1.0, -theta);
+          mesh_lo = std::min(mesh_lo, q);
+          mesh_hi = std::max(mesh_hi, q);
+        }
+      }
+    }
+  }
+  sim.advanceTo(sampleTime(k_end));
+  const double span = period * m;
+  out.mean = y[0].real() / span;
+  out.peak_to_peak = hi - lo;
+  out.mesh_torque_mean = mesh_sum / span;
+  out.mesh_torque_min = mesh_lo;
+  out.mesh_torque_max = mesh_hi;
+  if (continuous && breaks.flankChanges() == 0 && breaks.separations == 0 && m == 1)
+  {
+    // The sine itself on one flank: the mesh torque is its mean and its fundamental (the joint is linear there).
+    const double q1 = std::abs(2.0 / span * mesh_line);
+    out.mesh_torque_min = out.mesh_torque_mean - q1;
+    out.mesh_torque_max = out.mesh_torque_mean + q1;
+  }
+  // Y_h = (2/span)∫ y e^{−jhω(t − t₀)} over the window of m periods (a subharmonic's own lines at ω/m are not read).
+  std::vector<std::complex<double>> coef(static_cast<std::size_t>(harmonics) + 1);
+  for (int j = 1; j <= harmonics; ++j)
+  {
+    coef[static_cast<std::size_t>(j)] = 2.0 / span * y[static_cast<std::size_t>(j)];
+  }
+  // The input's fundamental as a phasor: −jA for the sine itself; the applied torque's for the set-point channels.
+  const std::complex<double> u1 = setpoint ? 2.0 / span * torque_line : std::complex<double>(0.0, -amplitude);
+  out.response = coef[1] / u1;
+  out.gain = std::abs(out.response);
+  out.phase = std::arg(out.response);
+  double distortion = 0.0;
+  for (int j = 2; j <= harmonics; ++j)
+  {
+    distortion += std::norm(coef[static_cast<std::size_t>(j)]);
+  }
+  out.distortion = std::abs(coef[1]) > 0.0 ? std::sqrt(distortion) / std::abs(coef[1]) : 0.0;
+  out.periods = static_cast<int>(n + m);
+  if (out.periodic_to_count)
+  {
+    // How far the last period starts differ beyond a steady drift, against the output's fundamental amplitude.
+    const std::size_t un = static_cast<std::size_t>(n), um = static_cast<std::size_t>(m);
+    const double second =
+        (start_outputs[un] - start_outputs[un - um]) - (start_outputs[un - um] - start_outputs[un - 2 * um]);
+    out.count_spread = std::abs(coef[1]) > 0.0 ? std::fabs(second) / std::abs(coef[1]) : NAN;
+  }
+  return out;
+}
+
+double releaseAmplitude(const FrfPoint& linear)
+{
+  const double mean = linear.mesh_torque_mean;
+  const double swing = mean >= 0.0 ? mean - linear.mesh_torque_min : linear.mesh_torque_max - mean;
+  if (!linear.periodic || !(swing > 0.0))
+  {
+    return NAN;
+  }
+  // A mean within what the steady state's detection leaves of a transient (1e-8 of the swing, the default
+  // tolerance) holds nothing: the teeth leave the flank at any amplitude.
+  if (std::fabs(mean) <= 1e-8 * swing)
+  {
+    return 0.0;
+  }
+  return linear.amplitude * std::fabs(mean) / swing;
+}
+
+}  // namespace backlash_servo

@@ -1,0 +1,482 @@
+#include "backlash_servo/simulation/step_response.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <optional>
+
+#include "backlash_servo/simulation/steady_state.h"
+
+namespace backlash_servo
+{
+namespace
+{
+constexpr double PI = 3.14159265358979323846;
+/// Running until settled, each chunk (a natural period) is advanced in this many steps, so that the run stops within
+/// one of them after the maximum that settles the verdict.
+constexpr int SETTLE_STEPS = 16;
+
+/// Feeds every event to the monitor and forwards it.
+class Tee : public EventSink
+{
+ public:
+  Tee(ResponseMonitor* monitor, EventSink* next) : monitor_(monitor), next_(next) {}
+  void onEvent(const Event& e) override
+  {
+    monitor_->onEvent(e);
+    if (next_ != nullptr)
+    {
+      next_->onEvent(e);
+    }
+  }
+  bool wantsImpacts() const override { return monitor_->wantsImpacts() || (next_ != nullptr && next_->wantsImpacts()); }
+
+ private:
+  ResponseMonitor* monitor_;
+  EventSink* next_;
+};
+
+/**
+ * The tracking figures of a run sampled every dt [s] from t₀: in the run's own pass, every advanceTo of the run goes
+ * through advanceTo() here, which stops at the sample times t₀ + k·dt on the way — the plant's closed forms stay
+ * anchored where their segments began, so the run is the same to the bit — and takes each sample as
+ * replayTracking()'s replay does (record(): a drive's sample due there taken first, as a drive logs its torque).
+ */
+class TrackingPass
+{
+ public:
+  static constexpr double MAX_SAMPLES = 1e6;
+
+  /// rate: samples a second [Hz]; t_end: the run's end as known at the start [s] (+inf: until settled, when the
+  /// pass gives up past MAX_SAMPLES: replayTracking() would lower the rate).
+  TrackingPass(const RunConfig& config, double rate, double t_end)
+      : metrics_(trackingOf(config, 1.0 / rate, t_end)),
+        rate_(rate),
+        dt_(1.0 / rate),
+        t_end_(t_end),
+        t0_(config.initial.time),
+        profile_(config.profile.get()),
+        command_(config.command)
+  {}
+
+  /// Advances sim to t [s], sampling every grid time before it (the run's own sink sees every event).
+  void advanceTo(Simulator& sim, double t, EventSink* sink)
+  {
+    for (double ts = nextTime(); on_ && ts < t; ts = nextTime())
+    {
+      sim.advanceTo(ts, sink);
+      sim.takeSampleDue(sink);
+      record(sim);
+      if (std::isinf(t_end_) && static_cast<double>(next_) > MAX_SAMPLES + 1.0)
+      {
+        on_ = false;  // a run until settled past the sample budget: replayTracking() lowers the rate instead
+      }
+    }
+    sim.advanceTo(t, sink);
+  }
+  /// One sample: the state of sim now, the reference there and the motor torque.
+  void record(const Simulator& sim)
+  {
+    const State& s = sim.state();
+    metrics_.add(s.time, profile_ ? profile_->at(s.time) : command_, s.load_position, sim.motorTorque());
+    ++next_;
+  }
+  /// The last sample, at the run's end (a drive's sample due there taken first; the run's summary is taken).
+  void finish(Simulator& sim)
+  {
+    sim.takeSampleDue(nullptr);
+    record(sim);
+  }
+  /// The figures of the samples so far for a run that ended as `run` did (its cycle tells whether it keeps leaving
+  /// the band).
+  TrackingFigures figuresOf(const RunSummary& run) const
+  {
+    const double command = profile_ ? profile_->finalValue() : command_;
+    return metrics_.figures(t0_ + run.simulated, dt_, cycleLeavesBand(run.status, run.cycle, command, metrics_.band()));
+  }
+  /// Every grid sample was taken (not given up past MAX_SAMPLES).
+  bool complete() const { return on_; }
+  double rate() const { return rate_; }
+  /// The run's end assumed at the start [s] (+inf: until settled).
+  double assumedEnd() const { return t_end_; }
+
+ private:
+  double nextTime() const { return t0_ + static_cast<double>(next_) * dt_; }
+
+  TrackingMetrics metrics_;
+  double rate_, dt_, t_end_, t0_;
+  const CommandProfile* profile_;
+  double command_;
+  long next_ = 0;  // samples taken, the initial one included
+  bool on_ = true;
+};
+
+/// The tracking figures' sample rate [Hz] before any lowering: the digital drive's rate, else 100 samples per
+/// natural period 2π/ω_n.
+double nominalTrackingRate(const RunConfig& config)
+{
+  return config.drive.sampled() ? config.drive.controller_rate : 100.0 * config.params.naturalFrequency() / (2.0 * PI);
+}
+
+/// replayTracking()'s rate for a run of `simulated` [s]: the nominal rate, lowered to keep within `max_samples`.
+double trackingRateFor(const RunConfig& config, double simulated, double max_samples)
+{
+  const double rate = nominalTrackingRate(config);
+  return simulated * rate > max_samples ? max_samples / simulated : rate;
+}
+}  // namespace
+
+void checkProfile(const RunConfig& config)
+{
+  if (config.profile)
+  {
+    config.profile->requireTakenBy(config.drive.sampled(), config.params.hasDryFriction(), config.params.compliant());
+  }
+}
+
+double driveTimeScale(const RunConfig& config)
+{
+  const DriveParams& d = config.drive;
+  double slowest = 0.0;
+  auto consider = [&](double numerator, double rate) {
+    if (rate > 0.0 && numerator > 0.0)
+    {
+      slowest = std::max(slowest, numerator / rate);
+    }
+  };
+  if (d.sampled() && d.control_law == "pid")
+  {
+    consider(config.params.gain, d.integral_gain);
+  }
+  if (d.sampled() && d.control_law == "cascade")
+  {
+    consider(1.0, d.position_loop_gain);
+    consider(d.velocity_loop_gain, d.velocity_loop_integral_gain);
+  }
+  if (d.compensation == "dual_loop")
+  {
+    consider(1.0, d.outer_loop_gain);
+  }
+  if (d.compensation == "dither")
+  {
+    consider(1.0, d.dither_frequency);
+  }
+  return slowest;
+}
+
+double plantTimeScale(const ServoParams& p)
+{
+  double slowest = 0.0;
+  for (const auto& [inertia, friction] :
+       {std::pair{p.motor_inertia, p.motor_friction}, std::pair{p.load_inertia, p.load_friction}})
+  {
+    if (friction > 0.0)
+    {
+      slowest = std::max(slowest, inertia / friction);
+    }
+  }
+  return slowest;
+}
+
+double loopCount(const RunConfig& config)
+{
+  constexpr double TWO_PI = 6.283185307179586476925;
+  const DriveParams& d = config.drive;
+  if (d.sampled() && d.feedback == "motor" && d.motor_encoder_resolution > 0.0)
+  {
+    return config.params.gear_ratio * TWO_PI / d.motor_encoder_resolution;
+  }
+  if (d.sampled() && d.feedback != "motor" && d.load_encoder_resolution > 0.0)
+  {
+    return TWO_PI / d.load_encoder_resolution;
+  }
+  return 0.0;
+}
+
+CycleResolution cycleResolution(const CycleShape& cycle, double count)
+{
+  CycleResolution r;
+  if (!std::isfinite(cycle.peak_to_peak))
+  {
+    return r;
+  }
+  constexpr double ARCMIN_PER_RAD = 10800.0 / 3.14159265358979323846;
+  r.arcmin = cycle.peak_to_peak * ARCMIN_PER_RAD;
+  if (count > 0.0)
+  {
+    r.counts = cycle.peak_to_peak / count;
+    r.below_count = r.counts < 1.0;
+  }
+  return r;
+}
+
+double settlingBand(const RunConfig& config, double excursion)
+{
+  if (config.settling_band > 0.0)
+  {
+    return config.settling_band;
+  }
+  const double own = std::max(config.params.backlash, loopCount(config));
+  return own > 0.0 ? own : 0.02 * std::max(excursion, 1e-12);
+}
+
+TrackingMetrics trackingOf(const RunConfig& config, double dt, double t_end)
+{
+  const double t0 = config.initial.time;
+  if (!config.profile)
+  {
+    const double step = config.command - config.initial.load_position;
+    return TrackingMetrics(settlingBand(config, std::fabs(step)), t0, config.command, step >= 0.0 ? 1.0 : -1.0);
+  }
+  const CommandProfile& profile = *config.profile;
+  const double final_ref = profile.finalValue();
+  const double profile_end = profile.endTime();
+  // The reference's excursion over the samples (for the classical 2 % band) and the direction of its last move.
+  double lo = profile.at(t0), hi = lo;
+  const double scan_end = std::min(t_end, std::max(profile_end, t0));  // constant from its end on
+  const long n = static_cast<long>(std::floor((scan_end - t0) / dt + 1e-9));
+  for (long k = 0; k <= n; ++k)
+  {
+    const double r = profile.at(t0 + k * dt);
+    lo = std::min(lo, r);
+    hi = std::max(hi, r);
+  }
+  const double before_end = profile.at(std::max(0.0, profile_end - 1e-9));
+  double direction = final_ref >= before_end ? 1.0 : -1.0;
+  if (final_ref == before_end)
+  {
+    direction = final_ref >= profile.at(0.0) ? 1.0 : -1.0;
+  }
+  return TrackingMetrics(settlingBand(config, hi - lo), profile_end, final_ref, direction);
+}
+
+TrackingFigures replayTracking(const RunConfig& config, const RunSummary& run, double* sample_rate)
+{
+  const double rate = trackingRateFor(config, run.simulated, TrackingPass::MAX_SAMPLES);
+  *sample_rate = rate;
+  TrackingPass replayed(config, rate, config.initial.time + run.simulated);
+  if (run.stopped_by == "diverged" || !(run.simulated > 0.0))
+  {
+    return replayed.figuresOf(run);  // nothing to replay (a runaway motion has no tracking figures)
+  }
+  RunConfig replay = config;
+  replay.duration = run.simulated;
+  replay.track_energy = false;
+  replay.tracking = false;
+  replay.steady_answer = false;
+  runResponse(replay, nullptr, 1.0 / rate, [&](const Simulator& sim) { replayed.record(sim); });
+  return replayed.figuresOf(run);
+}
+
+bool cycleLeavesBand(const LimitCycleReport& status, const CycleShape& cycle, double command, double band)
+{
+  const bool sustained = status.verdict == Verdict::LimitCycle || status.verdict == Verdict::Irregular;
+  return sustained && std::max(std::fabs(cycle.top - command), std::fabs(cycle.bottom - command)) > band;
+}
+
+Simulator makeSimulator(const RunConfig& config)
+{
+  checkProfile(config);
+  const double command = config.profile ? config.profile->finalValue() : config.command;
+  const double t0 = config.initial.time;
+  // With a profile the law starts from θ_R(t₀) (a digital drive's first sample reads it there).
+  Simulator sim(config.params, config.initial, config.profile ? config.profile->at(t0) : command);
+  // The simulator's own law is the thesis' plain P law; any other (digital, saturated, compensated) is the drive's.
+  if (!config.drive.thesisLaw())
+  {
+    sim.setDrive(makePositionDrive(config.drive, config.params.gain, config.params.gear_ratio, sim.command(), t0));
+  }
+  if (config.profile)
+  {
+    sim.setProfile(config.profile);
+  }
+  sim.setEnergyTracking(config.track_energy);
+  sim.setShortFlights(config.short_flights);
+  sim.setEventBudget(static_cast<std::uint64_t>(config.max_events));
+  return sim;
+}
+
+namespace
+{
+/// The figures of a run's own pass into out->tracking, or — where they could differ from replayTracking()'s (its rate
+/// lowered after all, its end not the one assumed at the start, a run cut short) — the replay's.
+void finishTracking(const RunConfig& config, TrackingPass* pass, Simulator& sim, RunSummary* out)
+{
+  const double rate = trackingRateFor(config, out->simulated, TrackingPass::MAX_SAMPLES);
+  const double t_end = config.initial.time + out->simulated;
+  const bool same_end =
+      !config.profile || std::min(pass->assumedEnd(), std::max(config.profile->endTime(), config.initial.time)) ==
+                             std::min(t_end, std::max(config.profile->endTime(), config.initial.time));
+  const bool cut_short = out->stopped_by == "event_budget" || out->stopped_by == "diverged" || !(out->simulated > 0.0);
+  if (!pass->complete() || cut_short || rate != pass->rate() || !same_end || sim.state().time != t_end)
+  {
+    out->tracking = replayTracking(config, *out, &out->tracking_rate);
+    return;
+  }
+  pass->finish(sim);
+  out->tracking_rate = rate;
+  out->tracking = pass->figuresOf(*out);
+}
+}  // namespace
+
+RunSummary runResponse(const RunConfig& config, EventSink* sink, double sample_period, const SampleCallback& on_sample,
+                       const ProgressCallback& on_progress)
+{
+  const double command = config.profile ? config.profile->finalValue() : config.command;
+  const double t0 = config.initial.time;
+  Simulator sim = makeSimulator(config);
+  RunSummary out;
+  const double omega_n = config.params.naturalFrequency();
+  ResponseMonitor monitor(config.params, command, loopEquilibrium(config.params, config.drive, command), config.initial,
+                          sim.drive().sampled());
+  Tee tee(&monitor, sink);
+  const bool until_settled = config.duration <= 0.0;
+  // The tracking figures in this pass, at the rate replayTracking() would choose when the run's length is known now
+  // (a run until settled: the nominal rate, replayed at a lower one only when it outlasts the sample budget).
+  std::optional<TrackingPass> pass;
+  if (config.tracking)
+  {
+    const double rate = until_settled ? nominalTrackingRate(config)
+                                      : trackingRateFor(config, config.duration, TrackingPass::MAX_SAMPLES);
+    pass.emplace(config, rate, until_settled ? INFINITY : t0 + config.duration);
+    pass->record(sim);  // (the state as constructed: no drive sample taken yet)
+  }
+  auto advance = [&](double t) {
+    if (pass)
+    {
+      pass->advanceTo(sim, t, &tee);
+    }
+    else
+    {
+      sim.advanceTo(t, &tee);
+    }
+  };
+  // With a profile the verdict is judged from its end on, against its final value: a fresh monitor there (a hunt
+  // around an intermediate set-point is not the final limit cycle).
+  double judge_from = config.profile && config.profile->endTime() > t0 ? config.profile->endTime() : -INFINITY;
+  double t_stop = t0 + (until_settled ? (config.max_duration > 0.0 ? config.max_duration
+                                                                   : steadyBudget(config.params, config.drive))
+                                      : config.duration);
+  // Without a cap of the user's, a run until settled lasts at least REPETITIONS times the slowest oscillation seen
+  // (the longest interval between maxima): a stick–slip hunt or a slow drive loop whose cycle is long against
+  // 2π/ω_n (ω_n is the P law's; it means nothing for a PID or a cascade) is given the repetitions its verdict needs.
+  constexpr double REPETITIONS = 100.0;
+  const bool auto_cap = until_settled && config.max_duration <= 0.0;
+  const double chunk = sample_period > 0.0 ? sample_period : 2.0 * PI / omega_n;
+  if (on_sample)
+  {
+    on_sample(sim);
+  }
+  for (long i = 1;; ++i)
+  {
+    const double t = std::min(t0 + static_cast<double>(i) * chunk, t_stop);
+    try
+    {
+      if (judge_from >= sim.state().time && judge_from <= t)
+      {
+        advance(judge_from);
+        monitor.restartAt(sim.state());
+        judge_from = -INFINITY;
+      }
+      // (Sub-steps only once four maxima are recorded: no sustained oscillation is settled before its fifth.)
+      if (until_settled && sample_period <= 0.0 && monitor.judged().size() >= 4)
+      {
+        // A sustained oscillation settled by a maximum ends the run within a sub-step of it, not at the chunk's end
+        // (up to a natural period later: in elastic chatter, 10⁵ impacts). Its figures come from the maxima, and the
+        // motion does not depend on where advanceTo stops: the same verdict, error and period. (A convergence runs
+        // on to the chunk's end as before: its steady error is read there; the rest tests run at chunk ends only.)
+        const double from = sim.state().time;
+        for (int k = 1; k < SETTLE_STEPS && !monitor.oscillating(); ++k)
+        {
+          advance(from + (t - from) * k / SETTLE_STEPS);
+        }
+        if (monitor.oscillating() && judge_from == -INFINITY)
+        {
+          out.stopped_by = "settled";
+          break;
+        }
+      }
+      advance(t);
+    }
+    catch (const EventBudgetExceeded& e)
+    {
+      out.stopped_by = "event_budget";
+      out.message = e.what();
+      break;
+    }
+    catch (const MotionDiverged& e)
+    {
+      out.stopped_by = "diverged";
+      out.message = e.what();
+      break;
+    }
+    if (on_sample && sample_period > 0.0)
+    {
+      // A sample on a controller update (to rounding: t_k = k/f and i·T differ in their last bits) shows the torque
+      // applied from it on, as a drive logs it — not, now and then, the one before.
+      sim.takeSampleDue(&tee);
+      on_sample(sim);
+    }
+    monitor.check(sim.state(), sim.drive().winding(), judge_from == -INFINITY && sim.atRestForever());
+    if (auto_cap)
+    {
+      t_stop = std::max(t_stop, t0 + REPETITIONS * monitor.longestInterval());
+    }
+    if (on_progress)
+    {
+      on_progress((t - t0) / (t_stop - t0));
+    }
+    // (A convergence seen in the decay of the maxima alone runs on until the joint is near its equilibrium, so that
+    // the steady error is the joint's, not a point of a wide swing.)
+    if (until_settled && monitor.settled() && judge_from == -INFINITY &&
+        (monitor.status().verdict != Verdict::Converged || monitor.convergedNear(sim.state())))
+    {
+      out.stopped_by = "settled";
+      break;
+    }
+    if (t >= t_stop)
+    {
+      out.stopped_by = until_settled ? "max_duration" : "duration";
+      break;
+    }
+  }
+  out.status = monitor.status();
+  if (out.stopped_by == "diverged")
+  {
+    out.status.verdict = Verdict::Diverged;
+  }
+  out.maxima = monitor.maxima();
+  out.cycle = monitor.cycleShape();
+  out.resolution = cycleResolution(out.cycle, loopCount(config));
+  out.impacts = sim.impactCount();
+  out.contact_phases = sim.contactPhases();
+  out.energy = sim.energy();
+  if (!sim.energyValid())
+  {
+    // A ramp of the continuous law ran in its moving frame: the plant's ledger is the frame's, not the joint's; a
+    // compliant mesh keeps none.
+    for (double* f : {&out.energy.input, &out.energy.motor_friction, &out.energy.load_friction, &out.energy.impact_loss,
+                      &out.energy.load_work, &out.energy.motor_dry_friction, &out.energy.load_dry_friction,
+                      &out.energy.input_magnitude, &out.energy.initial_kinetic})
+    {
+      *f = NAN;
+    }
+  }
+  out.kinetic = sim.kineticEnergy();
+  out.balance_error = sim.energyBalanceError();
+  out.final_state = sim.state();
+  out.simulated = sim.state().time - t0;
+  out.equilibrium = monitor.equilibrium();
+  out.settled = monitor.settled();
+  if (config.steady_answer && out.status.verdict == Verdict::Converged)
+  {
+    out.steady = steadyAnswer(sim, config.drive, command, out.equilibrium, monitor.scale());
+  }
+  if (pass)
+  {
+    finishTracking(config, &*pass, sim, &out);
+  }
+  return out;
+}
+
+}  // namespace backlash_servo
