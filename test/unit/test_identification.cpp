@@ -12,6 +12,7 @@
 #include "backlash_servo/drive/drive.h"
 #include "backlash_servo/identification/identification.h"
 #include "backlash_servo/identification/identify_joint.h"
+#include "backlash_servo/identification/replay_windows.h"
 #include "backlash_servo/simulation/simulator.h"
 #include "recorded_joint.h"
 

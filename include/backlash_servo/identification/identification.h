@@ -27,7 +27,7 @@
  * parameters' standard errors σ√diag((XᵀX)⁻¹) (σ² the residual variance), carried to the derived ones.
  *
  * **Static friction** from the rests (estimateInitial below); the restitution needs the simulator as the model
- * (fitRestitution below); a compliant mesh has its own estimates (identify_mesh.h).
+ * (fitRestitution, replay_windows.h); a compliant mesh has its own estimates (identify_mesh.h).
  */
 #pragma once
 
@@ -38,18 +38,10 @@
 
 #include "backlash_servo/drive/command_profile.h"
 #include "backlash_servo/model/params.h"
+#include "backlash_servo/model/recording.h"
 
 namespace backlash_servo
 {
-/// A recording of the joint (SI): equal lengths, uniform time steps.
-struct Recording
-{
-  std::vector<double> time;            ///< t_k [s]
-  std::vector<double> motor_torque;    ///< u_k [N·m], held over [t_k, t_{k+1})
-  std::vector<double> motor_position;  ///< θ_m [rad] on the motor shaft
-  std::vector<double> load_position;   ///< θ_c [rad] on the load shaft
-};
-
 /// One estimated quantity.
 struct Estimate
 {
@@ -87,26 +79,6 @@ struct InitialEstimates
 
   /// The estimates by parameter key (backlash, motor_inertia, …, load_torque; the mesh's when estimated).
   std::map<std::string, Estimate> byKey() const;
-};
-
-struct IdentificationSettings
-{
-  double gear_ratio = 1.0;  ///< ρ [-] (known)
-  double contact_band = 0.0;  ///< [rad]; 0 = 1e-8 Δ̂ (noise-free data: a contact keeps the gap to rounding, a chatter of
-                              ///< short flights does not) — give the encoders' resolution for measured data
-  double still_speed = 0.0;  ///< [rad/s]; 0 = 1e-6 of the largest motor speed
-  /// r [samples]: every term filtered by the centred mean over 2r + 1 samples, twice, before the fits (quantised or
-  /// noisy angles); a sample then needs its phase over 4r + 5 samples. 0: none (exact data).
-  int smoothing = 0;
-  /// [N·m]: used when the contact motion goes one way only (a limit cycle pushed from one side, say), where the
-  /// Coulomb friction and the load torque cannot be told apart; NaN: none (such a recording is then refused).
-  double load_torque_fallback = NAN;
-  /// Measured angles without a smoothing given: the bodies' equations integrated twice over stretches of one phase
-  /// (no derivative of an angle; errors in the angles corrected for) instead of differentiated after the filter.
-  bool integrated = false;
-  /// The encoders' resolutions N_m, N_L [counts/rev] when stated (0: unknown): tried first when the angles' count
-  /// grids are recognised (measured_angles.h).
-  double motor_encoder_resolution = 0.0, load_encoder_resolution = 0.0;
 };
 
 /// A body's motion from its recorded angle: the angle filtered by F (smoothing r), velocity and acceleration by central
@@ -176,21 +148,6 @@ double replayGain(const ServoParams& joint);
  * motion in both directions).
  */
 InitialEstimates estimateInitial(const Recording& data, const IdentificationSettings& settings);
-
-/**
- * The coefficient of restitution, fitted with the simulator as the model (the initial estimates for everything else,
- * static friction at the Coulomb level): windows of the recording that begin with the teeth apart shortly before an
- * impact (up to `windows` of them, spread over the recording) are replayed from the measured state — angles as
- * recorded, velocities by central differences, the gap taken relative to the estimated zero offset and clamped into
- * [0, Δ̂] — under the recorded torque, for `window` [s] each; e minimises the summed squared difference of the load
- * angle from the recording (golden-section search on [0, 1]: derivative-free, since an impact sequence is not smooth
- * in e). Re-anchoring each window on the measured state keeps the replay from parting from the recording, which an
- * impacting joint replayed open-loop over the whole recording would. Its standard error comes from the objective's
- * curvature at the minimum and the residual variance. Throws InvalidParameterError when the recording has no impact
- * to fit on.
- */
-Estimate fitRestitution(const Recording& data, const IdentificationSettings& settings, const InitialEstimates& initial,
-                        double window = 0.2, int windows = 40);
 
 /**
  * An experiment that informs the initial estimates, as a command profile for the position loop (the node and

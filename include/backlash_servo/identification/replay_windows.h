@@ -25,6 +25,7 @@
 
 #include "backlash_servo/identification/identification.h"
 #include "backlash_servo/model/params.h"
+#include "backlash_servo/model/recording.h"
 
 namespace backlash_servo
 {
@@ -87,4 +88,18 @@ class ReplayWindows
   std::vector<Anchor> anchors_;
 };
 
+/**
+ * The coefficient of restitution, fitted with the simulator as the model (the initial estimates for everything else,
+ * static friction at the Coulomb level): windows of the recording that begin with the teeth apart shortly before an
+ * impact (up to `windows` of them, spread over the recording) are replayed from the measured state — angles as
+ * recorded, velocities by central differences, the gap taken relative to the estimated zero offset and clamped into
+ * [0, Δ̂] — under the recorded torque, for `window` [s] each; e minimises the summed squared difference of the load
+ * angle from the recording (golden-section search on [0, 1]: derivative-free, since an impact sequence is not smooth
+ * in e). Re-anchoring each window on the measured state keeps the replay from parting from the recording, which an
+ * impacting joint replayed open-loop over the whole recording would. Its standard error comes from the objective's
+ * curvature at the minimum and the residual variance. Throws InvalidParameterError when the recording has no impact
+ * to fit on.
+ */
+Estimate fitRestitution(const Recording& data, const IdentificationSettings& settings, const InitialEstimates& initial,
+                        double window = 0.2, int windows = 40);
 }  // namespace backlash_servo

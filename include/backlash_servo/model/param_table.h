@@ -15,7 +15,7 @@
 #include <variant>
 #include <vector>
 
-#include "backlash_servo/drive/drive.h"
+#include "backlash_servo/model/drive_params.h"
 #include "backlash_servo/model/params.h"
 #include "backlash_servo/model/state.h"
 

@@ -3,7 +3,7 @@
 #include <algorithm>
 #include <cmath>
 
-#include "backlash_servo/drive/drive.h"
+#include "backlash_servo/model/drive_params.h"
 
 namespace backlash_servo
 {

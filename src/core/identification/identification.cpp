@@ -6,7 +6,6 @@
 #include <variant>
 
 #include "backlash_servo/identification/measured_angles.h"
-#include "backlash_servo/identification/replay_windows.h"
 #include "backlash_servo/model/param_table.h"
 #include "backlash_servo/model/params.h"
 #include "identification/least_squares.h"
@@ -984,78 +983,6 @@ std::vector<ProfileSegment> identificationExperiment(const ServoParams& params, 
     s.dither_amplitude = dither_amplitude;
     s.dither_frequency = dither_amplitude > 0.0 ? dither_frequency : 0.0;
     out.push_back(s);
-  }
-  return out;
-}
-
-Estimate fitRestitution(const Recording& d, const IdentificationSettings& s, const InitialEstimates& e, double window,
-                        int windows)
-{
-  const std::size_t n = d.time.size();
-  need(n >= 50 && d.load_position.size() == n && d.motor_position.size() == n && d.motor_torque.size() == n, "data",
-       "needs at least 50 samples of equal columns");
-  need(window > 0.0 && windows > 0, "window", "must be > 0 s, with at least one window");
-  const double h = (d.time.back() - d.time.front()) / static_cast<double>(n - 1), rho = s.gear_ratio;
-  const double delta = e.backlash.value;
-  // The initial estimates (static friction as the rests gave it, at least the Coulomb level).
-  ServoParams base;
-  base.gear_ratio = rho;
-  ServoParams p = withEstimates(base, e.byKey());
-  p.gain = replayGain(p);
-  const std::size_t lead = 20, length = static_cast<std::size_t>(std::ceil(window / h));
-  const std::vector<std::size_t> starts =
-      ReplayWindows::beforeImpacts(d, rho, e.zero_offset, delta, length, lead, static_cast<std::size_t>(windows));
-  need(!starts.empty(), "data", "has no impact to fit the restitution on (the teeth never close across the free play)");
-  const ReplayWindows replay(d, s, e.zero_offset, starts, length);
-  std::vector<double> r;
-  const auto cost = [&](double restitution) {
-    ServoParams q = p;
-    q.restitution = restitution;
-    replay.residuals(q, &r, true);
-    double sum = 0.0;
-    for (double x : r)
-    {
-      sum += x * x;
-    }
-    return sum;
-  };
-  // Golden-section search on [0, 1].
-  const double golden = 0.5 * (std::sqrt(5.0) - 1.0);
-  double a = 0.0, b = 1.0, c = b - golden * (b - a), dd = a + golden * (b - a);
-  double fc = cost(c), fd = cost(dd);
-  for (int i = 0; i < 40; ++i)
-  {
-    if (fc <= fd)
-    {
-      b = dd;
-      dd = c;
-      fd = fc;
-      c = b - golden * (b - a);
-      fc = cost(c);
-    }
-    else
-    {
-      a = c;
-      c = dd;
-      fc = fd;
-      dd = a + golden * (b - a);
-      fd = cost(dd);
-    }
-  }
-  Estimate out;
-  out.value = 0.5 * (a + b);
-  // Standard error from the curvature (a central second difference over a small step) and the residual variance.
-  const double step = std::min({0.01, out.value, 1.0 - out.value});
-  const double f0 = cost(out.value);
-  if (step > 1e-6)
-  {
-    const double curvature = (cost(out.value + step) - 2.0 * f0 + cost(out.value - step)) / (step * step);
-    const double sigma2 = f0 / std::max(1.0, static_cast<double>(r.size()) - 1.0);
-    out.standard_error = curvature > 0.0 ? std::sqrt(2.0 * sigma2 / curvature) : NAN;
-  }
-  else
-  {
-    out.standard_error = NAN;  // at a bound of [0, 1]
   }
   return out;
 }

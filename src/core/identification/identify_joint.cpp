@@ -6,6 +6,7 @@
 #include <variant>
 
 #include "backlash_servo/identification/measured_angles.h"
+#include "backlash_servo/identification/replay_windows.h"
 #include "backlash_servo/model/param_table.h"
 #include "identification/identify_mesh.h"
 

@@ -6,7 +6,7 @@
 #include <string_view>
 #include <unordered_map>
 
-#include "backlash_servo/simulation/step_response.h"
+#include "backlash_servo/model/run_config.h"
 
 namespace backlash_servo
 {

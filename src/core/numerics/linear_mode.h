@@ -18,7 +18,7 @@
  * ẏ = N y + g_N, y(0) = 0, so that
  *   δ̂(τ) = Σ_{λ_k ≠ 0} V_k τ φ₁(λ_kτ) g_k + V_N Σ_{j<m} Nʲ g_N τ^{j+1}/(j + 1)!,
  * damped sinusoids plus a polynomial of degree m, as cheap to evaluate (a slow block's series summed on beyond m
- * terms, to rounding over SERIES_SPAN fast time scales).
+ * terms, to rounding over ModeBasis::SERIES_SPAN fast time scales).
  * Otherwise (a defective eigenvalue that is not zero: a critically damped pair) δ is its Taylor series in the
  * balanced basis, δ̂(a + r) = Σ_j k_j r^j (k_0 = δ̂(a), k_1 = Âδ̂(a) + v̂₀, k_j = Âk_{j−1}/j), summed to rounding
  * (TAYLOR_TERMS terms) from anchors a at multiples of TAYLOR_STEP/‖Â‖₂ from the start, each anchor from the one
@@ -68,9 +68,6 @@ class LinearMode
  public:
   /// The search's floor h_min as a fraction of the fastest time scale 1/‖Â‖₂ (the grazing tolerance).
   static constexpr double FLOOR_FRACTION = 1e-9;
-  /// A slow (not nilpotent) block's series is summed to rounding over τ ≤ SERIES_SPAN/‖Â‖₂ (CompliantJoint
-  /// re-anchors every 4096/‖Â‖₂); beyond, its truncation grows.
-  static constexpr double SERIES_SPAN = 65536.0;
   /// Newton steps a crossing's refinement takes before it leaves the bracket to the ITP method.
   static constexpr int NEWTON_STEPS = 8;
   /// Without a modal basis: the Taylor anchors' spacing [1/‖Â‖₂], the terms summed, how many anchors are all kept,

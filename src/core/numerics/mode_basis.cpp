@@ -1,7 +1,5 @@
 #include "numerics/mode_basis.h"
 
-#include "numerics/linear_mode.h"
-
 #include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <cmath>
@@ -325,7 +323,7 @@ int ModeBasis::slowTerms(const Eigen::MatrixXd& s) const
 {
   // The slow block's series Σ_j Sʲ g τ^{j+1}/(j + 1)! summed to the term that no longer changes a bit of the largest
   // (2⁻⁵⁵ of it, and every later one smaller still) anywhere on τ ≤ SERIES_SPAN/‖Â‖₂.
-  const double span = LinearMode::SERIES_SPAN / norm_a_;
+  const double span = SERIES_SPAN / norm_a_;
   Eigen::MatrixXd power = Eigen::MatrixXd::Identity(s.rows(), s.cols());
   double largest = 0.0, term = 0.0, scale = 1.0;  // scale = span^{j+1}/(j + 1)!
   for (int j = 0; j <= MAX_MODE_ORDER; ++j)

@@ -24,7 +24,7 @@
  * and the block is not nilpotent to within rounding (up to NEAR_SPLIT, as far as a chain is admitted): the coupling
  * is removed — T⁻¹ÂT = [F C; D S] block-diagonalised by [I X; Y I] from the Sylvester equations
  * F X − X S = X D X − C, Y F − S Y = D − Y C Y — and the slow block's series is summed on beyond m terms, to rounding
- * over LinearMode::SERIES_SPAN fast time scales (taking it as nilpotent resolved the drift to 1e-7 only).
+ * over SERIES_SPAN fast time scales (taking it as nilpotent resolved the drift to 1e-7 only).
  *
  * Otherwise (a defective eigenvalue that is not zero: a critically damped pair) there is no modal form: motions are
  * their Taylor series (linear_mode.h).
@@ -54,6 +54,9 @@ using ModeMatrixC =
 class ModeBasis
 {
  public:
+  /// A slow (not nilpotent) block's series is summed to rounding over τ ≤ SERIES_SPAN/‖Â‖₂ (CompliantJoint
+  /// re-anchors every 4096/‖Â‖₂); beyond, its truncation grows.
+  static constexpr double SERIES_SPAN = 65536.0;
   /// Eigenbases worse conditioned than this are not used: the Taylor series instead. (A defective eigenvalue's
   /// computed eigenvectors are parallel to about √ε, a condition near 1e8: the threshold stays well below that.)
   static constexpr double MAX_EIGENBASIS_CONDITION = 1e6;
@@ -126,7 +129,7 @@ class ModeBasis
   /// Block-diagonalises T⁻¹ÂT = [F C; D S] (F r × r) by T ← T [I X; Y I] (Sylvester equations for X, Y) and
   /// recomputes *blocks; false if the blocks could not be separated.
   bool decouple(Eigen::Index r, Eigen::Index m, Eigen::MatrixXd* t, Eigen::MatrixXd* blocks);
-  /// The terms of the slow block S's series that reach rounding on τ ≤ LinearMode::SERIES_SPAN/‖Â‖₂.
+  /// The terms of the slow block S's series that reach rounding on τ ≤ SERIES_SPAN/‖Â‖₂.
   int slowTerms(const Eigen::MatrixXd& s) const;
   mutable std::array<OutputReach, 8> reaches_;
   mutable std::size_t reaches_next_ = 0, reaches_kept_ = 0;

@@ -2,7 +2,7 @@
 // linear_mode_crossings.cpp).
 #pragma once
 
-#include "numerics/linear_mode.h"
+#include "numerics/mode_basis.h"
 
 namespace backlash_servo
 {
