@@ -109,7 +109,7 @@ struct JointCase
   double duration;
 };
 
-/// The robot joint of issue 10: J_m 1e-4 kg·m², ρ 0.01, J_L 0.5 kg·m², Δ 0.005 rad, dry friction on both shafts.
+/// A robot joint: J_m 1e-4 kg·m², ρ 0.01, J_L 0.5 kg·m², Δ 0.005 rad, dry friction on both shafts.
 JointCase robotJoint(double duration)
 {
   JointCase c;
@@ -314,7 +314,7 @@ struct MicroChatterStart : EventSink
 };
 
 /**
- * Headroom of a scheduler that would run two chatter points interleaved on one core (issue 13; not built): the
+ * Headroom of a scheduler that would run two chatter points interleaved on one core (not built): the
  * chain of dependent operations from one impact to the next leaves much of the core idle, so two independent
  * chains, stepped alternately, overlap in the out-of-order window. Both chains start from micro-chatter of the
  * thesis grid's costliest point (ζ 0.8, ρ²J_L/J_m 0.04, ρ²f_L/F_T 1, e 1), the second from a load velocity 1e-7

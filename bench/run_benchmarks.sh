@@ -48,5 +48,5 @@ sed -i '/^restitution/d' "$work/truth.yaml" "$work/prior.yaml"
   "$bin/backlash_identify" --data "$work/rec.csv" --config "$work/prior.yaml" 2>/dev/null | sed -n 2p
 cat "$work/time"
 rm -rf "$work"
-echo "== the thesis study against one scipy solution of App. D1 (issue 13's ratio; whole processes, alternately)"
+echo "== the thesis study against one scipy solution of App. D1 (whole processes, alternately)"
 bash bench/thesis_vs_scipy.sh "$([ "${1:-}" = --quick ] && echo 1 || echo 5)" "$bin"

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Issue 13's headline ratio, measured as the issue states it: the whole thesis study (`backlash_sweep --preset thesis`,
+# The headline ratio: the whole thesis study (`backlash_sweep --preset thesis`,
 # one process, all cores) against ONE ordinary event-driven ODE solution of App. D1 (scipy solve_ivp with events,
 # bench/scipy_baseline.py --d1, one process, simulated as long as our run of D1 takes to settle), the two whole
 # processes timed alternately, RUNS times. Prints each pair, then the ratios' minimum, median and maximum.
@@ -32,5 +32,5 @@ done
 /usr/bin/python3 -c "
 import statistics, sys
 r = sorted(float(x) for x in sys.argv[1:])
-print('ratio (thesis study / one scipy solution): min %.2f, median %.2f, max %.2f over %d runs (issue 13: < 1)'
+print('ratio (thesis study / one scipy solution): min %.2f, median %.2f, max %.2f over %d runs (target: < 1)'
       % (r[0], statistics.median(r), r[-1], len(r)))" "${ratios[@]}"

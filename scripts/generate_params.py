@@ -2,7 +2,7 @@
 """Rewrites what derives from the parameter table (src/core/model/param_table.cpp): cfg/BacklashServo.cfg and the
 generated parameter tables of docs/parameters.md (between <!-- BEGIN GENERATED params: SECTIONS --> and <!-- END GENERATED params -->).
 usage: generate_params.py PATH/TO/backlash_params   (scripts/generate_params.sh finds it in build/)
-test/unit/test_param_table.cpp fails while a committed file differs from what this writes."""
+test/unit/model/test_param_table.cpp fails while a committed file differs from what this writes."""
 import re
 import subprocess
 import sys

@@ -1,5 +1,5 @@
-// Property fuzzing of the core (issue 14): a deterministic random-case generator over the validated envelope and its
-// edges, and the properties every case must keep. Used by test/unit/test_fuzz.cpp (a bounded sample in CI) and by
+// Property fuzzing of the core: a deterministic random-case generator over the validated envelope and its
+// edges, and the properties every case must keep. Used by test/fuzz/test_fuzz.cpp (a bounded sample in CI) and by
 // backlash_fuzz (long runs, `bash scripts/fuzz_long.sh`). No ROS.
 #pragma once
 
@@ -30,7 +30,7 @@ struct Case
   State start;
   double command = 1.0;
   double duration = 1.0;  ///< [s]
-  /// A command profile instead of the constant command (issue 12), or null; profile_yaml says it as a YAML list.
+  /// A command profile instead of the constant command, or null; profile_yaml says it as a YAML list.
   std::shared_ptr<const CommandProfile> profile;
   std::string profile_yaml;
   std::string describe() const
@@ -83,7 +83,7 @@ struct Case
   }
 };
 
-/// Issue 12's additions drawn on top of a case — a compensator on sampled drives, a command profile — from a stream
+/// The drive's additions drawn on top of a case — a compensator on sampled drives, a command profile — from a stream
 /// of their own, so that every case of a seed keeps the parameters it had before they were drawn.
 inline void drawWorkbench(Case* c, std::uint64_t seed, std::uint64_t index)
 {
@@ -291,7 +291,7 @@ inline Case makeCase(std::uint64_t seed, std::uint64_t index)
     else if (u(rng) < 0.15)
     {
       // The continuous law saturated: switches located where K|θ_R − θ_c| = T_max (Δ = 0 included: the rigid mesh's
-      // flank flip-flop at Q ≈ 0, seed 2 #342, is fixed).
+      // flank flip-flop at Q ≈ 0 among them).
       c.drive.torque_limit = c.params.gain * std::fabs(c.command) * logu(0.05, 2.0);
     }
     // Dry friction and stiction, up to about the torque the P law exerts at the step (stick–slip, stuck off the
@@ -378,7 +378,7 @@ struct GapWatch : EventSink
     const double g = mesh.gap(s.load_position, s.motor_position);
     // Rounding scale: the positions and the set-point θ_R(t) — the law's closed forms are written about it, and a
     // ramp runs in a frame moving with it, so positions passing through zero at speed carry the rounding of |θ_R|
-    // (seed 7 #52681: θ_c = −4e-4 rad crossing zero at 26 rad/s during a ramp to −9.3 rad, gap 1.7e-15 rad out).
+    // (e.g. θ_c = −4e-4 rad crossing zero at 26 rad/s during a ramp to −9.3 rad, gap 1.7e-15 rad out).
     const double set_point = std::fabs(profile ? profile->at(s.time) : command);
     const double tol =
         1e-12 * (std::fabs(s.load_position) + mesh.ratio * std::fabs(s.motor_position) + mesh.backlash + set_point);

@@ -1,4 +1,4 @@
-// Coverage-guided fuzz target (clang/libFuzzer, issue 14): the YAML and flag parsers every tool and the node share,
+// Coverage-guided fuzz target (clang/libFuzzer): the YAML and flag parsers every tool and the node share,
 // and a short run of whatever they accept. Built by `cmake -DBACKLASH_LIBFUZZER=ON` with clang in build/libfuzzer by
 // scripts/fuzz_parsers.sh SECONDS (the test command runs it for 60 s).
 //

@@ -1,5 +1,5 @@
 #!/usr/bin/python3
-"""command_trajectory and the start-up `profile` (issue 12): the node follows the YAML's profile, refuses bad
+"""command_trajectory and the start-up `profile`: the node follows the YAML's profile, refuses bad
 trajectories without a change, and a good one (linear interpolation between the load joint's points, sampled by the
 100 Hz drive) gives exactly backlash_sim's run with the same profile (1e-9 rad at every joint_states sample)."""
 import csv

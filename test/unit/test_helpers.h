@@ -35,7 +35,7 @@ inline backlash_servo::ServoParams chart(double zeta, double inertia_ratio, doub
 }
 
 /// Thesis D1 with a compliant mesh: c = 1e4 N·m/rad, d for a contact damping ratio of e = 0.8's (the reference case
-/// sd_c1e4_e08_D1 of test_compliant_joint.cpp).
+/// sd_c1e4_e08_D1 of compliant/test_compliant_joint.cpp).
 inline backlash_servo::ServoParams compliantD1()
 {
   backlash_servo::ServoParams p;

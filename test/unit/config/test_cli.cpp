@@ -169,7 +169,7 @@ TEST(Cli, BadInputIsOneClearLineAndExitCode2)
       {"--controller-rate 100 --controller-delay 2", "controller_delay"},
       {"--control-law bangbang", "--control-law"},
       {"--control-law pid", "controller_rate"},
-      // Command profiles (issue 12): every field checked, the file named.
+      // Command profiles: every field checked, the file named.
       {"--profile " + profile("steps", "- step: {time: 0, target: 1}") + " --command 1", "not both"},
       {"--profile " + profile("typo", "- ramp: {time: 0, target: 1, rat: 2}") + " --controller-rate 100", "'rat'"},
       {"--profile " + profile("negative", "- ramp: {time: 0, target: 1, duration: -2}") + " --controller-rate 100",

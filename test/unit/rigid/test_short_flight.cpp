@@ -292,7 +292,7 @@ TEST(ShortFlight, ChatterRunsAgreeWithTheClosedFormEverywhere)
 
 TEST(ShortFlight, AFlightShorterThanTheClockIsLeftToTheClosedForm)
 {
-  // Fuzz seed 7 #2364: a heavy, slow joint at rest to ~1e-40 rad/s on a wall at t ≈ 5568 s; a "flight" of the
+  // Regression: a heavy, slow joint at rest to ~1e-40 rad/s on a wall at t ≈ 5568 s; a "flight" of the
   // teeth there lasts less than an ulp of the clock and looped without advancing time. It is the closed form's.
   RunConfig c;
   c.params.motor_inertia = 0.1353220952460959;
@@ -320,7 +320,7 @@ TEST(ShortFlight, AFlightShorterThanTheClockIsLeftToTheClosedForm)
 
 TEST(ShortFlight, AZenoSequenceUnderALoadTorqueEnds)
 {
-  // Fuzz seed 2 #1704: a light load (0.018 kg·m²) pressed onto the motor by a 1966 N·m load torque bounces with
+  // Regression: a light load (0.018 kg·m²) pressed onto the motor by a 1966 N·m load torque bounces with
   // e = 0.91 — a Zeno sequence: the bounce speeds fall by e per impact, so from the first bounce (~0.1 rad/s) to the
   // stick rule's floor (~1e-8 rad/s) it takes ~log(1e-7)/log(e) ≈ 175 impacts, and the teeth then stay in contact.
   // The closed form's flight times blur at these scales and it ran into an impact storm (the event budget).

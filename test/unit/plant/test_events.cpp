@@ -368,7 +368,7 @@ TEST(Events, RoundingLevelPenetrationAfterSeparationDoesNotStall)
   EXPECT_EQ(runResponse(settle).status.verdict, Verdict::LimitCycle);
 }
 
-// A state set apart on a wall with the teeth closing collides at once (fuzz seed 4 #1175): slow, light motions
+// A state set apart on a wall with the teeth closing collides at once: slow, light motions
 // penetrate the wall by less than the rounding bound of their closed forms, so the search alone missed the impact
 // and the gap ran to −6e-12 rad before a rest. Truth: the impact is at t = 0 with the initial closing speed
 // ρω_m − ω_c (e = 0: the teeth then move together), and the gap never leaves [0, Δ] afterwards. With and without
@@ -433,8 +433,8 @@ TEST(Events, AStartOnAWallWithTheTeethClosingCollidesAtOnce)
 
 // A light load under huge torques (J_L 1e-6 kg·m², 8e4 N·m of Coulomb friction, a 3e5 N·m load torque: 1e11 rad/s²)
 // stops within 5e-12 s. Its closed form θ_c = c − c e^{−ατ} + v_∞τ has c ≈ 2e8 rad for a motion of 1e-11 rad: the
-// direct evaluation put the load 2.5e-7 rad past the wall at its rest (fuzz seed 7 #631). Positions of such forms are
-// now the start plus an expm1-based increment. Truth: the kinematics of the first 5e-12 s — the gap moves by
+// direct evaluation put the load 2.5e-7 rad past the wall at its rest. Positions of such forms are
+// the start plus an expm1-based increment. Truth: the kinematics of the first 5e-12 s — the gap moves by
 // (ω_c − ρω_m)τ ≈ −2.4e-11 rad, i.e. stays inside [0, Δ] to 1e-12 of the position scale at every event.
 TEST(Events, AClosedFormWithHugeTermsKeepsTheGapExact)
 {

@@ -1,4 +1,4 @@
-// External load torque T_ext (docs/model.md Part 2; issue 10 item 2): checked against closed forms written here, the
+// External load torque T_ext (docs/model.md Part 2): checked against closed forms written here, the
 // reference case of test/joint_cases/reference_cases.json, conservation of energy, and T_ext = 0 reproducing the servo.
 #include <gtest/gtest.h>
 
@@ -182,7 +182,7 @@ TEST(LoadTorque, LevelCrossingSeparationMatchesABruteForceScan)
 {
   // The separation of an oscillatory contact with a load torque is where L + e^{−στ}(C cos ωτ + D sin ωτ) first
   // crosses zero: compared with a fine scan of the mesh torque, for many starting phases (a missed first monotone
-  // piece once made the rigid mesh flip flanks for ever — fuzz case, seed 11 #31).
+  // piece makes the rigid mesh flip flanks for ever).
   ServoParams p;
   p.load_torque = 0.35;
   p.backlash = 0.2;
@@ -237,7 +237,7 @@ TEST(LoadTorque, ABalancedStartStaysAtRestWithoutHanging)
   EXPECT_EQ(sim.impactCount(), 0u);
 }
 
-// Fuzz seed 7 #44852 (1e5 run; ten more cases of the kind): a lightly damped load drifting apart under T_ext towards
+// Regression: a lightly damped load drifting apart under T_ext towards
 // u = T_ext/f_L = 0.012 rad/s with α = 0.28 1/s while it moves at ~1e-4 rad/s. The apart closed form's terms
 // (θ_c ~ (v0 − u)/α ~ 0.04 rad, ω_m ~ k/J_m times those ~ 0.6 rad/s) are 1e4–1e5× the motion, and the energy flows
 // integrated from their products cancelled ~9 digits (the run's balance off by 2e-8 of its energy scale). Truth:

@@ -1,4 +1,4 @@
-// Light damping and nearly equal rates (issue 14): the apart mode's closed forms must stay exact when a decay rate
+// Light damping and nearly equal rates: the apart mode's closed forms must stay exact when a decay rate
 // is slow over the search window (its exponential becomes a Taylor polynomial) or two rates nearly coincide.
 // Checked against a reference integrator written here (RK4 in long double on the apart-mode ODE), the energy
 // balance (a conservation law), and continuity towards the undamped servo.

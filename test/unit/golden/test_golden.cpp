@@ -1,5 +1,5 @@
-// Golden outputs for refactors (issue 9): recorded on main before the architecture change and reproduced to the
-// last printed digit afterwards. Physics is checked against independent truth elsewhere; this file only pins that
+// Golden outputs for refactors: recorded before a change of structure and reproduced to the last printed digit
+// afterwards. Physics is checked against independent truth elsewhere; this file only pins that
 // a refactor changes nothing. Record (only before a deliberate change of results):
 //   BACKLASH_GOLDEN_RECORD=1 build/devel/lib/backlash_servo/backlash_servo_golden_test
 #include <gtest/gtest.h>

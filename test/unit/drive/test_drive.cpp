@@ -1,6 +1,6 @@
 // The digital drive (docs/model.md Part 2): sampling with a zero-order hold, delay, encoders,
 // P / PID / cascade, saturation — against closed forms and limits written here. The reference cases of
-// test/joint_cases/reference_cases.json run in test_tools.cpp (JointCases).
+// test/joint_cases/reference_cases.json run in tools/test_repository.cpp (JointCases).
 #include <gtest/gtest.h>
 
 #include <cmath>

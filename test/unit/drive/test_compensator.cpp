@@ -607,8 +607,8 @@ TEST(Compensation, TheContinuousLawTakesFeedforwardAndSquareDitherExactly)
 
 // A continuous feed-forward dead band with dry friction can hold the load on the band's edge in a sliding mode:
 // outside, the feed-forward breaks the pair away inwards; inside, the rest rule lets it slip back out — an endless
-// sequence of rests 1e-5 s apart (fuzz seed 7 #1522 ran for ever: rests did not count against the event budget).
-// Now rests and law switches have a budget of their own: the run stops with a clear message, at the edge.
+// sequence of rests 1e-5 s apart. Regression: rests and law switches count against a budget of their own, so the
+// run stops with a clear message, at the edge.
 TEST(Compensation, ASlidingModeAtADeadBandEdgeStopsAtTheEventBudget)
 {
   ServoParams p;

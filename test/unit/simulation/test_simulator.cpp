@@ -1,4 +1,4 @@
-// Never crash, hang or lie, in the core: live changes that used to stall the simulator, overflowing
+// Never crash, hang or lie, in the core: live changes that could stall the simulator, overflowing
 // inputs, impact storms.
 #include <gtest/gtest.h>
 
@@ -115,7 +115,7 @@ namespace
 {
 TEST(Robustness, RigidMeshWithALoadTorqueDoesNotFlipFlanksForEver)
 {
-  // Fuzz case (seed 11, #31): Δ = 0, a large load torque, the mesh torque at rounding level. The level-crossing
+  // Regression: Δ = 0, a large load torque, the mesh torque at rounding level. The level-crossing
   // search skipped its first monotone piece and reported a separation at τ = 0 on the flank that holds; the two
   // flanks then took turns for ever ("made no progress").
   ServoParams p;

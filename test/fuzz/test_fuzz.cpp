@@ -1,4 +1,4 @@
-// Property fuzzing in CI (issue 14): 2000 deterministic cases over the validated envelope and its edges
+// Property fuzzing in CI: 2000 deterministic cases over the validated envelope and its edges
 // (test/fuzz/fuzz_cases.h), including load torques and digital drives. Every case: no crash, exception or
 // "no progress", the gap in [0, Δ] to rounding at every event, the same final state when the run is cut into 17
 // pieces instead of 1000, a finite state, and the energy balance closing to 1e-9 of the energy scale. An impact
@@ -40,7 +40,7 @@ TEST(Fuzz, TwoThousandCasesKeepEveryProperty)
 {
   const int n = 2000;
   std::map<std::string, int> counts = checkSample([](std::uint64_t i) { return fuzz::makeCase(2, i); }, n, "rigid");
-  // The sample covers issue 12's additions too: compensators and command profiles.
+  // The sample covers the drive's additions too: compensators and command profiles.
   int compensated = 0, profiled = 0;
   for (int i = 0; i < n; ++i)
   {
@@ -79,9 +79,9 @@ TEST(Fuzz, CompliantJointsKeepEveryProperty)
 }
 
 // A compliant joint under the continuous law following a ramp runs in the ramp's moving frame, whose load torque
-// carries the load's viscous friction at the ramp's speed, −f_L v: compliant seed 1 #210 (f_L = 1.5e7 N·m·s/rad at
-// 169 rad/s, 2.6e9 N·m) was refused as if the user had set load_torque beyond its range. The frame's torques are
-// derived, not inputs: the run keeps every property.
+// carries the load's viscous friction at the ramp's speed, −f_L v (here f_L = 1.5e7 N·m·s/rad
+// at 169 rad/s: 2.6e9 N·m), which must not be refused as if the user had set load_torque beyond its range. The frame's
+// torques are derived, not inputs: the run keeps every property.
 TEST(Fuzz, ACompliantRampsFrameTorqueIsNotAUserInput)
 {
   const fuzz::Case c = fuzz::makeCompliantCase(1, 210);
@@ -92,10 +92,10 @@ TEST(Fuzz, ACompliantRampsFrameTorqueIsNotAUserInput)
   EXPECT_EQ(o.klass, "ok") << o.detail;
 }
 
-// A motor viscous friction ~1e-6 of the compliant mesh's frequency (compliant seed 1 #749: 1.1e-11 N·m·s/rad on
+// A motor viscous friction ~1e-6 of the compliant mesh's frequency (1.1e-11 N·m·s/rad on
 // 1.1e-5 kg·m², a soft mesh and shaft, a cascade loop sampled every 60 s): in contact the joint's common drift decays
-// at ~1e-9 of the mesh's frequency beside the zero eigenvalue of its common angle. Taken as nilpotent, that drift was
-// resolved to 1e-7 and the energy balance missed by 8e-9 of its scale; the run keeps every property.
+// at ~1e-9 of the mesh's frequency beside the zero eigenvalue of its common angle. Taken as nilpotent, that drift would
+// be resolved to 1e-7 and the energy balance miss by 8e-9 of its scale; the run keeps every property.
 TEST(Fuzz, ASlowFrictionDriftBesideTheMeshKeepsTheEnergyBalance)
 {
   const fuzz::Case c = fuzz::makeCompliantCase(1, 749);
@@ -106,10 +106,10 @@ TEST(Fuzz, ASlowFrictionDriftBesideTheMeshKeepsTheEnergyBalance)
   EXPECT_EQ(o.klass, "ok") << o.detail;
 }
 
-// A load floating in the free play behind a torsional shaft, read by the P law, its viscous friction slow (compliant
-// seed 5 #202: the drift decays at 8e-6 of the shaft's frequency, the motor's at 4e-5; #10: a stiff mesh and shaft
-// with dry friction): those slow modes were taken for a chain of the zero eigenvalue and cut off as a polynomial —
-// the motor drifted 7e-7 of its travel off in 0.09 s and the energy balance missed by 4e-9 and 2e-8 of its scale.
+// A load floating in the free play behind a torsional shaft, read by the P law, its viscous friction slow (the
+// drift decays at 8e-6 of the shaft's frequency, the motor's at 4e-5; and a stiff mesh and shaft with dry
+// friction): such slow modes must not be taken for a chain of the zero eigenvalue and cut off as a polynomial (the
+// motor would drift 7e-7 of its travel off in 0.09 s, the energy balance miss by 4e-9 and 2e-8 of its scale).
 TEST(Fuzz, SlowModesBesideTheZeroEigenvalueKeepTheEnergyBalance)
 {
   for (std::uint64_t index : {202u, 10u})
@@ -119,23 +119,23 @@ TEST(Fuzz, SlowModesBesideTheZeroEigenvalueKeepTheEnergyBalance)
   }
 }
 
-// A contact touched at the start (compliant seed 9 #289: backward contact, P = −3e-11 N·m within its rounding of
+// A contact touched at the start (a backward contact, P = −3e-11 N·m within its rounding of
 // 2e-8) whose P rises at 1.7 N·m/s while a stiff shaft (1.7e8 N·m/rad) bends it back at −1e12 N·m/s²: P peaks 1e-12
-// above its start, inside the band, and falls. Judged by its rate, the contact was kept and the release, a crossing
-// from ≥ 0, never came: the mesh pulled (its law: 0, then the forward flank pressed at 6.9 N·m) until the load's
-// turning point 1.65 µs later. It releases at the start now: the side it leaves the rounding band on decides.
+// above its start, inside the band, and falls. Judged by its rate, the contact would be kept and the release, a
+// crossing from ≥ 0, never come: the mesh would pull until the load's turning point 1.65 µs later. It releases at the
+// start: the side it leaves the rounding band on decides.
 TEST(Fuzz, AContactTouchedAtTheStartThatLeavesItsRoundingDownwardsReleasesThere)
 {
   const fuzz::Outcome o = fuzz::check(fuzz::makeCompliantCase(9, 289));
   EXPECT_EQ(o.klass, "ok") << o.detail;
 }
 
-// An engagement found within the rounding of a start whose teeth part at once (compliant seed 14: #1056, a backward
+// An engagement found within the rounding of a start whose teeth part at once (a backward
 // flank touching at rest, a 1.4e6 N·m drive torque pulling the motor off, P = −0.15 N·m at the engagement; #4469, the
-// same with P = −4e-24 N·m on a 7e-6 N·m/rad mesh): the contact was kept because it had just begun, its release output
-// never crossed zero from above, and its torque, clipped at zero, hid the gear crossing the free play into the other
-// flank (5.4e7 N·m of law unapplied at 7.9 µs in #1056). A contact begun at this instant with P below its rounding
-// releases at once.
+// same with P = −4e-24 N·m on a 7e-6 N·m/rad mesh): kept because it had just begun, such a contact's release output
+// never crosses zero from above, and its torque, clipped at zero, hides the gear crossing the free play into the
+// other flank (5.4e7 N·m of law unapplied at 7.9 µs in the first). A contact begun at this instant with P below its
+// rounding releases at once.
 TEST(Fuzz, AnEngagementWhoseTeethPartAtOnceReleasesThere)
 {
   for (const int index : {1056, 4469})
@@ -146,30 +146,29 @@ TEST(Fuzz, AnEngagementWhoseTeethPartAtOnceReleasesThere)
 }
 
 // Teeth without backlash (Δ = 0, undamped, c = 6e3 N·m/rad) pressing with ~1e-13 N·m, inside the 7e-13 N·m rounding
-// of their torque, swap flanks at a sample (compliant seed 14 #5582): the backward contact released there, the
+// of their torque, swap flanks at a sample: the backward contact released there, the
 // forward one engaged at once with P below zero within its rounding, and the new drive torque pulled the motor back —
-// P fell from below zero and never crossed it, and the mesh stayed in the forward contact with its torque clipped at
-// zero while the teeth pressed the backward flank (law −1.8e-5 N·m at 0.27 s). A contact kept with its release output
-// below zero within the rounding releases where it falls past the rounding. (The case also ran 28 s to get there: its
-// modes' slow drift was left to the Taylor series, whose loose bounds crawl along an output near zero.)
+// P fell from below zero and never crossed it, so the mesh must not stay in the forward contact with its torque
+// clipped at zero while the teeth press the backward flank. A contact kept with its release output below zero within
+// the rounding releases where it falls past the rounding.
 TEST(Fuzz, TeethWithoutBacklashSwappingFlanksAtRoundingReleaseWhenPulledApart)
 {
   const fuzz::Outcome o = fuzz::check(fuzz::makeCompliantCase(14, 5582));
   EXPECT_EQ(o.klass, "ok") << o.detail;
 }
 
-// msl_elastobacklash entering K2 (2c·y while d·ẏ > c·y) at a grazing engagement (compliant seed 9 #3543: d·ẏ and c·y
-// both within the 2e-7 N·m rounding of angles of 270 rad): K2's switch output c·y − d·ẏ began at +2e-9, inside the
-// band, so its crossing from ≤ 0 never came and the mesh pressed with 2c·y — twice its law — for the rest of the run.
-// It switches to KD at the engagement now: the output leaves its rounding band upwards.
+// msl_elastobacklash entering K2 (2c·y while d·ẏ > c·y) at a grazing engagement (d·ẏ and c·y both within the 2e-7 N·m
+// rounding of angles of 270 rad): K2's switch output c·y − d·ẏ began at +2e-9, inside the band, so its crossing from ≤
+// 0 would never come and the mesh press with 2c·y — twice its law. It switches to KD at the engagement: the output
+// leaves its rounding band upwards.
 TEST(Fuzz, AGrazingEngagementIntoK2LeavesItWhereTheSwitchOutputLeavesItsRoundingUpwards)
 {
   const fuzz::Outcome o = fuzz::check(fuzz::makeCompliantCase(9, 3543));
   EXPECT_EQ(o.klass, "ok") << o.detail;
 }
 
-// The gap property's rounding scale includes the set-point θ_R(t) (a ramp runs in a frame moving with it): seed 7
-// #52681, positions crossing zero at 26 rad/s during a ramp to −9.3 rad, the gap 1.7e-15 rad below 0 — rounding of
+// The gap property's rounding scale includes the set-point θ_R(t) (a ramp runs in a frame moving with it):
+// positions crossing zero at 26 rad/s during a ramp to −9.3 rad, the gap 1.7e-15 rad below 0 — rounding of
 // the frame's ~9 rad. A gap out by far more than rounding (a missed impact) is still flagged, with or without a
 // profile.
 TEST(Fuzz, GapPropertyCountsTheSetPointsRoundingOnly)
