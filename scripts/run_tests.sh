@@ -1,9 +1,38 @@
 #!/usr/bin/env bash
 # Installs, builds and runs every test (gtest on the core and tools; rostests when present), then prints the
 # totals as the last line: "N passed, N failed". Exit code 0 only when nothing failed.
+#
+# --quick: the loop for someone changing one file — from an already built tree (bash scripts/run_tests.sh once, or
+# make -C build tests), rebuilds what changed, then runs the core's unit tests, the tools' tests, the config and
+# golden tests and the Python tests (the layer check among them), two at a time; no setup, no ROS tests, no
+# sanitizers, no parser fuzzing. A few minutes on two cores. GTEST_FILTER narrows the gtest part.
 set -uo pipefail
 cd "$(dirname "$0")/.."
 export PATH=/usr/bin:$PATH
+if [ "${1:-}" = "--quick" ]; then
+  bin=build/devel/lib/backlash_servo
+  if [ ! -x "$bin/backlash_servo_core_test" ]; then
+    echo "no built tree in build/: run bash scripts/run_tests.sh once (it installs and builds)"
+    echo "0 passed, 1 failed"
+    exit 1
+  fi
+  make -C build -j"$(nproc)" tests >/dev/null || { echo "build failed"; echo "0 passed, 1 failed"; exit 1; }
+  results=build/quick_results
+  rm -rf "$results" && mkdir -p "$results"
+  set +u
+  source build/devel/setup.bash
+  set -u
+  gtest() {  # binary name
+    "$bin/backlash_servo_$1_test" --gtest_output="xml:$results/$1.xml" >"$results/$1.log" 2>&1 ||
+      grep -E '^\[  FAILED  \]|Failure' "$results/$1.log" | head -n 20
+  }
+  gtest core &
+  (gtest tools; gtest cli; gtest golden; gtest param_table) &
+  wait
+  /usr/bin/python3 -m pytest -q -p no:cacheprovider test/python --junitxml="$results/pytest.xml" 2>&1 | tail -n 5
+  /usr/bin/python3 scripts/count_results.py "$results"
+  exit $?
+fi
 bash scripts/setup.sh || { echo "0 passed, 1 failed"; exit 1; }
 rm -rf build/test_results
 make -C build -j"$(nproc)" tests || { echo "0 passed, 1 failed"; exit 1; }
