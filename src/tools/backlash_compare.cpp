@@ -186,11 +186,16 @@ void drawCharts(const std::string& script, TemporaryDirectory& dir,
 }
 }  // namespace
 
-int main(int argc, char** argv)
+/// The command line: the options, or an exit code (0 after --help, 2 on a bad option) in `exit_code`.
+struct Options
 {
   std::string config_path, csv_path, png_path, vary_text;
   bool json = false, absolute = false;
   int jobs = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
+};
+
+bool parseOptions(int argc, char** argv, Options* o, int* exit_code)
+{
   for (int i = 1; i < argc; ++i)
   {
     const std::string a = argv[i];
@@ -203,17 +208,17 @@ int main(int argc, char** argv)
       return argv[++i];
     };
     if (a == "--config")
-      config_path = value();
+      o->config_path = value();
     else if (a == "--csv")
-      csv_path = value();
+      o->csv_path = value();
     else if (a == "--png")
-      png_path = value();
+      o->png_path = value();
     else if (a == "--json")
-      json = true;
+      o->json = true;
     else if (a == "--vary")
-      vary_text = value();
+      o->vary_text = value();
     else if (a == "--absolute")
-      absolute = true;
+      o->absolute = true;
     else if (a == "--jobs")
     {
       const std::string v = value();
@@ -222,21 +227,180 @@ int main(int argc, char** argv)
       if (*end != '\0' || n < 1 || n > 4096)
       {
         std::cerr << "backlash_compare: error: --jobs must be a whole number in [1, 4096] (got '" << v << "')\n";
-        return 2;
+        *exit_code = 2;
+        return false;
       }
-      jobs = static_cast<int>(n);
+      o->jobs = static_cast<int>(n);
     }
     else if (a == "--help" || a == "-h")
     {
       std::cout << USAGE;
-      return 0;
+      *exit_code = 0;
+      return false;
     }
     else
     {
       std::cerr << "backlash_compare: error: unknown option '" << a << "' (see --help)\n";
-      return 2;
+      *exit_code = 2;
+      return false;
     }
   }
+  return true;
+}
+
+/// What is run: the strategies, or with --vary each strategy at each varied value (`values` [SI]).
+std::vector<CompareStrategy> planRuns(const CompareConfig& config, const Vary& vary, bool varied,
+                                      std::vector<double>* run_values)
+{
+  std::vector<CompareStrategy> runs = config.strategies;
+  if (!varied)
+  {
+    return runs;
+  }
+  runs.clear();
+  for (const CompareStrategy& s : config.strategies)
+  {
+    const double base = vary.absolute ? 1.0 : valueOf(s, vary.key);
+    if (!vary.absolute && base == 0.0)
+    {
+      throw ConfigError("--vary: '" + vary.key + "' is 0 in strategy '" + s.name +
+                        "': factors of 0 are all 0; give values with --absolute");
+    }
+    for (double step : vary.steps)
+    {
+      runs.push_back(withValue(s, vary.key, step * base, config));
+      run_values->push_back(step * base);
+    }
+  }
+  return runs;
+}
+
+/// --json with --vary: each strategy's points, its metrics at each value.
+void writeVariedJson(std::ostream& out, const std::vector<CompareStrategy>& runs, const std::vector<double>& run_values,
+                     const std::vector<CompareMetrics>& metrics, const Vary& vary)
+{
+  const std::vector<std::string>& names = metricNames();
+  const std::size_t n = runs.size();
+  JsonWriter j(out);
+  j.beginObject().beginObject("vary").field("key", vary.key).field("absolute", vary.absolute).endObject();
+  j.beginArray("strategies");
+  for (std::size_t i = 0; i < n; ++i)
+  {
+    if (i % vary.steps.size() == 0)
+    {
+      j.beginObject().field("name", runs[i].name).beginArray("points");
+    }
+    j.beginObject().field("value", run_values[i]).field("verdict", metrics[i].verdict);
+    const std::vector<double> values = metricValues(metrics[i]);
+    for (std::size_t k = 0; k < names.size(); ++k)
+    {
+      j.field(names[k].c_str(), values[k]);
+    }
+    j.endObject();
+    if ((i + 1) % vary.steps.size() == 0)
+    {
+      j.endArray().endObject();
+    }
+  }
+  j.endArray().endObject();
+}
+
+/// --json: each strategy's metrics (NaN as null).
+void writeJson(std::ostream& out, const std::vector<CompareMetrics>& metrics)
+{
+  const std::vector<std::string>& names = metricNames();
+  JsonWriter j(out);
+  j.beginObject().beginArray("strategies");
+  for (const CompareMetrics& m : metrics)
+  {
+    j.beginObject().field("name", m.name).field("verdict", m.verdict);
+    const std::vector<double> values = metricValues(m);
+    for (std::size_t k = 0; k < names.size(); ++k)
+    {
+      j.field(names[k].c_str(), values[k]);  // NaN is written as null
+    }
+    j.endObject();
+  }
+  j.endArray().endObject();
+}
+
+/// The text table: a row a run, the units under the header.
+void writeTable(std::ostream& out, const std::vector<CompareStrategy>& runs, const std::vector<double>& run_values,
+                const std::vector<CompareMetrics>& metrics, const Vary& vary, bool varied_run)
+{
+  const std::size_t n = runs.size();
+  const bool varied = varied_run;
+  char buf[400];
+  std::snprintf(buf, sizeof buf, "%-28s %-11s%-22s %9s %8s %9s %9s %8s %9s %9s %9s %9s %9s %9s %8s %8s\n", "strategy",
+                varied ? vary.key.substr(0, 10).c_str() : "", "verdict", "lc err", "period", "p-p", "steady", "settle",
+                "rms err", "steady rms", "max err", "overshoot", "impacts/s", "E_imp/s", "peak T", "rms T");
+  out << buf;
+  out << "  (" << (varied ? "value in SI units; " : "")
+      << "rad, s, rad, rad, s, rad, rad, rad, rad, 1/s, W, N·m, N·m; '-': does not apply; settling band "
+      << cell(metrics.empty() ? NAN : metrics.front().settling_band) << " rad)\n";
+  for (std::size_t i = 0; i < n; ++i)
+  {
+    const CompareMetrics& m = metrics[i];
+    std::snprintf(buf, sizeof buf, "%-28s %-11s%-22s %9s %8s %9s %9s %8s %9s %9s %9s %9s %9s %9s %8s %8s\n",
+                  m.name.substr(0, 28).c_str(), varied ? cell(run_values[i]).c_str() : "", m.verdict.c_str(),
+                  cell(m.limit_cycle_error).c_str(), cell(m.period).c_str(), cell(m.peak_to_peak).c_str(),
+                  cell(m.steady_error).c_str(), cell(m.settling_time).c_str(), cell(m.rms_error).c_str(),
+                  cell(m.steady_rms_error).c_str(), cell(m.max_error).c_str(), cell(m.overshoot).c_str(),
+                  cell(m.impacts_per_second).c_str(), cell(m.impact_energy_per_second).c_str(),
+                  cell(m.peak_torque).c_str(), cell(m.rms_torque).c_str());
+    out << buf;
+  }
+}
+
+/// The outputs, checked and their temporaries created before any strategy runs.
+struct Outputs
+{
+  std::unique_ptr<SafeOutput> csv, png, svg;
+  std::string chart_script;
+  std::unique_ptr<TemporaryDirectory> chart_dir;  // the chart's data, drawn there and removed file by file
+};
+
+Outputs openOutputs(const Options& o)
+{
+  Outputs out;
+  if (!o.csv_path.empty())
+  {
+    out.csv = std::make_unique<SafeOutput>("--csv", o.csv_path, std::vector<std::string>{o.config_path});
+  }
+  if (!o.png_path.empty())
+  {
+    if (o.png_path.size() < 5 || o.png_path.compare(o.png_path.size() - 4, 4, ".png") != 0)
+    {
+      throw ConfigError("--png: '" + o.png_path + "' must end in .png (the SVG is written beside it)");
+    }
+    const std::string svg_path = o.png_path.substr(0, o.png_path.size() - 4) + ".svg";
+    for (const std::string& other : {svg_path, o.png_path})
+    {
+      if (!o.csv_path.empty() && (other == o.csv_path || sameFile(other, o.csv_path)))
+      {
+        throw ConfigError("--png: '" + other + "' is also the --csv file");
+      }
+    }
+    out.png = std::make_unique<SafeOutput>("--png", o.png_path, std::vector<std::string>{o.config_path});
+    out.svg = std::make_unique<SafeOutput>("--png", svg_path, std::vector<std::string>{o.config_path});
+    out.chart_script = helperBesideExecutable("compare_chart.py");
+    out.chart_dir = std::make_unique<TemporaryDirectory>("backlash_compare");
+  }
+  return out;
+}
+
+int main(int argc, char** argv)
+{
+  Options options;
+  int exit_code = 0;
+  if (!parseOptions(argc, argv, &options, &exit_code))
+  {
+    return exit_code;
+  }
+  const std::string &config_path = options.config_path, &csv_path = options.csv_path, &png_path = options.png_path,
+                    &vary_text = options.vary_text;
+  const bool json = options.json, absolute = options.absolute;
+  const int jobs = options.jobs;
   if (config_path.empty())
   {
     std::cerr << "backlash_compare: error: --config FILE.yaml is required (see --help)\n";
@@ -244,9 +408,7 @@ int main(int argc, char** argv)
   }
   removeTemporariesOnSignals();
   CompareConfig config;
-  std::unique_ptr<SafeOutput> csv_file, png_file, svg_file;
-  std::string chart_script;
-  std::unique_ptr<TemporaryDirectory> chart_dir;  // the chart's data, drawn there and removed file by file
+  Outputs outputs;
   Vary vary;
   std::vector<CompareStrategy> runs;  // what is run: the strategies, or each strategy at each varied value
   std::vector<double> run_values;     // --vary: the value [SI] of each run
@@ -257,51 +419,14 @@ int main(int argc, char** argv)
       throw ConfigError("--absolute needs --vary");
     }
     config = loadCompareConfig(config_path);
-    runs = config.strategies;
     if (!vary_text.empty())
     {
       vary = parseVary(vary_text);
       vary.absolute = absolute;
-      runs.clear();
-      for (const CompareStrategy& s : config.strategies)
-      {
-        const double base = vary.absolute ? 1.0 : valueOf(s, vary.key);
-        if (!vary.absolute && base == 0.0)
-        {
-          throw ConfigError("--vary: '" + vary.key + "' is 0 in strategy '" + s.name +
-                            "': factors of 0 are all 0; give values with --absolute");
-        }
-        for (double step : vary.steps)
-        {
-          runs.push_back(withValue(s, vary.key, step * base, config));
-          run_values.push_back(step * base);
-        }
-      }
     }
+    runs = planRuns(config, vary, !vary_text.empty(), &run_values);
     // Every output is checked and its temporary created before any strategy runs.
-    if (!csv_path.empty())
-    {
-      csv_file = std::make_unique<SafeOutput>("--csv", csv_path, std::vector<std::string>{config_path});
-    }
-    if (!png_path.empty())
-    {
-      if (png_path.size() < 5 || png_path.compare(png_path.size() - 4, 4, ".png") != 0)
-      {
-        throw ConfigError("--png: '" + png_path + "' must end in .png (the SVG is written beside it)");
-      }
-      const std::string svg_path = png_path.substr(0, png_path.size() - 4) + ".svg";
-      for (const std::string& other : {svg_path, png_path})
-      {
-        if (!csv_path.empty() && (other == csv_path || sameFile(other, csv_path)))
-        {
-          throw ConfigError("--png: '" + other + "' is also the --csv file");
-        }
-      }
-      png_file = std::make_unique<SafeOutput>("--png", png_path, std::vector<std::string>{config_path});
-      svg_file = std::make_unique<SafeOutput>("--png", svg_path, std::vector<std::string>{config_path});
-      chart_script = helperBesideExecutable("compare_chart.py");
-      chart_dir = std::make_unique<TemporaryDirectory>("backlash_compare");
-    }
+    outputs = openOutputs(options);
   }
   catch (const std::exception& e)
   {
@@ -326,19 +451,18 @@ int main(int argc, char** argv)
       return 1;
     }
   }
-  const std::vector<std::string>& names = metricNames();
   try
   {
-    if (csv_file)
+    if (outputs.csv)
     {
-      writeMetricsCsv(csv_file->stream(), metrics, vary_text.empty() ? "" : vary.key, run_values);
-      csv_file->commit();
+      writeMetricsCsv(outputs.csv->stream(), metrics, vary_text.empty() ? "" : vary.key, run_values);
+      outputs.csv->commit();
       std::cerr << "backlash_compare: wrote " << csv_path << "\n";
     }
-    if (png_file)
+    if (outputs.png)
     {
-      drawCharts(chart_script, *chart_dir, trajectories, metrics, vary_text.empty() ? "" : vary.key, run_values,
-                 *png_file, *svg_file);
+      drawCharts(outputs.chart_script, *outputs.chart_dir, trajectories, metrics, vary_text.empty() ? "" : vary.key,
+                 run_values, *outputs.png, *outputs.svg);
     }
   }
   catch (const std::exception& e)
@@ -349,70 +473,17 @@ int main(int argc, char** argv)
   std::ostringstream out;
   if (json && !vary_text.empty())
   {
-    JsonWriter j(out);
-    j.beginObject().beginObject("vary").field("key", vary.key).field("absolute", vary.absolute).endObject();
-    j.beginArray("strategies");
-    for (std::size_t i = 0; i < n; ++i)
-    {
-      if (i % vary.steps.size() == 0)
-      {
-        j.beginObject().field("name", runs[i].name).beginArray("points");
-      }
-      j.beginObject().field("value", run_values[i]).field("verdict", metrics[i].verdict);
-      const std::vector<double> values = metricValues(metrics[i]);
-      for (std::size_t k = 0; k < names.size(); ++k)
-      {
-        j.field(names[k].c_str(), values[k]);
-      }
-      j.endObject();
-      if ((i + 1) % vary.steps.size() == 0)
-      {
-        j.endArray().endObject();
-      }
-    }
-    j.endArray().endObject();
+    writeVariedJson(out, runs, run_values, metrics, vary);
     out << "\n";
   }
   else if (json)
   {
-    JsonWriter j(out);
-    j.beginObject().beginArray("strategies");
-    for (const CompareMetrics& m : metrics)
-    {
-      j.beginObject().field("name", m.name).field("verdict", m.verdict);
-      const std::vector<double> values = metricValues(m);
-      for (std::size_t k = 0; k < names.size(); ++k)
-      {
-        j.field(names[k].c_str(), values[k]);  // NaN is written as null
-      }
-      j.endObject();
-    }
-    j.endArray().endObject();
+    writeJson(out, metrics);
     out << "\n";
   }
   else
   {
-    const bool varied = !vary_text.empty();
-    char buf[400];
-    std::snprintf(buf, sizeof buf, "%-28s %-11s%-22s %9s %8s %9s %9s %8s %9s %9s %9s %9s %9s %9s %8s %8s\n", "strategy",
-                  varied ? vary.key.substr(0, 10).c_str() : "", "verdict", "lc err", "period", "p-p", "steady",
-                  "settle", "rms err", "steady rms", "max err", "overshoot", "impacts/s", "E_imp/s", "peak T", "rms T");
-    out << buf;
-    out << "  (" << (varied ? "value in SI units; " : "")
-        << "rad, s, rad, rad, s, rad, rad, rad, rad, 1/s, W, N·m, N·m; '-': does not apply; settling band "
-        << cell(metrics.empty() ? NAN : metrics.front().settling_band) << " rad)\n";
-    for (std::size_t i = 0; i < n; ++i)
-    {
-      const CompareMetrics& m = metrics[i];
-      std::snprintf(buf, sizeof buf, "%-28s %-11s%-22s %9s %8s %9s %9s %8s %9s %9s %9s %9s %9s %9s %8s %8s\n",
-                    m.name.substr(0, 28).c_str(), varied ? cell(run_values[i]).c_str() : "", m.verdict.c_str(),
-                    cell(m.limit_cycle_error).c_str(), cell(m.period).c_str(), cell(m.peak_to_peak).c_str(),
-                    cell(m.steady_error).c_str(), cell(m.settling_time).c_str(), cell(m.rms_error).c_str(),
-                    cell(m.steady_rms_error).c_str(), cell(m.max_error).c_str(), cell(m.overshoot).c_str(),
-                    cell(m.impacts_per_second).c_str(), cell(m.impact_energy_per_second).c_str(),
-                    cell(m.peak_torque).c_str(), cell(m.rms_torque).c_str());
-      out << buf;
-    }
+    writeTable(out, runs, run_values, metrics, vary, !vary_text.empty());
   }
   std::cout << out.str();
   try

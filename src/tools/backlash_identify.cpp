@@ -422,6 +422,310 @@ void drawChart(const Recording& data, double rho, const ReplayWindows& windows, 
 
 }  // namespace
 
+/// --experiment: the excitation as a command profile (YAML segments) in `out`.
+void writeExperiment(const Options& o, std::ostream& out)
+{
+  const std::vector<ProfileSegment> segments =
+      identificationExperiment(o.prior_config.params, o.duration, o.travel, o.dither_amplitude, o.dither_frequency);
+  out.precision(10);
+  out << "# backlash_identify --experiment: " << o.duration << " s of command about its start, for a joint with "
+      << "backlash " << o.prior_config.params.backlash << " rad and loop natural frequency "
+      << o.prior_config.params.naturalFrequency() << " rad/s.\n"
+      << "# The slow sine: contact motion both ways (friction, load torque); the faster ones: accelerations (the "
+         "inertias);\n# every reversal crosses the backlash (the motor alone while the teeth are apart). SI "
+         "units: s, rad, Hz.\n";
+  if (o.dither_amplitude > 0.0)
+  {
+    out << "# A dither on every sine: " << o.dither_amplitude << " rad at " << o.dither_frequency << " Hz (a torque of "
+        << o.prior_config.params.gain * o.dither_amplitude
+        << " N*m under the gain), so that no body sticks at the slow reversals.\n";
+  }
+  for (const ProfileSegment& seg : segments)
+  {
+    out << "- sine: {time: " << seg.time << ", amplitude: " << seg.amplitude << ", frequency: " << seg.frequency
+        << ", duration: " << seg.duration;
+    if (seg.dither_amplitude > 0.0)
+    {
+      out << ", dither_amplitude: " << seg.dither_amplitude << ", dither_frequency: " << seg.dither_frequency;
+    }
+    out << "}\n";
+  }
+}
+
+/// The recording of --data: a CSV as it is, a bag's joint_states converted by backlash_bag_report --recording (run
+/// without a shell) into a private directory, then read as a CSV.
+Recording readData(const Options& o)
+{
+  if (o.data_path.size() <= 4 || o.data_path.compare(o.data_path.size() - 4, 4, ".bag") != 0)
+  {
+    return readRecording(o.data_path);
+  }
+  TemporaryDirectory dir("backlash_identify_bag");
+  const std::string csv = dir.file("recording.csv");
+  std::vector<std::string> argv = {"/usr/bin/python3", helperBesideExecutable("backlash_bag_report.py"), o.data_path,
+                                   "--recording", csv};
+  for (const auto& [flag, value] : {std::make_pair(std::string("--joint-states"), o.joint_states_topic),
+                                    std::make_pair(std::string("--motor-joint"), o.motor_joint),
+                                    std::make_pair(std::string("--load-joint"), o.load_joint)})
+  {
+    if (!value.empty())
+    {
+      argv.insert(argv.end(), {flag, value});
+    }
+  }
+  if (o.joint_states_topic.empty())
+  {
+    argv.push_back("--json");  // (its report goes to stderr as one line: only the recording is wanted)
+  }
+  const int status = runProgram(argv);
+  if (status != 0)
+  {
+    throw ConfigError("--data: backlash_bag_report could not convert " + o.data_path + " (exit status " +
+                      std::to_string(status) + "; its message is above)");
+  }
+  return readRecording(csv);
+}
+
+/// How the recording is read, from the options and the prior.
+IdentificationSettings settingsFrom(const Options& o)
+{
+  IdentificationSettings s;
+  s.gear_ratio = o.gear_ratio;
+  s.contact_band = o.contact_band;
+  s.smoothing = o.smoothing;
+  // Contact one way only (a limit cycle pushed from one side): the prior's load torque (default 0) splits it.
+  s.load_torque_fallback = o.prior.has("load_torque") ? o.prior.number("load_torque") : 0.0;
+  s.still_speed = o.still_speed;
+  s.motor_encoder_resolution = o.motor_counts;
+  s.load_encoder_resolution = o.load_counts;
+  return s;
+}
+
+/// The model file: the prior's keys with the identified ones replaced by the model's values; the keys not identified
+/// named in comments.
+void writeModel(const Options& o, const JointIdentification& result, std::ostream& out)
+{
+  const std::vector<IdentifiedParameter>& rows = result.parameters;
+  // The prior's keys, the estimated ones replaced by the model's values (and a static level the estimates
+  // raised to its Coulomb level).
+  KeyValues model = o.prior;
+  const auto valueOf = [&result](const std::string& key) {
+    return result.model.*std::get<double ServoParams::*>(findParam(key)->field);
+  };
+  for (const IdentifiedParameter& r : rows)
+  {
+    if (r.identifiable)
+    {
+      model.setNumber(r.key, valueOf(r.key));
+    }
+  }
+  for (const char* stat : {"motor_static_friction", "load_static_friction"})
+  {
+    const bool unknown = std::any_of(rows.begin(), rows.end(),
+                                     [stat](const IdentifiedParameter& r) { return r.key == stat && !r.identifiable; });
+    // (absent: the table's default, 0; a level not identified is left to the tools' default, the Coulomb level)
+    if (!unknown && valueOf(stat) != model.number(stat, 0.0))
+    {
+      model.setNumber(stat, valueOf(stat));
+    }
+  }
+  // The prior's drive keys stay when they make a drive; else they describe the recording only (encoders
+  // without a controller rate) and are kept as comments, so that every tool reads the model.
+  bool drive_ok = true;
+  try
+  {
+    DriveParams drive;
+    readDriveKeys(model, false, &drive);
+    drive.validate(ControlMode::Position);
+  }
+  catch (const std::exception&)
+  {
+    drive_ok = false;
+  }
+  out << "# backlash_identify: the joint estimated from " << o.data_path << " (SI units)\n";
+  for (const auto& [key, value] : model.keys())
+  {
+    const bool recording_only = !drive_ok && param(key).section == ParamSection::Drive;
+    out << (recording_only ? "# " : "") << key << ": " << value
+        << (recording_only ? "  (the recording's encoder; not a drive without controller_rate)" : "") << "\n";
+  }
+  for (const IdentifiedParameter& r : rows)
+  {
+    if (!r.identifiable)
+    {
+      out << "# " << r.key << ": not identified (" << r.reason << ")"
+          << (o.known.stated.count(r.key) ? ": the prior's value is kept" : ": give it before simulating") << "\n";
+    }
+  }
+}
+
+/// --json: the estimates, what the recording's angles are, the warnings and the joint fit as one JSON object.
+void printJson(const Options& o, const JointIdentification& result)
+{
+  const InitialEstimates& e = result.initial;
+  const std::vector<IdentifiedParameter>& rows = result.parameters;
+  const JointFit& fit = result.fit;
+  const bool joint = result.joint_fit;
+  std::ostringstream out;
+  JsonWriter w(out);
+  w.beginObject();
+  w.beginObject("estimates");
+  for (const IdentifiedParameter& r : rows)
+  {
+    w.beginObject(r.key.c_str());
+    w.field("value", r.value.value);
+    w.field("standard_error", r.value.standard_error);
+    w.field("initial", r.initial.value);
+    w.field("initial_standard_error", r.initial.standard_error);
+    w.field("identifiable", r.identifiable);
+    if (!r.identifiable)
+    {
+      w.field("reason", r.reason);
+    }
+    if (r.in_joint_fit)
+    {
+      w.field("informed", r.informed);
+      w.field("largest_correlation", r.largest_correlation);
+      w.field("most_correlated_with", r.most_correlated_with);
+    }
+    w.endObject();
+  }
+  w.endObject();
+  const MeasuredAngles& m = result.measurement;
+  w.beginObject("measurement");
+  w.field("motor_encoder_resolution", m.motor.resolution);
+  w.field("motor_noise", m.motor.noise);
+  w.field("load_encoder_resolution", m.load.resolution);
+  w.field("load_noise", m.load.noise);
+  w.field("smoothing", static_cast<long long>(m.smoothing));
+  w.field("contact_band", m.contact_band);
+  w.field("from_data", m.from_data);
+  w.field("phases_from_load_edges", e.phases_from_edges);
+  w.endObject();
+  w.beginArray("warnings");
+  for (const std::string& warning : result.warnings)
+  {
+    w.field(nullptr, warning);
+  }
+  w.endArray();
+  w.field("zero_offset", e.zero_offset);
+  w.field("load_torque_given", e.load_torque_given);
+  w.field("contact_samples", static_cast<long long>(e.contact_samples));
+  w.field("apart_samples", static_cast<long long>(e.apart_samples));
+  w.field("contact_rms_residual", e.contact_rms_residual);
+  w.field("apart_rms_residual", e.apart_rms_residual);
+  if (joint)
+  {
+    w.beginObject("joint_fit");
+    w.field("windows", static_cast<long long>(fit.windows));
+    w.field("window", o.joint.window);
+    w.field("evaluations", static_cast<long long>(fit.evaluations));
+    w.field("budget_exhausted", fit.budget_exhausted);
+    w.field("start_rms_residual", fit.start_rms);
+    w.field("rms_residual", fit.rms);
+    w.field("condition", fit.condition);
+    w.beginArray("correlation");
+    for (Eigen::Index i = 0; i < fit.correlation.rows(); ++i)
+    {
+      w.beginArray();
+      for (Eigen::Index j = 0; j < fit.correlation.cols(); ++j)
+      {
+        w.field(nullptr, fit.correlation(i, j));
+      }
+      w.endArray();
+    }
+    w.endArray();
+    w.endObject();
+  }
+  w.endObject();
+  std::cout << out.str() << "\n";
+}
+
+/// The text report: what the angles are, the samples each phase gave, the joint fit, a row a parameter.
+void printText(const Options& o, const Recording& data, const JointIdentification& result)
+{
+  const InitialEstimates& e = result.initial;
+  const std::vector<IdentifiedParameter>& rows = result.parameters;
+  const JointFit& fit = result.fit;
+  const bool joint = result.joint_fit;
+  std::printf("%s\n", result.measurement.summary().c_str());
+  if (e.phases_from_edges)
+  {
+    std::printf(
+        "the gap does not resolve the free play: its flanks read at the load's count edges (the motor's angle "
+        "there); flights not resolved\n");
+  }
+  if (result.model.compliant())
+  {
+    std::printf(
+        "%zu samples: the bodies' torque balance (rms residual %.3g N*m); the mesh pressed at %zu, free at %zu "
+        "(rms residual %.3g N*m)\n",
+        data.time.size(), e.apart_rms_residual, e.contact_samples, e.apart_samples, e.contact_rms_residual);
+  }
+  else
+  {
+    std::printf(
+        "%zu samples: %zu in contact, %zu apart used by the initial estimates (rms residual %.3g / %.3g "
+        "N*m)\n",
+        data.time.size(), e.contact_samples, e.apart_samples, e.contact_rms_residual, e.apart_rms_residual);
+  }
+  if (joint)
+  {
+    std::printf("joint fit: %zu windows of %g s, %d replays%s; rms residual %.3g -> %.3g rad; condition %.3g\n",
+                fit.windows, o.joint.window, fit.evaluations,
+                fit.budget_exhausted ? " (the budget: raise --max-evaluations)" : "", fit.start_rms, fit.rms,
+                fit.condition);
+  }
+  std::printf("%-24s %14s %14s +- %-10s %-10s %s\n", "parameter", "initial", joint ? "fitted" : "estimate", "std error",
+              "unit", joint ? "identifiability" : "");
+  for (const IdentifiedParameter& r : rows)
+  {
+    std::string how;
+    if (!r.identifiable)
+    {
+      how = "not identifiable: " + r.reason;
+    }
+    else if (r.key.find("static") != std::string::npos)
+    {
+      how = std::isfinite(r.value.standard_error) ? "from the rests (held in the joint fit)"
+                                                  : "from the rests: at least this (never seen breaking away)";
+    }
+    else if (joint && !r.in_joint_fit)
+    {
+      how = "initial estimate (held in the joint fit)";
+    }
+    else if (joint && !r.informed)
+    {
+      how = "not informed by this recording (the start kept)";
+    }
+    else if (joint && !r.most_correlated_with.empty())
+    {
+      how = "|corr| " + number(std::round(r.largest_correlation * 100.0) / 100.0) + " with " + r.most_correlated_with;
+    }
+    std::printf("%-24s %14s %14s +- %-10s %-10s %s\n", r.key.c_str(), number(r.initial.value).c_str(),
+                number(r.value.value).c_str(), number(r.value.standard_error, 3).c_str(), unitOf(r.key).c_str(),
+                how.c_str());
+  }
+  std::printf("%-24s %14s %14s    %-10s %-10s %s\n", "zero_offset", "", number(e.zero_offset, 6).c_str(), "", "rad",
+              "(the gap the encoders read on the forward flank)");
+  std::string kept;
+  for (const std::string& key : jointFitKeysFor(result.model))
+  {
+    if (std::none_of(rows.begin(), rows.end(), [&key](const IdentifiedParameter& r) { return r.key == key; }))
+    {
+      kept += (kept.empty() ? "" : ", ") + key;
+    }
+  }
+  if (!result.model.compliant())
+  {
+    kept += std::string(kept.empty() ? "" : ", ") + "a compliant mesh";
+  }
+  if (!kept.empty())
+  {
+    std::printf("not estimated (the prior's values are kept): %s\n", kept.c_str());
+  }
+}
+
 int main(int argc, char** argv)
 {
   Options o;
@@ -445,69 +749,12 @@ int main(int argc, char** argv)
     }
     if (o.experiment)
     {
-      const std::vector<ProfileSegment> segments =
-          identificationExperiment(o.prior_config.params, o.duration, o.travel, o.dither_amplitude, o.dither_frequency);
-      std::ostream& out = output->stream();
-      out.precision(10);
-      out << "# backlash_identify --experiment: " << o.duration << " s of command about its start, for a joint with "
-          << "backlash " << o.prior_config.params.backlash << " rad and loop natural frequency "
-          << o.prior_config.params.naturalFrequency() << " rad/s.\n"
-          << "# The slow sine: contact motion both ways (friction, load torque); the faster ones: accelerations (the "
-             "inertias);\n# every reversal crosses the backlash (the motor alone while the teeth are apart). SI "
-             "units: s, rad, Hz.\n";
-      if (o.dither_amplitude > 0.0)
-      {
-        out << "# A dither on every sine: " << o.dither_amplitude << " rad at " << o.dither_frequency
-            << " Hz (a torque of " << o.prior_config.params.gain * o.dither_amplitude
-            << " N*m under the gain), so that no body sticks at the slow reversals.\n";
-      }
-      for (const ProfileSegment& seg : segments)
-      {
-        out << "- sine: {time: " << seg.time << ", amplitude: " << seg.amplitude << ", frequency: " << seg.frequency
-            << ", duration: " << seg.duration;
-        if (seg.dither_amplitude > 0.0)
-        {
-          out << ", dither_amplitude: " << seg.dither_amplitude << ", dither_frequency: " << seg.dither_frequency;
-        }
-        out << "}\n";
-      }
+      writeExperiment(o, output->stream());
       output->commit();
       std::cerr << "backlash_identify: wrote " << o.output_path << "\n";
       return 0;
     }
-    if (o.data_path.size() > 4 && o.data_path.compare(o.data_path.size() - 4, 4, ".bag") == 0)
-    {
-      // A bag: its joint_states converted by backlash_bag_report --recording (run without a shell) into a private
-      // directory, then read as a CSV.
-      TemporaryDirectory dir("backlash_identify_bag");
-      const std::string csv = dir.file("recording.csv");
-      std::vector<std::string> argv = {"/usr/bin/python3", helperBesideExecutable("backlash_bag_report.py"),
-                                       o.data_path, "--recording", csv};
-      for (const auto& [flag, value] : {std::make_pair(std::string("--joint-states"), o.joint_states_topic),
-                                        std::make_pair(std::string("--motor-joint"), o.motor_joint),
-                                        std::make_pair(std::string("--load-joint"), o.load_joint)})
-      {
-        if (!value.empty())
-        {
-          argv.insert(argv.end(), {flag, value});
-        }
-      }
-      if (o.joint_states_topic.empty())
-      {
-        argv.push_back("--json");  // (its report goes to stderr as one line: only the recording is wanted)
-      }
-      const int status = runProgram(argv);
-      if (status != 0)
-      {
-        throw ConfigError("--data: backlash_bag_report could not convert " + o.data_path + " (exit status " +
-                          std::to_string(status) + "; its message is above)");
-      }
-      data = readRecording(csv);
-    }
-    else
-    {
-      data = readRecording(o.data_path);
-    }
+    data = readData(o);
   }
   catch (const std::exception& e)
   {
@@ -516,15 +763,7 @@ int main(int argc, char** argv)
   }
   try
   {
-    IdentificationSettings s;
-    s.gear_ratio = o.gear_ratio;
-    s.contact_band = o.contact_band;
-    s.smoothing = o.smoothing;
-    // Contact one way only (a limit cycle pushed from one side): the prior's load torque (default 0) splits it.
-    s.load_torque_fallback = o.prior.has("load_torque") ? o.prior.number("load_torque") : 0.0;
-    s.still_speed = o.still_speed;
-    s.motor_encoder_resolution = o.motor_counts;
-    s.load_encoder_resolution = o.load_counts;
+    const IdentificationSettings s = settingsFrom(o);
     IdentifyOptions options;
     options.keys = o.fit;
     options.joint = o.joint_fit == "on"    ? JointFitMode::On
@@ -542,234 +781,29 @@ int main(int argc, char** argv)
     {
       std::cerr << "backlash_identify: warning: " << warning << "\n";
     }
-    const InitialEstimates& e = result.initial;
-    const std::vector<IdentifiedParameter>& rows = result.parameters;
-    const JointFit& fit = result.fit;
-    const bool joint = result.joint_fit;
-    if (png && joint)
+    if (png && result.joint_fit)
     {
-      const ReplayWindows shown(data, result.settings, e.zero_offset, fit.window_starts, fit.window_length);
-      drawChart(data, s.gear_ratio, shown, fit, chart_script, *png);
+      const ReplayWindows shown(data, result.settings, result.initial.zero_offset, result.fit.window_starts,
+                                result.fit.window_length);
+      drawChart(data, s.gear_ratio, shown, result.fit, chart_script, *png);
     }
-    if (png && !joint)
+    if (png && !result.joint_fit)
     {
       std::cerr << "backlash_identify: --png not drawn: it shows the joint fit, which did not run\n";
     }
     if (output)
     {
-      // The prior's keys, the estimated ones replaced by the model's values (and a static level the estimates
-      // raised to its Coulomb level).
-      KeyValues model = o.prior;
-      const auto valueOf = [&result](const std::string& key) {
-        return result.model.*std::get<double ServoParams::*>(findParam(key)->field);
-      };
-      for (const IdentifiedParameter& r : rows)
-      {
-        if (r.identifiable)
-        {
-          model.setNumber(r.key, valueOf(r.key));
-        }
-      }
-      for (const char* stat : {"motor_static_friction", "load_static_friction"})
-      {
-        const bool unknown = std::any_of(rows.begin(), rows.end(), [stat](const IdentifiedParameter& r) {
-          return r.key == stat && !r.identifiable;
-        });
-        // (absent: the table's default, 0; a level not identified is left to the tools' default, the Coulomb level)
-        if (!unknown && valueOf(stat) != model.number(stat, 0.0))
-        {
-          model.setNumber(stat, valueOf(stat));
-        }
-      }
-      // The prior's drive keys stay when they make a drive; else they describe the recording only (encoders
-      // without a controller rate) and are kept as comments, so that every tool reads the model.
-      bool drive_ok = true;
-      try
-      {
-        DriveParams drive;
-        readDriveKeys(model, false, &drive);
-        drive.validate(ControlMode::Position);
-      }
-      catch (const std::exception&)
-      {
-        drive_ok = false;
-      }
-      output->stream() << "# backlash_identify: the joint estimated from " << o.data_path << " (SI units)\n";
-      for (const auto& [key, value] : model.keys())
-      {
-        const bool recording_only = !drive_ok && param(key).section == ParamSection::Drive;
-        output->stream() << (recording_only ? "# " : "") << key << ": " << value
-                         << (recording_only ? "  (the recording's encoder; not a drive without controller_rate)" : "")
-                         << "\n";
-      }
-      for (const IdentifiedParameter& r : rows)
-      {
-        if (!r.identifiable)
-        {
-          output->stream() << "# " << r.key << ": not identified (" << r.reason << ")"
-                           << (o.known.stated.count(r.key) ? ": the prior's value is kept"
-                                                           : ": give it before simulating")
-                           << "\n";
-        }
-      }
+      writeModel(o, result, output->stream());
       output->commit();
       std::cerr << "backlash_identify: wrote " << o.output_path << "\n";
     }
     if (o.json)
     {
-      std::ostringstream out;
-      JsonWriter w(out);
-      w.beginObject();
-      w.beginObject("estimates");
-      for (const IdentifiedParameter& r : rows)
-      {
-        w.beginObject(r.key.c_str());
-        w.field("value", r.value.value);
-        w.field("standard_error", r.value.standard_error);
-        w.field("initial", r.initial.value);
-        w.field("initial_standard_error", r.initial.standard_error);
-        w.field("identifiable", r.identifiable);
-        if (!r.identifiable)
-        {
-          w.field("reason", r.reason);
-        }
-        if (r.in_joint_fit)
-        {
-          w.field("informed", r.informed);
-          w.field("largest_correlation", r.largest_correlation);
-          w.field("most_correlated_with", r.most_correlated_with);
-        }
-        w.endObject();
-      }
-      w.endObject();
-      const MeasuredAngles& m = result.measurement;
-      w.beginObject("measurement");
-      w.field("motor_encoder_resolution", m.motor.resolution);
-      w.field("motor_noise", m.motor.noise);
-      w.field("load_encoder_resolution", m.load.resolution);
-      w.field("load_noise", m.load.noise);
-      w.field("smoothing", static_cast<long long>(m.smoothing));
-      w.field("contact_band", m.contact_band);
-      w.field("from_data", m.from_data);
-      w.field("phases_from_load_edges", e.phases_from_edges);
-      w.endObject();
-      w.beginArray("warnings");
-      for (const std::string& warning : result.warnings)
-      {
-        w.field(nullptr, warning);
-      }
-      w.endArray();
-      w.field("zero_offset", e.zero_offset);
-      w.field("load_torque_given", e.load_torque_given);
-      w.field("contact_samples", static_cast<long long>(e.contact_samples));
-      w.field("apart_samples", static_cast<long long>(e.apart_samples));
-      w.field("contact_rms_residual", e.contact_rms_residual);
-      w.field("apart_rms_residual", e.apart_rms_residual);
-      if (joint)
-      {
-        w.beginObject("joint_fit");
-        w.field("windows", static_cast<long long>(fit.windows));
-        w.field("window", o.joint.window);
-        w.field("evaluations", static_cast<long long>(fit.evaluations));
-        w.field("budget_exhausted", fit.budget_exhausted);
-        w.field("start_rms_residual", fit.start_rms);
-        w.field("rms_residual", fit.rms);
-        w.field("condition", fit.condition);
-        w.beginArray("correlation");
-        for (Eigen::Index i = 0; i < fit.correlation.rows(); ++i)
-        {
-          w.beginArray();
-          for (Eigen::Index j = 0; j < fit.correlation.cols(); ++j)
-          {
-            w.field(nullptr, fit.correlation(i, j));
-          }
-          w.endArray();
-        }
-        w.endArray();
-        w.endObject();
-      }
-      w.endObject();
-      std::cout << out.str() << "\n";
+      printJson(o, result);
     }
     else
     {
-      std::printf("%s\n", result.measurement.summary().c_str());
-      if (e.phases_from_edges)
-      {
-        std::printf(
-            "the gap does not resolve the free play: its flanks read at the load's count edges (the motor's angle "
-            "there); flights not resolved\n");
-      }
-      if (result.model.compliant())
-      {
-        std::printf(
-            "%zu samples: the bodies' torque balance (rms residual %.3g N*m); the mesh pressed at %zu, free at %zu "
-            "(rms residual %.3g N*m)\n",
-            data.time.size(), e.apart_rms_residual, e.contact_samples, e.apart_samples, e.contact_rms_residual);
-      }
-      else
-      {
-        std::printf(
-            "%zu samples: %zu in contact, %zu apart used by the initial estimates (rms residual %.3g / %.3g "
-            "N*m)\n",
-            data.time.size(), e.contact_samples, e.apart_samples, e.contact_rms_residual, e.apart_rms_residual);
-      }
-      if (joint)
-      {
-        std::printf("joint fit: %zu windows of %g s, %d replays%s; rms residual %.3g -> %.3g rad; condition %.3g\n",
-                    fit.windows, o.joint.window, fit.evaluations,
-                    fit.budget_exhausted ? " (the budget: raise --max-evaluations)" : "", fit.start_rms, fit.rms,
-                    fit.condition);
-      }
-      std::printf("%-24s %14s %14s +- %-10s %-10s %s\n", "parameter", "initial", joint ? "fitted" : "estimate",
-                  "std error", "unit", joint ? "identifiability" : "");
-      for (const IdentifiedParameter& r : rows)
-      {
-        std::string how;
-        if (!r.identifiable)
-        {
-          how = "not identifiable: " + r.reason;
-        }
-        else if (r.key.find("static") != std::string::npos)
-        {
-          how = std::isfinite(r.value.standard_error) ? "from the rests (held in the joint fit)"
-                                                      : "from the rests: at least this (never seen breaking away)";
-        }
-        else if (joint && !r.in_joint_fit)
-        {
-          how = "initial estimate (held in the joint fit)";
-        }
-        else if (joint && !r.informed)
-        {
-          how = "not informed by this recording (the start kept)";
-        }
-        else if (joint && !r.most_correlated_with.empty())
-        {
-          how =
-              "|corr| " + number(std::round(r.largest_correlation * 100.0) / 100.0) + " with " + r.most_correlated_with;
-        }
-        std::printf("%-24s %14s %14s +- %-10s %-10s %s\n", r.key.c_str(), number(r.initial.value).c_str(),
-                    number(r.value.value).c_str(), number(r.value.standard_error, 3).c_str(), unitOf(r.key).c_str(),
-                    how.c_str());
-      }
-      std::printf("%-24s %14s %14s    %-10s %-10s %s\n", "zero_offset", "", number(e.zero_offset, 6).c_str(), "", "rad",
-                  "(the gap the encoders read on the forward flank)");
-      std::string kept;
-      for (const std::string& key : jointFitKeysFor(result.model))
-      {
-        if (std::none_of(rows.begin(), rows.end(), [&key](const IdentifiedParameter& r) { return r.key == key; }))
-        {
-          kept += (kept.empty() ? "" : ", ") + key;
-        }
-      }
-      if (!result.model.compliant())
-      {
-        kept += std::string(kept.empty() ? "" : ", ") + "a compliant mesh";
-      }
-      if (!kept.empty())
-      {
-        std::printf("not estimated (the prior's values are kept): %s\n", kept.c_str());
-      }
+      printText(o, data, result);
     }
     flushStdout();
   }
