@@ -620,219 +620,243 @@ ServoParams withEstimates(ServoParams joint, const std::map<std::string, Estimat
   return joint;
 }
 
-InitialEstimates estimateInitial(const Recording& d, const IdentificationSettings& s)
+namespace
+{
+/// What each sample of a recording is: the gap θ_c − ρθ_m, the flanks where it dwells, and each sample's phase (0
+/// apart, +1 on the forward flank, −1 on the backward flank, 2 mixed or unknown), with what decided them.
+struct Phases
+{
+  std::vector<double> gap;          ///< of the angles as the equations read them (filtered when integrated) [rad]
+  Flanks flanks;                    ///< where the gap dwells [rad]
+  double range = 0.0;               ///< the gap's span between the flanks [rad]
+  double band = 0.0, margin = 0.0;  ///< contact: within band of a flank; apart: clear of both by margin [rad]
+  BodyMotion motor;                 ///< the motor's filtered angle and its differences
+  double still = 0.0;               ///< [rad/s]: slower is standing
+  AngleMeasurement motor_seen, load_seen;  ///< each angle's count grid and noise (integrated equations)
+  EdgePhases edges;  ///< the phases read at the load's count edges, where the gap does not resolve
+  std::vector<int> phase;
+  std::size_t reach = 0;                     ///< samples a phase must hold on each side (stencil and filter)
+  std::vector<std::size_t> changes, stills;  ///< prefix counts of phase changes and of standing samples
+};
+
+Phases readPhases(const Recording& d, const IdentificationSettings& s, double h)
 {
   const std::size_t n = d.time.size();
-  const double h = samplePeriod(d, s);
   const double rho = s.gear_ratio;
+  Phases p;
   // The gap as recorded; integrated equations classify by the gap of the filtered angles (quantisation and noise
   // averaged out) and find the flanks where it dwells.
   const bool measured = s.contact_band > 0.0;
   // Integrated equations: each angle's count grid and noise, recognised once (measured_angles.h).
-  const AngleMeasurement motor_seen = s.integrated ? recogniseAngle(d.motor_position, s.motor_encoder_resolution)
-                                                   : AngleMeasurement{},
-                         load_seen = s.integrated ? recogniseAngle(d.load_position, s.load_encoder_resolution)
-                                                  : AngleMeasurement{};
+  if (s.integrated)
+  {
+    p.motor_seen = recogniseAngle(d.motor_position, s.motor_encoder_resolution);
+    p.load_seen = recogniseAngle(d.load_position, s.load_encoder_resolution);
+  }
   const int filter = s.integrated ? s.smoothing : 0;
   const std::vector<double> load_angle = smoothedSignal(d.load_position, filter),
                             motor_angle = smoothedSignal(d.motor_position, filter);
-  std::vector<double> gap(n);
+  p.gap.resize(n);
   for (std::size_t k = 0; k < n; ++k)
   {
-    gap[k] = load_angle[k] - rho * motor_angle[k];
+    p.gap[k] = load_angle[k] - rho * motor_angle[k];
   }
-  InitialEstimates out;
-  const Flanks flanks =
-      locateFlanks(gap, 2 * static_cast<std::size_t>(filter) + STENCIL, s.integrated ? s.contact_band : 0.0);
-  const double* lo = &flanks.forward;
-  const double* hi = &flanks.backward;
-  const double backlash = *hi - *lo;
-  out.zero_offset = *lo;
-  const double band = measured ? s.contact_band : 1e-8 * backlash;
+  p.flanks = locateFlanks(p.gap, 2 * static_cast<std::size_t>(filter) + STENCIL, s.integrated ? s.contact_band : 0.0);
+  const double lo = p.flanks.forward, hi = p.flanks.backward;
+  p.range = hi - lo;
+  p.band = measured ? s.contact_band : 1e-8 * p.range;
   // Apart means clear of both flanks: a chatter of short flights (a few µrad) between samples is neither phase. On
   // measured angles the band already holds the gap's spread on a flank.
-  const double margin = s.integrated ? band : std::max(1e-3 * backlash, 4.0 * band);
+  p.margin = s.integrated ? p.band : std::max(1e-3 * p.range, 4.0 * p.band);
   // Derivatives (every term of the equations filtered by the same F: differences commute with it, D²(Fθ) = F(D²θ)
   // against Fū and F sgn ω — quantisation and noise averaged out, the equations unchanged).
-  const std::size_t r = static_cast<std::size_t>(s.smoothing);
-  const BodyMotion motor = differentiate(d.motor_position, h, s.smoothing);
-  const std::vector<double>&theta = motor.angle, &wm = motor.velocity, &am = motor.acceleration, &sg = motor.sign;
-  const std::vector<double> ubar = meanTorque(d, s.smoothing);
+  p.motor = differentiate(d.motor_position, h, s.smoothing);
   double fastest = 0.0;
-  for (double w : wm)
+  for (double w : p.motor.velocity)
   {
     fastest = std::max(fastest, std::fabs(w));
   }
   // Measured angles: a body reads as moving only beyond four times the velocity's noise after the filter, and a
   // sample whose filter reaches a standstill is left out (the friction there is the static band's, not ±T_c).
-  const double still = std::max(s.still_speed > 0.0 ? s.still_speed : 1e-6 * fastest,
-                                s.integrated ? 4.0 * velocityNoise(motor_seen.noise, s, h) : 0.0);
+  p.still = std::max(s.still_speed > 0.0 ? s.still_speed : 1e-6 * fastest,
+                     s.integrated ? 4.0 * velocityNoise(p.motor_seen.noise, s, h) : 0.0);
   // A free play the gap does not resolve may show at the load's count edges (a coarse load encoder, a fine motor's).
-  const EdgePhases edges = s.integrated && !(backlash > 2.0 * (band + margin))
-                               ? edgePhases(d, s, wm, still, motor_seen, load_seen)
-                               : EdgePhases{};
-  need((backlash > 2.0 * (band + margin) && backlash > 0.0) || edges.resolved, "data",
+  const bool resolved = p.range > 2.0 * (p.band + p.margin);
+  if (s.integrated && !resolved)
+  {
+    p.edges = edgePhases(d, s, p.motor.velocity, p.still, p.motor_seen, p.load_seen);
+  }
+  need((resolved && p.range > 0.0) || p.edges.resolved, "data",
        measured ? "the free play is not resolved by the gap θ_c − ρθ_m: its two flanks are not several times the "
                   "gap's measurement band (" +
-                      formatNumber(band) +
+                      formatNumber(p.band) +
                       " rad, from the encoders' counts and noise) apart; nothing is estimated without the "
                       "phases — finer or less noisy encoders are needed"
                 : "the gap θ_c − ρθ_m never spans the backlash: the recording needs reversals that carry the motor "
                   "across the free play to both flanks");
-  // Each sample's phase (0 apart, +1 forward flank, −1 backward flank, 2 mixed or unknown).
-  std::vector<int> phase = edges.resolved ? edges.phase : std::vector<int>(n, 0);
-  for (std::size_t k = 0; k < n && !edges.resolved; ++k)
+  p.phase = p.edges.resolved ? p.edges.phase : std::vector<int>(n, 0);
+  for (std::size_t k = 0; k < n && !p.edges.resolved; ++k)
   {
-    const double df = gap[k] - *lo, db = *hi - gap[k];
-    phase[k] = std::fabs(df) <= band ? 1 : std::fabs(db) <= band ? -1 : (df > margin && db > margin) ? 0 : 2;
-    if (s.integrated && phase[k] == 0)
+    const double df = p.gap[k] - lo, db = hi - p.gap[k];
+    p.phase[k] = std::fabs(df) <= p.band ? 1 : std::fabs(db) <= p.band ? -1 : (df > p.margin && db > p.margin) ? 0 : 2;
+    if (s.integrated && p.phase[k] == 0)
     {
       // The recorded gap too: an impact between samples shows as one sample's dip to a flank, which the filter
       // hides (the teeth bounced: apart on both sides, but the motor's speed jumped).
       const double raw = d.load_position[k] - rho * d.motor_position[k];
-      phase[k] = raw - *lo > margin && *hi - raw > margin ? 0 : 2;
+      p.phase[k] = raw - lo > p.margin && hi - raw > p.margin ? 0 : 2;
     }
   }
   // A sample's phase must hold over the filter's support and the difference stencil.
-  const std::size_t reach = STENCIL + 2 * r;
-  std::vector<std::size_t> changes(n + 1, 0);  // phase changes before each sample (prefix count)
+  p.reach = STENCIL + 2 * static_cast<std::size_t>(s.smoothing);
+  p.changes.assign(n + 1, 0);
   for (std::size_t k = 1; k < n; ++k)
   {
-    changes[k + 1] = changes[k] + (phase[k] != phase[k - 1] ? 1 : 0);
+    p.changes[k + 1] = p.changes[k] + (p.phase[k] != p.phase[k - 1] ? 1 : 0);
   }
-  std::vector<std::size_t> stills(n + 1, 0);  // samples below `still` before each sample (prefix count)
+  p.stills.assign(n + 1, 0);
   for (std::size_t k = 0; k < n; ++k)
   {
-    stills[k + 1] = stills[k] + (std::fabs(wm[k]) <= still ? 1 : 0);
+    p.stills[k + 1] = p.stills[k] + (std::fabs(p.motor.velocity[k]) <= p.still ? 1 : 0);
   }
-  // Exact angles: the equations at each sample whose phase holds over its stencil (derivatives by differences).
-  const auto bodiesFromDerivatives = [&]() {
-    std::vector<std::size_t> contact, apart;
-    for (std::size_t k = reach; k + reach < n; ++k)
-    {
-      const bool same = changes[k + reach + 1] == changes[k - reach + 1];
-      const bool moving = stills[k + 1] == stills[k];
-      if (!same || phase[k] == 2 || !moving)
-      {
-        continue;
-      }
-      (phase[k] == 0 ? apart : contact).push_back(k);
-    }
-    out.contact_samples = contact.size();
-    out.apart_samples = apart.size();
-    if (contact.size() < 20)
-    {
-      // The gap near the flanks but never held within the band: teeth that give (or angles coarser than the band).
-      std::size_t near = 0;
-      for (std::size_t k = 0; k < n; ++k)
-      {
-        near += std::min(gap[k] - *lo, *hi - gap[k]) <= 0.05 * backlash ? 1 : 0;
-      }
-      need(near < n / 10, "data",
-           "the gap θ_c − ρθ_m keeps moving near the flanks while the motor drives the load (never within the contact "
-           "band of " +
-               formatNumber(band) +
-               " rad): the mesh looks compliant — give a prior with mesh_stiffness > 0 (a guess) to identify a "
-               "compliant mesh — or, for measured angles, a contact band of their resolution");
-    }
-    need(contact.size() >= 20, "data",
-         "too few samples with the teeth in contact and moving (" + std::to_string(contact.size()) +
-             "): the recording needs motion while the motor drives the load");
-    need(apart.size() >= 20, "data",
-         "too few samples with the teeth apart and the motor moving (" + std::to_string(apart.size()) +
-             "): the recording needs the motor to cross the free play");
-    // Contact: ū = J α + F ω + C sgn ω + b.
-    Eigen::MatrixXd xc(static_cast<Eigen::Index>(contact.size()), 4);
-    Eigen::VectorXd yc(static_cast<Eigen::Index>(contact.size()));
-    bool both_ways = false;
-    for (std::size_t i = 0; i < contact.size(); ++i)
-    {
-      const std::size_t k = contact[i];
-      both_ways = both_ways || (wm[k] > 0.0) != (wm[contact[0]] > 0.0);
-      xc.row(static_cast<Eigen::Index>(i)) << am[k], wm[k], sg[k], 1.0;
-      yc(static_cast<Eigen::Index>(i)) = ubar[k];
-    }
-    // Contact motion one way only: the Coulomb term and the load torque are one constant, split with the load torque
-    // given (then not estimated).
-    const bool known_load = !both_ways && std::isfinite(s.load_torque_fallback);
-    need(both_ways || known_load, "data",
-         "in contact the joint moved one way only: Coulomb friction and the load torque cannot be told apart (the "
-         "recording needs contact motion in both directions, or give the load torque)");
-    if (known_load)
-    {
-      xc.col(3).setZero();
-      yc.array() += rho * s.load_torque_fallback;  // ū − b, b = −ρT_ext
-      xc.conservativeResize(Eigen::NoChange, 3);
-    }
-    // Apart: ū = J_m α + f_m ω + T_cm sgn ω.
-    Eigen::MatrixXd xa(static_cast<Eigen::Index>(apart.size()), 3);
-    Eigen::VectorXd ya(static_cast<Eigen::Index>(apart.size()));
-    for (std::size_t i = 0; i < apart.size(); ++i)
-    {
-      const std::size_t k = apart[i];
-      xa.row(static_cast<Eigen::Index>(i)) << am[k], wm[k], sg[k];
-      ya(static_cast<Eigen::Index>(i)) = ubar[k];
-    }
-    std::size_t contact_kept = 0, apart_kept = 0;
-    const LeastSquaresFit c = leastSquares(xc, yc, &contact_kept), a = leastSquares(xa, ya, &apart_kept);
-    out.contact_samples = contact_kept;
-    out.apart_samples = apart_kept;
-    const auto combined = [](double x, double y) { return std::sqrt(x * x + y * y); };
-    out.motor_inertia = {a.p(0), a.se(0)};
-    out.motor_friction = {a.p(1), a.se(1)};
-    out.motor_coulomb_friction = {a.p(2), a.se(2)};
-    out.load_inertia = {(c.p(0) - a.p(0)) / (rho * rho), combined(c.se(0), a.se(0)) / (rho * rho)};
-    out.load_friction = {(c.p(1) - a.p(1)) / (rho * rho), combined(c.se(1), a.se(1)) / (rho * rho)};
-    out.load_coulomb_friction = {(c.p(2) - a.p(2)) / rho, combined(c.se(2), a.se(2)) / rho};
-    out.load_torque = known_load ? Estimate{s.load_torque_fallback, NAN} : Estimate{-c.p(3) / rho, c.se(3) / rho};
-    // Measured angles: a level that came out below zero by more than two standard errors is not what the data say
-    // of it, but a sign that the model does not fit these samples (noise the filter left, a phase misread). (Exact
-    // angles: a level a hair below zero is zero, and the model takes it so.)
-    for (const auto& [key, x] :
-         {std::make_pair("motor_inertia", out.motor_inertia), std::make_pair("load_inertia", out.load_inertia),
-          std::make_pair("motor_friction", out.motor_friction), std::make_pair("load_friction", out.load_friction),
-          std::make_pair("motor_coulomb_friction", out.motor_coulomb_friction),
-          std::make_pair("load_coulomb_friction", out.load_coulomb_friction)})
-    {
-      if (measured && x.value < -2.0 * x.standard_error)
-      {
-        out.not_identifiable[key] = "it came out negative (" + formatNumber(x.value) + " ± " +
-                                    formatNumber(x.standard_error) + "): these samples do not fit the model";
-      }
-    }
-    out.load_torque_given = known_load;
-    out.contact_rms_residual = c.rms;
-    out.apart_rms_residual = a.rms;
-  };
-  // A flank the teeth never drove on (the gap only turned there, in flight) is no flank: its samples are no phase, and
-  // the backlash is only bounded by the gap's range.
-  std::string unreached;
-  const std::vector<bool> driven = drivenMask(phase, 2 * r + 2);
-  if (measured && s.integrated && !edges.resolved)
+  return p;
+}
+
+/// Exact angles: the bodies' equations at each sample whose phase holds over its stencil (derivatives by
+/// differences), one least-squares fit a phase.
+void bodiesFromDerivatives(const Recording& d, const IdentificationSettings& s, const Phases& p, InitialEstimates* out)
+{
+  const std::size_t n = d.time.size(), reach = p.reach;
+  const double rho = s.gear_ratio, lo = p.flanks.forward, hi = p.flanks.backward;
+  const bool measured = s.contact_band > 0.0;
+  const std::vector<double>&wm = p.motor.velocity, &am = p.motor.acceleration, &sg = p.motor.sign;
+  const std::vector<double> ubar = meanTorque(d, s.smoothing);
+  std::vector<std::size_t> contact, apart;
+  for (std::size_t k = reach; k + reach < n; ++k)
   {
-    for (const int flank : {1, -1})
+    const bool same = p.changes[k + reach + 1] == p.changes[k - reach + 1];
+    const bool moving = p.stills[k + 1] == p.stills[k];
+    if (!same || p.phase[k] == 2 || !moving)
     {
-      std::size_t count = 0;
-      for (std::size_t k = 0; k < n; ++k)
-      {
-        count += driven[k] && phase[k] == flank ? 1 : 0;
-      }
-      if (count < FEWEST_DRIVEN)
-      {
-        unreached = flank == 1 ? "forward" : "backward";
-        std::replace(phase.begin(), phase.end(), flank, 2);
-      }
+      continue;
     }
+    (p.phase[k] == 0 ? apart : contact).push_back(k);
   }
-  if (measured && s.integrated)
+  out->contact_samples = contact.size();
+  out->apart_samples = apart.size();
+  if (contact.size() < 20)
   {
-    bodiesFromIntegrals(d, s, phase, wm, stills, 2 * r + 2, motor_seen, &out);
+    // The gap near the flanks but never held within the band: teeth that give (or angles coarser than the band).
+    std::size_t near = 0;
+    for (std::size_t k = 0; k < n; ++k)
+    {
+      near += std::min(p.gap[k] - lo, hi - p.gap[k]) <= 0.05 * p.range ? 1 : 0;
+    }
+    need(near < n / 10, "data",
+         "the gap θ_c − ρθ_m keeps moving near the flanks while the motor drives the load (never within the contact "
+         "band of " +
+             formatNumber(p.band) +
+             " rad): the mesh looks compliant — give a prior with mesh_stiffness > 0 (a guess) to identify a "
+             "compliant mesh — or, for measured angles, a contact band of their resolution");
   }
-  else
+  need(contact.size() >= 20, "data",
+       "too few samples with the teeth in contact and moving (" + std::to_string(contact.size()) +
+           "): the recording needs motion while the motor drives the load");
+  need(apart.size() >= 20, "data",
+       "too few samples with the teeth apart and the motor moving (" + std::to_string(apart.size()) +
+           "): the recording needs the motor to cross the free play");
+  // Contact: ū = J α + F ω + C sgn ω + b.
+  Eigen::MatrixXd xc(static_cast<Eigen::Index>(contact.size()), 4);
+  Eigen::VectorXd yc(static_cast<Eigen::Index>(contact.size()));
+  bool both_ways = false;
+  for (std::size_t i = 0; i < contact.size(); ++i)
   {
-    bodiesFromDerivatives();
+    const std::size_t k = contact[i];
+    both_ways = both_ways || (wm[k] > 0.0) != (wm[contact[0]] > 0.0);
+    xc.row(static_cast<Eigen::Index>(i)) << am[k], wm[k], sg[k], 1.0;
+    yc(static_cast<Eigen::Index>(i)) = ubar[k];
   }
+  // Contact motion one way only: the Coulomb term and the load torque are one constant, split with the load torque
+  // given (then not estimated).
+  const bool known_load = !both_ways && std::isfinite(s.load_torque_fallback);
+  need(both_ways || known_load, "data",
+       "in contact the joint moved one way only: Coulomb friction and the load torque cannot be told apart (the "
+       "recording needs contact motion in both directions, or give the load torque)");
+  if (known_load)
+  {
+    xc.col(3).setZero();
+    yc.array() += rho * s.load_torque_fallback;  // ū − b, b = −ρT_ext
+    xc.conservativeResize(Eigen::NoChange, 3);
+  }
+  // Apart: ū = J_m α + f_m ω + T_cm sgn ω.
+  Eigen::MatrixXd xa(static_cast<Eigen::Index>(apart.size()), 3);
+  Eigen::VectorXd ya(static_cast<Eigen::Index>(apart.size()));
+  for (std::size_t i = 0; i < apart.size(); ++i)
+  {
+    const std::size_t k = apart[i];
+    xa.row(static_cast<Eigen::Index>(i)) << am[k], wm[k], sg[k];
+    ya(static_cast<Eigen::Index>(i)) = ubar[k];
+  }
+  std::size_t contact_kept = 0, apart_kept = 0;
+  const LeastSquaresFit c = leastSquares(xc, yc, &contact_kept), a = leastSquares(xa, ya, &apart_kept);
+  out->contact_samples = contact_kept;
+  out->apart_samples = apart_kept;
   const auto combined = [](double x, double y) { return std::sqrt(x * x + y * y); };
+  out->motor_inertia = {a.p(0), a.se(0)};
+  out->motor_friction = {a.p(1), a.se(1)};
+  out->motor_coulomb_friction = {a.p(2), a.se(2)};
+  out->load_inertia = {(c.p(0) - a.p(0)) / (rho * rho), combined(c.se(0), a.se(0)) / (rho * rho)};
+  out->load_friction = {(c.p(1) - a.p(1)) / (rho * rho), combined(c.se(1), a.se(1)) / (rho * rho)};
+  out->load_coulomb_friction = {(c.p(2) - a.p(2)) / rho, combined(c.se(2), a.se(2)) / rho};
+  out->load_torque = known_load ? Estimate{s.load_torque_fallback, NAN} : Estimate{-c.p(3) / rho, c.se(3) / rho};
+  // Measured angles: a level that came out below zero by more than two standard errors is not what the data say
+  // of it, but a sign that the model does not fit these samples (noise the filter left, a phase misread). (Exact
+  // angles: a level a hair below zero is zero, and the model takes it so.)
+  for (const auto& [key, x] :
+       {std::make_pair("motor_inertia", out->motor_inertia), std::make_pair("load_inertia", out->load_inertia),
+        std::make_pair("motor_friction", out->motor_friction), std::make_pair("load_friction", out->load_friction),
+        std::make_pair("motor_coulomb_friction", out->motor_coulomb_friction),
+        std::make_pair("load_coulomb_friction", out->load_coulomb_friction)})
+  {
+    if (measured && x.value < -2.0 * x.standard_error)
+    {
+      out->not_identifiable[key] = "it came out negative (" + formatNumber(x.value) + " ± " +
+                                   formatNumber(x.standard_error) + "): these samples do not fit the model";
+    }
+  }
+  out->load_torque_given = known_load;
+  out->contact_rms_residual = c.rms;
+  out->apart_rms_residual = a.rms;
+}
+
+/// Measured angles: a flank the teeth never drove on (the gap only turned there, in flight) is no flank — its samples
+/// become no phase (2) and the backlash is only bounded by the gap's range. Returns the flank so dropped ("forward",
+/// "backward") or "".
+std::string dropUndrivenFlanks(const std::vector<bool>& driven, std::vector<int>* phase)
+{
+  std::string unreached;
+  for (const int flank : {1, -1})
+  {
+    std::size_t count = 0;
+    for (std::size_t k = 0; k < phase->size(); ++k)
+    {
+      count += driven[k] && (*phase)[k] == flank ? 1 : 0;
+    }
+    if (count < FEWEST_DRIVEN)
+    {
+      unreached = flank == 1 ? "forward" : "backward";
+      std::replace(phase->begin(), phase->end(), flank, 2);
+    }
+  }
+  return unreached;
+}
+
+/// The backlash and the zero offset from the gaps on each flank (their medians; with integrated equations, where the
+/// samples crowd), with what the recording cannot give said in `out->not_identifiable`.
+void locateBacklash(const IdentificationSettings& s, const Phases& p, const std::vector<bool>& driven,
+                    const std::string& unreached, InitialEstimates* out)
+{
+  const std::size_t n = p.gap.size();
   // The backlash between the flanks' typical gaps (medians over the samples in contact on each: quantisation and
   // noise at the extremes do not widen it); the zero offset likewise.
   // (integrated equations: the gap while the teeth drive the load on a flank, not where it turns in flight)
@@ -843,68 +867,77 @@ InitialEstimates estimateInitial(const Recording& d, const IdentificationSetting
     {
       continue;
     }
-    if (phase[k] == 1)
+    if (p.phase[k] == 1)
     {
-      on_forward.push_back(gap[k]);
+      on_forward.push_back(p.gap[k]);
     }
-    else if (phase[k] == -1)
+    else if (p.phase[k] == -1)
     {
-      on_backward.push_back(gap[k]);
+      on_backward.push_back(p.gap[k]);
     }
   }
   if (!on_forward.empty() && !on_backward.empty())
   {
-    out.zero_offset = median(on_forward);
-    out.backlash = {median(on_backward) - out.zero_offset, band};
+    out->zero_offset = median(on_forward);
+    out->backlash = {median(on_backward) - out->zero_offset, p.band};
     if (s.integrated)
     {
       // Where the samples on a flank crowd (its mode): the medians lean into the play, as the band also holds the
       // samples of short flights and small rebounds beside the flank.
-      out.zero_offset = halfSampleMode(on_forward);
+      out->zero_offset = halfSampleMode(on_forward);
       const double backward = halfSampleMode(on_backward);
       // (and how far each mode lies from where the gap's extreme crowd was found: a gap that hovers beside a flank
       // moves the one but not the other)
-      out.backlash = {backward - out.zero_offset,
-                      std::hypot(flankError(on_forward, on_backward, motor_seen, load_seen, s),
-                                 out.zero_offset - flanks.forward, backward - flanks.backward)};
+      out->backlash = {backward - out->zero_offset,
+                       std::hypot(flankError(on_forward, on_backward, p.motor_seen, p.load_seen, s),
+                                  out->zero_offset - p.flanks.forward, backward - p.flanks.backward)};
     }
   }
   else
   {
-    out.backlash = {backlash, band};
+    out->backlash = {p.range, p.band};
   }
-  if (edges.resolved)
+  if (p.edges.resolved)
   {
-    out.zero_offset = edges.forward;
-    out.backlash = edges.backlash;
-    out.phases_from_edges = true;
+    out->zero_offset = p.edges.forward;
+    out->backlash = p.edges.backlash;
+    out->phases_from_edges = true;
   }
-  if (s.integrated && unreached.empty() && !(out.backlash.standard_error <= LOOSEST_BACKLASH * out.backlash.value))
+  if (s.integrated && unreached.empty() && !(out->backlash.standard_error <= LOOSEST_BACKLASH * out->backlash.value))
   {
-    out.not_identifiable["backlash"] = "the recording gives " + formatNumber(out.backlash.value) + " ± " +
-                                       formatNumber(out.backlash.standard_error) + " rad, not within ±" +
-                                       formatNumber(100.0 * LOOSEST_BACKLASH) +
-                                       " % (the flanks' gaps are spread by noise or a load hovering beside them)";
+    out->not_identifiable["backlash"] = "the recording gives " + formatNumber(out->backlash.value) + " ± " +
+                                        formatNumber(out->backlash.standard_error) + " rad, not within ±" +
+                                        formatNumber(100.0 * LOOSEST_BACKLASH) +
+                                        " % (the flanks' gaps are spread by noise or a load hovering beside them)";
   }
   if (!unreached.empty())
   {
-    out.not_identifiable["backlash"] = "the teeth never drove on the " + unreached +
-                                       " flank (the gap only turned there): the backlash is at least " +
-                                       formatNumber(backlash) + " rad, the gap's range";
-    out.backlash = {NAN, NAN};
+    out->not_identifiable["backlash"] = "the teeth never drove on the " + unreached +
+                                        " flank (the gap only turned there): the backlash is at least " +
+                                        formatNumber(p.range) + " rad, the gap's range";
+    out->backlash = {NAN, NAN};
   }
   // The phases follow from the flanks: where these are not located to the backlash's ±5 %, samples read apart may be
   // in contact and the split between the bodies is not trusted (the pair's sums, from the samples on a flank, stay).
-  if (s.integrated && out.not_identifiable.count("backlash") && !out.not_identifiable.count("motor_inertia"))
+  if (s.integrated && out->not_identifiable.count("backlash") && !out->not_identifiable.count("motor_inertia"))
   {
     for (const char* key : {"motor_inertia", "motor_friction", "motor_coulomb_friction", "load_inertia",
                             "load_friction", "load_coulomb_friction"})
     {
-      out.not_identifiable[key] =
+      out->not_identifiable[key] =
           "the flanks are not located well enough to tell the teeth apart from in contact (the backlash is not "
           "identified), so the split between the bodies is not trusted";
     }
   }
+}
+
+/// Static friction from the rests of the recording (`out->load_torque` estimated first).
+void staticFromRests(const Recording& d, const IdentificationSettings& s, double h, const Phases& p,
+                     InitialEstimates* out)
+{
+  const std::size_t n = d.time.size(), r = static_cast<std::size_t>(s.smoothing);
+  const double rho = s.gear_ratio;
+  const auto combined = [](double x, double y) { return std::sqrt(x * x + y * y); };
   // Static friction from the rests: over a sample interval [t_k, t_k+1) the torque u_k is held, so a body at rest
   // over it was held by its static band (|net| ≤ T_s: a lower bound) and the interval where it broke away had
   // |net| > T_s (an upper bound). Teeth apart: the motor alone, net u_k; teeth on a flank: the pair, net u_k + ρT_ext
@@ -914,32 +947,57 @@ InitialEstimates estimateInitial(const Recording& d, const IdentificationSetting
   // breakaway interval is the one after the run's last sample, plus 2r.
   const std::size_t min_rest = minimumRest(s, h);
   RestBounds motor_alone, pair;
-  const double text = out.load_torque.value;
+  const double text = out->load_torque.value;
   const auto net = [&](std::size_t k, int in) { return std::fabs(d.motor_torque[k] + (in == 0 ? 0.0 : rho * text)); };
   // (A run in one phase, never the mixed one.)
-  const auto together = [&phase](std::size_t a, std::size_t k) { return phase[a] != 2 && phase[k] == phase[a]; };
-  forEachRest(theta, band, reach, n - reach - 1, min_rest, together, [&](std::size_t a, std::size_t b) {
-    RestBounds& bound = phase[a] == 0 ? motor_alone : pair;
+  const auto together = [&p](std::size_t a, std::size_t k) { return p.phase[a] != 2 && p.phase[k] == p.phase[a]; };
+  forEachRest(p.motor.angle, p.band, p.reach, n - p.reach - 1, min_rest, together, [&](std::size_t a, std::size_t b) {
+    RestBounds& bound = p.phase[a] == 0 ? motor_alone : pair;
     for (std::size_t k = a; k + 1 < b; ++k)  // the intervals inside the run
     {
-      bound.low = std::max(bound.low, net(k, phase[a]));
+      bound.low = std::max(bound.low, net(k, p.phase[a]));
     }
     // The interval from the run's last sample broke it away (on a flank the pair must still be there after it: a
     // motor breaking away from the load alone has a lower threshold).
     const std::size_t away = b - 1 + 2 * r;
-    if (away + reach + 1 < n && phase[b] == phase[a] && phase[away] == phase[a] && phase[away + 1] == phase[a])
+    if (away + p.reach + 1 < n && p.phase[b] == p.phase[a] && p.phase[away] == p.phase[a] &&
+        p.phase[away + 1] == p.phase[a])
     {
-      bound.high = std::min(bound.high, net(away, phase[a]));
+      bound.high = std::min(bound.high, net(away, p.phase[a]));
     }
   });
-  out.motor_static_friction = motor_alone.level();
+  out->motor_static_friction = motor_alone.level();
   const Estimate combined_static = pair.level();
-  if (std::isfinite(out.motor_static_friction.value) && std::isfinite(combined_static.value))
+  if (std::isfinite(out->motor_static_friction.value) && std::isfinite(combined_static.value))
   {
-    out.load_static_friction = {
-        (combined_static.value - out.motor_static_friction.value) / rho,
-        combined(combined_static.standard_error, out.motor_static_friction.standard_error) / rho};
+    out->load_static_friction = {
+        (combined_static.value - out->motor_static_friction.value) / rho,
+        combined(combined_static.standard_error, out->motor_static_friction.standard_error) / rho};
   }
+}
+}  // namespace
+
+InitialEstimates estimateInitial(const Recording& d, const IdentificationSettings& s)
+{
+  const double h = samplePeriod(d, s);
+  const bool measured = s.contact_band > 0.0;
+  const std::size_t r = static_cast<std::size_t>(s.smoothing);
+  Phases p = readPhases(d, s, h);
+  InitialEstimates out;
+  out.zero_offset = p.flanks.forward;
+  const std::vector<bool> driven = drivenMask(p.phase, 2 * r + 2);
+  const std::string unreached =
+      measured && s.integrated && !p.edges.resolved ? dropUndrivenFlanks(driven, &p.phase) : std::string();
+  if (measured && s.integrated)
+  {
+    bodiesFromIntegrals(d, s, p.phase, p.motor.velocity, p.stills, 2 * r + 2, p.motor_seen, &out);
+  }
+  else
+  {
+    bodiesFromDerivatives(d, s, p, &out);
+  }
+  locateBacklash(s, p, driven, unreached, &out);
+  staticFromRests(d, s, h, p, &out);
   // Nothing at all: say what the recording lacks (the backlash's reason and the bodies').
   const bool nothing = out.not_identifiable.count("backlash") && out.not_identifiable.count("motor_inertia") &&
                        out.not_identifiable.count("load_inertia") &&
