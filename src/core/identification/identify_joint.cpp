@@ -84,8 +84,10 @@ std::vector<std::string> identifiedKeysFor(const ServoParams& joint)
   return keys;
 }
 
-JointIdentification identifyJoint(const Recording& data, const IdentificationSettings& given, const ServoParams& prior,
-                                  const IdentifyOptions& options)
+namespace
+{
+/// The keys to identify: those asked for (all that describe the prior's joint when none), each checked.
+std::set<std::string> keysToIdentify(const ServoParams& prior, const IdentifyOptions& options)
 {
   const std::vector<std::string> meaningful = identifiedKeysFor(prior);
   std::set<std::string> keys = options.keys;
@@ -108,27 +110,16 @@ JointIdentification identifyJoint(const Recording& data, const IdentificationSet
                                                                   "is > 0 (a compliant mesh)"));
     }
   }
-  if (prior.torsionalShaft())
-  {
-    throw InvalidParameterError("shaft_stiffness",
-                                "a torsional shaft is not identified (its gear's angle is not "
-                                "measured): give a prior without one (shaft_stiffness 0)");
-  }
-  JointIdentification out;
-  // The angles as measured: the smoothing and the contact band from the data unless given.
-  out.measurement = recogniseMeasurement(data, given);
-  IdentificationSettings s = given;
-  s.smoothing = out.measurement.smoothing;
-  s.contact_band = out.measurement.contact_band;
-  s.integrated = out.measurement.integrated;
-  out.settings = s;
-  const InitialEstimates& e = out.initial =
-      prior.compliant() ? estimateCompliantInitial(data, s) : estimateInitial(data, s);
-  std::map<std::string, Estimate> initial = e.byKey();
-  // The bodies as the replays need them: estimated, or stated in the prior; a body's parameter that is neither leaves
-  // nothing to replay (no restitution, no joint fit).
+  return keys;
+}
+
+/// The bodies as the replays need them: estimated, or stated in the prior; the keys that are neither are named in
+/// `unknown_bodies` (nothing to replay then: no restitution, no joint fit).
+InitialEstimates replayedBodies(const InitialEstimates& e, const ServoParams& prior, const IdentifyOptions& options,
+                                std::string* unknown_bodies_out)
+{
   InitialEstimates bodies = e;
-  std::string unknown_bodies;
+  std::string& unknown_bodies = *unknown_bodies_out;
   for (const char* key : {"backlash", "motor_inertia", "load_inertia", "motor_friction", "load_friction",
                           "motor_coulomb_friction", "load_coulomb_friction", "load_torque"})
   {
@@ -145,29 +136,19 @@ JointIdentification identifyJoint(const Recording& data, const IdentificationSet
     }
     unknown_bodies += (unknown_bodies.empty() ? "" : ", ") + std::string(key);
   }
-  // The restitution of rigid teeth: the simulator replayed over windows around impacts (none: not estimated, the
-  // prior's kept).
-  if (keys.count("restitution") && !unknown_bodies.empty())
-  {
-    out.restitution_note = "the replays around the impacts need the backlash and the bodies' parameters, and " +
-                           unknown_bodies + (unknown_bodies.find(',') == std::string::npos ? " is" : " are") +
-                           " not identified (nor given in the prior)";
-  }
-  else if (keys.count("restitution"))
-  {
-    try
-    {
-      initial["restitution"] = fitRestitution(data, s, bodies);
-    }
-    catch (const InvalidParameterError& none)
-    {
-      out.restitution_note = none.what();
-    }
-  }
-  // The start: the prior with the initial estimates of the keys chosen (a static level without rests, a restitution
-  // without impacts, a load torque the data could not tell from friction: the prior's).
-  std::map<std::string, Estimate> chosen;
-  std::vector<IdentifiedParameter> unknown;
+  return bodies;
+}
+
+/// Each key asked for: its initial estimate where the recording informs it (into `out->parameters` and `chosen`), or
+/// why not with the prior's value if stated (into `unknown`).
+void chooseEstimates(const std::set<std::string>& keys, const std::map<std::string, Estimate>& initial,
+                     const InitialEstimates& e, const ServoParams& prior, const IdentifyOptions& options,
+                     JointIdentification* out_, std::map<std::string, Estimate>* chosen_,
+                     std::vector<IdentifiedParameter>* unknown_)
+{
+  JointIdentification& out = *out_;
+  std::map<std::string, Estimate>& chosen = *chosen_;
+  std::vector<IdentifiedParameter>& unknown = *unknown_;
   for (const std::string& key : identifiedKeys())
   {
     if (keys.count(key) == 0)
@@ -209,19 +190,18 @@ JointIdentification identifyJoint(const Recording& data, const IdentificationSet
     p.initial = p.value = x->second;
     out.parameters.push_back(p);
   }
-  ServoParams start = withEstimates(prior, chosen);
-  start.validateValues();
-  if (options.stated && options.stated->count("gain") == 0)
-  {
-    start.gain = replayGain(start);
-  }
-  // The joint fit (the static levels stay as the rests gave them). Auto: on measured angles only the impact
-  // parameters — the replayed windows' anchors, read from the angles, would set the smooth ones more than the data.
+}
+
+/// The joint fit's keys (the static levels stay as the rests gave them). Auto: on measured angles only the impact
+/// parameters — the replayed windows' anchors, read from the angles, would set the smooth ones more than the data.
+JointFitSettings jointFitSettings(const IdentifyOptions& options, const IdentificationSettings& s,
+                                  std::vector<IdentifiedParameter>* parameters,
+                                  std::vector<IdentifiedParameter*>* fitted)
+{
   const bool measured = s.contact_band > 0.0;
   JointFitSettings settings = options.fit;
   settings.keys.clear();
-  std::vector<IdentifiedParameter*> fitted;
-  for (IdentifiedParameter& p : out.parameters)
+  for (IdentifiedParameter& p : *parameters)
   {
     const bool fittable = std::find(jointFitKeys().begin(), jointFitKeys().end(), p.key) != jointFitKeys().end();
     // (integrated equations: the backlash from where the gap dwells on each flank, which the replays' noisy
@@ -232,9 +212,100 @@ JointIdentification identifyJoint(const Recording& data, const IdentificationSet
         (options.joint == JointFitMode::On || (options.joint == JointFitMode::Auto && (!measured || impact))))
     {
       settings.keys.push_back(p.key);
-      fitted.push_back(&p);
+      fitted->push_back(&p);
     }
   }
+  return settings;
+}
+
+/// Measured angles: a restitution the replays pin down no better than ±LOOSEST_RESTITUTION is not a model.
+void judgeRestitution(const IdentificationSettings& s, const ServoParams& prior, const IdentifyOptions& options,
+                      std::vector<IdentifiedParameter>* parameters)
+{
+  for (IdentifiedParameter& p : *parameters)
+  {
+    if (p.key == "restitution" && s.integrated && !(p.value.standard_error <= LOOSEST_RESTITUTION))
+    {
+      p.identifiable = false;
+      p.reason = "the replays around the impacts give " + formatNumber(p.value.value) + " ± " +
+                 formatNumber(p.value.standard_error) + ", not within ±" + formatNumber(LOOSEST_RESTITUTION);
+      const bool stated = !options.stated || options.stated->count(p.key) != 0;
+      p.value = {stated ? prior.restitution : NAN, NAN};
+    }
+  }
+}
+
+/// Every key asked for, in the table's order: the unknown ones beside the estimated.
+void inTableOrder(const std::vector<IdentifiedParameter>& unknown, std::vector<IdentifiedParameter>* parameters)
+{
+  parameters->insert(parameters->end(), unknown.begin(), unknown.end());
+  const auto order = [](const IdentifiedParameter& p) {
+    return std::find(identifiedKeys().begin(), identifiedKeys().end(), p.key) - identifiedKeys().begin();
+  };
+  std::stable_sort(
+      parameters->begin(), parameters->end(),
+      [&order](const IdentifiedParameter& a, const IdentifiedParameter& b) { return order(a) < order(b); });
+}
+
+}  // namespace
+
+JointIdentification identifyJoint(const Recording& data, const IdentificationSettings& given, const ServoParams& prior,
+                                  const IdentifyOptions& options)
+{
+  const std::set<std::string> keys = keysToIdentify(prior, options);
+  if (prior.torsionalShaft())
+  {
+    throw InvalidParameterError("shaft_stiffness",
+                                "a torsional shaft is not identified (its gear's angle is not "
+                                "measured): give a prior without one (shaft_stiffness 0)");
+  }
+  JointIdentification out;
+  // The angles as measured: the smoothing and the contact band from the data unless given.
+  out.measurement = recogniseMeasurement(data, given);
+  IdentificationSettings s = given;
+  s.smoothing = out.measurement.smoothing;
+  s.contact_band = out.measurement.contact_band;
+  s.integrated = out.measurement.integrated;
+  out.settings = s;
+  const InitialEstimates& e = out.initial =
+      prior.compliant() ? estimateCompliantInitial(data, s) : estimateInitial(data, s);
+  std::map<std::string, Estimate> initial = e.byKey();
+  // The bodies as the replays need them: estimated, or stated in the prior; a body's parameter that is neither leaves
+  // nothing to replay (no restitution, no joint fit).
+  std::string unknown_bodies;
+  const InitialEstimates bodies = replayedBodies(e, prior, options, &unknown_bodies);
+  // The restitution of rigid teeth: the simulator replayed over windows around impacts (none: not estimated, the
+  // prior's kept).
+  if (keys.count("restitution") && !unknown_bodies.empty())
+  {
+    out.restitution_note = "the replays around the impacts need the backlash and the bodies' parameters, and " +
+                           unknown_bodies + (unknown_bodies.find(',') == std::string::npos ? " is" : " are") +
+                           " not identified (nor given in the prior)";
+  }
+  else if (keys.count("restitution"))
+  {
+    try
+    {
+      initial["restitution"] = fitRestitution(data, s, bodies);
+    }
+    catch (const InvalidParameterError& none)
+    {
+      out.restitution_note = none.what();
+    }
+  }
+  // The start: the prior with the initial estimates of the keys chosen (a static level without rests, a restitution
+  // without impacts, a load torque the data could not tell from friction: the prior's).
+  std::map<std::string, Estimate> chosen;
+  std::vector<IdentifiedParameter> unknown;
+  chooseEstimates(keys, initial, e, prior, options, &out, &chosen, &unknown);
+  ServoParams start = withEstimates(prior, chosen);
+  start.validateValues();
+  if (options.stated && options.stated->count("gain") == 0)
+  {
+    start.gain = replayGain(start);
+  }
+  std::vector<IdentifiedParameter*> fitted;
+  const JointFitSettings settings = jointFitSettings(options, s, &out.parameters, &fitted);
   out.model = start;
   // A model outside the validated envelope is reported, not refused; the simulator is not run on it (no joint fit).
   bool inside = true;
@@ -284,26 +355,8 @@ JointIdentification identifyJoint(const Recording& data, const IdentificationSet
       fitted[i]->most_correlated_with = f.most_correlated_with;
     }
   }
-  // Measured angles: a restitution the replays pin down no better than ±LOOSEST_RESTITUTION is not a model.
-  for (IdentifiedParameter& p : out.parameters)
-  {
-    if (p.key == "restitution" && s.integrated && !(p.value.standard_error <= LOOSEST_RESTITUTION))
-    {
-      p.identifiable = false;
-      p.reason = "the replays around the impacts give " + formatNumber(p.value.value) + " ± " +
-                 formatNumber(p.value.standard_error) + ", not within ±" + formatNumber(LOOSEST_RESTITUTION);
-      const bool stated = !options.stated || options.stated->count(p.key) != 0;
-      p.value = {stated ? prior.restitution : NAN, NAN};
-    }
-  }
-  // Every key asked for, in the table's order: the unknown ones beside the estimated.
-  out.parameters.insert(out.parameters.end(), unknown.begin(), unknown.end());
-  const auto order = [](const IdentifiedParameter& p) {
-    return std::find(identifiedKeys().begin(), identifiedKeys().end(), p.key) - identifiedKeys().begin();
-  };
-  std::stable_sort(
-      out.parameters.begin(), out.parameters.end(),
-      [&order](const IdentifiedParameter& a, const IdentifiedParameter& b) { return order(a) < order(b); });
+  judgeRestitution(s, prior, options, &out.parameters);
+  inTableOrder(unknown, &out.parameters);
   return out;
 }
 
