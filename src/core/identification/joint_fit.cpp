@@ -367,8 +367,11 @@ std::vector<std::string> jointFitKeysFor(const ServoParams& joint)
   return keys;
 }
 
-JointFit fitJoint(const Recording& data, const IdentificationSettings& identification, double zero_offset,
-                  const ServoParams& start, const JointFitSettings& settings)
+namespace
+{
+/// The keys to fit, each checked against the start (a key of the table, meaningful for this mesh, a positive one
+/// starting > 0), with the settings.
+std::vector<const KeyInfo*> fittedKeys(const ServoParams& start, const JointFitSettings& settings)
 {
   if (start.torsionalShaft())
   {
@@ -407,6 +410,121 @@ JointFit fitJoint(const Recording& data, const IdentificationSettings& identific
     }
     keys.push_back(&*it);
   }
+  return keys;
+}
+
+/// The windows kept: those whose residual stays within TRIM times the median window's (an anchor read across an
+/// impact, or on the wrong side of a flank within the band, would pull every parameter), with their unknowns in
+/// `kept_x` (the parameters first).
+std::vector<std::size_t> windowsWithinTrim(const Eigen::VectorXd& r0, const std::vector<std::size_t>& starts,
+                                           std::size_t length, const std::vector<double>& x, std::size_t m,
+                                           double residual_floor, std::vector<double>* kept_x)
+{
+  constexpr double TRIM = 5.0;
+  const std::size_t per = 2 * length;
+  std::vector<double> window_rms(starts.size());
+  for (std::size_t w = 0; w < starts.size(); ++w)
+  {
+    window_rms[w] = r0.segment(static_cast<Eigen::Index>(w * per), static_cast<Eigen::Index>(per)).norm();
+  }
+  std::vector<double> sorted = window_rms;
+  std::nth_element(sorted.begin(), sorted.begin() + static_cast<long>(sorted.size() / 2), sorted.end());
+  const double limit = std::max(TRIM * sorted[sorted.size() / 2], residual_floor * std::sqrt(static_cast<double>(per)));
+  std::vector<std::size_t> kept_starts;
+  kept_x->assign(x.begin(), x.begin() + static_cast<long>(m));
+  for (std::size_t w = 0; w < starts.size(); ++w)
+  {
+    if (window_rms[w] <= limit)
+    {
+      kept_starts.push_back(starts[w]);
+      for (std::size_t j = 0; j < Shooting::C; ++j)
+      {
+        kept_x->push_back(x[m + Shooting::C * w + j]);
+      }
+    }
+  }
+  return kept_starts;
+}
+
+/// The cluster-robust covariance of everything fitted (windows as clusters, `per` residuals each); the parameters'
+/// block, in the table's units, allows for the velocity corrections fitted with them. NaN where not informed.
+Eigen::MatrixXd parameterCovariance(const Eigen::MatrixXd& jac, const Eigen::VectorXd& r0,
+                                    const std::vector<Eigen::Index>& informed, const std::vector<Eigen::Index>& kept,
+                                    std::size_t windows, Eigen::Index per, const Coordinates& coordinates,
+                                    Eigen::Index cols, double* condition)
+{
+  Eigen::MatrixXd cov = Eigen::MatrixXd::Constant(cols, cols, NAN);
+  if (!informed.empty())
+  {
+    const Eigen::MatrixXd jp = jac(Eigen::all, informed);
+    const Eigen::VectorXd colnorm = jp.colwise().norm().transpose();
+    const Eigen::JacobiSVD<Eigen::MatrixXd> svd(jp * colnorm.cwiseInverse().asDiagonal());
+    const Eigen::VectorXd sv = svd.singularValues();
+    *condition = sv(sv.size() - 1) > 0.0 ? sv(0) / sv(sv.size() - 1) : INFINITY;
+    const Eigen::MatrixXd jk = jac(Eigen::all, kept);
+    const Eigen::MatrixXd bread = (jk.transpose() * jk).completeOrthogonalDecomposition().pseudoInverse();
+    Eigen::MatrixXd meat = Eigen::MatrixXd::Zero(jk.cols(), jk.cols());
+    for (Eigen::Index w = 0; w < static_cast<Eigen::Index>(windows); ++w)
+    {
+      const Eigen::VectorXd g = jk.middleRows(w * per, per).transpose() * r0.segment(w * per, per);
+      meat += g * g.transpose();
+    }
+    Eigen::MatrixXd c = bread * meat * bread;
+    c = 0.5 * (c + c.transpose()).eval();
+    for (std::size_t a = 0; a < informed.size(); ++a)
+    {
+      for (std::size_t b = 0; b < informed.size(); ++b)
+      {
+        const std::size_t ia = static_cast<std::size_t>(informed[a]), ib = static_cast<std::size_t>(informed[b]);
+        cov(informed[a], informed[b]) = c(static_cast<Eigen::Index>(a), static_cast<Eigen::Index>(b)) *
+                                        coordinates.scale()[ia] * coordinates.scale()[ib];
+      }
+    }
+  }
+  return cov;
+}
+
+/// Each fitted parameter with its standard error, and the correlations between the informed ones.
+void reportParameters(const std::vector<const KeyInfo*>& keys, const ServoParams& start,
+                      const std::vector<Eigen::Index>& informed, const Eigen::MatrixXd& cov, JointFit* fit)
+{
+  JointFit& out = *fit;
+  const std::size_t m = keys.size();
+  const Eigen::Index cols = static_cast<Eigen::Index>(m);
+  out.correlation = Eigen::MatrixXd::Constant(cols, cols, NAN);
+  for (std::size_t i = 0; i < m; ++i)
+  {
+    const Eigen::Index ii = static_cast<Eigen::Index>(i);
+    FittedParameter f;
+    f.key = keys[i]->key;
+    f.start = start.*(keys[i]->member);
+    f.value = out.params.*(keys[i]->member);
+    f.informed = std::find(informed.begin(), informed.end(), ii) != informed.end();
+    f.standard_error = f.informed ? std::sqrt(std::max(0.0, cov(ii, ii))) : NAN;
+    out.parameters.push_back(f);
+  }
+  for (Eigen::Index i : informed)
+  {
+    FittedParameter& f = out.parameters[static_cast<std::size_t>(i)];
+    for (Eigen::Index j : informed)
+    {
+      const double d = std::sqrt(cov(i, i) * cov(j, j));
+      const double c = d > 0.0 ? cov(i, j) / d : (i == j ? 1.0 : 0.0);
+      out.correlation(i, j) = c;
+      if (i != j && std::fabs(c) > f.largest_correlation)
+      {
+        f.largest_correlation = std::fabs(c);
+        f.most_correlated_with = out.parameters[static_cast<std::size_t>(j)].key;
+      }
+    }
+  }
+}
+}  // namespace
+
+JointFit fitJoint(const Recording& data, const IdentificationSettings& identification, double zero_offset,
+                  const ServoParams& start, const JointFitSettings& settings)
+{
+  const std::vector<const KeyInfo*> keys = fittedKeys(start, settings);
   const std::size_t n = data.time.size();
   if (n < 50)
   {
@@ -437,33 +555,11 @@ JointFit fitJoint(const Recording& data, const IdentificationSettings& identific
                               std::pow(settings.residual_floor, 2) * static_cast<double>(r0.size()));
   };
   out.budget_exhausted = fit(settings.max_evaluations / 2);
-  // Windows whose residual stays beyond TRIM times the median window's (an anchor read across an impact, or on the
-  // wrong side of a flank within the band) would pull every parameter: fitted again without them.
-  constexpr double TRIM = 5.0;
+  // Windows far beyond the median window's residual: fitted again without them.
   shooting->residuals(x, &r0);
-  const std::size_t per = 2 * length;
-  std::vector<double> window_rms(starts.size());
-  for (std::size_t w = 0; w < starts.size(); ++w)
-  {
-    window_rms[w] = r0.segment(static_cast<Eigen::Index>(w * per), static_cast<Eigen::Index>(per)).norm();
-  }
-  std::vector<double> sorted = window_rms;
-  std::nth_element(sorted.begin(), sorted.begin() + static_cast<long>(sorted.size() / 2), sorted.end());
-  const double limit =
-      std::max(TRIM * sorted[sorted.size() / 2], settings.residual_floor * std::sqrt(static_cast<double>(per)));
-  std::vector<std::size_t> kept_starts;
-  std::vector<double> kept_x(x.begin(), x.begin() + static_cast<long>(m));
-  for (std::size_t w = 0; w < starts.size(); ++w)
-  {
-    if (window_rms[w] <= limit)
-    {
-      kept_starts.push_back(starts[w]);
-      for (std::size_t j = 0; j < Shooting::C; ++j)
-      {
-        kept_x.push_back(x[m + Shooting::C * w + j]);
-      }
-    }
-  }
+  std::vector<double> kept_x;
+  const std::vector<std::size_t> kept_starts =
+      windowsWithinTrim(r0, starts, length, x, m, settings.residual_floor, &kept_x);
   if (kept_starts.size() < starts.size() && 2 * kept_starts.size() >= starts.size())
   {
     out.windows_dropped = starts.size() - kept_starts.size();
@@ -512,64 +608,10 @@ JointFit fitJoint(const Recording& data, const IdentificationSettings& identific
   shooting->residuals(x, &r0);
   out.residuals = static_cast<std::size_t>(rows);
   out.rms = std::sqrt(r0.squaredNorm() / static_cast<double>(rows));
-  // The cluster-robust covariance of everything fitted (windows as clusters); the parameters' block, in the table's
-  // units, allows for the velocity corrections fitted with them.
-  Eigen::MatrixXd cov = Eigen::MatrixXd::Constant(cols, cols, NAN);
-  if (!informed.empty())
-  {
-    const Eigen::MatrixXd jp = jac(Eigen::all, informed);
-    const Eigen::VectorXd colnorm = jp.colwise().norm().transpose();
-    const Eigen::JacobiSVD<Eigen::MatrixXd> svd(jp * colnorm.cwiseInverse().asDiagonal());
-    const Eigen::VectorXd sv = svd.singularValues();
-    out.condition = sv(sv.size() - 1) > 0.0 ? sv(0) / sv(sv.size() - 1) : INFINITY;
-    const Eigen::MatrixXd jk = jac(Eigen::all, kept);
-    const Eigen::MatrixXd bread = (jk.transpose() * jk).completeOrthogonalDecomposition().pseudoInverse();
-    Eigen::MatrixXd meat = Eigen::MatrixXd::Zero(jk.cols(), jk.cols());
-    const Eigen::Index per = static_cast<Eigen::Index>(2 * replay->length());
-    for (Eigen::Index w = 0; w < static_cast<Eigen::Index>(out.windows); ++w)
-    {
-      const Eigen::VectorXd g = jk.middleRows(w * per, per).transpose() * r0.segment(w * per, per);
-      meat += g * g.transpose();
-    }
-    Eigen::MatrixXd c = bread * meat * bread;
-    c = 0.5 * (c + c.transpose()).eval();
-    for (std::size_t a = 0; a < informed.size(); ++a)
-    {
-      for (std::size_t b = 0; b < informed.size(); ++b)
-      {
-        const std::size_t ia = static_cast<std::size_t>(informed[a]), ib = static_cast<std::size_t>(informed[b]);
-        cov(informed[a], informed[b]) = c(static_cast<Eigen::Index>(a), static_cast<Eigen::Index>(b)) *
-                                        coordinates.scale()[ia] * coordinates.scale()[ib];
-      }
-    }
-  }
-  out.correlation = Eigen::MatrixXd::Constant(cols, cols, NAN);
-  for (std::size_t i = 0; i < m; ++i)
-  {
-    const Eigen::Index ii = static_cast<Eigen::Index>(i);
-    FittedParameter f;
-    f.key = keys[i]->key;
-    f.start = start.*(keys[i]->member);
-    f.value = out.params.*(keys[i]->member);
-    f.informed = std::find(informed.begin(), informed.end(), ii) != informed.end();
-    f.standard_error = f.informed ? std::sqrt(std::max(0.0, cov(ii, ii))) : NAN;
-    out.parameters.push_back(f);
-  }
-  for (Eigen::Index i : informed)
-  {
-    FittedParameter& f = out.parameters[static_cast<std::size_t>(i)];
-    for (Eigen::Index j : informed)
-    {
-      const double d = std::sqrt(cov(i, i) * cov(j, j));
-      const double c = d > 0.0 ? cov(i, j) / d : (i == j ? 1.0 : 0.0);
-      out.correlation(i, j) = c;
-      if (i != j && std::fabs(c) > f.largest_correlation)
-      {
-        f.largest_correlation = std::fabs(c);
-        f.most_correlated_with = out.parameters[static_cast<std::size_t>(j)].key;
-      }
-    }
-  }
+  const Eigen::MatrixXd cov =
+      parameterCovariance(jac, r0, informed, kept, out.windows, static_cast<Eigen::Index>(2 * replay->length()),
+                          coordinates, cols, &out.condition);
+  reportParameters(keys, start, informed, cov, &out);
   return out;
 }
 
