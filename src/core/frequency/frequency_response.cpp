@@ -331,8 +331,9 @@ FrfSampling frfSampling(const RunConfig& config, const FrfSettings& settings, do
   return out;
 }
 
-FrfPoint measureFrequencyResponse(const RunConfig& config, const FrfSettings& settings, double amplitude, double omega,
-                                  const std::function<bool()>& cancelled)
+namespace
+{
+void checkFrfInputs(const FrfSettings& settings, double amplitude, double omega)
 {
   if (!(std::isfinite(amplitude) && amplitude > 0.0))
   {
@@ -359,31 +360,48 @@ FrfPoint measureFrequencyResponse(const RunConfig& config, const FrfSettings& se
   {
     throw InvalidParameterError("harmonics", "must be in [1, 1000] (got " + std::to_string(settings.harmonics) + ")");
   }
+}
+
+/// The sine as the samples see it: sample k at t₀ + k/rate [s], its phase from k mod N (exact however long the run);
+/// a torque input `held` is set sample by sample.
+struct SampledSine
+{
+  double t0 = 0.0, rate = 0.0, offset = 0.0, amplitude = 0.0;
+  long n_samples = 1;
+  bool held = false;
+
+  double time(long k) const { return t0 + static_cast<double>(k) / rate; }
+  double input(long k) const
+  {
+    return offset + amplitude * std::sin(2.0 * PI * static_cast<double>(k % n_samples) / n_samples);
+  }
+  /// Advances sim over samples [k0, k1), applying a held torque input at each; `each` sees the state at every sample.
+  template <class Each>
+  void advance(Simulator& s, long k0, long k1, EventSink* sink, const Each& each) const
+  {
+    for (long k = k0; k < k1; ++k)
+    {
+      s.advanceTo(time(k), sink);
+      each(s.state());
+      if (held)
+      {
+        s.setMotorTorque(input(k), sink);
+        s.setInputHorizon(time(k + 1));
+      }
+    }
+    s.advanceTo(time(k1), sink);
+  }
+};
+
+/// The simulator driven by the sine on the channel's input: the command, a set-point injection, the motor torque or
+/// the load torque, for up to `duration` [s].
+Simulator sineDrivenSimulator(const RunConfig& config, const FrfSettings& settings, const SampledSine& sine, double w,
+                              bool continuous, double duration)
+{
   const FrfChannel channel = settings.channel;
   const bool torque = torqueInput(channel), setpoint = setpointInput(channel);
-  const FrfSampling sampling = frfSampling(config, settings, omega);
-  const bool continuous = sampling.continuous;
-  const double rate = sampling.rate;
-  const long n_samples = sampling.samples_per_period;
-  FrfPoint out;
-  out.amplitude = amplitude;
-  out.requested_frequency = omega;
-  out.samples_per_period = static_cast<int>(n_samples);
-  out.frequency = sampling.frequency;
-  const double w = out.frequency, period = static_cast<double>(n_samples) / rate;
-  const double t0 = config.initial.time, rho = config.params.gear_ratio;
-  long max_periods = settings.max_periods;
-  if (max_periods == 0)
-  {
-    max_periods = static_cast<long>(
-        std::min(1e7, std::max(1000.0, std::ceil(AUTO_SETTLING_SCALES * slowestTimeScale(config, channel) / period))));
-  }
-  const auto sampleTime = [&](long k) { return t0 + static_cast<double>(k) / rate; };
-  // The input at sample k, its phase from k mod N (exact however long the run).
-  const auto inputAt = [&](long k) {
-    return settings.offset + amplitude * std::sin(2.0 * PI * static_cast<double>(k % n_samples) / n_samples);
-  };
-
+  const double t0 = sine.t0, rate = sine.rate, amplitude = sine.amplitude;
+  const long n_samples = sine.n_samples;
   RunConfig run = config;
   run.track_energy = false;
   run.duration = 0.0;
@@ -396,25 +414,23 @@ FrfPoint measureFrequencyResponse(const RunConfig& config, const FrfSettings& se
   }
   else if (setpoint)
   {
-    run.profile = speedOffsetProfile(config, settings.offset,
-                                     period * (static_cast<double>(max_periods) + MAX_PERIOD_MULTIPLE + 2.0));
+    run.profile = speedOffsetProfile(config, settings.offset, duration);
   }
   else if (!torque && !continuous)
   {
-    ProfileSegment sine;
-    sine.kind = ProfileSegment::Kind::Sine;
-    sine.time = t0;
-    sine.amplitude = amplitude;
-    sine.frequency = rate / static_cast<double>(n_samples);
-    sine.duration = period * (static_cast<double>(max_periods) + MAX_PERIOD_MULTIPLE + 2.0);
-    run.profile = std::make_shared<const CommandProfile>(settings.offset, std::vector<ProfileSegment>{sine});
+    ProfileSegment segment;
+    segment.kind = ProfileSegment::Kind::Sine;
+    segment.time = t0;
+    segment.amplitude = amplitude;
+    segment.frequency = rate / static_cast<double>(n_samples);
+    segment.duration = duration;
+    run.profile = std::make_shared<const CommandProfile>(settings.offset, std::vector<ProfileSegment>{segment});
   }
   Simulator sim = makeSimulator(run);
   if (setpoint)
   {
     sim.sampledDrive()->setInjection(amplitude, n_samples);  // (the next sample is sample 0, at t₀)
   }
-  const bool held = torque && !continuous;  // the torque set sample by sample
   if (load)
   {
     sim.setLoadTorqueWave(Sinusoid{amplitude, w, 0.0, t0});
@@ -424,32 +440,37 @@ FrfPoint measureFrequencyResponse(const RunConfig& config, const FrfSettings& se
     const Sinusoid wave{amplitude, w, 0.0, t0};
     torque ? sim.setMotorTorque(settings.offset, wave) : sim.setCommandWave(settings.offset, wave);
   }
-  // Advances sim over samples [k0, k1), applying a held torque input at each; `each` sees the state at every sample.
-  const auto advanceSamples = [&](Simulator& s, long k0, long k1, EventSink* sink, const auto& each) {
-    for (long k = k0; k < k1; ++k)
-    {
-      s.advanceTo(sampleTime(k), sink);
-      each(s.state());
-      if (held)
-      {
-        s.setMotorTorque(inputAt(k), sink);
-        s.setInputHorizon(sampleTime(k + 1));
-      }
-    }
-    s.advanceTo(sampleTime(k1), sink);
-  };
+  return sim;
+}
 
+/// Where the periods repeat: the period starts compared after each period until they do (every multiple up to
+/// MAX_PERIOD_MULTIPLE), or to one count of the loop's encoder COUNT_REPEATS times running, or max_periods passed.
+constexpr int COUNT_REPEATS = 3;
+
+struct Settling
+{
+  long n = 0;  ///< periods run
+  int multiple = 0, count_multiple = 0, count_streak = 0;
+  std::vector<double> start_outputs;  ///< the channel's output at each period start
+};
+
+Settling settle(Simulator& sim, const SampledSine& sine, const RunConfig& config, const FrfSettings& settings,
+                long max_periods, const std::function<bool()>& cancelled)
+{
+  const FrfChannel channel = settings.channel;
+  const double rho = config.params.gear_ratio, rate = sine.rate;
+  const long n_samples = sine.n_samples;
+  Settling out;
+  long& n = out.n;
+  int &multiple = out.multiple, &count_multiple = out.count_multiple, &count_streak = out.count_streak;
+  std::vector<double>& start_outputs = out.start_outputs;
   // Settle: period starts compared until they repeat (every multiple up to MAX_PERIOD_MULTIPLE). A loop reading a
   // quantised encoder may never repeat to the tolerance, only to its resolution: period starts that repeat within one
   // count [rad at the load] (and one count per sample in the speeds) for COUNT_REPEATS comparisons running are
   // periodic to one count.
-  constexpr int COUNT_REPEATS = 3;
   const double count = loopCount(config);
   std::vector<Snapshot> starts;
-  std::vector<double> start_outputs;  // the channel's output at each period start
   std::vector<Ranges> ranges;
-  int multiple = 0, count_multiple = 0, count_streak = 0;
-  long n = 0;
   for (; n <= max_periods; ++n)
   {
     starts.push_back(snapshotOf(sim.state(), rho));
@@ -491,37 +512,37 @@ FrfPoint measureFrequencyResponse(const RunConfig& config, const FrfSettings& se
       break;
     }
     Ranges r;
-    advanceSamples(sim, n * n_samples, (n + 1) * n_samples, nullptr,
-                   [&](const State& s) { r.add(snapshotOf(s, rho)); });
+    sine.advance(sim, n * n_samples, (n + 1) * n_samples, nullptr, [&](const State& s) { r.add(snapshotOf(s, rho)); });
     ranges.push_back(r);
   }
-  out.periodic_to_count = multiple == 0 && count_streak >= COUNT_REPEATS;
-  out.periodic = multiple != 0 || out.periodic_to_count;
-  out.period_multiple = multiple != 0 ? multiple : (out.periodic_to_count ? count_multiple : 0);
-  const int m = std::max(1, out.period_multiple);
-  // The analysed window [t_n, t_n + mT]: its breaks found on a copy, then integrated on the original, which passes
-  // through the same events bit for bit (the motion does not depend on where it is stopped).
-  const long k_begin = n * n_samples, k_end = (n + m) * n_samples;
-  out.settled_at = sampleTime(k_begin);
-  out.settled_state = sim.state();
-  BreakSink breaks;
-  {
-    Simulator probe = sim;
-    advanceSamples(probe, k_begin, k_end, &breaks, [](const State&) {});
-  }
-  out.flank_changes = static_cast<double>(breaks.flankChanges()) / m;
-  out.separations = static_cast<double>(breaks.separations) / m;
-  const double h_max = 0.5 / std::max(fastestRate(config.params), 1e-300);
-  const int harmonics = settings.harmonics;
-  std::vector<std::complex<double>> y(static_cast<std::size_t>(harmonics) + 1, 0.0);
-  std::complex<double> torque_line = 0.0;  // ∫ T_m e^{−jω(t − t₀)}: the set-point channels' input
-  std::complex<double> mesh_line = 0.0;    // ∫ Q e^{−jω(t − t₀)}
+  return out;
+}
+
+/// The Fourier integrals over the analysed window [k_begin, k_end) samples: Gauss–Legendre over pieces cut at the
+/// motion's breaks, each no longer than h_max [s]; the output's and the mesh torque's extremes at the way.
+struct WindowSums
+{
+  std::vector<std::complex<double>> y;     ///< ∫ y e^{−jhω(t − t₀)}, h = 0 … harmonics
+  std::complex<double> torque_line = 0.0;  ///< ∫ T_m e^{−jω(t − t₀)}: the set-point channels' input
+  std::complex<double> mesh_line = 0.0;    ///< ∫ Q e^{−jω(t − t₀)}
   double mesh_sum = 0.0, mesh_lo = INFINITY, mesh_hi = -INFINITY;
-  double lo = INFINITY, hi = -INFINITY;
+  double lo = INFINITY, hi = -INFINITY;  ///< the output at the samples
+};
+
+WindowSums integrateWindow(Simulator& sim, const SampledSine& sine, const std::vector<double>& break_times,
+                           long k_begin, long k_end, FrfChannel channel, int harmonics, double w, double h_max)
+{
+  const bool setpoint = setpointInput(channel), held = sine.held;
+  const long n_samples = sine.n_samples;
+  WindowSums out;
+  out.y.assign(static_cast<std::size_t>(harmonics) + 1, 0.0);
+  std::vector<std::complex<double>>& y = out.y;
+  std::complex<double>&torque_line = out.torque_line, &mesh_line = out.mesh_line;
+  double &mesh_sum = out.mesh_sum, &mesh_lo = out.mesh_lo, &mesh_hi = out.mesh_hi, &lo = out.lo, &hi = out.hi;
   std::size_t next_break = 0;
   for (long k = k_begin; k < k_end; ++k)
   {
-    const double ta = sampleTime(k), tb = sampleTime(k + 1);
+    const double ta = sine.time(k), tb = sine.time(k + 1);
     sim.advanceTo(ta);
     const double at_sample = frfOutput(channel, sim.state());
     lo = std::min(lo, at_sample);
@@ -531,20 +552,20 @@ FrfPoint measureFrequencyResponse(const RunConfig& config, const FrfSettings& se
     mesh_hi = std::max(mesh_hi, q_sample);
     if (held)
     {
-      sim.setMotorTorque(inputAt(k));
+      sim.setMotorTorque(sine.input(k));
       sim.setInputHorizon(tb);
     }
     // The interval's pieces: cut at its breaks, each no longer than h_max.
     std::vector<double> cuts = {ta};
-    while (next_break < breaks.breaks.size() && breaks.breaks[next_break] <= ta)
+    while (next_break < break_times.size() && break_times[next_break] <= ta)
     {
       ++next_break;
     }
-    while (next_break < breaks.breaks.size() && breaks.breaks[next_break] < tb)
+    while (next_break < break_times.size() && break_times[next_break] < tb)
     {
-      if (breaks.breaks[next_break] > cuts.back())
+      if (break_times[next_break] > cuts.back())
       {
-        cuts.push_back(breaks.breaks[next_break]);
+        cuts.push_back(break_times[next_break]);
       }
       ++next_break;
     }
@@ -583,17 +604,80 @@ FrfPoint measureFrequencyResponse(const RunConfig& config, const FrfSettings& se
       }
     }
   }
-  sim.advanceTo(sampleTime(k_end));
+  return out;
+}
+}  // namespace
+
+FrfPoint measureFrequencyResponse(const RunConfig& config, const FrfSettings& settings, double amplitude, double omega,
+                                  const std::function<bool()>& cancelled)
+{
+  checkFrfInputs(settings, amplitude, omega);
+  const FrfChannel channel = settings.channel;
+  const bool torque = torqueInput(channel), setpoint = setpointInput(channel);
+  const FrfSampling sampling = frfSampling(config, settings, omega);
+  const bool continuous = sampling.continuous;
+  const double rate = sampling.rate;
+  const long n_samples = sampling.samples_per_period;
+  FrfPoint out;
+  out.amplitude = amplitude;
+  out.requested_frequency = omega;
+  out.samples_per_period = static_cast<int>(n_samples);
+  out.frequency = sampling.frequency;
+  const double w = out.frequency, period = static_cast<double>(n_samples) / rate;
+  const double t0 = config.initial.time;
+  long max_periods = settings.max_periods;
+  if (max_periods == 0)
+  {
+    max_periods = static_cast<long>(
+        std::min(1e7, std::max(1000.0, std::ceil(AUTO_SETTLING_SCALES * slowestTimeScale(config, channel) / period))));
+  }
+  SampledSine sine;
+  sine.t0 = t0;
+  sine.rate = rate;
+  sine.offset = settings.offset;
+  sine.amplitude = amplitude;
+  sine.n_samples = n_samples;
+  sine.held = torque && !continuous;  // the torque set sample by sample
+
+  Simulator sim = sineDrivenSimulator(config, settings, sine, w, continuous,
+                                      period * (static_cast<double>(max_periods) + MAX_PERIOD_MULTIPLE + 2.0));
+  const Settling settled = settle(sim, sine, config, settings, max_periods, cancelled);
+  const long n = settled.n;
+  const int multiple = settled.multiple, count_multiple = settled.count_multiple;
+  const int count_streak = settled.count_streak;
+  const std::vector<double>& start_outputs = settled.start_outputs;
+  out.periodic_to_count = multiple == 0 && count_streak >= COUNT_REPEATS;
+  out.periodic = multiple != 0 || out.periodic_to_count;
+  out.period_multiple = multiple != 0 ? multiple : (out.periodic_to_count ? count_multiple : 0);
+  const int m = std::max(1, out.period_multiple);
+  // The analysed window [t_n, t_n + mT]: its breaks found on a copy, then integrated on the original, which passes
+  // through the same events bit for bit (the motion does not depend on where it is stopped).
+  const long k_begin = n * n_samples, k_end = (n + m) * n_samples;
+  out.settled_at = sine.time(k_begin);
+  out.settled_state = sim.state();
+  BreakSink breaks;
+  {
+    Simulator probe = sim;
+    sine.advance(probe, k_begin, k_end, &breaks, [](const State&) {});
+  }
+  out.flank_changes = static_cast<double>(breaks.flankChanges()) / m;
+  out.separations = static_cast<double>(breaks.separations) / m;
+  const double h_max = 0.5 / std::max(fastestRate(config.params), 1e-300);
+  const int harmonics = settings.harmonics;
+  const WindowSums sums = integrateWindow(sim, sine, breaks.breaks, k_begin, k_end, channel, harmonics, w, h_max);
+  const std::vector<std::complex<double>>& y = sums.y;
+  const double lo = sums.lo, hi = sums.hi;
+  sim.advanceTo(sine.time(k_end));
   const double span = period * m;
   out.mean = y[0].real() / span;
   out.peak_to_peak = hi - lo;
-  out.mesh_torque_mean = mesh_sum / span;
-  out.mesh_torque_min = mesh_lo;
-  out.mesh_torque_max = mesh_hi;
+  out.mesh_torque_mean = sums.mesh_sum / span;
+  out.mesh_torque_min = sums.mesh_lo;
+  out.mesh_torque_max = sums.mesh_hi;
   if (continuous && breaks.flankChanges() == 0 && breaks.separations == 0 && m == 1)
   {
     // The sine itself on one flank: the mesh torque is its mean and its fundamental (the joint is linear there).
-    const double q1 = std::abs(2.0 / span * mesh_line);
+    const double q1 = std::abs(2.0 / span * sums.mesh_line);
     out.mesh_torque_min = out.mesh_torque_mean - q1;
     out.mesh_torque_max = out.mesh_torque_mean + q1;
   }
@@ -604,7 +688,7 @@ FrfPoint measureFrequencyResponse(const RunConfig& config, const FrfSettings& se
     coef[static_cast<std::size_t>(j)] = 2.0 / span * y[static_cast<std::size_t>(j)];
   }
   // The input's fundamental as a phasor: −jA for the sine itself; the applied torque's for the set-point channels.
-  const std::complex<double> u1 = setpoint ? 2.0 / span * torque_line : std::complex<double>(0.0, -amplitude);
+  const std::complex<double> u1 = setpoint ? 2.0 / span * sums.torque_line : std::complex<double>(0.0, -amplitude);
   out.response = coef[1] / u1;
   out.gain = std::abs(out.response);
   out.phase = std::arg(out.response);
