@@ -243,7 +243,7 @@ void ServoNode::restartMonitor(const std::string& reason)
   }
 }
 
-bool ServoNode::run()
+void ServoNode::awaitStart()
 {
   // Give recorders and monitors time to subscribe before sim time starts (callbacks are served meanwhile).
   const ros::WallTime start = ros::WallTime::now() + ros::WallDuration(config_.start_delay);
@@ -277,6 +277,112 @@ bool ServoNode::run()
     ros::WallDuration(1.0).sleep();
     ros::spinOnce();
   }
+}
+
+bool ServoNode::due(double t)
+{
+  if (clock_mode_ == ClockMode::External)
+  {
+    if (ros::Time::now() < stamp(t))
+    {
+      ros::WallDuration(0.0005).sleep();
+      return false;
+    }
+  }
+  else if (config_.real_time_factor > 0.0)
+  {
+    // Long waits are cut into 5 ms slices so callbacks stay responsive; the last slice ends exactly on time and
+    // falls through (one wake-up and one spinOnce per sample at high rates).
+    const double wait =
+        (wall_anchor_.toSec() + (t - sim_anchor_) / config_.real_time_factor) - ros::WallTime::now().toSec();
+    if (wait > 0.005)
+    {
+      ros::WallDuration(0.005).sleep();
+      return false;
+    }
+    if (wait > 0.0)
+    {
+      ros::WallDuration(wait).sleep();
+    }
+  }
+  return true;
+}
+
+bool ServoNode::stepTo(double t)
+{
+  try
+  {
+    sim_.advanceTo(t, this);
+  }
+  catch (const MotionDiverged& e)
+  {
+    enterFault(e.what(), true);
+    return false;
+  }
+  catch (const std::exception& e)
+  {
+    enterFault(e.what());
+    return false;
+  }
+  ++sample_index_;
+  // Rest and quiet rules, as backlash_sim applies them; in effort mode against `command` too (the external
+  // controller's integrator is not visible: its stick–slip phases count as rest only once quiet for long).
+  if (judge_from_ >= 0.0 && sim_.state().time >= judge_from_)
+  {
+    monitor_->restartAt(sim_.state());  // the profile has ended: judged afresh against its final value
+    announced_ = Verdict::Undecided;
+    judge_from_ = -1.0;
+  }
+  monitor_->check(sim_.state(), sim_.drive().winding(), judge_from_ < 0.0 && sim_.atRestForever());
+  {
+    const State& s = sim_.state();
+    const double reference = profile_ && sim_.controlMode() == ControlMode::Position ? profile_->at(s.time) : command_;
+    tracking_->add(s.time, reference, s.load_position, sim_.motorTorque());
+  }
+  if (monitor_->status().verdict != announced_)
+  {
+    publishLimitCycle(t, false);
+  }
+  return true;
+}
+
+void ServoNode::reportStop(double t, const ros::WallTime& run_start)
+{
+  if (config_.sync)
+  {
+    ROS_INFO("backlash_servo_node: lockstep: %ld steps, %ld answered late (after sync_timeout)", sample_index_,
+             sync_misses_);
+  }
+  const double wall = (ros::WallTime::now() - run_start).toSec();
+  const double cpu = static_cast<double>(std::clock()) / CLOCKS_PER_SEC;
+  ROS_INFO("backlash_servo_node: stop_after %g s reached: verdict %s, error %.6g rad, period %.6g s, %llu impacts",
+           config_.stop_after, toString(monitor_->status().verdict), monitor_->status().error,
+           monitor_->status().period, static_cast<unsigned long long>(sim_.impactCount()));
+  ROS_INFO(
+      "backlash_servo_node: %ld samples at %g Hz in %.3f s wall: achieved real-time factor %.1f, "
+      "CPU %.3f s (%.1f %% of one core)",
+      sample_index_, config_.publish_rate, wall, t / wall, cpu, 100.0 * cpu / wall);
+  drainBeforeExit(wall);
+}
+
+void ServoNode::endLaunch(bool reached_stop)
+{
+  // Every input served so far is in the bag (the drain above serves the last ones).
+  if (reached_stop && config_.stop_launch && endParentLaunch())
+  {
+    // roslaunch stops every node of the launch, this one with SIGINT (SIGTERM after 15 s): exit then, so that the
+    // end is roslaunch's ordinary shutdown and not a required node's death.
+    const ros::WallTime asked = ros::WallTime::now();
+    while (ros::ok() && (ros::WallTime::now() - asked).toSec() < 20.0)
+    {
+      ros::WallDuration(0.01).sleep();
+    }
+  }
+}
+
+bool ServoNode::run()
+{
+  awaitStart();
   reanchorWallClock();
   const ros::WallTime run_start = ros::WallTime::now();
   if (clock_mode_ == ClockMode::Publisher)
@@ -304,63 +410,13 @@ bool ServoNode::run()
       continue;
     }
     const double t = sample_base_ + static_cast<double>(sample_index_) / config_.publish_rate;
-    if (clock_mode_ == ClockMode::External)
+    if (!due(t))
     {
-      if (ros::Time::now() < stamp(t))
-      {
-        ros::WallDuration(0.0005).sleep();
-        continue;
-      }
-    }
-    else if (config_.real_time_factor > 0.0)
-    {
-      // Long waits are cut into 5 ms slices so callbacks stay responsive; the last slice ends exactly on time and
-      // falls through (one wake-up and one spinOnce per sample at high rates).
-      const double wait =
-          (wall_anchor_.toSec() + (t - sim_anchor_) / config_.real_time_factor) - ros::WallTime::now().toSec();
-      if (wait > 0.005)
-      {
-        ros::WallDuration(0.005).sleep();
-        continue;
-      }
-      if (wait > 0.0)
-      {
-        ros::WallDuration(wait).sleep();
-      }
-    }
-    try
-    {
-      sim_.advanceTo(t, this);
-    }
-    catch (const MotionDiverged& e)
-    {
-      enterFault(e.what(), true);
       continue;
     }
-    catch (const std::exception& e)
+    if (!stepTo(t))
     {
-      enterFault(e.what());
       continue;
-    }
-    ++sample_index_;
-    // Rest and quiet rules, as backlash_sim applies them; in effort mode against `command` too (the external
-    // controller's integrator is not visible: its stick–slip phases count as rest only once quiet for long).
-    if (judge_from_ >= 0.0 && sim_.state().time >= judge_from_)
-    {
-      monitor_->restartAt(sim_.state());  // the profile has ended: judged afresh against its final value
-      announced_ = Verdict::Undecided;
-      judge_from_ = -1.0;
-    }
-    monitor_->check(sim_.state(), sim_.drive().winding(), judge_from_ < 0.0 && sim_.atRestForever());
-    {
-      const State& s = sim_.state();
-      const double reference =
-          profile_ && sim_.controlMode() == ControlMode::Position ? profile_->at(s.time) : command_;
-      tracking_->add(s.time, reference, s.load_position, sim_.motorTorque());
-    }
-    if (monitor_->status().verdict != announced_)
-    {
-      publishLimitCycle(t, false);
     }
     checkEffortTimeout();
     if (clock_mode_ == ClockMode::Publisher)
@@ -376,37 +432,14 @@ bool ServoNode::run()
     }
     if (config_.stop_after > 0.0 && t >= config_.stop_after)
     {
-      if (config_.sync)
-      {
-        ROS_INFO("backlash_servo_node: lockstep: %ld steps, %ld answered late (after sync_timeout)", sample_index_,
-                 sync_misses_);
-      }
-      const double wall = (ros::WallTime::now() - run_start).toSec();
-      const double cpu = static_cast<double>(std::clock()) / CLOCKS_PER_SEC;
-      ROS_INFO("backlash_servo_node: stop_after %g s reached: verdict %s, error %.6g rad, period %.6g s, %llu impacts",
-               config_.stop_after, toString(monitor_->status().verdict), monitor_->status().error,
-               monitor_->status().period, static_cast<unsigned long long>(sim_.impactCount()));
-      ROS_INFO(
-          "backlash_servo_node: %ld samples at %g Hz in %.3f s wall: achieved real-time factor %.1f, "
-          "CPU %.3f s (%.1f %% of one core)",
-          sample_index_, config_.publish_rate, wall, t / wall, cpu, 100.0 * cpu / wall);
-      drainBeforeExit(wall);
+      reportStop(t, run_start);
       reached_stop = true;
       break;
     }
   }
   // Every input served so far is in the bag (the drain above serves the last ones).
   const bool recorded = recorder_ == nullptr || recorder_->close();
-  if (reached_stop && config_.stop_launch && endParentLaunch())
-  {
-    // roslaunch stops every node of the launch, this one with SIGINT (SIGTERM after 15 s): exit then, so that the
-    // end is roslaunch's ordinary shutdown and not a required node's death.
-    const ros::WallTime asked = ros::WallTime::now();
-    while (ros::ok() && (ros::WallTime::now() - asked).toSec() < 20.0)
-    {
-      ros::WallDuration(0.01).sleep();
-    }
-  }
+  endLaunch(reached_stop);
   ros::shutdown();
   return recorded;
 }

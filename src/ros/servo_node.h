@@ -36,14 +36,25 @@ class ServoNode : public EventSink
 {
  public:
   ServoNode(ros::NodeHandle& nh, ros::NodeHandle& pnh, const NodeConfig& config);
-  /// Runs the sample loop until shutdown (or stop_after).
-  /// Runs until shutdown; false when the recording (record_bag) failed (a message, the close or the rename).
+  /// Runs the sample loop until shutdown (or stop_after); false when the recording (record_bag) failed (a message, the close or the rename).
   bool run();
 
   /// Core events (called during Simulator::advanceTo): impacts and maxima are published here.
   void onEvent(const Event& event) override;
 
  private:
+  // The sample loop's stages (run()).
+  /// Waits start_delay (and in lockstep for a controller) before sim time starts.
+  void awaitStart();
+  /// Whether the sample at t [s] is due by the clock (external /clock or the wall clock scaled); false: not yet.
+  bool due(double t);
+  /// Advances to t [s] and judges the state (verdict, tracking); false after a fault (the node pauses).
+  bool stepTo(double t);
+  /// The figures at stop_after: verdict, lockstep misses, achieved real-time factor and CPU.
+  void reportStop(double t, const ros::WallTime& run_start);
+  /// With stop_launch: ends the parent launch and waits for roslaunch's SIGINT.
+  void endLaunch(bool reached_stop);
+
   enum class ClockMode
   {
     RealTime,   ///< follow the wall clock scaled by real_time_factor
