@@ -319,6 +319,49 @@ void finishTracking(const RunConfig& config, TrackingPass* pass, Simulator& sim,
 }
 }  // namespace
 
+namespace
+{
+/// The run's summary from the monitor and the simulator where the run stopped (out->stopped_by set).
+void summarise(const RunConfig& config, Simulator& sim, const ResponseMonitor& monitor, double command,
+               RunSummary* summary)
+{
+  RunSummary& out = *summary;
+  const double t0 = config.initial.time;
+  out.status = monitor.status();
+  if (out.stopped_by == "diverged")
+  {
+    out.status.verdict = Verdict::Diverged;
+  }
+  out.maxima = monitor.maxima();
+  out.cycle = monitor.cycleShape();
+  out.resolution = cycleResolution(out.cycle, loopCount(config));
+  out.impacts = sim.impactCount();
+  out.contact_phases = sim.contactPhases();
+  out.energy = sim.energy();
+  if (!sim.energyValid())
+  {
+    // A ramp of the continuous law ran in its moving frame: the plant's ledger is the frame's, not the joint's; a
+    // compliant mesh keeps none.
+    for (double* f : {&out.energy.input, &out.energy.motor_friction, &out.energy.load_friction, &out.energy.impact_loss,
+                      &out.energy.load_work, &out.energy.motor_dry_friction, &out.energy.load_dry_friction,
+                      &out.energy.input_magnitude, &out.energy.initial_kinetic})
+    {
+      *f = NAN;
+    }
+  }
+  out.kinetic = sim.kineticEnergy();
+  out.balance_error = sim.energyBalanceError();
+  out.final_state = sim.state();
+  out.simulated = sim.state().time - t0;
+  out.equilibrium = monitor.equilibrium();
+  out.settled = monitor.settled();
+  if (config.steady_answer && out.status.verdict == Verdict::Converged)
+  {
+    out.steady = steadyAnswer(sim, config.drive, command, out.equilibrium, monitor.scale());
+  }
+}
+}  // namespace
+
 RunSummary runResponse(const RunConfig& config, EventSink* sink, double sample_period, const SampleCallback& on_sample,
                        const ProgressCallback& on_progress)
 {
@@ -440,38 +483,7 @@ RunSummary runResponse(const RunConfig& config, EventSink* sink, double sample_p
       break;
     }
   }
-  out.status = monitor.status();
-  if (out.stopped_by == "diverged")
-  {
-    out.status.verdict = Verdict::Diverged;
-  }
-  out.maxima = monitor.maxima();
-  out.cycle = monitor.cycleShape();
-  out.resolution = cycleResolution(out.cycle, loopCount(config));
-  out.impacts = sim.impactCount();
-  out.contact_phases = sim.contactPhases();
-  out.energy = sim.energy();
-  if (!sim.energyValid())
-  {
-    // A ramp of the continuous law ran in its moving frame: the plant's ledger is the frame's, not the joint's; a
-    // compliant mesh keeps none.
-    for (double* f : {&out.energy.input, &out.energy.motor_friction, &out.energy.load_friction, &out.energy.impact_loss,
-                      &out.energy.load_work, &out.energy.motor_dry_friction, &out.energy.load_dry_friction,
-                      &out.energy.input_magnitude, &out.energy.initial_kinetic})
-    {
-      *f = NAN;
-    }
-  }
-  out.kinetic = sim.kineticEnergy();
-  out.balance_error = sim.energyBalanceError();
-  out.final_state = sim.state();
-  out.simulated = sim.state().time - t0;
-  out.equilibrium = monitor.equilibrium();
-  out.settled = monitor.settled();
-  if (config.steady_answer && out.status.verdict == Verdict::Converged)
-  {
-    out.steady = steadyAnswer(sim, config.drive, command, out.equilibrium, monitor.scale());
-  }
+  summarise(config, sim, monitor, command, &out);
   if (pass)
   {
     finishTracking(config, &*pass, sim, &out);
