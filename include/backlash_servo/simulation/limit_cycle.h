@@ -105,7 +105,15 @@ class LimitCycleDetector
   bool oscillating() const;
 
  private:
+  /// The verdict from the maxima so far, tried in turn: a pinned cycle, a geometric decay, a band, irregular.
   void update();
+  // Each rule on the n maxima: true when it decided the verdict (reported errors are from θ_R: + offset [rad]).
+  bool pinnedCycle(int n, double offset);
+  bool geometricDecay(int n);
+  bool quasiPeriodic(int n, double offset);
+  void irregular(int n, double offset);
+  /// Maximum i above the centre [rad].
+  double deviation(int i) const;
   bool bands_ = false;
   bool extrapolate_decay_ = true;
   double min_spacing_ = 0.0;  // [s]

@@ -90,24 +90,18 @@ double aitken(double s0, double s1, double s2)
 }
 }  // namespace
 
-void LimitCycleDetector::update()
+double LimitCycleDetector::deviation(int i) const
 {
-  const int n = static_cast<int>(maxima_.size());
-  auto x = [&](int i) { return maxima_[i].position - centre_; };
-  const double offset = centre_ - command_;  // reported errors are from θ_R
-  if (n >= 3)
-  {
-    status_.extrapolated = aitken(x(n - 1), x(n - 2), x(n - 3)) + offset;
-  }
-  if (status_.verdict != Verdict::Undecided)
-  {
-    return;
-  }
+  return maxima_[i].position - centre_;
+}
+
+bool LimitCycleDetector::pinnedCycle(int n, double offset)
+{
+  auto x = [&](int i) { return deviation(i); };
   // A limit cycle of multiplicity k: in every phase of the k-periodic sequence the Aitken estimates of the fixed
   // point from three successive windows agree to FIXED_POINT_TOLERANCE, and the maxima are close to it (so the
   // map is in its linear regime, where Aitken's extrapolation is exact to second order).
-  // Phase k − 1 looks back 4k maxima from maxima_[n − k]: n ≥ 5k. (The bound was 4k + 1, and a sequence that
-  // pinned phase 0 read before the first maximum — found by AddressSanitizer on a new unit test.)
+  // Phase k − 1 looks back 4k maxima from maxima_[n − k]: n ≥ 5k keeps every look-back inside the maxima.
   for (int k = 1; k <= MAX_MULTIPLICITY && n >= 5 * k; ++k)
   {
     bool pinned = true;
@@ -133,9 +127,15 @@ void LimitCycleDetector::update()
       status_.error = error + offset;
       status_.period = period;
       status_.multiplicity = k;
-      return;
+      return true;
     }
   }
+  return false;
+}
+
+bool LimitCycleDetector::geometricDecay(int n)
+{
+  auto x = [&](int i) { return deviation(i); };
   // Convergence: steady geometric decay whose extrapolated limit is (near) zero, twice in a row. This extrapolates
   // the Poincaré map of a loop that is linear in each mode, where a geometric decay goes on to the equilibrium. Under
   // dry friction it is not (extrapolate_decay_ off): a decay can stall into stick–slip hunting, so there convergence
@@ -152,9 +152,15 @@ void LimitCycleDetector::update()
     {
       status_ = LimitCycleReport();
       status_.verdict = Verdict::Converged;
-      return;
+      return true;
     }
   }
+  return false;
+}
+
+bool LimitCycleDetector::quasiPeriodic(int n, double offset)
+{
+  auto x = [&](int i) { return deviation(i); };
   // Quasi-periodic: the maxima wander inside a narrow band that no longer shrinks (sampled, quantised or stick–slip
   // loops whose period is not a whole number of samples). A pattern of k maxima per period (k bands: stick–slip
   // hunting that slips in several steps) is k such bands, one per phase, each read from every k-th maximum; the
@@ -209,9 +215,15 @@ void LimitCycleDetector::update()
       status_.band_high = top + offset;
       status_.period = (maxima_[n - 1].time - maxima_[n - 1 - (b - 1) * k].time) / (b - 1);
       status_.multiplicity = k;
-      return;
+      return true;
     }
   }
+  return false;
+}
+
+void LimitCycleDetector::irregular(int n, double offset)
+{
+  auto x = [&](int i) { return deviation(i); };
   // Irregular: the latest window of maxima neither settled nor decays relative to the window before it.
   const int w = IRREGULAR_WINDOW;
   if (n >= 2 * w)
@@ -237,6 +249,25 @@ void LimitCycleDetector::update()
       status_.multiplicity = 0;
     }
   }
+}
+
+void LimitCycleDetector::update()
+{
+  const int n = static_cast<int>(maxima_.size());
+  const double offset = centre_ - command_;  // reported errors are from θ_R
+  if (n >= 3)
+  {
+    status_.extrapolated = aitken(deviation(n - 1), deviation(n - 2), deviation(n - 3)) + offset;
+  }
+  if (status_.verdict != Verdict::Undecided)
+  {
+    return;
+  }
+  if (pinnedCycle(n, offset) || geometricDecay(n) || quasiPeriodic(n, offset))
+  {
+    return;
+  }
+  irregular(n, offset);
 }
 
 }  // namespace backlash_servo
