@@ -74,8 +74,9 @@ std::vector<int> maximumLengthSequence(int order)
   return out;
 }
 
-BroadbandResponse measureBroadband(const RunConfig& config, const BroadbandSettings& s, double amplitude,
-                                   const std::function<void(double)>& progress)
+namespace
+{
+void checkBroadband(const BroadbandSettings& s, double amplitude)
 {
   if (!(std::isfinite(amplitude) && amplitude > 0.0))
   {
@@ -97,8 +98,12 @@ BroadbandResponse measureBroadband(const RunConfig& config, const BroadbandSetti
                                                "itself, exact); broadband takes the command, the motor torque and "
                                                "the set-point");
   }
-  const double rate = excitationRate(config, s.channel, s.injection_rate);
-  // One period of the excitation's shape s_k.
+}
+
+/// One period of the excitation's shape s_k: the PRBS's bits, each held prbs_hold samples, or the chirp's sine
+/// sweeping whole DFT lines from chirp_low to chirp_high [rad/s] at `rate` [Hz].
+std::vector<double> excitationShape(const BroadbandSettings& s, double rate)
+{
   std::vector<double> shape;
   if (s.kind == BroadbandKind::Prbs)
   {
@@ -141,20 +146,18 @@ BroadbandResponse measureBroadband(const RunConfig& config, const BroadbandSetti
       shape.push_back(std::sin(2.0 * PI * (turns - std::floor(turns))));
     }
   }
+  return shape;
+}
+
+/// The simulator with the excitation on the channel's input: set-points held from each sample (the command), the
+/// shape injected at the drive's samples (the set-point channels); a torque is set sample by sample by the caller.
+Simulator excitedSimulator(const RunConfig& config, const BroadbandSettings& s, const std::vector<double>& shape,
+                           double amplitude, double rate, long total)
+{
   const std::size_t n = shape.size();
-  int settle = s.settle_periods;
-  if (settle == 0)
-  {
-    const double period = static_cast<double>(n) / rate;
-    settle = static_cast<int>(
-        std::min(100000.0 - s.periods,
-                 std::max(2.0, std::ceil(AUTO_SETTLING_SCALES * slowestTimeScale(config, s.channel) / period))));
-  }
-  const long total = static_cast<long>(n) * (settle + s.periods);
   const double t0 = config.initial.time;
   const auto sampleTime = [&](long k) { return t0 + static_cast<double>(k) / rate; };
   const auto inputAt = [&](long k) { return s.offset + amplitude * shape[static_cast<std::size_t>(k) % n]; };
-
   RunConfig run = config;
   run.track_energy = false;
   run.duration = 0.0;
@@ -181,6 +184,65 @@ BroadbandResponse measureBroadband(const RunConfig& config, const BroadbandSetti
   {
     sim.sampledDrive()->setInjection(amplitude, std::make_shared<const std::vector<double>>(shape));  // (from t₀)
   }
+  return sim;
+}
+
+/// H1 = S_yu/S_uu and the coherence at every DFT line the excitation reaches (above LINE_POWER_FLOOR of the
+/// strongest; not the Nyquist line).
+std::vector<BroadbandLine> estimateLines(const std::vector<std::complex<double>>& cross, const std::vector<double>& uu,
+                                         const std::vector<double>& yy, std::size_t n, double rate, bool setpoint,
+                                         int periods)
+{
+  const std::size_t lines = cross.size();
+  std::vector<BroadbandLine> out;
+  double largest = 0.0;
+  for (std::size_t k = 1; k < lines; ++k)
+  {
+    largest = std::max(largest, uu[k]);
+  }
+  for (std::size_t k = 1; k < lines; ++k)
+  {
+    if (!(uu[k] > LINE_POWER_FLOOR * largest) || 2 * k >= n)
+    {
+      continue;  // no excitation there, or the Nyquist line (real only)
+    }
+    BroadbandLine l;
+    l.frequency = 2.0 * PI * rate * static_cast<double>(k) / static_cast<double>(n);
+    l.h1 = cross[k] / uu[k];
+    if (setpoint)
+    {
+      l.h1 *= std::polar(1.0, -l.frequency / rate);  // u recorded one sample late: U = z·(what was recorded)
+    }
+    l.coherence = yy[k] > 0.0 ? std::norm(cross[k]) / (uu[k] * yy[k]) : 0.0;
+    l.input_power = uu[k] / periods;
+    out.push_back(l);
+  }
+  return out;
+}
+}  // namespace
+
+BroadbandResponse measureBroadband(const RunConfig& config, const BroadbandSettings& s, double amplitude,
+                                   const std::function<void(double)>& progress)
+{
+  checkBroadband(s, amplitude);
+  const double rate = excitationRate(config, s.channel, s.injection_rate);
+  const std::vector<double> shape = excitationShape(s, rate);
+  const std::size_t n = shape.size();
+  int settle = s.settle_periods;
+  if (settle == 0)
+  {
+    const double period = static_cast<double>(n) / rate;
+    settle = static_cast<int>(
+        std::min(100000.0 - s.periods,
+                 std::max(2.0, std::ceil(AUTO_SETTLING_SCALES * slowestTimeScale(config, s.channel) / period))));
+  }
+  const long total = static_cast<long>(n) * (settle + s.periods);
+  const double t0 = config.initial.time;
+  const auto sampleTime = [&](long k) { return t0 + static_cast<double>(k) / rate; };
+  const auto inputAt = [&](long k) { return s.offset + amplitude * shape[static_cast<std::size_t>(k) % n]; };
+
+  const bool torque = torqueInput(s.channel), setpoint = setpointInput(s.channel);
+  Simulator sim = excitedSimulator(config, s, shape, amplitude, rate, total);
   std::vector<std::complex<double>> twiddle(n);
   for (std::size_t m = 0; m < n; ++m)
   {
@@ -225,28 +287,7 @@ BroadbandResponse measureBroadband(const RunConfig& config, const BroadbandSetti
   out.samples_per_period = static_cast<int>(n);
   out.sample_rate = rate;
   out.settle_periods = settle;
-  double largest = 0.0;
-  for (std::size_t k = 1; k < lines; ++k)
-  {
-    largest = std::max(largest, uu[k]);
-  }
-  for (std::size_t k = 1; k < lines; ++k)
-  {
-    if (!(uu[k] > LINE_POWER_FLOOR * largest) || 2 * k >= n)
-    {
-      continue;  // no excitation there, or the Nyquist line (real only)
-    }
-    BroadbandLine l;
-    l.frequency = 2.0 * PI * rate * static_cast<double>(k) / static_cast<double>(n);
-    l.h1 = cross[k] / uu[k];
-    if (setpoint)
-    {
-      l.h1 *= std::polar(1.0, -l.frequency / rate);  // u recorded one sample late: U = z·(what was recorded)
-    }
-    l.coherence = yy[k] > 0.0 ? std::norm(cross[k]) / (uu[k] * yy[k]) : 0.0;
-    l.input_power = uu[k] / s.periods;
-    out.lines.push_back(l);
-  }
+  out.lines = estimateLines(cross, uu, yy, n, rate, setpoint, s.periods);
   return out;
 }
 
