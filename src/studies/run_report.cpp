@@ -9,12 +9,12 @@
 
 namespace backlash_servo
 {
-void writeRunJson(std::ostream& out, const RunConfig& c, const RunSummary& r, double wall_seconds)
+namespace
 {
-  const TrackingFigures& tracking = r.tracking;
+/// "params": the joint's keys, the drive's, the command and the loop's chart numbers.
+void writeParamsJson(JsonWriter& j, const RunConfig& c)
+{
   const ServoParams& p = c.params;
-  JsonWriter j(out);
-  j.beginObject();
   j.beginObject("params");
   for (const ParamSpec* spec : paramsIn(ParamSection::Servo))
   {
@@ -47,6 +47,11 @@ void writeRunJson(std::ostream& out, const RunConfig& c, const RunSummary& r, do
       // they are those of its gain K alone, and this says so.
       .field("zeta_describes_the_loop", c.drive.thesisLaw())
       .endObject();
+}
+
+/// The verdict, the cycle's size and centre, the equilibrium, the warnings and the steady answer.
+void writeVerdictJson(JsonWriter& j, const RunConfig& c, const RunSummary& r)
+{
   const bool lc = r.status.verdict == Verdict::LimitCycle || r.status.verdict == Verdict::Irregular;
   j.field("verdict", std::string(toString(r.status.verdict)));
   j.field("settled", r.settled);
@@ -98,20 +103,11 @@ void writeRunJson(std::ostream& out, const RunConfig& c, const RunSummary& r, do
   {
     j.field("steady_basis", std::string(steadyBasisName(r.steady.basis)));
   }
-  // Tracking figures from a sampled replay of the run (null where they do not apply).
-  j.field("settling_band", tracking.band)
-      .field("settling_time", tracking.settling_time)
-      .field("rms_error", tracking.rms_error)
-      .field("steady_rms_error", tracking.steady_rms_error)
-      .field("max_error", tracking.max_error)
-      .field("overshoot", tracking.overshoot)
-      .field("tracking_sample_rate", r.tracking_rate);
-  j.beginArray("maxima");
-  for (const Maximum& m : r.maxima)
-  {
-    j.beginObject().field("time", m.time).field("position", m.position).field("velocity", m.velocity).endObject();
-  }
-  j.endArray();
+}
+
+/// The impacts, the energy ledger [J] and the final state.
+void writeEnergyJson(JsonWriter& j, const RunConfig& c, const RunSummary& r)
+{
   j.field("impacts", static_cast<long long>(r.impacts));
   if (c.params.compliant())
   {
@@ -149,6 +145,31 @@ void writeRunJson(std::ostream& out, const RunConfig& c, const RunSummary& r, do
     j.field("shaft_twist", s.shaft_twist).field("shaft_twist_rate", s.shaft_twist_rate);
   }
   j.endObject();
+}
+}  // namespace
+
+void writeRunJson(std::ostream& out, const RunConfig& c, const RunSummary& r, double wall_seconds)
+{
+  const TrackingFigures& tracking = r.tracking;
+  JsonWriter j(out);
+  j.beginObject();
+  writeParamsJson(j, c);
+  writeVerdictJson(j, c, r);
+  // Tracking figures from a sampled replay of the run (null where they do not apply).
+  j.field("settling_band", tracking.band)
+      .field("settling_time", tracking.settling_time)
+      .field("rms_error", tracking.rms_error)
+      .field("steady_rms_error", tracking.steady_rms_error)
+      .field("max_error", tracking.max_error)
+      .field("overshoot", tracking.overshoot)
+      .field("tracking_sample_rate", r.tracking_rate);
+  j.beginArray("maxima");
+  for (const Maximum& m : r.maxima)
+  {
+    j.beginObject().field("time", m.time).field("position", m.position).field("velocity", m.velocity).endObject();
+  }
+  j.endArray();
+  writeEnergyJson(j, c, r);
   j.field("simulated_time", r.simulated);
   j.field("wall_time", wall_seconds);
   j.endObject();
