@@ -136,6 +136,134 @@ PhaseRows integratedRows(const Recording& d, const std::vector<double>& sign, co
   return out;
 }
 
+namespace
+{
+/// Pieces an unseen impact spoils (a jump of the motor's speed inside a piece, between samples that read apart) fit
+/// far worse than the rest: left out, as the rows beyond 5 × the median piece's rms after a first fit. Counts the
+/// pieces kept in each phase (the first na rows are the motor alone's) and dropped into `out`.
+void dropSpoiledPieces(const Eigen::MatrixXd& gram, const std::vector<Eigen::Index>& free, Eigen::Index na,
+                       Eigen::MatrixXd* x_io, Eigen::VectorXd* y_io, std::vector<std::size_t>* cluster_io,
+                       BodiesFit* fit)
+{
+  Eigen::MatrixXd& x = *x_io;
+  Eigen::VectorXd& y = *y_io;
+  std::vector<std::size_t>& cluster = *cluster_io;
+  BodiesFit& out = *fit;
+  const Eigen::VectorXd r = y - x(Eigen::all, free) * correctedSolve(x, y, gram, free, nullptr);
+  std::vector<double> piece_rms;
+  std::vector<std::pair<Eigen::Index, Eigen::Index>> spans;
+  for (Eigen::Index i = 0, a = 0; i < r.size(); ++i)
+  {
+    if (i + 1 == r.size() || cluster[static_cast<std::size_t>(i + 1)] != cluster[static_cast<std::size_t>(i)])
+    {
+      piece_rms.push_back(std::sqrt(r.segment(a, i + 1 - a).squaredNorm() / static_cast<double>(i + 1 - a)));
+      spans.emplace_back(a, i + 1);
+      a = i + 1;
+    }
+  }
+  std::vector<double> sorted = piece_rms;
+  std::nth_element(sorted.begin(), sorted.begin() + static_cast<long>(sorted.size() / 2), sorted.end());
+  const double median = sorted[sorted.size() / 2];
+  const double limit = std::isfinite(median) ? 5.0 * median : INFINITY;  // (nothing determined: nothing dropped)
+  std::vector<Eigen::Index> keep;
+  std::vector<std::size_t> kept_cluster;
+  for (std::size_t c = 0; c < spans.size(); ++c)
+  {
+    if (piece_rms[c] <= limit)
+    {
+      ++(spans[c].first < na ? out.apart_pieces : out.contact_pieces);
+      for (Eigen::Index i = spans[c].first; i < spans[c].second; ++i)
+      {
+        keep.push_back(i);
+        kept_cluster.push_back(cluster[static_cast<std::size_t>(i)]);
+      }
+    }
+    else
+    {
+      ++out.pieces_dropped;
+    }
+  }
+  x = Eigen::MatrixXd(x(keep, Eigen::all));
+  y = Eigen::VectorXd(y(keep));
+  cluster = kept_cluster;
+}
+
+/// The corrected fit with the levels constrained ≥ 0: the most negative of the constrained levels (columns < 6) held
+/// at 0 (taken out of `free`, marked in `out`), until none is. False when no column is left.
+bool holdNegativeLevels(const Eigen::MatrixXd& x, const Eigen::VectorXd& y, const Eigen::MatrixXd& gram,
+                        std::vector<Eigen::Index>* free_io, BodiesFit* fit)
+{
+  std::vector<Eigen::Index>& free = *free_io;
+  BodiesFit& out = *fit;
+  Eigen::VectorXd p;
+  while (true)
+  {
+    p = correctedSolve(x, y, gram, free, nullptr);
+    Eigen::Index worst = -1;
+    for (Eigen::Index i = 0; i < static_cast<Eigen::Index>(free.size()); ++i)
+    {
+      if (free[static_cast<std::size_t>(i)] < 6 && p(i) < 0.0 && (worst < 0 || p(i) < p(worst)))
+      {
+        worst = i;
+      }
+    }
+    if (worst < 0)
+    {
+      break;
+    }
+    out.at_bound[static_cast<std::size_t>(free[static_cast<std::size_t>(worst)])] = true;
+    out.p(free[static_cast<std::size_t>(worst)]) = 0.0;
+    free.erase(free.begin() + worst);
+    if (free.empty())
+    {
+      return false;
+    }
+  }
+  return true;
+}
+
+/// The parameters of the free columns with cluster-robust errors (XᵀX)⁻¹ (Σ_c X_cᵀ r_c r_cᵀ X_c) (XᵀX)⁻¹, widened by
+/// the correction's own size on a count grid (`white` false: a count's error is white only while the angle crosses
+/// counts quickly).
+void robustEstimates(const Eigen::MatrixXd& x, const Eigen::VectorXd& y, const Eigen::MatrixXd& gram,
+                     const std::vector<Eigen::Index>& free, const std::vector<std::size_t>& cluster, bool white,
+                     BodiesFit* fit)
+{
+  BodiesFit& out = *fit;
+  const Eigen::MatrixXd xf = x(Eigen::all, free);
+  Eigen::MatrixXd bread;
+  const Eigen::VectorXd p = correctedSolve(x, y, gram, free, &bread);
+  const Eigen::VectorXd r = y - xf * p;
+  Eigen::MatrixXd meat = Eigen::MatrixXd::Zero(xf.cols(), xf.cols());
+  Eigen::VectorXd score = Eigen::VectorXd::Zero(xf.cols());
+  std::size_t clusters = 0;
+  for (Eigen::Index i = 0; i < xf.rows(); ++i)
+  {
+    score += xf.row(i).transpose() * r(i);
+    const bool last =
+        i + 1 == xf.rows() || cluster[static_cast<std::size_t>(i + 1)] != cluster[static_cast<std::size_t>(i)];
+    if (last)
+    {
+      meat += score * score.transpose();
+      score.setZero();
+      ++clusters;
+    }
+  }
+  const double g = static_cast<double>(clusters);
+  out.swamped = !p.allFinite();
+  const Eigen::MatrixXd cov = bread * meat * bread * (g > 1.0 ? g / (g - 1.0) : 1.0);
+  // A count's error is white only while the angle crosses counts quickly: on a grid, the correction's own size is
+  // counted as uncertain.
+  const Eigen::VectorXd uncorrected = white ? p : correctedSolve(x, y, Eigen::MatrixXd::Zero(7, 7), free, nullptr);
+  for (std::size_t i = 0; i < free.size(); ++i)
+  {
+    const Eigen::Index j = static_cast<Eigen::Index>(i);
+    out.p(free[i]) = p(j);
+    out.se(free[i]) = std::hypot(std::sqrt(cov(j, j)), p(j) - uncorrected(j));
+  }
+}
+}  // namespace
+
 BodiesFit fitBodies(const PhaseRows& apart, const PhaseRows& contact, double rho, double known_load, double noise,
                     bool white)
 {
@@ -216,104 +344,12 @@ BodiesFit fitBodies(const PhaseRows& apart, const PhaseRows& contact, double rho
     }
     free.push_back(j);
   }
-  // Pieces an unseen impact spoils (a jump of the motor's speed inside a piece, between samples that read apart)
-  // fit far worse than the rest: left out, as the rows beyond 5 × the median piece's rms after a first fit.
+  dropSpoiledPieces(gram, free, na, &x, &y, &cluster, &out);
+  if (!holdNegativeLevels(x, y, gram, &free, &out))
   {
-    const Eigen::VectorXd r = y - x(Eigen::all, free) * correctedSolve(x, y, gram, free, nullptr);
-    std::vector<double> piece_rms;
-    std::vector<std::pair<Eigen::Index, Eigen::Index>> spans;
-    for (Eigen::Index i = 0, a = 0; i < r.size(); ++i)
-    {
-      if (i + 1 == r.size() || cluster[static_cast<std::size_t>(i + 1)] != cluster[static_cast<std::size_t>(i)])
-      {
-        piece_rms.push_back(std::sqrt(r.segment(a, i + 1 - a).squaredNorm() / static_cast<double>(i + 1 - a)));
-        spans.emplace_back(a, i + 1);
-        a = i + 1;
-      }
-    }
-    std::vector<double> sorted = piece_rms;
-    std::nth_element(sorted.begin(), sorted.begin() + static_cast<long>(sorted.size() / 2), sorted.end());
-    const double median = sorted[sorted.size() / 2];
-    const double limit = std::isfinite(median) ? 5.0 * median : INFINITY;  // (nothing determined: nothing dropped)
-    std::vector<Eigen::Index> keep;
-    std::vector<std::size_t> kept_cluster;
-    for (std::size_t c = 0; c < spans.size(); ++c)
-    {
-      if (piece_rms[c] <= limit)
-      {
-        ++(spans[c].first < na ? out.apart_pieces : out.contact_pieces);
-        for (Eigen::Index i = spans[c].first; i < spans[c].second; ++i)
-        {
-          keep.push_back(i);
-          kept_cluster.push_back(cluster[static_cast<std::size_t>(i)]);
-        }
-      }
-      else
-      {
-        ++out.pieces_dropped;
-      }
-    }
-    x = Eigen::MatrixXd(x(keep, Eigen::all));
-    y = Eigen::VectorXd(y(keep));
-    cluster = kept_cluster;
+    return out;
   }
-  // Active set: the most negative of the constrained levels held at 0, until none is.
-  Eigen::VectorXd p;
-  while (true)
-  {
-    p = correctedSolve(x, y, gram, free, nullptr);
-    Eigen::Index worst = -1;
-    for (Eigen::Index i = 0; i < static_cast<Eigen::Index>(free.size()); ++i)
-    {
-      if (free[static_cast<std::size_t>(i)] < 6 && p(i) < 0.0 && (worst < 0 || p(i) < p(worst)))
-      {
-        worst = i;
-      }
-    }
-    if (worst < 0)
-    {
-      break;
-    }
-    out.at_bound[static_cast<std::size_t>(free[static_cast<std::size_t>(worst)])] = true;
-    out.p(free[static_cast<std::size_t>(worst)]) = 0.0;
-    free.erase(free.begin() + worst);
-    if (free.empty())
-    {
-      return out;
-    }
-  }
-  // The cluster-robust covariance (XᵀX)⁻¹ (Σ_c X_cᵀ r_c r_cᵀ X_c) (XᵀX)⁻¹ over the free columns.
-  const Eigen::MatrixXd xf = x(Eigen::all, free);
-  Eigen::MatrixXd bread;
-  p = correctedSolve(x, y, gram, free, &bread);
-  const Eigen::VectorXd r = y - xf * p;
-  Eigen::MatrixXd meat = Eigen::MatrixXd::Zero(xf.cols(), xf.cols());
-  Eigen::VectorXd score = Eigen::VectorXd::Zero(xf.cols());
-  std::size_t clusters = 0;
-  for (Eigen::Index i = 0; i < xf.rows(); ++i)
-  {
-    score += xf.row(i).transpose() * r(i);
-    const bool last =
-        i + 1 == xf.rows() || cluster[static_cast<std::size_t>(i + 1)] != cluster[static_cast<std::size_t>(i)];
-    if (last)
-    {
-      meat += score * score.transpose();
-      score.setZero();
-      ++clusters;
-    }
-  }
-  const double g = static_cast<double>(clusters);
-  out.swamped = !p.allFinite();
-  const Eigen::MatrixXd cov = bread * meat * bread * (g > 1.0 ? g / (g - 1.0) : 1.0);
-  // A count's error is white only while the angle crosses counts quickly: on a grid, the correction's own size is
-  // counted as uncertain.
-  const Eigen::VectorXd uncorrected = white ? p : correctedSolve(x, y, Eigen::MatrixXd::Zero(7, 7), free, nullptr);
-  for (std::size_t i = 0; i < free.size(); ++i)
-  {
-    const Eigen::Index j = static_cast<Eigen::Index>(i);
-    out.p(free[i]) = p(j);
-    out.se(free[i]) = std::hypot(std::sqrt(cov(j, j)), p(j) - uncorrected(j));
-  }
+  robustEstimates(x, y, gram, free, cluster, white, &out);
   if (std::isfinite(known_load) && pair)
   {
     out.p(6) = known_load;
