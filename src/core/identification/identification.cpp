@@ -70,17 +70,13 @@ double velocityNoise(double noise, const IdentificationSettings& s, double h)
  * (where the filtered gap's phase is blurred), cut into pieces of 0.2 s. A phase without enough rows leaves its
  * parameters not identifiable (the reason in out->not_identifiable); both without: nothing to estimate (thrown).
  */
-void bodiesFromIntegrals(const Recording& d, const IdentificationSettings& s, const std::vector<int>& phase,
-                         const std::vector<double>& velocity, const std::vector<std::size_t>& stills, std::size_t trim,
-                         const AngleMeasurement& motor, InitialEstimates* out)
+/// The stretches of one phase and one direction of motion, `trim` samples cut at each end (the filter's reach);
+/// true when the contact moved both ways.
+bool phaseStretches(const std::vector<int>& phase, const std::vector<std::size_t>& stills,
+                    const std::vector<double>& sign, std::size_t trim, Stretches* apart_out, Stretches* contact_out)
 {
-  const std::size_t n = d.time.size();
-  const double h = (d.time.back() - d.time.front()) / static_cast<double>(n - 1), rho = s.gear_ratio;
-  std::vector<double> sign(n);
-  std::transform(velocity.begin(), velocity.end(), sign.begin(), [](double w) {
-    return w > 0.0 ? 1.0 : w < 0.0 ? -1.0 : 0.0;
-  });
-  Stretches apart, contact;
+  const std::size_t n = phase.size();
+  Stretches &apart = *apart_out, &contact = *contact_out;
   bool forward = false, backward = false;  // contact motion each way
   std::size_t k = 0;
   while (k < n)
@@ -106,10 +102,46 @@ void bodiesFromIntegrals(const Recording& d, const IdentificationSettings& s, co
     }
     k = end;
   }
+  return forward && backward;
+}
+
+/// What the pair's sums are, for the reason of a split not made: J_m + ρ²J_L, f_m + ρ²f_L, T_cm + ρT_cL with their
+/// standard errors (with both phases the pair's sums from the split, the parts' errors combined as if independent;
+/// without stretches apart the motor's columns carry them).
+std::string pairSums(const BodiesFit& f, double rho, bool load_torque_given, double known_load)
+{
+  // (with both phases the pair's sums from the split; without stretches apart the motor's columns carry them)
+  const bool both = f.apart_rows > 0;
+  // (each with its standard error; with both phases the two parts' errors combined as if independent)
+  const auto sum = [&](int j, double factor, const char* unit) {
+    const double value = f.p(j) + (both ? factor * f.p(j + 3) : 0.0);
+    const double error = both ? std::hypot(f.se(j), factor * f.se(j + 3)) : f.se(j);
+    return formatNumber(value) + " ± " + formatNumber(error) + unit;
+  };
+  return f.contact_rows > 0
+             ? "; the pair gives J_m + ρ²J_L = " + sum(0, rho * rho, " kg·m²") +
+                   ", f_m + ρ²f_L = " + sum(1, rho * rho, " N·m·s/rad") + ", T_cm + ρT_cL = " + sum(2, rho, " N·m") +
+                   (load_torque_given
+                        ? " (the contact went one way: the load torque taken as " + formatNumber(known_load) + " N·m)"
+                        : "")
+             : "";
+}
+
+void bodiesFromIntegrals(const Recording& d, const IdentificationSettings& s, const std::vector<int>& phase,
+                         const std::vector<double>& velocity, const std::vector<std::size_t>& stills, std::size_t trim,
+                         const AngleMeasurement& motor, InitialEstimates* out)
+{
+  const std::size_t n = d.time.size();
+  const double h = (d.time.back() - d.time.front()) / static_cast<double>(n - 1), rho = s.gear_ratio;
+  std::vector<double> sign(n);
+  std::transform(velocity.begin(), velocity.end(), sign.begin(), [](double w) {
+    return w > 0.0 ? 1.0 : w < 0.0 ? -1.0 : 0.0;
+  });
+  Stretches apart, contact;
+  const bool both_ways = phaseStretches(phase, stills, sign, trim, &apart, &contact);
   const std::size_t piece = std::max<std::size_t>(10, static_cast<std::size_t>(0.2 / h));
   const PhaseRows a = integratedRows(d, sign, apart, piece, 0);
   const PhaseRows c = integratedRows(d, sign, contact, piece, a.cluster.empty() ? 0 : a.cluster.back() + 1);
-  const bool both_ways = forward && backward;
   // Contact one way only: the load torque is not told from the Coulomb friction; the settings' (or 0) holds it.
   const double known_load = both_ways ? NAN : std::isfinite(s.load_torque_fallback) ? s.load_torque_fallback : 0.0;
   const BodiesFit f = fitBodies(a, c, rho, known_load, motor.noise, motor.resolution == 0.0);
@@ -187,22 +219,7 @@ void bodiesFromIntegrals(const Recording& d, const IdentificationSettings& s, co
   }
   if (!unsplit.empty())
   {
-    // (with both phases the pair's sums from the split; without stretches apart the motor's columns carry them)
-    const bool both = f.apart_rows > 0;
-    // (each with its standard error; with both phases the two parts' errors combined as if independent)
-    const auto sum = [&](int j, double factor, const char* unit) {
-      const double value = f.p(j) + (both ? factor * f.p(j + 3) : 0.0);
-      const double error = both ? std::hypot(f.se(j), factor * f.se(j + 3)) : f.se(j);
-      return formatNumber(value) + " ± " + formatNumber(error) + unit;
-    };
-    const std::string sums =
-        f.contact_rows > 0
-            ? "; the pair gives J_m + ρ²J_L = " + sum(0, rho * rho, " kg·m²") +
-                  ", f_m + ρ²f_L = " + sum(1, rho * rho, " N·m·s/rad") + ", T_cm + ρT_cL = " + sum(2, rho, " N·m") +
-                  (out->load_torque_given
-                       ? " (the contact went one way: the load torque taken as " + formatNumber(known_load) + " N·m)"
-                       : "")
-            : "";
+    const std::string sums = pairSums(f, rho, out->load_torque_given, known_load);
     for (int j = f.apart_rows > 0 && f.contact_rows == 0 ? 3 : 0; j < 6; ++j)
     {
       out->not_identifiable[keys[j]] = unsplit + (j >= 3 || f.contact_rows == 0 ? sums : "");
