@@ -45,19 +45,26 @@ Eigen::Index rows(std::size_t n)
 
 }  // namespace
 
-InitialEstimates estimateCompliantInitial(const Recording& d, const IdentificationSettings& s)
+namespace
 {
-  const double h = samplePeriod(d, s);
-  const std::size_t n = d.time.size(), r = static_cast<std::size_t>(s.smoothing), reach = 2 + 2 * r;
-  const double rho = s.gear_ratio;
-  const BodyMotion motor = differentiate(d.motor_position, h, s.smoothing),
-                   load = differentiate(d.load_position, h, s.smoothing);
-  const std::vector<double> ubar = meanTorque(d, s.smoothing);
-  const double still_m = s.still_speed > 0.0 ? s.still_speed : 1e-6 * largestMagnitude(motor.velocity);
-  const double still_c = s.still_speed > 0.0 ? s.still_speed : 1e-6 * largestMagnitude(load.velocity);
-  InitialEstimates out;
+/// Both bodies' motion from the recording, and the speeds below which each stands [rad/s].
+struct BothBodies
+{
+  double h = 0.0;          ///< sample period [s]
+  std::size_t reach = 0;   ///< samples a phase must hold on each side (stencil and filter)
+  BodyMotion motor, load;  ///< filtered angles and their differences
+  double still_m = 0.0, still_c = 0.0;
+};
 
-  // The bodies: ū = J_m α_m + f_m ω_m + T_cm sgn ω_m + ρ(J_L α_c + f_L ω_c + T_cL sgn ω_c − T_ext).
+/// The bodies where both move: ū = J_m α_m + f_m ω_m + T_cm sgn ω_m + ρ(J_L α_c + f_L ω_c + T_cL sgn ω_c − T_ext).
+void compliantBodies(const Recording& d, const IdentificationSettings& s, const BothBodies& m, InitialEstimates* est)
+{
+  InitialEstimates& out = *est;
+  const std::size_t n = d.time.size(), reach = m.reach;
+  const double rho = s.gear_ratio;
+  const BodyMotion &motor = m.motor, &load = m.load;
+  const std::vector<double> ubar = meanTorque(d, s.smoothing);
+  const double still_m = m.still_m, still_c = m.still_c;
   std::vector<std::size_t> both;
   bool forward = false, backward = false;
   for (std::size_t k = reach; k + reach < n; ++k)
@@ -100,10 +107,21 @@ InitialEstimates estimateCompliantInitial(const Recording& d, const Identificati
   out.load_torque = known_load ? Estimate{s.load_torque_fallback, NAN} : Estimate{body.p(6), body.se(6)};
   out.load_torque_given = known_load;
   out.apart_rms_residual = body.rms;
-  const double text = out.load_torque.value;
+}
 
-  // The mesh: τ = J_L α_c + f_L ω_c + T_cL sgn ω_c − T_ext where the load moves; τ = −c g − d ġ + b_f or + b_b.
-  std::vector<double> tau(n, NAN), gap(n), rate(n);
+/// The mesh where the load moves: τ = J_L α_c + f_L ω_c + T_cL sgn ω_c − T_ext = −c g − d ġ + b (b per flank) →
+/// stiffness, damping, the flanks (zero offset, backlash). Also fills `gap` and `rate` [rad, rad/s].
+void compliantMesh(const IdentificationSettings& s, const BothBodies& m, std::vector<double>* gap_out,
+                   std::vector<double>* rate_out, InitialEstimates* est)
+{
+  InitialEstimates& out = *est;
+  const std::size_t n = m.motor.angle.size(), reach = m.reach;
+  const double rho = s.gear_ratio, still_c = m.still_c, text = out.load_torque.value;
+  const BodyMotion &motor = m.motor, &load = m.load;
+  std::vector<double>&gap = *gap_out, &rate = *rate_out;
+  gap.assign(n, 0.0);
+  rate.assign(n, 0.0);
+  std::vector<double> tau(n, NAN);
   std::vector<double> magnitudes;
   for (std::size_t k = 0; k < n; ++k)
   {
@@ -177,8 +195,17 @@ InitialEstimates estimateCompliantInitial(const Recording& d, const Identificati
   out.contact_samples = mesh_rows;
   out.apart_samples = free_samples;
   out.contact_rms_residual = mesh.rms;
+}
 
-  // Static friction from each body's rests: the net torque on it, the mesh's from the gap by the law.
+/// Static friction from each body's rests: the net torque on it, the mesh's from the gap by the law.
+void compliantStatics(const Recording& d, const IdentificationSettings& s, const BothBodies& m,
+                      const std::vector<double>& gap, const std::vector<double>& rate, InitialEstimates* est)
+{
+  InitialEstimates& out = *est;
+  const std::size_t n = d.time.size(), r = static_cast<std::size_t>(s.smoothing), reach = m.reach;
+  const double rho = s.gear_ratio;
+  const BodyMotion &motor = m.motor, &load = m.load;
+  const double h = m.h, text = out.load_torque.value, c = out.mesh_stiffness.value;
   const double g0 = out.zero_offset, delta = out.backlash.value, dm = out.mesh_damping.value;
   const auto meshTorque = [&](std::size_t k) {
     if (gap[k] < g0)
@@ -224,6 +251,23 @@ InitialEstimates estimateCompliantInitial(const Recording& d, const Identificati
   out.motor_static_friction =
       bounds(motor.angle, [&](std::size_t k) { return std::fabs(d.motor_torque[k] - rho * meshTorque(k)); });
   out.load_static_friction = bounds(load.angle, [&](std::size_t k) { return std::fabs(meshTorque(k) + text); });
+}
+}  // namespace
+
+InitialEstimates estimateCompliantInitial(const Recording& d, const IdentificationSettings& s)
+{
+  BothBodies m;
+  m.h = samplePeriod(d, s);
+  m.reach = 2 + 2 * static_cast<std::size_t>(s.smoothing);
+  m.motor = differentiate(d.motor_position, m.h, s.smoothing);
+  m.load = differentiate(d.load_position, m.h, s.smoothing);
+  m.still_m = s.still_speed > 0.0 ? s.still_speed : 1e-6 * largestMagnitude(m.motor.velocity);
+  m.still_c = s.still_speed > 0.0 ? s.still_speed : 1e-6 * largestMagnitude(m.load.velocity);
+  InitialEstimates out;
+  compliantBodies(d, s, m, &out);
+  std::vector<double> gap, rate;
+  compliantMesh(s, m, &gap, &rate, &out);
+  compliantStatics(d, s, m, gap, rate, &out);
   return out;
 }
 
