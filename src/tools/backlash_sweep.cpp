@@ -171,6 +171,60 @@ int merge(int argc, char** argv)
   return 0;
 }
 
+/// How the run ended, as the exit code: a write that failed (the partial file removed), the output committed, a
+/// point's error, an interruption (--resume finishes it), or the figures of a complete run.
+struct RunEnd
+{
+  bool write_failed = false;
+  std::size_t written = 0, first = 0, last = 0, kept = 0;
+  double elapsed = 0.0;  ///< [s] wall
+};
+
+int endRun(const SweepOptions& o, const SweepShard& shard, SafeOutput* file, const SweepRunResult& run,
+           const RunEnd& end)
+{
+  const std::size_t written = end.written, first = end.first, last = end.last;
+  if (end.write_failed)
+  {
+    if (file)
+    {
+      file->discard();
+    }
+    std::cerr << "backlash_sweep: error: writing " << (file ? "'" + o.output + "'" : std::string("standard output"))
+              << " failed after " << written << " of " << last - first << " rows (disk full?); stopped computing"
+              << (file ? "; the partial file was removed and '" + o.output + "' is as before" : std::string()) << "\n";
+    return 1;
+  }
+  if (file)
+  {
+    try
+    {
+      file->commit();
+    }
+    catch (const std::exception& e)
+    {
+      std::cerr << "backlash_sweep: error: " << e.what() << "\n";
+      return 1;
+    }
+  }
+  if (!run.failure.empty())
+  {
+    std::cerr << "backlash_sweep: error at " << run.failure << "\n";
+    return 1;
+  }
+  if (g_interrupted)
+  {
+    std::cerr << "backlash_sweep: interrupted: " << end.kept + run.delivered << " of " << last - first
+              << " points written; rerun with --resume to finish\n";
+    return 130;
+  }
+  std::fprintf(
+      stderr, "backlash_sweep: %zu points (%zu computed) in %.3f s wall with %d jobs%s\n", last - first,
+      last - first - end.kept, end.elapsed, o.jobs,
+      shard.whole() ? "" : (" (part " + std::to_string(shard.k) + "/" + std::to_string(shard.n) + ")").c_str());
+  return 0;
+}
+
 int main(int argc, char** argv)
 {
   for (int i = 1; i < argc; ++i)
@@ -260,43 +314,12 @@ int main(int argc, char** argv)
         g_stop);
   }
   progress.finish();
-  if (write_failed)
-  {
-    if (file)
-    {
-      file->discard();
-    }
-    std::cerr << "backlash_sweep: error: writing " << (file ? "'" + o.output + "'" : std::string("standard output"))
-              << " failed after " << written << " of " << last - first << " rows (disk full?); stopped computing"
-              << (file ? "; the partial file was removed and '" + o.output + "' is as before" : std::string()) << "\n";
-    return 1;
-  }
-  if (file)
-  {
-    try
-    {
-      file->commit();
-    }
-    catch (const std::exception& e)
-    {
-      std::cerr << "backlash_sweep: error: " << e.what() << "\n";
-      return 1;
-    }
-  }
-  if (!run.failure.empty())
-  {
-    std::cerr << "backlash_sweep: error at " << run.failure << "\n";
-    return 1;
-  }
-  if (g_interrupted)
-  {
-    std::cerr << "backlash_sweep: interrupted: " << kept.size() + run.delivered << " of " << last - first
-              << " points written; rerun with --resume to finish\n";
-    return 130;
-  }
-  std::fprintf(
-      stderr, "backlash_sweep: %zu points (%zu computed) in %.3f s wall with %d jobs%s\n", last - first,
-      last - first - kept.size(), progress.elapsed(), o.jobs,
-      shard.whole() ? "" : (" (part " + std::to_string(shard.k) + "/" + std::to_string(shard.n) + ")").c_str());
-  return 0;
+  RunEnd end;
+  end.write_failed = write_failed;
+  end.written = written;
+  end.first = first;
+  end.last = last;
+  end.kept = kept.size();
+  end.elapsed = progress.elapsed();
+  return endRun(o, shard, file.get(), run, end);
 }
