@@ -28,11 +28,11 @@ const ParamRange VELOCITY{-1e9, 1e9, false, false};
 using S = ParamSection;
 using T = ParamType;
 
-std::vector<ParamSpec> makeTable()
+/// The servo, physical form (defaults: the thesis' limit-cycle case, App. D1).
+std::vector<ParamSpec> servoKeys()
 {
   // clang-format off
   return {
-    // ---- the servo, physical form (defaults: the thesis' limit-cycle case, App. D1) ----
     {"motor_inertia", "J_m", "kg·m²", T::Real, S::Servo, INERTIA, "0.1", "motor inertia on the motor shaft", true, {},
      &ServoParams::motor_inertia},
     {"load_inertia", "J_L", "kg·m²", T::Real, S::Servo, INERTIA, "0.9", "load inertia on the load shaft", true, {},
@@ -77,8 +77,16 @@ std::vector<ParamSpec> makeTable()
      "torsional stiffness of the shaft from the output gear to the load; 0 = rigid shaft (both forms)", true, {},
      &ServoParams::shaft_stiffness},
     {"shaft_damping", "d_s", "N·m·s/rad", T::Real, S::Servo, FRICTION, "0",
-     "torsional damping of the shaft, with shaft_stiffness only (both forms)", true, {}, &ServoParams::shaft_damping},
-    // ---- the servo, chart form (instead of J_m … K) ----
+     "torsional damping of the shaft, with shaft_stiffness only (both forms)", true, {}, &ServoParams::shaft_damping}
+  };
+  // clang-format on
+}
+
+/// The servo, chart form (instead of J_m … K).
+std::vector<ParamSpec> chartKeys()
+{
+  // clang-format off
+  return {
     {"zeta", "ζ", "-", T::Real, S::Chart, ParamRange{0.0, 100.0, false, false}, "", "damping ratio (required in the chart form)", false, {},
      &ChartParams::zeta},
     {"natural_frequency", "ω_n", "rad/s", T::Real, S::Chart, ParamRange{1e-3, 1e4, false, false}, "1", "natural frequency √(ρK/J)", false, {},
@@ -88,8 +96,16 @@ std::vector<ParamSpec> makeTable()
     {"inertia_ratio", "ρ²J_L/J_m", "-", T::Real, S::Chart, RATIO, "", "inertia split (required in the chart form)",
      false, {}, &ChartParams::inertia_ratio},
     {"friction_ratio", "ρ²f_L/F_T", "-", T::Real, S::Chart, UNIT, "",
-     "friction split, F_T = f_m + ρ²f_L (required in the chart form)", false, {}, &ChartParams::friction_ratio},
-    // ---- command and initial state ----
+     "friction split, F_T = f_m + ρ²f_L (required in the chart form)", false, {}, &ChartParams::friction_ratio}
+  };
+  // clang-format on
+}
+
+/// Command and initial state.
+std::vector<ParamSpec> initialKeys()
+{
+  // clang-format off
+  return {
     {"command", "θ_R", "rad", T::Real, S::Initial, POSITION, "1", "load set-point, applied at t = 0", false, {},
      &RunConfig::command},
     {"profile", "θ_R(t)", "file", T::Text, S::Initial, FINITE, "",
@@ -105,8 +121,16 @@ std::vector<ParamSpec> makeTable()
     {"motor_velocity", "ω_m", "rad/s", T::Real, S::Initial, ParamRange{-1e12, 1e12, false, false}, "", "initial motor velocity (default: ω_c/ρ)", false,
      {}, &State::motor_velocity},
     {"contact", "", "-", T::Choice, S::Initial, FINITE, "forward", "teeth at the start: gap 0, gap Δ, or floating",
-     false, {"forward", "backward", "none"}, {}},
-    // ---- the drive (docs/model.md Part 2, "Digital drive"); the P gain is `gain` ----
+     false, {"forward", "backward", "none"}, {}}
+  };
+  // clang-format on
+}
+
+/// The drive (docs/model.md Part 2, "Digital drive"); the P gain is `gain`.
+std::vector<ParamSpec> driveKeys()
+{
+  // clang-format off
+  return {
     {"control_law", "", "-", T::Choice, S::Drive, FINITE, "proportional",
      "proportional (continuous or sampled), pid or cascade (sampled laws)", true, {"proportional", "pid", "cascade"},
      {}},
@@ -134,8 +158,16 @@ std::vector<ParamSpec> makeTable()
     {"velocity_loop_integral_gain", "K_vi", "N·m/rad", T::Real, S::Drive, ParamRange{0.0, 1e12, false, false}, "0",
      "cascade: inner velocity loop integral gain", true, {}, &DriveParams::velocity_loop_integral_gain},
     {"torque_limit", "T_max", "N·m", T::Real, S::Drive, ParamRange{0.0, 1e12, false, false}, "0",
-     "saturation of the motor torque, 0 = none (every law)", true, {}, &DriveParams::torque_limit},
-    // ---- backlash compensation (compensator.h for digital drives; drive.h ProportionalDrive for the continuous law) --
+     "saturation of the motor torque, 0 = none (every law)", true, {}, &DriveParams::torque_limit}
+  };
+  // clang-format on
+}
+
+/// Backlash compensation (compensator.h for digital drives; drive.h ProportionalDrive for the continuous law).
+std::vector<ParamSpec> compensationKeys()
+{
+  // clang-format off
+  return {
     {"compensation", "", "-", T::Choice, S::Drive, FINITE, "none",
      "backlash compensator (docs/workbench.md; the continuous law takes friction_feedforward with "
      "compensation_width > 0 and a square dither)",
@@ -158,8 +190,16 @@ std::vector<ParamSpec> makeTable()
     {"dither_frequency", "f_d", "Hz", T::Real, S::Drive, ParamRange{0.0, 1e6, false, false}, "0",
      "dither: frequency (at most controller_rate / 2 on a digital drive)", true, {}, &DriveParams::dither_frequency},
     {"dither_shape", "", "-", T::Choice, S::Drive, FINITE, "square", "dither: square or sine wave", true,
-     {"square", "sine"}, {}},
-    // ---- length of a command-line run ----
+     {"square", "sine"}, {}}
+  };
+  // clang-format on
+}
+
+/// Length of a command-line run.
+std::vector<ParamSpec> runKeys()
+{
+  // clang-format off
+  return {
     {"duration", "", "s", T::Real, S::Run, NON_NEGATIVE, "0",
      "simulate exactly this long (0 = until the verdict is settled)", false, {}, &RunConfig::duration},
     {"max_duration", "", "s", T::Real, S::Run, NON_NEGATIVE, "0", "cap when running until settled (0 = max(2000/ω_n, 100 × the drive's or the plant's slowest time constant, "
@@ -172,8 +212,16 @@ std::vector<ParamSpec> makeTable()
     {"max_events", "", "-", T::Real, S::Run, ParamRange{1.0, 1e12, false, false}, "1e7",
      "event budget of a run: impacts, and apart rests and law switches; beyond it the run stops, unsettled (an "
      "impact storm or a sliding mode is not a hang)",
-     false, {}, &RunConfig::max_events},
-    // ---- ROS node ----
+     false, {}, &RunConfig::max_events}
+  };
+  // clang-format on
+}
+
+/// ROS node.
+std::vector<ParamSpec> nodeKeys()
+{
+  // clang-format off
+  return {
     {"control_mode", "", "-", T::Choice, S::Node, FINITE, "position",
      "position: internal P law on `command`; effort: torque from `motor_effort`", true, {"position", "effort"}, {}},
     {"motor_effort", "", "N·m", T::Real, S::Node, ParamRange{-1e12, 1e12, false, false}, "0", "initial motor torque in effort mode", false, {}, {}},
@@ -219,9 +267,21 @@ std::vector<ParamSpec> makeTable()
      true, {}, {}},
     {"effort_timeout", "", "s", T::Real, S::Node, NON_NEGATIVE, "0",
      "effort mode: sim time without a motor_effort message after which the torque drops to 0 with a warning "
-     "(0 = never)", true, {}, {}},
+     "(0 = never)", true, {}, {}}
   };
   // clang-format on
+}
+
+/// Every parameter, in the order of --help, the .cfg and the docs.
+std::vector<ParamSpec> makeTable()
+{
+  std::vector<ParamSpec> table;
+  for (auto section : {servoKeys, chartKeys, initialKeys, driveKeys, compensationKeys, runKeys, nodeKeys})
+  {
+    std::vector<ParamSpec> keys = section();
+    table.insert(table.end(), std::make_move_iterator(keys.begin()), std::make_move_iterator(keys.end()));
+  }
+  return table;
 }
 }  // namespace
 
