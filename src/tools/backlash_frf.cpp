@@ -113,9 +113,10 @@ std::vector<double> logRange(const std::string& text)
   return out;
 }
 
-Options parse(int argc, char** argv)
+/// The flags: the joint's keys and the tool's options, with their help.
+FlagParser frfFlags()
 {
-  FlagParser parser(
+  return FlagParser(
       "backlash_frf", HEADER,
       keysOfSections({ParamSection::Servo, ParamSection::Chart, ParamSection::Drive, ParamSection::Initial}),
       {{"config", "FILE.yaml", "the joint's keys in snake_case (flags override it)"},
@@ -158,6 +159,128 @@ Options parse(int argc, char** argv)
        {"merge", "PART...",
         "join the part files of one sharded run (any order) into --csv FILE: exactly the CSV of "
         "an unsharded run"}});
+}
+
+/// The broadband excitation's settings (--prbs-*, --chirp*, --periods, --settle-periods).
+void readBroadband(const FlagParser& parser, Options* options)
+{
+  Options& o = *options;
+  BroadbandSettings& b = o.broadband;
+  b.kind = o.excitation == "prbs" ? BroadbandKind::Prbs : BroadbandKind::Chirp;
+  const auto whole = [&](const char* flag, int fallback, int lo, int hi) {
+    const double v = parser.optionNumber(flag, fallback);
+    if (!(v >= lo && v <= hi) || v != std::floor(v))
+    {
+      std::string shown = std::string("--") + flag;
+      std::replace(shown.begin(), shown.end(), '_', '-');
+      throw ConfigError(shown + " must be a whole number in [" + std::to_string(lo) + ", " + std::to_string(hi) + "]");
+    }
+    return static_cast<int>(v);
+  };
+  b.prbs_order = whole("prbs_order", 10, 3, 20);
+  b.prbs_hold = whole("prbs_hold", 1, 1, 1000);
+  b.chirp_samples = whole("chirp_samples", 4096, 16, 1 << 20);
+  b.periods = whole("periods", 8, 1, 10000);
+  b.settle_periods = whole("settle_periods", 0, 0, 10000);
+  if (parser.given("chirp"))
+  {
+    char tail = 0;
+    if (std::sscanf(parser.option("chirp").c_str(), "%lf:%lf%c", &b.chirp_low, &b.chirp_high, &tail) != 2 ||
+        !(b.chirp_low > 0.0) || !(b.chirp_high > b.chirp_low) || !std::isfinite(b.chirp_high))
+    {
+      throw ConfigError("--chirp: '" + parser.option("chirp") + "' is not LO:HI with 0 < LO < HI [rad/s]");
+    }
+  }
+}
+
+/// The stepped sines' settings: offset, injection, tolerance, periods, harmonics.
+void readSineSettings(const FlagParser& parser, bool torque_channel, Options* options)
+{
+  Options& o = *options;
+  o.settings.offset = parser.optionNumber("offset", 0.0);
+  o.settings.continuous = parser.given("continuous");
+  if (o.settings.continuous &&
+      (!torque_channel || parser.given("injection_rate") || parser.option("excitation", "sine") != "sine"))
+  {
+    throw ConfigError(
+        "--continuous is for stepped sines on the torque channels, without --injection-rate (the "
+        "command takes the sine itself under the continuous law)");
+  }
+  o.settings.injection_rate = parser.optionNumber("injection_rate", 0.0);
+  if (parser.given("injection_rate") && !(o.settings.injection_rate > 0.0))
+  {
+    throw ConfigError("--injection-rate must be > 0 Hz");
+  }
+  if (parser.given("injection_rate") && !torque_channel)
+  {
+    throw ConfigError("--injection-rate is for the torque channels: the command is sampled by the drive");
+  }
+  o.settings.tolerance = parser.optionNumber("tolerance", 1e-8);
+  if (!(o.settings.tolerance > 0.0 && o.settings.tolerance < 1.0))
+  {
+    throw ConfigError("--tolerance must be in (0, 1)");
+  }
+  const double periods = parser.optionNumber("max_periods", 0.0);
+  if (parser.given("max_periods") && (!(periods >= 3.0 && periods <= 1e7) || periods != std::floor(periods)))
+  {
+    throw ConfigError("--max-periods must be a whole number in [3, 1e7]");
+  }
+  o.settings.max_periods = static_cast<int>(periods);
+  const double harmonics = parser.optionNumber("harmonics", 10.0);
+  if (!(harmonics >= 1.0 && harmonics <= 100.0) || harmonics != std::floor(harmonics))
+  {
+    throw ConfigError("--harmonics must be a whole number in [1, 100]");
+  }
+  o.settings.harmonics = static_cast<int>(harmonics);
+}
+
+/// The outputs, the jobs and a shard.
+void readOutputs(const FlagParser& parser, bool sine, Options* options)
+{
+  Options& o = *options;
+  o.linear = parser.given("linear") || parser.given("png");
+  o.json = parser.given("json");
+  o.csv_path = parser.option("csv");
+  o.png_path = parser.option("png");
+  if (parser.given("png") && (o.png_path.size() < 5 || o.png_path.compare(o.png_path.size() - 4, 4, ".png") != 0))
+  {
+    throw ConfigError("--png: '" + o.png_path + "' must end in .png");
+  }
+  if (o.json && o.csv_path == "-")
+  {
+    throw ConfigError("--json and --csv - both want stdout: write the CSV to a file");
+  }
+  const double jobs = parser.optionNumber("jobs", std::max(1u, std::thread::hardware_concurrency()));
+  if (!(jobs >= 1.0 && jobs <= 4096.0) || jobs != std::floor(jobs))
+  {
+    throw ConfigError("--jobs must be a whole number in [1, 4096]");
+  }
+  o.jobs = static_cast<int>(jobs);
+  if (parser.given("shard"))
+  {
+    unsigned long long k = 0, n = 0;
+    char tail = 0;
+    if (std::sscanf(parser.option("shard").c_str(), "%llu/%llu%c", &k, &n, &tail) != 2 || n < 1 || k < 1 || k > n ||
+        n > 100000)
+    {
+      throw ConfigError("--shard: expected K/N with 1 <= K <= N <= 100000 (got '" + parser.option("shard") + "')");
+    }
+    if (!sine)
+    {
+      throw ConfigError("--shard is for stepped sines: a broadband estimate is one run");
+    }
+    if (o.csv_path.empty() || o.csv_path == "-" || o.json || parser.given("png"))
+    {
+      throw ConfigError("--shard writes its points to a part file: give --csv PART.csv (and no --json or --png)");
+    }
+    o.shard_k = k;
+    o.shard_n = n;
+  }
+}
+
+Options parse(int argc, char** argv)
+{
+  FlagParser parser = frfFlags();
   parser.parse(argc, argv);
   Options o;
   o.config_path = parser.option("config");
@@ -197,33 +320,7 @@ Options parse(int argc, char** argv)
                         " sets its own frequencies: --frequency, --frequency-range, --tolerance, --max-periods, "
                         "--harmonics and --jobs are for stepped sines");
     }
-    BroadbandSettings& b = o.broadband;
-    b.kind = o.excitation == "prbs" ? BroadbandKind::Prbs : BroadbandKind::Chirp;
-    const auto whole = [&](const char* flag, int fallback, int lo, int hi) {
-      const double v = parser.optionNumber(flag, fallback);
-      if (!(v >= lo && v <= hi) || v != std::floor(v))
-      {
-        std::string shown = std::string("--") + flag;
-        std::replace(shown.begin(), shown.end(), '_', '-');
-        throw ConfigError(shown + " must be a whole number in [" + std::to_string(lo) + ", " + std::to_string(hi) +
-                          "]");
-      }
-      return static_cast<int>(v);
-    };
-    b.prbs_order = whole("prbs_order", 10, 3, 20);
-    b.prbs_hold = whole("prbs_hold", 1, 1, 1000);
-    b.chirp_samples = whole("chirp_samples", 4096, 16, 1 << 20);
-    b.periods = whole("periods", 8, 1, 10000);
-    b.settle_periods = whole("settle_periods", 0, 0, 10000);
-    if (parser.given("chirp"))
-    {
-      char tail = 0;
-      if (std::sscanf(parser.option("chirp").c_str(), "%lf:%lf%c", &b.chirp_low, &b.chirp_high, &tail) != 2 ||
-          !(b.chirp_low > 0.0) || !(b.chirp_high > b.chirp_low) || !std::isfinite(b.chirp_high))
-      {
-        throw ConfigError("--chirp: '" + parser.option("chirp") + "' is not LO:HI with 0 < LO < HI [rad/s]");
-      }
-    }
+    readBroadband(parser, &o);
   }
   else if (parser.given("frequency") == parser.given("frequency_range"))
   {
@@ -234,79 +331,8 @@ Options parse(int argc, char** argv)
     o.frequencies = parser.given("frequency") ? numberList("frequency", parser.option("frequency"))
                                               : logRange(parser.option("frequency_range"));
   }
-  o.settings.offset = parser.optionNumber("offset", 0.0);
-  o.settings.continuous = parser.given("continuous");
-  if (o.settings.continuous &&
-      (!torque_channel || parser.given("injection_rate") || parser.option("excitation", "sine") != "sine"))
-  {
-    throw ConfigError(
-        "--continuous is for stepped sines on the torque channels, without --injection-rate (the "
-        "command takes the sine itself under the continuous law)");
-  }
-  o.settings.injection_rate = parser.optionNumber("injection_rate", 0.0);
-  if (parser.given("injection_rate") && !(o.settings.injection_rate > 0.0))
-  {
-    throw ConfigError("--injection-rate must be > 0 Hz");
-  }
-  if (parser.given("injection_rate") && !torque_channel)
-  {
-    throw ConfigError("--injection-rate is for the torque channels: the command is sampled by the drive");
-  }
-  o.settings.tolerance = parser.optionNumber("tolerance", 1e-8);
-  if (!(o.settings.tolerance > 0.0 && o.settings.tolerance < 1.0))
-  {
-    throw ConfigError("--tolerance must be in (0, 1)");
-  }
-  const double periods = parser.optionNumber("max_periods", 0.0);
-  if (parser.given("max_periods") && (!(periods >= 3.0 && periods <= 1e7) || periods != std::floor(periods)))
-  {
-    throw ConfigError("--max-periods must be a whole number in [3, 1e7]");
-  }
-  o.settings.max_periods = static_cast<int>(periods);
-  const double harmonics = parser.optionNumber("harmonics", 10.0);
-  if (!(harmonics >= 1.0 && harmonics <= 100.0) || harmonics != std::floor(harmonics))
-  {
-    throw ConfigError("--harmonics must be a whole number in [1, 100]");
-  }
-  o.settings.harmonics = static_cast<int>(harmonics);
-  o.linear = parser.given("linear") || parser.given("png");
-  o.json = parser.given("json");
-  o.csv_path = parser.option("csv");
-  o.png_path = parser.option("png");
-  if (parser.given("png") && (o.png_path.size() < 5 || o.png_path.compare(o.png_path.size() - 4, 4, ".png") != 0))
-  {
-    throw ConfigError("--png: '" + o.png_path + "' must end in .png");
-  }
-  if (o.json && o.csv_path == "-")
-  {
-    throw ConfigError("--json and --csv - both want stdout: write the CSV to a file");
-  }
-  const double jobs = parser.optionNumber("jobs", std::max(1u, std::thread::hardware_concurrency()));
-  if (!(jobs >= 1.0 && jobs <= 4096.0) || jobs != std::floor(jobs))
-  {
-    throw ConfigError("--jobs must be a whole number in [1, 4096]");
-  }
-  o.jobs = static_cast<int>(jobs);
-  if (parser.given("shard"))
-  {
-    unsigned long long k = 0, n = 0;
-    char tail = 0;
-    if (std::sscanf(parser.option("shard").c_str(), "%llu/%llu%c", &k, &n, &tail) != 2 || n < 1 || k < 1 || k > n ||
-        n > 100000)
-    {
-      throw ConfigError("--shard: expected K/N with 1 <= K <= N <= 100000 (got '" + parser.option("shard") + "')");
-    }
-    if (!sine)
-    {
-      throw ConfigError("--shard is for stepped sines: a broadband estimate is one run");
-    }
-    if (o.csv_path.empty() || o.csv_path == "-" || o.json || parser.given("png"))
-    {
-      throw ConfigError("--shard writes its points to a part file: give --csv PART.csv (and no --json or --png)");
-    }
-    o.shard_k = k;
-    o.shard_n = n;
-  }
+  readSineSettings(parser, torque_channel, &o);
+  readOutputs(parser, sine, &o);
   o.dry_run = parser.given("dry_run");
   o.broadband.channel = o.settings.channel;
   o.broadband.offset = o.settings.offset;

@@ -78,9 +78,10 @@ struct Options
   JointFitSettings joint;
 };
 
-Options parse(int argc, char** argv)
+/// The flags: the prior's keys and the tool's options, with their help.
+FlagParser identifyFlags()
 {
-  FlagParser parser(
+  return FlagParser(
       "backlash_identify", HEADER,
       keysOfSections({ParamSection::Servo, ParamSection::Drive, ParamSection::Initial, ParamSection::Run}),
       {{"config", "PRIOR.yaml", "what is known of the joint (the gear ratio at least); flags override it"},
@@ -127,65 +128,54 @@ Options parse(int argc, char** argv)
         "the "
         "loop's natural frequency, at most an eighth of the controller rate), so that no body sticks at the slow "
         "reversals"}});
-  parser.parse(argc, argv);
-  Options o;
-  o.config_path = parser.option("config");
-  o.data_path = parser.option("data");
-  o.joint_states_topic = parser.option("joint_states");
-  o.motor_joint = parser.option("motor_joint");
-  o.load_joint = parser.option("load_joint");
-  const bool bag = o.data_path.size() > 4 && o.data_path.compare(o.data_path.size() - 4, 4, ".bag") == 0;
-  if (!bag && (parser.given("joint_states") || parser.given("motor_joint") || parser.given("load_joint")))
+}
+
+/// --experiment: the prior, the excitation's length and travel, and a dither.
+void readExperiment(const FlagParser& parser, Options* options)
+{
+  Options& o = *options;
+  o.prior_config = runConfigFrom(parser.keys());
+  o.duration = parser.optionNumber("duration", 60.0);
+  o.travel = parser.optionNumber("travel", 3.0 * o.prior_config.params.backlash);
+  if (parser.given("dither"))
   {
-    throw ConfigError("--joint-states, --motor-joint and --load-joint read a bag: give --data FILE.bag");
-  }
-  o.output_path = parser.option("output");
-  o.json = parser.given("json");
-  o.experiment = parser.given("experiment");
-  if (o.experiment)
-  {
-    if (!o.data_path.empty() || o.output_path.empty() || o.json)
+    const std::string text = parser.option("dither");
+    const std::size_t comma = text.find(',');
+    const double rate = o.prior_config.drive.controller_rate;
+    if (!(rate > 0.0))
     {
-      throw ConfigError("--experiment writes a profile: give --output PROFILE.yaml (and no --data or --json)");
+      throw ConfigError(
+          "--dither: the drive must be digital (controller_rate > 0 Hz in the prior): a dither is "
+          "sampled");
     }
-    o.prior_config = runConfigFrom(parser.keys());
-    o.duration = parser.optionNumber("duration", 60.0);
-    o.travel = parser.optionNumber("travel", 3.0 * o.prior_config.params.backlash);
-    if (parser.given("dither"))
+    const auto number = [&text](const std::string& item) {
+      char* end = nullptr;
+      const double v = std::strtod(item.c_str(), &end);
+      if (item.empty() || end == item.c_str() || *end != '\0' || !std::isfinite(v))
+      {
+        throw ConfigError("--dither: '" + item + "' is not a number (in '" + text + "'; RAD or RAD,HZ)");
+      }
+      return v;
+    };
+    o.dither_amplitude = number(text.substr(0, comma));
+    o.dither_frequency =
+        comma == std::string::npos
+            ? std::min(20.0 * o.prior_config.params.naturalFrequency() / (2.0 * 3.14159265358979323846), rate / 8.0)
+            : number(text.substr(comma + 1));
+    if (!(o.dither_amplitude > 0.0) || !(o.dither_frequency > 0.0) || o.dither_frequency > rate / 4.0)
     {
-      const std::string text = parser.option("dither");
-      const std::size_t comma = text.find(',');
-      const double rate = o.prior_config.drive.controller_rate;
-      if (!(rate > 0.0))
-      {
-        throw ConfigError(
-            "--dither: the drive must be digital (controller_rate > 0 Hz in the prior): a dither is "
-            "sampled");
-      }
-      const auto number = [&text](const std::string& item) {
-        char* end = nullptr;
-        const double v = std::strtod(item.c_str(), &end);
-        if (item.empty() || end == item.c_str() || *end != '\0' || !std::isfinite(v))
-        {
-          throw ConfigError("--dither: '" + item + "' is not a number (in '" + text + "'; RAD or RAD,HZ)");
-        }
-        return v;
-      };
-      o.dither_amplitude = number(text.substr(0, comma));
-      o.dither_frequency =
-          comma == std::string::npos
-              ? std::min(20.0 * o.prior_config.params.naturalFrequency() / (2.0 * 3.14159265358979323846), rate / 8.0)
-              : number(text.substr(comma + 1));
-      if (!(o.dither_amplitude > 0.0) || !(o.dither_frequency > 0.0) || o.dither_frequency > rate / 4.0)
-      {
-        throw ConfigError(
-            "--dither: the amplitude must be > 0 rad and the frequency > 0 Hz, at most a quarter of the "
-            "controller rate (got '" +
-            text + "')");
-      }
+      throw ConfigError(
+          "--dither: the amplitude must be > 0 rad and the frequency > 0 Hz, at most a quarter of the "
+          "controller rate (got '" +
+          text + "')");
     }
-    return o;
   }
+}
+
+/// The keys to fit and the joint fit's settings (--fit, --joint-fit, --windows, --window, --max-evaluations).
+void readFit(const FlagParser& parser, Options* options)
+{
+  Options& o = *options;
   const std::vector<std::string>& fittable = identifiedKeys();
   if (parser.given("fit"))
   {
@@ -236,6 +226,36 @@ Options parse(int argc, char** argv)
   {
     throw ConfigError("--windows, --window and --max-evaluations set the joint fit, which --joint-fit off skips");
   }
+}
+
+Options parse(int argc, char** argv)
+{
+  FlagParser parser = identifyFlags();
+  parser.parse(argc, argv);
+  Options o;
+  o.config_path = parser.option("config");
+  o.data_path = parser.option("data");
+  o.joint_states_topic = parser.option("joint_states");
+  o.motor_joint = parser.option("motor_joint");
+  o.load_joint = parser.option("load_joint");
+  const bool bag = o.data_path.size() > 4 && o.data_path.compare(o.data_path.size() - 4, 4, ".bag") == 0;
+  if (!bag && (parser.given("joint_states") || parser.given("motor_joint") || parser.given("load_joint")))
+  {
+    throw ConfigError("--joint-states, --motor-joint and --load-joint read a bag: give --data FILE.bag");
+  }
+  o.output_path = parser.option("output");
+  o.json = parser.given("json");
+  o.experiment = parser.given("experiment");
+  if (o.experiment)
+  {
+    if (!o.data_path.empty() || o.output_path.empty() || o.json)
+    {
+      throw ConfigError("--experiment writes a profile: give --output PROFILE.yaml (and no --data or --json)");
+    }
+    readExperiment(parser, &o);
+    return o;
+  }
+  readFit(parser, &o);
   o.png_path = parser.option("png");
   if (parser.given("png") && (o.png_path.size() < 5 || o.png_path.compare(o.png_path.size() - 4, 4, ".png") != 0))
   {
