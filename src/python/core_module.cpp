@@ -818,19 +818,9 @@ class PySimulator
 };
 }  // namespace
 
-PYBIND11_MODULE(core, m)
+/// Runs, sweeps and the workbench.
+void bindStudies(py::module_& m)
 {
-  m.doc() =
-      "backlash_servo.core: the exact backlash servo simulator from Python. Configurations are the YAML keys of the "
-      "command-line tools and the node (a dict, or the path of a YAML file), in SI units; see docs/python.md.";
-  // pybind11's numpy bindings keep C++ function-local statics (the numpy C API table, the dtypes) whose first use
-  // imports numpy: first made by two threads at once, one waits on the static holding the GIL while the other's
-  // import waits for the GIL — a deadlock. They are made here, while the import holds the GIL for this thread alone.
-  py::module_::import("numpy");
-  (void)py::array_t<double>(0);
-  (void)py::array_t<std::complex<double>>(0);
-  py::register_exception<ConfigError>(m, "ConfigError", PyExc_ValueError);
-  py::register_exception<InvalidParameterError>(m, "InvalidParameterError", PyExc_ValueError);
   m.def("run", &run, py::arg("config") = py::none(),
         "One run until its verdict is settled (or for `duration` [s]): the dict `backlash_sim --json` prints.");
   m.def("sweep", &sweep, py::arg("settings") = py::none(), py::kw_only(), py::arg("thesis") = false,
@@ -843,6 +833,11 @@ PYBIND11_MODULE(core, m)
         "The same sweep as `backlash_sweep`'s CSV text.");
   m.def("compare", &compare, py::arg("path"), py::kw_only(), py::arg("jobs") = 0,
         "The compensation workbench (`backlash_compare --config PATH`): one dict of metrics per strategy.");
+}
+
+/// Describing functions, the driven elements and frequency responses.
+void bindFrequency(py::module_& m)
+{
   m.def("backlash_df", &backlashDescribingFunction, py::arg("amplitude"), py::arg("backlash"),
         "The classical describing function of backlash as hysteresis (complex) at input amplitude A [rad] about its "
         "centre for a full backlash Δ [rad]; 0 for A ≤ Δ/2 (docs/describing_function.md).");
@@ -898,6 +893,11 @@ PYBIND11_MODULE(core, m)
         "channel; a dict with the frequency used, the complex response, gain, phase [rad], distortion, periodic, "
         "flank_changes, … (docs/frequency_response.md). continuous=True: the torque's sine itself (not on rigid "
         "teeth with dry friction); the command takes the sine itself under the continuous law.");
+}
+
+/// Identification from a recording.
+void bindIdentification(py::module_& m)
+{
   m.def("identify", &identify, py::arg("time"), py::arg("motor_torque"), py::arg("motor_position"),
         py::arg("load_position"), py::kw_only(), py::arg("gear_ratio") = NAN, py::arg("contact_band") = 0.0,
         py::arg("smoothing") = 0, py::arg("still_speed") = 0.0, py::arg("load_torque") = NAN,
@@ -917,6 +917,11 @@ PYBIND11_MODULE(core, m)
         py::arg("settle_periods") = 0,
         "The H1 estimate and coherence of a PRBS or chirp excitation (`backlash_frf --excitation`): numpy arrays "
         "frequency [rad/s], h1 (complex), coherence, input_power; chirp = (low, high) [rad/s].");
+}
+
+/// The Simulator stepped from Python.
+void bindSimulator(py::module_& m)
+{
   py::class_<PySimulator>(m, "Simulator", "A joint stepped from Python (the configured plant and drive).")
       .def(py::init<const py::object&>(), py::arg("config") = py::none())
       .def("advance", &PySimulator::advance, py::arg("t_end"), "Advances exactly to t_end [s].")
@@ -942,4 +947,23 @@ PYBIND11_MODULE(core, m)
       .def_property_readonly("mesh_torque", &PySimulator::meshTorque, "Mesh torque on the load [N·m].")
       .def_property_readonly("gap", &PySimulator::gap, "g = θ_c − ρθ_m [rad].")
       .def_property_readonly("impacts", &PySimulator::impacts, "Impacts so far.");
+}
+
+PYBIND11_MODULE(core, m)
+{
+  m.doc() =
+      "backlash_servo.core: the exact backlash servo simulator from Python. Configurations are the YAML keys of the "
+      "command-line tools and the node (a dict, or the path of a YAML file), in SI units; see docs/python.md.";
+  // pybind11's numpy bindings keep C++ function-local statics (the numpy C API table, the dtypes) whose first use
+  // imports numpy: first made by two threads at once, one waits on the static holding the GIL while the other's
+  // import waits for the GIL — a deadlock. They are made here, while the import holds the GIL for this thread alone.
+  py::module_::import("numpy");
+  (void)py::array_t<double>(0);
+  (void)py::array_t<std::complex<double>>(0);
+  py::register_exception<ConfigError>(m, "ConfigError", PyExc_ValueError);
+  py::register_exception<InvalidParameterError>(m, "InvalidParameterError", PyExc_ValueError);
+  bindStudies(m);
+  bindFrequency(m);
+  bindIdentification(m);
+  bindSimulator(m);
 }
