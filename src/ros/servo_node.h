@@ -6,6 +6,10 @@
  * Time: the simulator advances sample by sample (publish_rate, in sim time); impacts and maxima between samples are
  * located exactly by the core and published with their exact stamps. The sample loop is paced by the wall clock
  * (real_time_factor), runs free (publish_clock with real_time_factor 0), or follows an external /clock.
+ *
+ * The class's parts, one file each: construction (servo_node.cpp), the sample loop and its clock
+ * (servo_node_clock.cpp), its inputs (servo_node_inputs.cpp), its outputs (servo_node_outputs.cpp) and live
+ * parameters (servo_node_parameters.cpp).
  */
 #pragma once
 

@@ -1,0 +1,317 @@
+// The sample loop and its clock: when a sample is due, the step and its judgement, lockstep answers, the stop.
+#include "servo_node.h"
+
+#include <ros/callback_queue.h>
+#include <rosgraph_msgs/Clock.h>
+#include <algorithm>
+#include <cmath>
+#include <ctime>
+#include "launch_end.h"
+#include "wall_throttle.h"
+
+namespace backlash_servo
+{
+void ServoNode::reanchorWallClock()
+{
+  wall_anchor_ = ros::WallTime::now();
+  sim_anchor_ = sim_.state().time;
+}
+
+void ServoNode::awaitStart()
+{
+  // Give recorders and monitors time to subscribe before sim time starts (callbacks are served meanwhile).
+  const ros::WallTime start = ros::WallTime::now() + ros::WallDuration(config_.start_delay);
+  while (ros::ok() && ros::WallTime::now() < start)
+  {
+    ros::spinOnce();
+    ros::WallDuration(0.01).sleep();
+  }
+  if (config_.sync)
+  {
+    // Lockstep needs its controller connected before the first state goes out (a state nobody answers would stall
+    // the run until sync_timeout): a subscriber of joint_states or encoder_states and a publisher of the answer
+    // topic, plus a second for the controller's own subscription to finish connecting.
+    const ros::Subscriber& answer = config_.control_mode == ControlMode::Effort ? effort_sub_ : command_sub_;
+    ros::WallTime said = ros::WallTime::now();
+    ROS_INFO(
+        "backlash_servo_node: lockstep: waiting for a controller (subscribing joint_states or encoder_states, "
+        "publishing %s)",
+        answer.getTopic().c_str());
+    while (ros::ok() && ((joint_pub_.getNumSubscribers() == 0 && encoder_pub_.getNumSubscribers() == 0) ||
+                         answer.getNumPublishers() == 0))
+    {
+      ros::spinOnce();
+      ros::WallDuration(0.01).sleep();
+      if ((ros::WallTime::now() - said).toSec() > 10.0)
+      {
+        ROS_INFO("backlash_servo_node: lockstep: still waiting for a controller");
+        said = ros::WallTime::now();
+      }
+    }
+    ros::WallDuration(1.0).sleep();
+    ros::spinOnce();
+  }
+}
+
+bool ServoNode::due(double t)
+{
+  if (clock_mode_ == ClockMode::External)
+  {
+    if (ros::Time::now() < stamp(t))
+    {
+      ros::WallDuration(0.0005).sleep();
+      return false;
+    }
+  }
+  else if (config_.real_time_factor > 0.0)
+  {
+    // Long waits are cut into 5 ms slices so callbacks stay responsive; the last slice ends exactly on time and
+    // falls through (one wake-up and one spinOnce per sample at high rates).
+    const double wait =
+        (wall_anchor_.toSec() + (t - sim_anchor_) / config_.real_time_factor) - ros::WallTime::now().toSec();
+    if (wait > 0.005)
+    {
+      ros::WallDuration(0.005).sleep();
+      return false;
+    }
+    if (wait > 0.0)
+    {
+      ros::WallDuration(wait).sleep();
+    }
+  }
+  return true;
+}
+
+bool ServoNode::stepTo(double t)
+{
+  try
+  {
+    sim_.advanceTo(t, this);
+  }
+  catch (const MotionDiverged& e)
+  {
+    enterFault(e.what(), true);
+    return false;
+  }
+  catch (const std::exception& e)
+  {
+    enterFault(e.what());
+    return false;
+  }
+  ++sample_index_;
+  // Rest and quiet rules, as backlash_sim applies them; in effort mode against `command` too (the external
+  // controller's integrator is not visible: its stick–slip phases count as rest only once quiet for long).
+  if (judge_from_ >= 0.0 && sim_.state().time >= judge_from_)
+  {
+    monitor_->restartAt(sim_.state());  // the profile has ended: judged afresh against its final value
+    announced_ = Verdict::Undecided;
+    judge_from_ = -1.0;
+  }
+  monitor_->check(sim_.state(), sim_.drive().winding(), judge_from_ < 0.0 && sim_.atRestForever());
+  {
+    const State& s = sim_.state();
+    const double reference = profile_ && sim_.controlMode() == ControlMode::Position ? profile_->at(s.time) : command_;
+    tracking_->add(s.time, reference, s.load_position, sim_.motorTorque());
+  }
+  if (monitor_->status().verdict != announced_)
+  {
+    publishLimitCycle(t, false);
+  }
+  return true;
+}
+
+void ServoNode::reportStop(double t, const ros::WallTime& run_start)
+{
+  if (config_.sync)
+  {
+    ROS_INFO("backlash_servo_node: lockstep: %ld steps, %ld answered late (after sync_timeout)", sample_index_,
+             sync_misses_);
+  }
+  const double wall = (ros::WallTime::now() - run_start).toSec();
+  const double cpu = static_cast<double>(std::clock()) / CLOCKS_PER_SEC;
+  ROS_INFO("backlash_servo_node: stop_after %g s reached: verdict %s, error %.6g rad, period %.6g s, %llu impacts",
+           config_.stop_after, toString(monitor_->status().verdict), monitor_->status().error,
+           monitor_->status().period, static_cast<unsigned long long>(sim_.impactCount()));
+  ROS_INFO(
+      "backlash_servo_node: %ld samples at %g Hz in %.3f s wall: achieved real-time factor %.1f, "
+      "CPU %.3f s (%.1f %% of one core)",
+      sample_index_, config_.publish_rate, wall, t / wall, cpu, 100.0 * cpu / wall);
+  drainBeforeExit(wall);
+}
+
+void ServoNode::endLaunch(bool reached_stop)
+{
+  // Every input served so far is in the bag (the drain above serves the last ones).
+  if (reached_stop && config_.stop_launch && endParentLaunch())
+  {
+    // roslaunch stops every node of the launch, this one with SIGINT (SIGTERM after 15 s): exit then, so that the
+    // end is roslaunch's ordinary shutdown and not a required node's death.
+    const ros::WallTime asked = ros::WallTime::now();
+    while (ros::ok() && (ros::WallTime::now() - asked).toSec() < 20.0)
+    {
+      ros::WallDuration(0.01).sleep();
+    }
+  }
+}
+
+bool ServoNode::run()
+{
+  awaitStart();
+  reanchorWallClock();
+  const ros::WallTime run_start = ros::WallTime::now();
+  if (clock_mode_ == ClockMode::Publisher)
+  {
+    rosgraph_msgs::Clock clock;
+    clock.clock = stamp(0.0);
+    emit(clock_pub_, clock_topic_, clock);
+  }
+  publishSample();
+  sample_index_ = 1;
+  awaitAnswer();
+  bool reached_stop = false;
+  while (ros::ok())
+  {
+    ros::spinOnce();  // commands, services and reconfigure act here, at a step boundary
+    if ((ros::WallTime::now() - last_diagnostics_).toSec() >= 1.0)
+    {
+      publishDiagnostics();
+      refreshReconfigureMirror();
+    }
+    if (paused_ || !fault_.empty())
+    {
+      ros::WallDuration(0.005).sleep();
+      reanchorWallClock();
+      continue;
+    }
+    const double t = sample_base_ + static_cast<double>(sample_index_) / config_.publish_rate;
+    if (!due(t))
+    {
+      continue;
+    }
+    if (!stepTo(t))
+    {
+      continue;
+    }
+    checkEffortTimeout();
+    if (clock_mode_ == ClockMode::Publisher)
+    {
+      rosgraph_msgs::Clock clock;
+      clock.clock = stamp(t);
+      emit(clock_pub_, clock_topic_, clock);
+    }
+    publishSample();
+    if (!(config_.stop_after > 0.0 && t >= config_.stop_after))
+    {
+      awaitAnswer();
+    }
+    if (config_.stop_after > 0.0 && t >= config_.stop_after)
+    {
+      reportStop(t, run_start);
+      reached_stop = true;
+      break;
+    }
+  }
+  // Every input served so far is in the bag (the drain above serves the last ones).
+  const bool recorded = recorder_ == nullptr || recorder_->close();
+  endLaunch(reached_stop);
+  ros::shutdown();
+  return recorded;
+}
+
+void ServoNode::enterFault(const std::string& what, bool diverged)
+{
+  // A runaway motion's state is unusable: new parameters cannot go on from it, only ~reset can (said so).
+  fault_ = diverged ? what + " (the motion ran away: ~reset starts again from the initial state)" : what;
+  fault_diverged_ = diverged;
+  // /limit_cycle no longer shows the verdict of a motion that has ended: diverged (an unstable loop ran away) or
+  // undecided with the fault as its reason.
+  monitor_->restartAt(sim_.state());
+  announced_ = Verdict::Undecided;
+  verdict_reason_ = "simulation stopped at t = " + formatNumber(sim_.state().time) + " s: " + what;
+  publishLimitCycle(sim_.state().time, false, diverged);
+  const ServoParams& p = sim_.params();
+  ROS_ERROR(
+      "backlash_servo_node: simulation error at t = %.9g s: %s; parameters: motor_inertia %g, load_inertia %g, "
+      "motor_friction %g, load_friction %g, gain %g, gear_ratio %g, backlash %g, restitution %g, command %g rad. "
+      "Paused: topics, services and reconfigure keep working; ~reset or a valid parameter set resumes.",
+      sim_.state().time, what.c_str(), p.motor_inertia, p.load_inertia, p.motor_friction, p.load_friction, p.gain,
+      p.gear_ratio, p.backlash, p.restitution, command_);
+  publishDiagnostics();
+}
+
+void ServoNode::drainBeforeExit(double wall)
+{
+  // roscpp keeps unsent messages in each subscriber's outgoing queue and loses them when the process exits; a
+  // recorder that fell behind a fast run (real_time_factor 0) would miss the end of it. Wait as long as a recorder
+  // needs at 20 000 messages per second for what was published faster than that (at most 30 s).
+  // (The node's own bag needs no wait: it is complete when closed.)
+  const bool subscribed = joint_pub_.getNumSubscribers() + state_pub_.getNumSubscribers() +
+                              impact_pub_.getNumSubscribers() + encoder_pub_.getNumSubscribers() >
+                          0;
+  const double rate = static_cast<double>(published_) / std::max(wall, 1e-3);
+  const double drain =
+      subscribed && rate > 20000.0 ? std::min(30.0, static_cast<double>(published_) / 20000.0 - wall) : 0.0;
+  const ros::WallTime end = ros::WallTime::now() + ros::WallDuration(std::max(drain, 0.2));
+  if (drain > 0.5)
+  {
+    ROS_INFO("backlash_servo_node: %.1f s for subscribers (recorders) to receive the %ld messages still queued", drain,
+             published_);
+  }
+  while (ros::ok() && ros::WallTime::now() < end)
+  {
+    ros::spinOnce();
+    ros::WallDuration(0.01).sleep();
+  }
+}
+
+void ServoNode::awaitAnswer()
+{
+  if (!config_.sync)
+  {
+    return;
+  }
+  answered_ = false;
+  awaiting_ = true;
+  const ros::WallTime start = ros::WallTime::now();
+  bool warned = false;
+  while (ros::ok() && !answered_)
+  {
+    ros::getGlobalCallbackQueue()->callAvailable(ros::WallDuration(0.001));
+    if (paused_ || !fault_.empty())
+    {
+      continue;  // a paused or faulted node waits with its controller
+    }
+    if (config_.sync_timeout > 0.0 && (ros::WallTime::now() - start).toSec() >= config_.sync_timeout)
+    {
+      ++sync_misses_;
+      if (!warned)
+      {
+        ROS_WARN(
+            "backlash_servo_node: lockstep: no %s for t = %.6f s within sync_timeout %g s; advancing on the "
+            "last input (this run is no longer reproducible)",
+            sim_.controlMode() == ControlMode::Effort ? "motor_effort" : "command", sim_.state().time,
+            config_.sync_timeout);
+        warned = true;
+      }
+      break;
+    }
+  }
+  awaiting_ = false;
+}
+
+void ServoNode::checkEffortTimeout()
+{
+  if (sim_.controlMode() != ControlMode::Effort || config_.effort_timeout <= 0.0 || effort_timed_out_ ||
+      sim_.state().time - last_effort_time_ < config_.effort_timeout)
+  {
+    return;
+  }
+  effort_timed_out_ = true;
+  ROS_WARN(
+      "backlash_servo_node: no motor_effort for %g s of sim time (effort_timeout): motor torque set to 0 N·m "
+      "(was %g N·m) until the next message",
+      sim_.state().time - last_effort_time_, effort_);
+  effort_ = 0.0;
+  sim_.setMotorTorque(0.0);
+}
+}  // namespace backlash_servo

@@ -1,0 +1,219 @@
+// Live parameters: dynamic_reconfigure in and out, and a monitor restarted when they change what it judges.
+#include "servo_node.h"
+
+#include <dynamic_reconfigure/config_tools.h>
+#include <algorithm>
+#include <cmath>
+#include "backlash_servo/config/run_config_loader.h"
+#include "backlash_servo/model/param_table.h"
+#include "wall_throttle.h"
+
+namespace backlash_servo
+{
+namespace
+{
+/// The generated config → key values, by the names of the parameter table.
+KeyValues keyValuesOf(const BacklashServoConfig& c)
+{
+  KeyValues kv;
+  kv.nameKeysAsFlags(false);
+  for (const auto& d : BacklashServoConfig::__getParamDescriptions__())
+  {
+    boost::any value;
+    d->getValue(c, value);
+    const ParamSpec* spec = findParam(d->name);
+    if (spec == nullptr)
+    {
+      continue;  // a .cfg entry the table does not know: the consistency test fails for it
+    }
+    if (d->type == "double")
+    {
+      kv.setNumber(d->name, boost::any_cast<double>(value));
+    }
+    else if (d->type == "int")
+    {
+      const int i = boost::any_cast<int>(value);
+      kv.set(d->name, i >= 0 && i < static_cast<int>(spec->choices.size()) ? spec->choices[i] : std::to_string(i));
+    }
+    else if (d->type == "bool")
+    {
+      kv.setBoolean(d->name, boost::any_cast<bool>(value));
+    }
+    else
+    {
+      kv.set(d->name, boost::any_cast<std::string>(value));
+    }
+  }
+  return kv;
+}
+}  // namespace
+
+BacklashServoConfig ServoNode::currentConfig() const
+{
+  // Every live key of the table, by name: the generated config is filled through its own message form.
+  dynamic_reconfigure::Config msg;
+  const ServoParams& p = sim_.params();
+  for (const ParamSpec* spec : paramsIn(ParamSection::Servo))
+  {
+    if (const auto* text = std::get_if<std::string ServoParams::*>(&spec->field))
+    {
+      const auto it = std::find(spec->choices.begin(), spec->choices.end(), p.*(*text));
+      dynamic_reconfigure::ConfigTools::appendParameter(msg, spec->key, static_cast<int>(it - spec->choices.begin()));
+      continue;
+    }
+    dynamic_reconfigure::ConfigTools::appendParameter(msg, spec->key, p.*std::get<double ServoParams::*>(spec->field));
+  }
+  const KeyValues drive = driveKeyValues(config_.run.drive);
+  for (const ParamSpec* spec : paramsIn(ParamSection::Drive))
+  {
+    if (spec->type == ParamType::Choice)
+    {
+      const std::string value = drive.text(spec->key, spec->fallback);
+      const auto it = std::find(spec->choices.begin(), spec->choices.end(), value);
+      dynamic_reconfigure::ConfigTools::appendParameter(msg, spec->key, static_cast<int>(it - spec->choices.begin()));
+    }
+    else
+    {
+      dynamic_reconfigure::ConfigTools::appendParameter(msg, spec->key, drive.number(spec->key));
+    }
+  }
+  dynamic_reconfigure::ConfigTools::appendParameter(msg, "control_mode",
+                                                    config_.control_mode == ControlMode::Effort ? 1 : 0);
+  dynamic_reconfigure::ConfigTools::appendParameter(msg, "publish_rate", config_.publish_rate);
+  dynamic_reconfigure::ConfigTools::appendParameter(msg, "real_time_factor", config_.real_time_factor);
+  dynamic_reconfigure::ConfigTools::appendParameter(msg, "min_impact_speed", config_.min_impact_speed);
+  dynamic_reconfigure::ConfigTools::appendParameter(msg, "sync_timeout", config_.sync_timeout);
+  dynamic_reconfigure::ConfigTools::appendParameter(msg, "effort_timeout", config_.effort_timeout);
+  BacklashServoConfig c = BacklashServoConfig::__getDefault__();
+  c.__fromMessage__(msg);
+  return c;
+}
+
+void ServoNode::restartMonitor(const std::string& reason)
+{
+  const bool running = monitor_ != nullptr;
+  judge_from_ = profile_ && sim_.controlMode() == ControlMode::Position ? profile_->endTime() : -1.0;
+  // Effort mode is fed by an external, usually digital, controller: its cycles may be quasi-periodic bands too.
+  // Effort mode: the external controller's law is unknown; its rest is judged against `command` itself.
+  const double equilibrium = sim_.controlMode() == ControlMode::Effort
+                                 ? command_
+                                 : loopEquilibrium(sim_.params(), config_.run.drive, command_);
+  monitor_ = std::make_unique<ResponseMonitor>(sim_.params(), command_, equilibrium, sim_.state(),
+                                               sim_.drive().sampled() || sim_.controlMode() == ControlMode::Effort);
+  // The tracking figures start afresh with the judgement: the reference's last move is this step or the profile.
+  RunConfig tracked = config_.run;
+  tracked.params = sim_.params();
+  tracked.initial = sim_.state();
+  tracked.command = command_;
+  tracked.profile = sim_.controlMode() == ControlMode::Position ? profile_ : nullptr;
+  tracking_ = std::make_unique<TrackingMetrics>(trackingOf(tracked, 1.0 / config_.publish_rate, INFINITY));
+  announced_ = Verdict::Undecided;
+  steady_ = SteadyAnswer();
+  if (running && !reason.empty())
+  {
+    verdict_reason_ = reason + " at t = " + formatNumber(sim_.state().time) + " s: judging afresh";
+    publishLimitCycle(sim_.state().time, false);  // no stale verdict: undecided, with the reason, until the new one
+  }
+}
+
+void ServoNode::refreshReconfigureMirror()
+{
+  if (mirror_stale_)
+  {
+    mirror_stale_ = false;
+    last_good_ = currentConfig();
+    reconfigure_->updateConfig(last_good_);
+  }
+}
+
+void ServoNode::onReconfigure(BacklashServoConfig& c, uint32_t)
+{
+  if (mirror_stale_ && c.load_torque == last_good_.load_torque)
+  {
+    // Not touched by this reconfigure: the value the load_torque topic set since the mirror's last refresh stays.
+    c.load_torque = sim_.params().load_torque;
+  }
+  mirror_stale_ = false;
+  const KeyValues kv = keyValuesOf(c);
+  NodeConfig next;
+  ServoParams p = sim_.params();
+  try
+  {
+    updateServoKeys(kv, &p);
+    p.validate();
+    next = nodeSettingsFrom(kv, config_);
+    readDriveKeys(kv, true, &next.run.drive);
+    next.run.drive.validate(next.control_mode);
+    sim_.setParams(p);  // at this step boundary, no jump in θ_c or ω_c (docs/ros_node.md: a shrinking backlash)
+  }
+  catch (const std::exception& e)
+  {
+    // The reply holds the values in force (what rqt shows); /diagnostics says what was refused until the next
+    // accepted change.
+    refused_ = std::string("reconfigure refused: ") + e.what();
+    ROS_ERROR("backlash_servo_node: %s; keeping the previous values", refused_.c_str());
+    c = last_good_;
+    publishDiagnostics();
+    return;
+  }
+  refused_.clear();
+  // A live change of anything the joint's motion depends on (plant or drive, not the node's own settings) restarts
+  // the judgement: the maxima before it belong to another joint. (Values compared as the exact text of each key.)
+  const KeyValues before = keyValuesOf(last_good_);
+  std::string changed;
+  bool drive_changed = false;
+  for (const auto& [key, text] : kv.keys())
+  {
+    const ParamSection section = findParam(key)->section;
+    if (section != ParamSection::Node && before.text(key, "") != text)
+    {
+      changed += (changed.empty() ? "" : ", ") + key;
+      drive_changed = drive_changed || section == ParamSection::Drive;
+    }
+  }
+  if (next.control_mode != config_.control_mode)
+  {
+    if (next.control_mode == ControlMode::Effort)
+    {
+      effort_ = 0.0;  // no stale torque: 0 N·m until the first motor_effort in this mode
+      last_effort_time_ = sim_.state().time;
+      effort_timed_out_ = false;
+      profile_.reset();  // back in position mode the law holds the profile's final value
+      sim_.setMotorTorque(effort_);
+    }
+    else
+    {
+      config_.run.drive = next.run.drive;
+      applyPositionDrive();
+    }
+    restartMonitor("control_mode changed");
+  }
+  else
+  {
+    if (drive_changed && next.control_mode == ControlMode::Position &&
+        !sim_.retuneDrive(next.run.drive))  // gains, limit, rate, delay, encoders, compensator settings: no bump
+    {
+      config_.run.drive = next.run.drive;
+      applyPositionDrive();  // a new law, feedback, compensator or continuous ↔ digital: a fresh controller
+    }
+    if (!changed.empty())
+    {
+      restartMonitor("live change of " + changed);
+    }
+  }
+  if (next.publish_rate != config_.publish_rate)
+  {
+    sample_base_ = sim_.state().time;
+    sample_index_ = 1;
+  }
+  config_ = next;
+  reanchorWallClock();
+  last_good_ = c;
+  if (!fault_.empty() && !fault_diverged_)
+  {
+    ROS_INFO("backlash_servo_node: valid parameters clear the simulation error; running again");
+    fault_.clear();
+    publishDiagnostics();
+  }
+}
+}  // namespace backlash_servo
