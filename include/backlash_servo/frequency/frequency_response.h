@@ -4,32 +4,7 @@
  *        sine) — but from the exact motion: the periodic steady state is detected (not assumed), and the output's
  *        fundamental and harmonics are exact Fourier integrals over one period. No ROS dependency.
  *
- * **Excitation.** The input is u(t) = u₀ + A sin(ω(t − t₀)), t₀ the run's initial time, applied the way a digital drive
- * applies it — sampled and held: the command θ_R [rad] through the configured digital drive (it samples the sine at
- * its own instants, `controller_rate`), or the motor torque T_m [N·m] in effort mode (the drive's loop off: the
- * joint's mechanical response) held over samples of the injection rate. The plant then sees piecewise-constant
- * torques, so every motion stays the closed form of its mode and the response is exact. For a periodic input the
- * period T = 2π/ω must hold a whole number N ≥ 4 of samples: the frequency is placed there, ω = 2π f_s / N with
- * N = round(2π f_s / ω) (the frequency used is reported beside the one asked for). The sine itself is exact too
- * (the modes carry it as an oscillator, compliant_joint.h; not on rigid teeth with dry friction): the command under
- * the continuous P law, the torque with `continuous`; the period is then observed at 64 instants and ω is the one
- * asked for. The set-point channels inject the held sine into the digital drive's torque set-point at its own
- * samples, its loops closed (SampledDrive::setInjection), and divide by the applied motor torque's fundamental.
- *
- * **Steady state.** The state is compared at the starts of successive periods: velocities, gap and shaft twist must
- * repeat and positions advance by the same amount each period (a torque input may drift at a constant mean speed),
- * each within `tolerance` of that quantity's range over the period. Repeating only after m = 2…4 periods is a
- * subharmonic response (period_multiple = m, the fundamental still read at ω). Not settled after `max_periods` (by
- * default enough to cover 40 of the joint's slowest time constants): the point is reported not periodic and its
- * figures are those of the last period.
- *
- * **Fourier integrals.** Over the settled period [t_n, t_n + mT] the coefficients Y_h = (2/mT)∫ y(t) e^{−jhω(t − t₀)}
- * dt (h = 1 … harmonics) are integrated by 8-point Gauss–Legendre on pieces cut at every sample and every event that
- * makes y or its slope jump (impacts, contacts, rests), no longer than half the plant's fastest time scale, so each
- * piece integrates an analytic function to rounding. The response is H = Y₁/U₁ with U₁ = −jA (the input's fundamental
- * as a phasor e^{jω(t − t₀)}): gain |H| [output unit per input unit], phase arg H [rad] — the convention of a transfer
- * function, H = G(jω) for a linear joint (times the hold's e^{−jωT_s/2} sinc(ωT_s/2) and, for the command, the
- * sampled loop's response; see docs/frequency_response.md).
+ * How it is computed and what it guarantees: docs/model.md, Part 4, "Stepped-sine frequency response".
  */
 #pragma once
 

@@ -6,53 +6,8 @@
  *        simulated cycle's fundamental. No ROS
  *        dependency.
  *
- * **The loop.** Under the continuous P law the backlash element's input is x = ρθ_m, driven by the error through the
- * linear servo ẍ + 2ζω_n ẋ = ω_n²(θ_R − θ_c): G(jω) = ω_n² / (−ω² + 2jζω_n ω), the element's output θ_c fed back
- * with −1.
- *
- * **The numerical DF of the real element** (driven_backlash.h): the classical balance lumps the load into the motor's
- * inertia and friction and takes the backlash as massless hysteresis; the real element is the load with its inertia,
- * friction and impacts, driven by the motor's tooth. Its two describing functions — N_θ of the load angle, N_T of the
- * torque the teeth pass to the load — balance the motor's equation J_m θ̈_m + f_m θ̇_m + T_cm sgn θ̇_m =
- * −K θ_c − ρT (about the cycle's centre) in the fundamental, per unit amplitude A of x = ρθ_m:
- *   E(A, ω) = (−ω² J_m + jω f_m)/ρ + j 4T_cm/(πA) + K N_θ(A, ω) + ρ N_T(A, ω) = 0,
- * two real equations for A and ω, solved by Newton's method in (ln A, ln ω) (Jacobian by central differences, steps
- * 1e-4) from each classical prediction. Stability by Loeb's criterion on E (E = (D/ρ)(G N + 1) near a solution in the
- * classical limit, D/ρ ≠ 0, so the criterion carries over). Taken when there is no load torque (the element's cycle
- * must be symmetric); a Newton that does not converge (a non-periodic element: its DFs are means) gives no prediction.
- *
- * **A digital drive** (sampled at f_s = 1/T, held; optionally one sample late) reads the load angle θ_c or the motor's
- * x = ρθ_m (`feedback`), and the cascade also the motor's speed. Its torque's fundamental is u = −K_θ Θ_c − K_x X
- * (lawResponse), with the hold's fundamental H = (1 − e^{−jωT})/(jωT) [e^{−jωT}] and, from the drive's recurrences
- * (backward-rectangle integral, derivative of the measurement, the speed a backward difference of the motor encoder):
- *   P / PID:  C(z) = K + K_i T/(1 − z⁻¹) + K_d (1 − z⁻¹)/T, K_θ = C H on load feedback, K_x = C H on motor feedback;
- *   cascade:  C_v(z) = K_v + K_vi T/(1 − z⁻¹), K_θ = C_v K_p H (load feedback), K_x = C_v ((1 − z⁻¹)/T [+ K_p on
- *             motor feedback]) H.
- * The continuous law is K_θ = K. The element's balance is then
- *   E(A, ω) = (−ω² J_m + jω f_m)/ρ + j 4T_cm/(πA) + K_θ N_θ(A, ω) + K_x + ρ N_T(A, ω) = 0.
- * The classical balance 1 + G N = 0 lumps the load into the motor (J = J_m + ρ²J_L, F = f_m + ρ²f_L):
- *   G(jω) = ρK_θ / (−ω²J + jωF + ρK_x)   (= thesisLoop · K_θ/K for K_x = 0).
- * When the law reads the motor alone (K_θ = 0) nothing lumped passes the backlash; the load's reaction through the
- * hysteresis does (the load follows θ_c = H(x), its torque L Θ_c with L = −ω²J_L + jωf_L):
- *   G(jω) = ρ²L / (M + ρK_x),  M = −ω²J_m + jωf_m.
- * An approximation beyond the DF's own: the sampled harmonics alias onto the fundamental — small while the cycle is
- * slow against the sampling, and the search stops at the Nyquist frequency π f_s. The band of frequencies searched is
- * [1e-4, 1e4] ω_n about the loop's ω_n = √(ρK/J) (loopNaturalFrequency; K = K_v K_p for the cascade).
- *
- * **A compliant mesh** (`mesh_stiffness` c > 0, `mesh_damping` d; rigid shaft): the teeth pass the torque
- * T = (c + jωd) N_dz(A) X in the fundamental, X the deflection x = ρθ_m − θ_c about its centre, N_dz the DF of a dead
- * zone of half-width Δ/2 (describing_function.h; a damper gated by the same contact has the same DF). The bodies
- * M Θ_m = U − ρT, L Θ_c = T with U = −K_θ Θ_c − K_x ρΘ_m give X = −G T,
- *   G(jω) = ρ(ρ + K_θ/L)/(M + ρK_x) + 1/L,
- * so the balance is (c + jωd) G(jω) N_dz(A) = −1 (compliantLoop): real N_dz, solutions where that product is real and
- * ≤ −1. A prediction's amplitude is ρθ_m's, |ρ(K_θ/L + ρ)/(G (M + ρK_x))| A. Motor Coulomb friction, the
- * never-pulling clip of the spring–damper law and a torsional shaft are outside it (a shaft is refused). The numerical
- * balance E = 0 then takes the compliant element's DFs (driven_mesh.h), started from these predictions and the rigid
- * teeth's.
- *
- * **The exact cycle.** The joint is run until its verdict settles (runResponse); on a limit cycle one more period
- * from the settled state is sampled at 4096 even points, and the fundamental of ρθ_m about its mean gives the
- * amplitude (peak: the largest excursion from the mean), the frequency 2π/period.
+ * How it is computed and what it guarantees: docs/model.md, Part 4, "Describing-function predictions beside the exact
+ * cycle".
  */
 #pragma once
 

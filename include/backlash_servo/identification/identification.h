@@ -4,30 +4,7 @@
  *        Coulomb friction and the load torque estimated from the data alone, by linear least squares on the phases
  *        where the equations of motion are linear in the parameters. No ROS dependency.
  *
- * **Recording.** Samples at a uniform period h: time t_k [s], motor torque u_k [N·m] (held over [t_k, t_{k+1}), as a
- * drive applies it), motor angle θ_m,k and load angle θ_c,k [rad] on their own shafts; the gear ratio ρ is known.
- *
- * **Derivatives.** ω_k = (θ_{k+1} − θ_{k−1})/(2h), α_k = (θ_{k+1} − 2θ_k + θ_{k−1})/h²: the second difference
- * averages the acceleration over [t_{k−1}, t_{k+1}], where the held torque was u_{k−1} then u_k, so it is regressed
- * on ū_k = (u_{k−1} + u_k)/2 (exact for a body without friction; O(h) otherwise). With `smoothing` r every term —
- * the angle before its differences, ū, and sgn ω — is filtered by the same F (the centred mean over 2r + 1 samples,
- * twice): differences commute with F, so the equations hold for the filtered terms, with quantisation and noise
- * averaged out.
- *
- * **Phases.** The gap g = θ_c − ρθ_m lies in [g₀, g₀ + Δ] (g₀: where the encoders' zeros put the forward flank):
- * Δ̂ = max g − min g and ĝ₀ = min g once the recording touched both flanks. A sample is in **contact** when its gap and
- * those of its two neighbours on each side lie within `contact_band` of one flank (no impact in its stencil), **apart**
- * when all five lie clear of both flanks by max(1e-3 Δ̂, 4 contact_band) (a chatter of short flights near a flank is
- * neither); samples where a body stands (|ω| below `still_speed`) are left out
- * (the sign of its dry friction is unknown).
- * - contact (one body on the motor shaft): ū = J α_m + F ω_m + C sgn(ω_m) + b, J = J_m + ρ²J_L, F = f_m + ρ²f_L,
- *   C = T_cm + ρT_cL, b = −ρT_ext;
- * - apart, the motor alone: ū = J_m α_m + f_m ω_m + T_cm sgn(ω_m);
- * so J_L = (J − J_m)/ρ², f_L = (F − f_m)/ρ², T_cL = (C − T_cm)/ρ, T_ext = −b/ρ. Each least-squares fit gives its
- * parameters' standard errors σ√diag((XᵀX)⁻¹) (σ² the residual variance), carried to the derived ones.
- *
- * **Static friction** from the rests (estimateInitial below); the restitution needs the simulator as the model
- * (fitRestitution, replay_windows.h); a compliant mesh has its own estimates (identify_mesh.h).
+ * How it is computed and what it guarantees: docs/model.md, Part 4, "Initial estimates from a recording".
  */
 #pragma once
 

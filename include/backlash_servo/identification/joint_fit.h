@@ -4,34 +4,7 @@
  *        squares over windows of the recording re-anchored on the measured state (replay_windows.h). No ROS
  *        dependency.
  *
- * **Objective.** S(p) = Σ_windows Σ_k [(ρθ̂_m,k(p) − ρθ_m,k)² + (θ̂_c,k(p) − θ_c,k)²] [rad²]: both angles on the load
- * shaft, every sample of every window (`windows` windows of `window` seconds spread evenly over the recording).
- * Minimised by Levenberg–Marquardt (Jacobian by forward differences, Marquardt's scaling) from the initial estimates
- * (identification.h), in coordinates scaled by each start value, within bounds from the parameter table (inertias
- * and Δ > 0, friction ≥ 0, e ∈ [0, 1]).
- *
- * **Rigid teeth or a compliant mesh.** The model is the start's: rigid teeth with impacts (the restitution fitted),
- * or a compliant mesh (mesh_stiffness > 0; its stiffness c and damping d fitted in place of the restitution, the
- * replays started from the measured angles — identify_mesh.h gives the start). A torsional shaft is not fitted: its
- * gear's angle is not measured.
- *
- * **What is not fitted here, and why.** S is smooth in the parameters almost everywhere — an impact moves
- * continuously with Δ, e, the inertias — but not in the static friction levels: with the torque held between samples
- * a body at rest breaks away *at a sample*, so S is piecewise constant in T_s (zero derivative, and steps that stall
- * any local search). The static levels are therefore measured from the rests directly (identification.h: the torques
- * that held a body bracket them from below, those that broke it away from above) and held here, at least at the
- * Coulomb levels. The restitution's start comes from a derivative-free search (fitRestitution), as its effect appears
- * only once impacts line up.
- *
- * **Uncertainty.** At the minimum the Jacobian J of the residuals (central differences, steps 1e-3 of each scale)
- * gives the covariance by the cluster-robust ("sandwich") estimator with the windows as clusters:
- *   C = (JᵀJ)⁻¹ (Σ_w J_wᵀ r_w r_wᵀ J_w) (JᵀJ)⁻¹,
- * which allows for the errors within a window being correlated (a replay that starts a little off stays off) and
- * treats the windows as independent. The standard errors are √diag C, the correlations C_ij/√(C_ii C_jj); a parameter
- * whose column of J vanishes is **not informed** by this recording (no impact: no restitution) — its standard error
- * is NaN and it keeps its start value. The condition number of J with unit columns says how well the informed
- * parameters are told apart. The residuals' floor with the true parameters is set by the anchors (velocities by
- * central differences: O(h²)), about 1e-5 rad at 1 kHz on the test joints.
+ * How it is computed and what it guarantees: docs/model.md, Part 4, "The joint fit".
  */
 #pragma once
 

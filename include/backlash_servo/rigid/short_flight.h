@@ -4,31 +4,9 @@
  *        across a small gap, flights of microseconds between impacts) as a Taylor polynomial with a rigorous remainder
  *        bound, its impact located by Newton's method on a certified gap. No ROS dependency.
  *
- * Apart, the state y = (θ_c, ω_c, θ_m, ω_m) obeys the linear ODE y' = A y + b (modes.h, BasicFreeMotion):
- * \f[ \dot\omega_c = T_{ext}/J_L - \alpha\,\omega_c,\qquad \dot\omega_m = (a - k\theta_c)/J_m - \beta\,\omega_m,
- *     \qquad \alpha = f_L/J_L,\ \beta = f_m/J_m. \f]
- * Its Taylor coefficients \f$ y(\tau) = \sum_k y_k \tau^k \f$ follow from \f$ y_1 = A y_0 + b \f$ and
- * \f$ y_{k+1} = A y_k/(k+1) \f$ (k ≥ 1) — a few multiply-adds per order instead of the exponentials, products and
- * root isolation of the closed form. In the weighted norm \f$ \|y\|_D = \max(|\theta_c|, s|\omega_c|,
- * \rho|\theta_m|, s\rho|\omega_m|) \f$ (s [s], a time scale of the motion) the matrix has a norm M [1/s], so
- * \f$ \|y_{N+j}\|_D \le \|y_N\|_D M^j N!/(N+j)! \f$ and the series cut after order N errs on [0, T] by at most
- * \f[ R_N(T) = \|y_N\|_D\,T^N\,\frac{MT/(N+1)}{1 - MT/(N+2)} \f]
- * in every (weighted) component. N is chosen so that R_N is below 1 % of the rounding of the positions: the flight
- * is as exact as the closed form, to the same tolerance (docs/validation.md, "How it is exact").
- *
- * A flight is taken only when it is certainly short and simple (M·T ≤ 0.1, longer than the clock resolves, the
- * teeth leaving the wall they are on), otherwise the caller uses the closed form. Two kinds (F = the gap relative to
- * that wall, > 0 in the free space):
- * - **back to the same wall**: F certified concave on [0, T] (its second derivative, with every higher term and the
- *   remainder bounded, keeps the sign of the pressing one), its rise below the other wall, back beyond the wall at T.
- *   The return is the only root past the peak: Newton from the quadratic return corrected by the cubic term and by
- *   the start offset f_0 — for a concave F decreasing past its peak the first step lands at or beyond the root (the
- *   tangent lies above F) and the next ones approach it monotonically from there; a step below 1e-8 of τ ends it
- *   (in chatter the first one: one Newton step per impact);
- * - **across to the other wall** (F = Δ): F certified increasing on [0, T] (or convex, leaving from relative rest)
- *   and beyond Δ at T: the only root, by Newton inside the shrinking bracket.
- * With dry friction (both bodies sliding) the kinetic friction is a constant torque of the model, and restTime()
- * finds a body coming to rest on the series.
+ * Guaranteed: the impact where the closed form finds it, to rounding (the series' remainder below 1 % of the
+ * positions' rounding); a flight the series cannot certify is left to the closed form (solve() returns false).
+ * How it is computed and what it guarantees: docs/model.md, Part 4, "Short flights: the chatter fast path".
  */
 #pragma once
 

@@ -7,40 +7,7 @@
  *        mesh_stiffness > 0, and — with rigid teeth — while the motor-torque law carries a sine (below). No ROS
  *        dependency.
  *
- * Model (docs/model.md, "The compliant joint"): mesh coordinate g = θ_o − ρθ_m (θ_o = θ_c with a rigid shaft);
- * penetration y = −g on the forward flank (g < 0), y = g − Δ on the backward flank (g > Δ); P = c y + d ẏ.
- * spring_damper: Q = ±max(0, P). msl_elastobacklash: Q = ±(c y + min(c y, d ẏ)) while positive (2cy while
- * dẏ > cy — the K2 sub-mode —, else cy + dẏ — KD). A contact starts where y becomes positive, is released where P
- * would pull, and a released flank re-engages where P becomes positive again, even while y > 0.
- *   motor:  J_m ω̇_m = T_m − f_m ω_m − ρ Q,  T_m = a − kθ_c (the drive's law in force; K(θ_R − θ_c) for the P law)
- *   rigid shaft: (J_L + J_g) ω̇_c = Q − f_L ω_c + T_ext
- *   torsional shaft: J_g ω̇_o = Q − S, J_L ω̇_c = S − f_L ω_c + T_ext, S = k_s(θ_o − θ_c) + d_s(ω_o − ω_c).
- * Dry friction (docs/model.md Part 2's law, Part 3's rest rule): a sliding body gets −T_c sign(ω), folded into the
- * mode's constant input; a body at rest is stuck — its velocity row of A and u zeroed, so its angle stays — while the
- * torque that holds it, H (the motor: T_m − ρQ; the load: Q + T_ext with a rigid shaft, S + T_ext with a torsional
- * one), stays within its static band ±T_s, a linear output of the state in every mode. Events: a sliding body's
- * velocity reaching 0 (Stop: it sticks when |H| ≤ T_s, else slides on in the direction of H) and a stuck body's H
- * leaving the band (Breakaway, in the direction of H). No pair rule is needed: the mesh torque is a function of the
- * state, so each body sticks or breaks away on its own. Both bodies stuck with a rigid shaft: nothing moves (held()).
- *
- * Rigid teeth (mesh_stiffness = 0, no shaft, no dry friction): the same closed forms carry the thesis' rigid mesh
- * where its own modes (modes.h) cannot — a law with a sine, whose forced motion is not an exponential polynomial. In
- * the free play the modes are the ones above; a flank reached (y rising through 0) is an impact (impact.h: momentum
- * and Newton's restitution e), made plastic where the rebound could not rise above the rounding of the gap against
- * the free motion's pressing acceleration (the Plant's rule, so a chatter ends in contact after finitely many
- * impacts); teeth at relative rest on a flank that the free motion presses move as one body,
- *   (J_m + ρ²J_L) ω̇_c = ρT_m − (f_m + ρ²f_L) ω_c + ρ²T_ext,  θ_m = (θ_c − δ_σ)/ρ,
- * whose mesh torque Q = J_L ω̇_c + f_L ω_c − T_ext is released where it would pull (σQ falling through 0).
- *
- * Decisions within rounding: an event's crossing may fall within the rounding of a segment's start (a sample, a
- * re-anchoring, the end of the previous segment evaluated again), where its output has no sign left to search for.
- * So every segment start checks the law: a flank the state presses (touching and closing, or penetrating with P > 0)
- * engages, and a contact whose release output is below zero (or within rounding and falling) releases — as the
- * segment's first event, at its start, through the same path as a located one.
- *
- * Exactness and chunk-independence: a segment's closed form is anchored where the segment began (at an event), and
- * its events are searched in windows of fixed length from that anchor, so how a run is cut into advanceTo() calls
- * does not change a bit of it — as in the rigid plant.
+ * How it is computed and what it guarantees: docs/model.md, Part 4, "The compliant joint's modes and events".
  */
 #pragma once
 

@@ -5,52 +5,11 @@
  *        order (a compliant mesh couples motor and load into order 4, a torsional shaft into order 6); the rigid
  *        thesis modes keep their hand-written closed forms (modes.h) as the fast special case. No ROS dependency.
  *
- * **Solution.** A depends only on the mode (and the drive law's stiffness), u and x₀ on the moment, so what costs is
- * done once per A in a ModeBasis (mode_basis.h: the balancing Â = D⁻¹AD, the eigenbasis, the split of a zero
- * eigenvalue), which the caller may keep and share between motions. The motion is evaluated as the deviation
- * δ = x − x₀ from the start, which obeys δ̇ = Aδ + v₀ (v₀ = Ax₀ + u, δ(0) = 0), so that rounding is relative to how
- * far the state has moved and not to the angles it started at, which grow without bound over a run. Modally
- * (A = D V Λ V⁻¹ D⁻¹):
- *   x(τ) = x₀ + D V τ φ₁(Λτ) g,  g = V⁻¹D⁻¹v₀,  φ₁(z) = (e^z − 1)/z (φ₁(0) = 1),
- * a sum of damped sinusoids and exponentials at the mode's own frequencies plus the drift of its zero eigenvalues
- * (a free body under constant torque), O(n²) per evaluation. Where the zero eigenvalue lacks eigenvectors, the
- * basis splits off a block N on ker Â^K (nilpotent, N^m = 0, or slow and decoupled), whose coordinates y obey
- * ẏ = N y + g_N, y(0) = 0, so that
- *   δ̂(τ) = Σ_{λ_k ≠ 0} V_k τ φ₁(λ_kτ) g_k + V_N Σ_{j<m} Nʲ g_N τ^{j+1}/(j + 1)!,
- * damped sinusoids plus a polynomial of degree m, as cheap to evaluate (a slow block's series summed on beyond m
- * terms, to rounding over ModeBasis::SERIES_SPAN fast time scales).
- * Otherwise (a defective eigenvalue that is not zero: a critically damped pair) δ is its Taylor series in the
- * balanced basis, δ̂(a + r) = Σ_j k_j r^j (k_0 = δ̂(a), k_1 = Âδ̂(a) + v̂₀, k_j = Âk_{j−1}/j), summed to rounding
- * (TAYLOR_TERMS terms) from anchors a at multiples of TAYLOR_STEP/‖Â‖₂ from the start, each anchor from the one
- * before — exact to rounding, and a pure function of τ. (The caller re-anchors long motions: CompliantJoint starts a
- * new one every 4096 fast time scales without events.)
- *
- * **Zero crossings, rigorously.** ẋ obeys the homogeneous equation (ẍ = A ẋ), so on a window [a, a + h]
- *   s(a + t) = s(a) + s'(a) t + R(t),  |R(t)| ≤ ½ M t²,  M ≥ max |s''| on the window:
- * modally s''(τ) = Σ_k (wᵀDv_k) λ_k g_k e^{λ_k τ}, so M = Σ_k |(wᵀDv_k) λ_k g_k| e^{Re λ_k τ*}
- * with τ* the window's end where that mode's term is largest (tight: a single mode's amplitude times ω², the rigid
- * body's drift adding nothing), plus Σ_{j≥1} |(Dw)·P_j| (j + 1) j τ_end^{j−1} for the polynomial part Σ_j P_j τ^{j+1};
- * otherwise M = ‖(Dw)ᵀÂ‖₂ ‖D⁻¹ẋ(a)‖₂ e^{‖Â‖₂ h} (s'' = wᵀ A exp(A t) ẋ(a) in the
- * balanced basis x = D x̂, Â = D⁻¹AD, D a diagonal of powers of 2 (Parlett–Reinsch) so that ‖Â‖₂ is near the mode's
- * fastest frequency; ‖exp(Â t)‖₂ ≤ e^{‖Â‖₂ t}). Modally the model is also taken one degree further,
- *   s(a + t) = s(a) + s'(a) t + ½ s''(a) t² + R₃(t),  |R₃(t)| ≤ M₃ t³/6,  M₃ = Σ_k |(wᵀDv_k) λ_k g_k| |λ_k| e^{Re λ_k
- * τ*} (plus the polynomial part's third derivative), s''(a) = w·Aẋ(a) — where s is smooth on the window (the fast modes
- * decayed, or a slow peel-off from zero) the quadratic follows it much farther than the line. A window on which
- * either model keeps one sign farther from 0 than its remainder plus the rounding of the evaluated output and its
- * derivatives holds no zero. A window where |s'(a)| > M h, or where s'(a) + s''(a) t keeps its sign beyond ½ M₃ t²,
- * has a derivative of one sign, so s is monotone there: one zero at most, bracketed by the
- * signs at its ends and refined until the end past the crossing is within a few ulps of the output's terms, where
- * the sign of s means nothing more, or the ends are adjacent doubles (Newton's method kept inside the bracket, from
- * the root of the window's quadratic model, s' = w·(Ax + u), each step aimed half that band past the crossing: about
- * four evaluations a crossing; where it stalls, the ITP method — regula falsi made two-sided and never slower than
- * bisection); that end is the event. Any other window is halved, earliest half
- * first. Where the bounds do not grow with the window (modal, no growing mode, no τ in s''), each window is the
- * longest these tests settle from one evaluation — each holds below a length, the roots of their quadratics (the
- * degree-2 exclusion's cubic by bisection), so arithmetic only — and at least h = √(|s(a)|/M); otherwise h =
- * √(|s(a)|/M), at most 1/‖Â‖₂ (four of them modally); halving stops at the floor h_min = FLOOR_FRACTION / ‖Â‖₂ — only
- * near a turning point of s that lies within h_min·|s'| of zero — where a sign change in the asked direction is the
- * crossing and none is a **grazing**, reported as no crossing. That is the documented tolerance: two crossings closer
- * together than h_min (1e-9 of the mode's fastest time scale) cancel.
+ * Guaranteed: the motion exact to rounding (relative to how far the state moved); every zero crossing of s found and
+ * located to a few ulps, except two closer together than FLOOR_FRACTION of the mode's fastest time scale (a grazing),
+ * which cancel.
+ * How it is computed and what it guarantees: docs/model.md, Part 4, "Linear modes of any order and their zero
+ * crossings".
  */
 #pragma once
 

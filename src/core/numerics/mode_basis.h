@@ -4,30 +4,8 @@
  *        closed forms built on it are in linear_mode.h): the balancing, the eigenbasis, and the split of a zero
  *        eigenvalue that lacks eigenvectors. No ROS dependency.
  *
- * **Balancing.** Â = D⁻¹AD, D a diagonal of powers of 2 (Parlett–Reinsch), so that ‖Â‖₂ is near the mode's fastest
- * frequency and the bounds of the event search (linear_mode.h) are tight.
- *
- * **Eigenbasis.** When Â has a complete, well-conditioned eigenbasis, Â = V Λ V⁻¹ (cond(V) ≤
- * MAX_EIGENBASIS_CONDITION), and motions are evaluated modally.
- *
- * **A zero eigenvalue without a full eigenspace** (a body without viscous friction, a free body whose position drives
- * the motor through the drive law, two bodies joined only by a spring) splits the space into invariant parts,
- * ℝⁿ = range Â^K ⊕ ker Â^K (K the eigenvalue's index, both found by SVD of the powers of Â: singular values to
- * CHAIN_TOLERANCE of the largest are candidates — structural zeros, and a chain whose end is merely slow — and the
- * kernel grows by the largest set of the smallest that is a chain: Â maps each new direction into ker Â^{k−1} to
- * CHAIN_TOLERANCE of ‖Â‖ — a mode merely slow, whose powers also fall below that threshold, stays with the
- * diagonalised modes): on the range Â is diagonalised as above, on the kernel it is a nilpotent block N
- * (N^m = 0, m = dim ker Â^K), whose motion is a polynomial.
- *
- * **A near split.** When the zero eigenvalue has a neighbour that is merely small (a body's viscous friction f/J ~
- * 1e-9 of a mesh's frequency: the common drift of bodies in contact decays that slowly), the two parts are coupled
- * and the block is not nilpotent to within rounding (up to NEAR_SPLIT, as far as a chain is admitted): the coupling
- * is removed — T⁻¹ÂT = [F C; D S] block-diagonalised by [I X; Y I] from the Sylvester equations
- * F X − X S = X D X − C, Y F − S Y = D − Y C Y — and the slow block's series is summed on beyond m terms, to rounding
- * over SERIES_SPAN fast time scales (taking it as nilpotent resolved the drift to 1e-7 only).
- *
- * Otherwise (a defective eigenvalue that is not zero: a critically damped pair) there is no modal form: motions are
- * their Taylor series (linear_mode.h).
+ * How it is computed and what it guarantees: docs/model.md, Part 4, "A mode's basis: balancing, eigenbasis, the zero
+ * eigenvalue".
  */
 #pragma once
 
