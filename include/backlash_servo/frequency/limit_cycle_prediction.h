@@ -45,11 +45,11 @@ struct LimitCyclePrediction
   double frequencyError(const HarmonicBalance& h) const;
 };
 
-/// G(jω) of the loop's linear part under the continuous P law, as the backlash element sees it (see the file comment).
+/// G(jω) of the loop's linear part under the continuous P law, as the backlash element sees it (docs/model.md, Part 4).
 std::complex<double> thesisLoop(const ServoParams& params, double omega);
 
 /// The drive law's torque in the fundamental at ω, per unit of each angle it reads: u = −K_θ Θ_c − K_x X, Θ_c the
-/// load angle's fundamental, X = ρΘ_m the backlash input's (see the file comment).
+/// load angle's fundamental, X = ρΘ_m the backlash input's (docs/model.md, Part 4).
 struct LawResponse
 {
   std::complex<double> load = 0.0;   ///< K_θ [N·m/rad]
@@ -66,16 +66,16 @@ double lawStiffness(const ServoParams& params, const DriveParams& drive);
 /// analysis' band of frequencies.
 double loopNaturalFrequency(const ServoParams& params, const DriveParams& drive);
 
-/// G(jω) of the rigid teeth's loop with the configured law, as the hysteresis sees it (see the file comment) [-].
+/// G(jω) of the rigid teeth's loop with the configured law, as the hysteresis sees it (docs/model.md, Part 4) [-].
 std::complex<double> loopResponse(const ServoParams& params, const DriveParams& drive, double omega);
 
-/// G(jω) of a compliant mesh's loop as the dead zone of its penetration sees it (see the file comment) [-].
+/// G(jω) of a compliant mesh's loop as the dead zone of its penetration sees it (docs/model.md, Part 4) [-].
 std::complex<double> compliantLoop(const ServoParams& params, const DriveParams& drive, double omega);
 
 /// |ρΘ_m / X|: the backlash input's amplitude per unit of the mesh deflection's in that loop at ω [rad/s].
 double compliantMotorAmplitude(const ServoParams& params, const DriveParams& drive, double omega);
 
-/// E(A, ω) of the real element's balance [N·m/rad] (see the file comment): amplitude A [rad], ω [rad/s].
+/// E(A, ω) of the real element's balance [N·m/rad] (docs/model.md, Part 4): amplitude A [rad], ω [rad/s].
 std::complex<double> elementBalance(const ServoParams& params, double amplitude, double omega,
                                     const DriveParams& drive = DriveParams());
 

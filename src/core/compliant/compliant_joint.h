@@ -4,7 +4,7 @@
  *        under a motor-torque law T_m = a − kθ_c, advanced exactly — every mode is linear with constant input (order
  *        4, or 6 with the shaft), solved by LinearMode, and every event is a located zero crossing. The second way the
  *        gear transmits torque beside the rigid teeth with impacts; the Plant (plant.h) delegates to it when
- *        mesh_stiffness > 0, and — with rigid teeth — while the motor-torque law carries a sine (below). No ROS
+ *        mesh_stiffness > 0, and — with rigid teeth — while the motor-torque law carries a sine. No ROS
  *        dependency.
  *
  * How it is computed and what it guarantees: docs/model.md, Part 4, "The compliant joint's modes and events".

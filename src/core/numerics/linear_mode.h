@@ -56,7 +56,7 @@ class LinearMode
   /**
    * The first τ in (from, horizon] where s = w·x + w₀ crosses zero in `direction` (+1: from ≤ 0 to > 0, −1: from ≥ 0
    * to < 0, 0: either — one search where two would visit the same windows), located to the last bit; +inf if none (a
-   * grazing within the floor is none, see the file comment).
+   * grazing within the floor is none, docs/model.md, Part 4).
    * `began_here`: this output's crossing is the event that began the motion, at `from` — there, within rounding of
    * zero and moving in `direction`, its sign means nothing and is not a crossing.
    */

@@ -42,7 +42,7 @@ class ModeBasis
   /// eigenvalue, or a mode slow enough for the slow block's series; a faster one stays with the diagonalised modes.
   /// Also the threshold, relative to the largest, of the singular values of Â^k that are candidates for the kernel.
   static constexpr double CHAIN_TOLERANCE = 1e-7;
-  /// The zero eigenvalue's split (see the file comment), relative to ‖Â‖₂ (to its m-th power for Nᵐ): couplings
+  /// The zero eigenvalue's split (docs/model.md, Part 4), relative to ‖Â‖₂ (to its m-th power for Nᵐ): couplings
   /// between the subspaces and a remainder Nᵐ up to EXACT_SPLIT are rounding; up to NEAR_SPLIT — as far as
   /// CHAIN_TOLERANCE admits a chain — they are removed (the blocks decoupled, the decoupling checked down to
   /// EXACT_SPLIT, the slow block's series summed beyond m terms); beyond, the Taylor series, whose bounds on an output
@@ -58,7 +58,7 @@ class ModeBasis
   const ModeMatrix& matrix() const { return a_; }
   /// Whether motions are evaluated modally (else by their Taylor series).
   bool modal() const { return modal_; }
-  /// The order of the modal form's polynomial part (0: none; see the file comment).
+  /// The order of the modal form's polynomial part (0: none; docs/model.md, Part 4).
   int polynomialOrder() const { return nil_; }
   /// ‖Â‖₂ [1/s] of the balanced matrix: the mode's fastest time scale is its inverse.
   double norm() const { return norm_a_; }
@@ -102,7 +102,7 @@ class ModeBasis
   ModeMatrix nilpotent_;      // N: Â restricted to ker Â^K in those coordinates (N^nil_ = 0, or merely small)
   /// Takes V, Λ (and a nilpotent block of that order in V's last columns) if V is well-conditioned.
   bool useBasis(const Eigen::MatrixXcd& v, const Eigen::VectorXcd& lambda, int nilpotent_order);
-  /// The modal form with a polynomial part where Â's zero eigenvalue lacks eigenvectors (see the file comment).
+  /// The modal form with a polynomial part where Â's zero eigenvalue lacks eigenvectors (docs/model.md, Part 4).
   void splitNilpotent(const Eigen::MatrixXd& b);
   /// Block-diagonalises T⁻¹ÂT = [F C; D S] (F r × r) by T ← T [I X; Y I] (Sylvester equations for X, Y) and
   /// recomputes *blocks; false if the blocks could not be separated.
