@@ -280,31 +280,35 @@ void ShortFlight::evaluateAt(double tau, State* out) const
   out->motor_velocity = evaluate<N>(motor_velocity_, n_, tau);
 }
 
-template <class AtImpact>
-bool ShortFlight::solve(const Model& m, const State& s, double horizon, AtImpact&& at_impact)
+namespace
 {
-  if (s.contact != Contact::Apart || !(horizon > 0.0))
-  {
-    return false;
-  }
-  const double rho = m.rho;
-  const double delta = m.delta;
-  const double pos_scale = std::fabs(s.load_position) + rho * std::fabs(s.motor_position) + delta;
+/// The wall a flight starts on (after an impact: within rounding of it): its gap level [rad] and the sign that makes
+/// F = sign·(g − level) > 0 in the free space, with the rounding band `near` [rad] of the positions' scale.
+struct StartWall
+{
+  Contact wall = Contact::Forward;
+  double level = 0.0, sign = 1.0, near = 0.0, pos_scale = 0.0, g0 = 0.0;
+};
+
+/// False mid-gap (not the start of a chatter flight) or where the other wall is within rounding.
+inline bool startWall(const ShortFlight::Model& m, const State& s, StartWall* w)
+{
+  const double rho = m.rho, delta = m.delta;
+  const double pos_scale = w->pos_scale = std::fabs(s.load_position) + rho * std::fabs(s.motor_position) + delta;
   // The wall the teeth are on (after an impact: within rounding of it); F = sign·(g − level) > 0 in the free space.
-  const double g0 = s.load_position - rho * s.motor_position;
-  const double near = 64.0 * EPS * pos_scale;
-  double level, sign;
+  const double g0 = w->g0 = s.load_position - rho * s.motor_position;
+  const double near = w->near = 64.0 * EPS * pos_scale;
   if (std::fabs(g0) <= near)
   {
-    wall_ = Contact::Forward;
-    level = 0.0;
-    sign = 1.0;
+    w->wall = Contact::Forward;
+    w->level = 0.0;
+    w->sign = 1.0;
   }
   else if (std::fabs(g0 - delta) <= near)
   {
-    wall_ = Contact::Backward;
-    level = delta;
-    sign = -1.0;
+    w->wall = Contact::Backward;
+    w->level = delta;
+    w->sign = -1.0;
   }
   else
   {
@@ -314,6 +318,53 @@ bool ShortFlight::solve(const Model& m, const State& s, double horizon, AtImpact
   {
     return false;  // the other wall is within rounding
   }
+  return true;
+}
+
+/// Where the flight ends by its quadratic f0 + f1 τ + f2 τ²: back on the same wall (pressed back, never reaching Δ)
+/// or across on the other (its smaller root of = Δ, in the cancellation-free form) [s]; the series is then certified
+/// over t_end, 1.5 or 1.25 times that. False when there is no such end within the horizon.
+struct FlightSpan
+{
+  bool returns = false;
+  double quadratic_return = 0.0, t_end = 0.0;
+};
+
+inline bool flightSpan(double f0, double f1, double f2, double delta, double horizon, FlightSpan* span)
+{
+  const double disc = f1 * f1 + 4.0 * f2 * (delta - f0);
+  const bool returns = span->returns = f2 < 0.0 && !(disc > 0.0);
+  if (!returns && !(disc > 0.0))
+  {
+    return false;
+  }
+  const double quadratic_return = span->quadratic_return =
+      returns ? -f1 / f2 : 2.0 * (delta - f0) / (f1 + std::sqrt(disc));  // [s]
+  span->t_end = (returns ? 1.5 : 1.25) * quadratic_return;
+  if (!(span->t_end <= horizon))
+  {
+    return false;
+  }
+  return true;
+}
+}  // namespace
+
+template <class AtImpact>
+bool ShortFlight::solve(const Model& m, const State& s, double horizon, AtImpact&& at_impact)
+{
+  if (s.contact != Contact::Apart || !(horizon > 0.0))
+  {
+    return false;
+  }
+  const double rho = m.rho;
+  const double delta = m.delta;
+  StartWall start;
+  if (!startWall(m, s, &start))
+  {
+    return false;
+  }
+  wall_ = start.wall;
+  const double pos_scale = start.pos_scale, g0 = start.g0, near = start.near, level = start.level, sign = start.sign;
   // Orders 0..2 (y_1 = A y_0 + b, then y_{k+1} = A y_k/(k+1)).
   double* xc = load_position_;
   double* vc = load_velocity_;
@@ -355,20 +406,13 @@ bool ShortFlight::solve(const Model& m, const State& s, double horizon, AtImpact
   {
     return false;  // not leaving the wall (from relative rest: pulled away)
   }
-  // Back to the same wall (pressed back, the quadratic f0 + f1 τ + f2 τ² never reaching Δ) or across to the other
-  // one (its smaller root of = Δ, in the cancellation-free form); each then certified on the whole series.
-  const double disc = f1 * f1 + 4.0 * f2 * (delta - f0);
-  const bool returns = f2 < 0.0 && !(disc > 0.0);
-  if (!returns && !(disc > 0.0))
+  FlightSpan span;
+  if (!flightSpan(f0, f1, f2, delta, horizon, &span))
   {
     return false;
   }
-  const double quadratic_return = returns ? -f1 / f2 : 2.0 * (delta - f0) / (f1 + std::sqrt(disc));  // [s]
-  const double t_end = (returns ? 1.5 : 1.25) * quadratic_return;
-  if (!(t_end <= horizon))
-  {
-    return false;
-  }
+  const bool returns = span.returns;
+  const double quadratic_return = span.quadratic_return, t_end = span.t_end;
   // Norm of A in the weighted norm ||y||_D = max(|θ_c|, s|ω_c|, ρ|θ_m|, sρ|ω_m|), s = 1/ω_ref.
   const double scale_time = m.omega_ref > 0.0 ? m.scale_time : 1e3 * t_end;
   const double mt = (m.omega_ref > 0.0 ? m.norm : 1.0 / scale_time) * t_end;
