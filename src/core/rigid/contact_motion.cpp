@@ -19,9 +19,8 @@ constexpr double INF = std::numeric_limits<double>::infinity();
 constexpr double PI = 3.14159265358979323846;
 
 /// The first of the points τ + kπ/ω (k whole) in (0, half = π/ω], for τ = (atan2(·) + π/2)/ω in [−half/2, 3half/2]
-/// (fmod is exact, so this equals one subtraction or addition of half); +inf (no such point) stays +inf. (A loop
-/// subtracting half from +inf never ended: a mesh torque with no oscillating part, e.g. a load torque balancing the
-/// motor's at the start, hung the simulator — found by the libFuzzer target.)
+/// (fmod is exact, so this equals one subtraction or addition of half); +inf (no such point) stays +inf, so a
+/// mesh torque with no oscillating part (a load torque balancing the motor's at the start) does not loop for ever.
 double firstInHalfPeriod(double tau, double half)
 {
   if (!std::isfinite(tau))

@@ -98,6 +98,31 @@ struct GapSeries
   int n = 0;
   double higher = 0.0, higher_slope = 0.0;
 
+  /// The bounds of the orders ≥ 3 and the remainder (two components in it) over [0, T]: `higher` on |F'' − 2f_2|
+  /// and, with `slope` (a crossing), `higher_slope` on |F' − f_1 − 2f_2 τ|; from ||y_N||_D = weighted, T^{N−2},
+  /// T^N and M·T (order N, 0: n).
+  template <int N = 0>
+  void boundHigherOrders(double t_end, double weighted, double t_power_2, double t_power, double mt, bool slope)
+  {
+    const int top = N ? N : n;
+    double tk = t_end;
+    for (int k = 3; k <= top; ++k, tk *= t_end)
+    {
+      higher += k * (k - 1) * std::fabs(f[k]) * tk;
+    }
+    higher += 2.0 * weighted * t_power_2 * (top * mt + 1.12 * mt * mt);  // 1/(1 − MT) ≤ 1.12
+    if (slope)
+    {
+      // (the remainder's slope: 1.12·||y_N|| M T^N per component)
+      tk = t_end * t_end;
+      for (int k = 3; k <= top; ++k, tk *= t_end)
+      {
+        higher_slope += k * std::fabs(f[k]) * tk;
+      }
+      higher_slope += 2.0 * 1.12 * weighted * t_power * mt / t_end;
+    }
+  }
+
   /// F(τ) and F'(τ), order N (0: n).
   template <int N = 0>
   double value(double tau, double* slope) const
@@ -464,23 +489,7 @@ bool ShortFlight::solve(const Model& m, const State& s, double horizon, AtImpact
     {
       gap.f[top] = sign * (y_xc - rho * y_xm);  // y_n, still in registers
     }
-    // Bound on |F'' − 2f_2| over [0, T] from the orders ≥ 3 and the remainder's second derivative (two components).
-    double tk = t_end;
-    for (int k = 3; k <= top; ++k, tk *= t_end)
-    {
-      gap.higher += k * (k - 1) * std::fabs(gap.f[k]) * tk;
-    }
-    gap.higher += 2.0 * weighted * t_power_2 * (top * mt + 1.12 * mt * mt);  // 1/(1 − MT) ≤ 1.12
-    if (!returns)
-    {
-      // And on |F' − f_1 − 2f_2 τ| (orders ≥ 3 and the remainder's slope, 1.12·||y_N|| M T^N per component).
-      tk = t_end * t_end;
-      for (int k = 3; k <= top; ++k, tk *= t_end)
-      {
-        gap.higher_slope += k * std::fabs(gap.f[k]) * tk;
-      }
-      gap.higher_slope += 2.0 * 1.12 * weighted * t_power * mt / t_end;
-    }
+    gap.boundHigherOrders<N>(t_end, weighted, t_power_2, t_power, mt, !returns);
     const double rounding = 2.0 * remainder + rounding_base;
     double x = 0.0;
     const bool root = returns ? gap.returnTime<N>(quadratic_return, t_end, near, delta, rounding, &x)

@@ -427,7 +427,7 @@ RunSummary runResponse(const RunConfig& config, EventSink* sink, double sample_p
         // A sustained oscillation settled by a maximum ends the run within a sub-step of it, not at the chunk's end
         // (up to a natural period later: in elastic chatter, 10⁵ impacts). Its figures come from the maxima, and the
         // motion does not depend on where advanceTo stops: the same verdict, error and period. (A convergence runs
-        // on to the chunk's end as before: its steady error is read there; the rest tests run at chunk ends only.)
+        // on to the chunk's end: its steady error is read there; the rest tests run at chunk ends only.)
         const double from = sim.state().time;
         for (int k = 1; k < SETTLE_STEPS && !monitor.oscillating(); ++k)
         {

@@ -487,7 +487,7 @@ using BoundedWork = Sandbox;
 
 TEST_F(BoundedWork, AChartOfManySamplesKeepsABoundedTrajectory)
 {
-  // 2e6 samples per strategy: every one enters the metrics, at most 20001 the chart (before: all of them, ~80 MB
+  // 2e6 samples per strategy: every one enters the metrics, at most 20001 the chart (all of them would be ~80 MB
   // of samples and ~150 MB of chart data per strategy).
   write(dir + "/many.yaml",
         "motor_inertia: 0.1\nload_inertia: 0.9\nmotor_friction: 0.48\nload_friction: 0.32\ngain: 1\n"

@@ -225,7 +225,7 @@ TEST(LoadTorque, LevelCrossingSeparationMatchesABruteForceScan)
 
 // A load torque balancing the motor's exactly at the start: the mesh torque and the velocity have no oscillating
 // part (constant level), the joint stays where it is. The search for the first critical point of a sinusoid with
-// zero amplitude looped for ever before (found by the libFuzzer target: `backlash_sim --load-torque -1`).
+// zero amplitude must not loop for ever (`backlash_sim --load-torque -1`).
 TEST(LoadTorque, ABalancedStartStaysAtRestWithoutHanging)
 {
   ServoParams p;         // App. D1: K = 1 N·m/rad, unit step from 0 → motor torque 1 N·m
