@@ -78,12 +78,21 @@ struct Options
   JointFitSettings joint;
 };
 
+/// The prior's keys: the joint's, the drive's, the initial state's and the run's, but `duration`, which is the
+/// experiment's length here (--experiment --duration) and no part of a model.
+std::vector<std::string> identifyKeys()
+{
+  std::vector<std::string> keys =
+      keysOfSections({ParamSection::Servo, ParamSection::Drive, ParamSection::Initial, ParamSection::Run});
+  keys.erase(std::remove(keys.begin(), keys.end(), "duration"), keys.end());
+  return keys;
+}
+
 /// The flags: the prior's keys and the tool's options, with their help.
 FlagParser identifyFlags()
 {
   return FlagParser(
-      "backlash_identify", HEADER,
-      keysOfSections({ParamSection::Servo, ParamSection::Drive, ParamSection::Initial, ParamSection::Run}),
+      "backlash_identify", HEADER, identifyKeys(),
       {{"config", "PRIOR.yaml", "what is known of the joint (the gear ratio at least); flags override it"},
        {"data", "FILE.csv|FILE.bag",
         "the recording: a CSV time,motor_torque,motor_position,load_position, or a bag (the node's, or any with a "
@@ -760,6 +769,11 @@ int main(int argc, char** argv)
     {
       output =
           std::make_unique<SafeOutput>("--output", o.output_path, std::vector<std::string>{o.config_path, o.data_path});
+    }
+    if (!o.png_path.empty() && !o.output_path.empty() &&
+        (o.png_path == o.output_path || sameFile(o.png_path, o.output_path)))
+    {
+      throw ConfigError("--png: '" + o.png_path + "' is also the --output file (the model)");
     }
     if (!o.png_path.empty())
     {

@@ -3,6 +3,7 @@
 #include <Eigen/Dense>
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <variant>
 
 #include "backlash_servo/identification/measured_angles.h"
@@ -30,6 +31,8 @@ constexpr std::size_t FEWEST_DRIVEN = 100;
 /// Measured angles: the fewest pieces of a phase whose cluster-robust standard errors are trusted.
 constexpr std::size_t FEWEST_PIECES = 20;
 constexpr double LOOSEST_LEVEL = 0.05;
+/// How far a step may differ from the typical one, relative to it: the torque is taken as held over each step.
+constexpr double UNIFORM_STEP = 1e-3;
 
 void need(bool ok, const std::string& key, const std::string& what)
 {
@@ -540,13 +543,26 @@ double samplePeriod(const Recording& d, const IdentificationSettings& s)
     need(std::isfinite(d.time[k]) && std::isfinite(d.motor_torque[k]) && std::isfinite(d.motor_position[k]) &&
              std::isfinite(d.load_position[k]),
          "data", "row " + std::to_string(k + 1) + " has a value that is not a finite number");
-    if (k > 0)
-    {
-      need(std::fabs(d.time[k] - d.time[k - 1] - h) <= 1e-6 * h, "time",
-           "samples must be uniform in time (row " + std::to_string(k + 1) + " is " +
-               std::to_string(d.time[k] - d.time[k - 1]) + " s after the one before, the mean step is " +
-               std::to_string(h) + " s)");
-    }
+  }
+  // Uniform in time: every step within UNIFORM_STEP of the typical (median) one — a clock's jitter and the rounding of
+  // Unix-epoch stamps (2.4e-7 s at 1.7e9 s) pass, a sample lost or doubled does not, and is named by its row.
+  std::vector<double> steps(n - 1);
+  for (std::size_t k = 1; k < n; ++k)
+  {
+    steps[k - 1] = d.time[k] - d.time[k - 1];
+  }
+  const double typical = median(steps);
+  const auto shown = [](double x, int digits) {
+    char text[40];
+    std::snprintf(text, sizeof text, "%.*g", digits, x);
+    return std::string(text);
+  };
+  for (std::size_t k = 1; k < n; ++k)
+  {
+    need(std::fabs(steps[k - 1] - typical) <= UNIFORM_STEP * typical, "time",
+         "samples must be uniform in time: row " + std::to_string(k + 1) + " (t = " + shown(d.time[k], 15) + " s) is " +
+             shown(steps[k - 1], 3) + " s after the one before, the typical step is " + shown(typical, 3) +
+             " s (a sample lost or doubled?)");
   }
   need(s.smoothing >= 0 && s.smoothing <= 100000, "smoothing", "must be in [0, 100000] samples");
   need(n > 8 * static_cast<std::size_t>(s.smoothing) + 50, "smoothing",

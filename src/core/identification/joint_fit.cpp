@@ -531,6 +531,12 @@ JointFit fitJoint(const Recording& data, const IdentificationSettings& identific
     throw InvalidParameterError("data", "needs at least 50 samples");
   }
   const double h = (data.time.back() - data.time.front()) / static_cast<double>(n - 1);
+  if (!(settings.window >= 2.0 * h))
+  {
+    // (a window of a sample or two replays nothing of the dynamics: its anchors, read from the angles, set the fit)
+    throw InvalidParameterError("window", "must be at least two sample periods (2 × " + formatNumber(h) + " s); got " +
+                                              formatNumber(settings.window) + " s");
+  }
   const std::size_t length = std::max<std::size_t>(2, static_cast<std::size_t>(std::ceil(settings.window / h)));
   std::vector<std::size_t> starts = ReplayWindows::spread(n, length, static_cast<std::size_t>(settings.windows));
   auto replay = std::make_unique<ReplayWindows>(data, identification, zero_offset, starts, length);

@@ -89,6 +89,40 @@ TEST(Identification, RefusesARecordingThatDoesNotCrossTheBacklash)
   EXPECT_THROW(estimateInitial(bad, s), InvalidParameterError);
 }
 
+// Time stamps as recorders write them: a clock's nanosecond jitter and Unix-epoch times (rounded to 2.4e-7 s at
+// 1.7e9 s) are uniform samples; a lost sample is refused at its own row, with both steps readable.
+TEST(Identification, JitteredAndEpochStampsAreUniformALostSampleIsNamed)
+{
+  Recording r;
+  std::mt19937_64 rng(3);
+  std::uniform_real_distribution<double> jitter(-1e-9, 1e-9);
+  for (int k = 0; k < 30000; ++k)
+  {
+    r.time.push_back(1700000000.5 + 1e-3 * k + jitter(rng));
+    r.motor_torque.push_back(0.0);
+    r.motor_position.push_back(0.0);
+    r.load_position.push_back(0.0);
+  }
+  IdentificationSettings s;
+  EXPECT_NEAR(samplePeriod(r, s), 1e-3, 1e-9);
+  Recording holed = r;
+  for (std::size_t k = 20000; k < holed.time.size(); ++k)
+  {
+    holed.time[k] += 1e-3;  // the sample between rows 20 000 and 20 001 lost
+  }
+  try
+  {
+    samplePeriod(holed, s);
+    FAIL() << "accepted a lost sample";
+  }
+  catch (const InvalidParameterError& e)
+  {
+    const std::string what = e.what();
+    EXPECT_NE(what.find("row 20001 "), std::string::npos) << what;
+    EXPECT_NE(what.find("0.002 s after the one before, the typical step is 0.001 s"), std::string::npos) << what;
+  }
+}
+
 TEST(Identification, QuantisedAndNoisyEncodersWithSmoothing)
 {
   // The same kind of recording read through 4096-count encoders with Gaussian noise (σ = 1e-4 rad, a fixed seed):

@@ -204,6 +204,19 @@ TEST(JointFit, RefusesWhatItCannotFit)
   compliant.gear_inertia = 0.1;
   f.keys = {"load_inertia"};
   EXPECT_THROW(fitJoint(r, s, 0.0, compliant, f), InvalidParameterError);
+  // A window shorter than two samples replays nothing of the dynamics: refused, naming the key and the period.
+  f.keys = {"backlash"};
+  f.window = 1e-9;
+  try
+  {
+    fitJoint(r, s, 0.0, p, f);
+    FAIL() << "accepted a window below one sample";
+  }
+  catch (const InvalidParameterError& e)
+  {
+    EXPECT_NE(std::string(e.what()).find("window"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("0.001 s"), std::string::npos) << e.what();
+  }
 }
 
 TEST(JointFit, MeasuredAnglesFromFineEncoders)

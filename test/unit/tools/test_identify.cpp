@@ -294,6 +294,24 @@ TEST(IdentifyTool, ExperimentInformsTheEstimates)
   EXPECT_NEAR(estimate("motor_coulomb_friction"), 0.05, 5e-4);
   EXPECT_NEAR(estimate("load_coulomb_friction"), 0.1, 1e-3);
   EXPECT_NEAR(estimate("load_torque"), 0.2, 2e-3);
+  // --duration is the experiment's length (three sines of a third each), and nothing else's.
+  runCapture(
+      IDENTIFY + " --experiment --config " + dir + "prior.yaml --duration 120 --output " + dir + "long.yaml 2>&1",
+      &code);
+  ASSERT_EQ(code, 0);
+  const std::string long_profile = readFile(dir + "long.yaml");
+  EXPECT_NE(long_profile.find("duration: 40}"), std::string::npos) << long_profile;
+  const std::string stray =
+      runCapture(IDENTIFY + " --data " + dir + "rec.csv --config " + dir + "prior.yaml --duration 5 2>&1", &code);
+  EXPECT_EQ(code, 2);
+  EXPECT_NE(stray.find("--duration, --travel and --dither are for --experiment"), std::string::npos) << stray;
+  // The chart and the model in one file: refused before any work, nothing written.
+  const std::string clash = runCapture(IDENTIFY + " --data " + dir + "rec.csv --config " + dir +
+                                           "prior.yaml --output " + dir + "same.png --png " + dir + "same.png 2>&1",
+                                       &code);
+  EXPECT_EQ(code, 2);
+  EXPECT_NE(clash.find("is also the --output file"), std::string::npos) << clash;
+  EXPECT_FALSE(std::ifstream(dir + "same.png").good());
   const std::string narrow = runCapture(
       IDENTIFY + " --experiment --config " + dir + "prior.yaml --travel 0.5 --output " + dir + "narrow.yaml 2>&1",
       &code);
