@@ -146,6 +146,13 @@ void readExperiment(const FlagParser& parser, Options* options)
   o.prior_config = runConfigFrom(parser.keys());
   o.duration = parser.optionNumber("duration", 60.0);
   o.travel = parser.optionNumber("travel", 3.0 * o.prior_config.params.backlash);
+  // The profile's positions are commands: within the command's range, as every tool reads them.
+  const ParamRange& positions = param("command").range;
+  if (parser.given("travel") && !positions.contains(o.travel))
+  {
+    throw ConfigError("--travel: " + formatNumber(o.travel) + " rad must be " + positions.describe() +
+                      " rad (the command's range)");
+  }
   if (parser.given("dither"))
   {
     const std::string text = parser.option("dither");
@@ -177,6 +184,11 @@ void readExperiment(const FlagParser& parser, Options* options)
           "--dither: the amplitude must be > 0 rad and the frequency > 0 Hz, at most a quarter of the "
           "controller rate (got '" +
           text + "')");
+    }
+    if (!positions.contains(o.dither_amplitude))
+    {
+      throw ConfigError("--dither: " + formatNumber(o.dither_amplitude) + " rad must be " + positions.describe() +
+                        " rad (the command's range)");
     }
   }
 }

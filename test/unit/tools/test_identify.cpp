@@ -305,6 +305,16 @@ TEST(IdentifyTool, ExperimentInformsTheEstimates)
       runCapture(IDENTIFY + " --data " + dir + "rec.csv --config " + dir + "prior.yaml --duration 5 2>&1", &code);
   EXPECT_EQ(code, 2);
   EXPECT_NE(stray.find("--duration, --travel and --dither are for --experiment"), std::string::npos) << stray;
+  // A travel or a dither beyond the command's range: refused at --experiment, naming the flag (every tool would
+  // refuse the profile).
+  for (const std::string& flag : {std::string(" --travel 1e12"), std::string(" --dither 1e12,1")})
+  {
+    const std::string far = runCapture(
+        IDENTIFY + " --experiment --config " + dir + "prior.yaml" + flag + " --output " + dir + "far.yaml 2>&1", &code);
+    EXPECT_EQ(code, 2) << far;
+    EXPECT_NE(far.find(flag.substr(1, flag.find(' ', 1) - 1) + ": 1000000000000 rad must be in"), std::string::npos)
+        << far;
+  }
   // The chart and the model in one file: refused before any work, nothing written.
   const std::string clash = runCapture(IDENTIFY + " --data " + dir + "rec.csv --config " + dir +
                                            "prior.yaml --output " + dir + "same.png --png " + dir + "same.png 2>&1",
