@@ -127,6 +127,9 @@ struct ChartParams
 /// Checks that value is finite; throws InvalidParameterError(field, "must be a finite number (got …)") otherwise.
 void requireFinite(const std::string& field, double value);
 
+/// Throws InvalidParameterError(field, what) unless ok.
+void requireThat(bool ok, const std::string& field, const std::string& what);
+
 /// The shortest decimal text that reads back as the same double ("0.1", "1e-07", "inf", "nan").
 std::string formatNumber(double value);
 

@@ -373,36 +373,29 @@ class Element
   static constexpr long IMPACT_BUDGET = 100000;
 };
 
-void need(bool ok, const std::string& key, const std::string& what)
-{
-  if (!ok)
-  {
-    throw InvalidParameterError(key, what);
-  }
-}
-
 }  // namespace
 
 void requireDrivableBacklash(const ServoParams& params)
 {
   // (The element's own values only: a massless-looking load is a limit worth driving, outside the joint's envelope.)
-  need(std::isfinite(params.load_inertia) && params.load_inertia > 0.0, "load_inertia", "must be > 0 kg·m²");
-  need(std::isfinite(params.load_friction) && params.load_friction >= 0.0, "load_friction", "must be >= 0 N·m·s/rad");
-  need(std::isfinite(params.load_coulomb_friction) && params.load_coulomb_friction >= 0.0, "load_coulomb_friction",
-       "must be >= 0 N·m");
-  need(params.restitution >= 0.0 && params.restitution <= 1.0, "restitution", "must be in [0, 1]");
-  need(params.backlash > 0.0, "backlash", "must be > 0 rad: the element is the free play");
-  need(params.load_torque == 0.0, "load_torque",
-       "must be 0: with a load torque the element's cycle is not symmetric about its centre");
+  requireThat(std::isfinite(params.load_inertia) && params.load_inertia > 0.0, "load_inertia", "must be > 0 kg·m²");
+  requireThat(std::isfinite(params.load_friction) && params.load_friction >= 0.0, "load_friction",
+              "must be >= 0 N·m·s/rad");
+  requireThat(std::isfinite(params.load_coulomb_friction) && params.load_coulomb_friction >= 0.0,
+              "load_coulomb_friction", "must be >= 0 N·m");
+  requireThat(params.restitution >= 0.0 && params.restitution <= 1.0, "restitution", "must be in [0, 1]");
+  requireThat(params.backlash > 0.0, "backlash", "must be > 0 rad: the element is the free play");
+  requireThat(params.load_torque == 0.0, "load_torque",
+              "must be 0: with a load torque the element's cycle is not symmetric about its centre");
 }
 
 DrivenBacklash drivenBacklash(const ServoParams& params, double amplitude, double omega, double tolerance,
                               int max_periods)
 {
   requireDrivableBacklash(params);
-  need(std::isfinite(amplitude) && amplitude > 0.0, "amplitude", "must be > 0 rad");
-  need(std::isfinite(omega) && omega > 0.0, "frequency", "must be > 0 rad/s");
-  need(max_periods >= 1 && tolerance > 0.0, "tolerance", "must be > 0, with at least one period");
+  requireThat(std::isfinite(amplitude) && amplitude > 0.0, "amplitude", "must be > 0 rad");
+  requireThat(std::isfinite(omega) && omega > 0.0, "frequency", "must be > 0 rad/s");
+  requireThat(max_periods >= 1 && tolerance > 0.0, "tolerance", "must be > 0, with at least one period");
   const double period = 2.0 * PI / omega;
   Element element(params, amplitude, omega);
   DrivenBacklash out;

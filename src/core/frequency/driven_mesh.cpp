@@ -18,14 +18,6 @@ namespace
 constexpr double PI = 3.14159265358979323846;
 constexpr double INF = std::numeric_limits<double>::infinity();
 
-void need(bool ok, const std::string& key, const std::string& what)
-{
-  if (!ok)
-  {
-    throw InvalidParameterError(key, what);
-  }
-}
-
 /// What a watched output's crossing means.
 enum class Kind
 {
@@ -415,28 +407,31 @@ class MeshElement
 
 void requireDrivableMesh(const ServoParams& params)
 {
-  need(std::isfinite(params.mesh_stiffness) && params.mesh_stiffness > 0.0, "mesh_stiffness",
-       "must be > 0 N·m/rad: the compliant element is the mesh");
-  need(std::isfinite(params.mesh_damping) && params.mesh_damping >= 0.0, "mesh_damping", "must be >= 0 N·m·s/rad");
-  need(std::isfinite(params.load_inertia) && params.load_inertia > 0.0, "load_inertia", "must be > 0 kg·m²");
-  need(std::isfinite(params.load_friction) && params.load_friction >= 0.0, "load_friction", "must be >= 0 N·m·s/rad");
-  need(std::isfinite(params.load_coulomb_friction) && params.load_coulomb_friction >= 0.0, "load_coulomb_friction",
-       "must be >= 0 N·m");
-  need(std::isfinite(params.load_static_friction) && params.load_static_friction >= 0.0, "load_static_friction",
-       "must be >= 0 N·m");
-  need(params.load_torque == 0.0, "load_torque",
-       "must be 0: with a load torque the element's cycle is not symmetric about its centre");
-  need(params.shaft_stiffness == 0.0, "shaft_stiffness", "must be 0: the driven compliant element has a rigid shaft");
-  need(std::isfinite(params.backlash) && params.backlash >= 0.0, "backlash", "must be >= 0 rad");
+  requireThat(std::isfinite(params.mesh_stiffness) && params.mesh_stiffness > 0.0, "mesh_stiffness",
+              "must be > 0 N·m/rad: the compliant element is the mesh");
+  requireThat(std::isfinite(params.mesh_damping) && params.mesh_damping >= 0.0, "mesh_damping",
+              "must be >= 0 N·m·s/rad");
+  requireThat(std::isfinite(params.load_inertia) && params.load_inertia > 0.0, "load_inertia", "must be > 0 kg·m²");
+  requireThat(std::isfinite(params.load_friction) && params.load_friction >= 0.0, "load_friction",
+              "must be >= 0 N·m·s/rad");
+  requireThat(std::isfinite(params.load_coulomb_friction) && params.load_coulomb_friction >= 0.0,
+              "load_coulomb_friction", "must be >= 0 N·m");
+  requireThat(std::isfinite(params.load_static_friction) && params.load_static_friction >= 0.0, "load_static_friction",
+              "must be >= 0 N·m");
+  requireThat(params.load_torque == 0.0, "load_torque",
+              "must be 0: with a load torque the element's cycle is not symmetric about its centre");
+  requireThat(params.shaft_stiffness == 0.0, "shaft_stiffness",
+              "must be 0: the driven compliant element has a rigid shaft");
+  requireThat(std::isfinite(params.backlash) && params.backlash >= 0.0, "backlash", "must be >= 0 rad");
 }
 
 DrivenBacklash drivenCompliantMesh(const ServoParams& params, double amplitude, double omega, double tolerance,
                                    int max_periods)
 {
   requireDrivableMesh(params);
-  need(std::isfinite(amplitude) && amplitude > 0.0, "amplitude", "must be > 0 rad");
-  need(std::isfinite(omega) && omega > 0.0, "frequency", "must be > 0 rad/s");
-  need(max_periods >= 1 && tolerance > 0.0, "tolerance", "must be > 0, with at least one period");
+  requireThat(std::isfinite(amplitude) && amplitude > 0.0, "amplitude", "must be > 0 rad");
+  requireThat(std::isfinite(omega) && omega > 0.0, "frequency", "must be > 0 rad/s");
+  requireThat(max_periods >= 1 && tolerance > 0.0, "tolerance", "must be > 0, with at least one period");
   const double period = 2.0 * PI / omega;
   MeshElement element(params, amplitude, omega);
   DrivenBacklash out;

@@ -34,14 +34,6 @@ constexpr double LOOSEST_LEVEL = 0.05;
 /// How far a step may differ from the typical one, relative to it: the torque is taken as held over each step.
 constexpr double UNIFORM_STEP = 1e-3;
 
-void need(bool ok, const std::string& key, const std::string& what)
-{
-  if (!ok)
-  {
-    throw InvalidParameterError(key, what);
-  }
-}
-
 /// The median of the samples (the upper middle one of an even count).
 double median(std::vector<double> v)
 {
@@ -530,19 +522,20 @@ std::vector<double> smoothedSignal(const std::vector<double>& x, int r)
 double samplePeriod(const Recording& d, const IdentificationSettings& s)
 {
   const std::size_t n = d.time.size();
-  need(n >= 50, "data", "needs at least 50 samples (got " + std::to_string(n) + ")");
-  need(d.motor_torque.size() == n && d.motor_position.size() == n && d.load_position.size() == n, "data",
-       "the columns time, motor_torque, motor_position and load_position must have equal lengths");
-  need(std::isfinite(s.gear_ratio) && s.gear_ratio > 0.0, "gear_ratio", "must be known and > 0 (give it in the prior)");
+  requireThat(n >= 50, "data", "needs at least 50 samples (got " + std::to_string(n) + ")");
+  requireThat(d.motor_torque.size() == n && d.motor_position.size() == n && d.load_position.size() == n, "data",
+              "the columns time, motor_torque, motor_position and load_position must have equal lengths");
+  requireThat(std::isfinite(s.gear_ratio) && s.gear_ratio > 0.0, "gear_ratio",
+              "must be known and > 0 (give it in the prior)");
   const double h = (d.time.back() - d.time.front()) / static_cast<double>(n - 1);
-  need(h > 0.0 && std::isfinite(h), "time", "must increase");
-  need(h >= MIN_SAMPLE_PERIOD, "time",
-       "the samples are " + formatNumber(h) + " s apart, below 1 ns: is the time column in seconds?");
+  requireThat(h > 0.0 && std::isfinite(h), "time", "must increase");
+  requireThat(h >= MIN_SAMPLE_PERIOD, "time",
+              "the samples are " + formatNumber(h) + " s apart, below 1 ns: is the time column in seconds?");
   for (std::size_t k = 0; k < n; ++k)
   {
-    need(std::isfinite(d.time[k]) && std::isfinite(d.motor_torque[k]) && std::isfinite(d.motor_position[k]) &&
-             std::isfinite(d.load_position[k]),
-         "data", "row " + std::to_string(k + 1) + " has a value that is not a finite number");
+    requireThat(std::isfinite(d.time[k]) && std::isfinite(d.motor_torque[k]) && std::isfinite(d.motor_position[k]) &&
+                    std::isfinite(d.load_position[k]),
+                "data", "row " + std::to_string(k + 1) + " has a value that is not a finite number");
   }
   // Uniform in time: every step within UNIFORM_STEP of the typical (median) one — a clock's jitter and the rounding of
   // Unix-epoch stamps (2.4e-7 s at 1.7e9 s) pass, a sample lost or doubled does not, and is named by its row.
@@ -559,14 +552,14 @@ double samplePeriod(const Recording& d, const IdentificationSettings& s)
   };
   for (std::size_t k = 1; k < n; ++k)
   {
-    need(std::fabs(steps[k - 1] - typical) <= UNIFORM_STEP * typical, "time",
-         "samples must be uniform in time: row " + std::to_string(k + 1) + " (t = " + shown(d.time[k], 15) + " s) is " +
-             shown(steps[k - 1], 3) + " s after the one before, the typical step is " + shown(typical, 3) +
-             " s (a sample lost or doubled?)");
+    requireThat(std::fabs(steps[k - 1] - typical) <= UNIFORM_STEP * typical, "time",
+                "samples must be uniform in time: row " + std::to_string(k + 1) + " (t = " + shown(d.time[k], 15) +
+                    " s) is " + shown(steps[k - 1], 3) + " s after the one before, the typical step is " +
+                    shown(typical, 3) + " s (a sample lost or doubled?)");
   }
-  need(s.smoothing >= 0 && s.smoothing <= 100000, "smoothing", "must be in [0, 100000] samples");
-  need(n > 8 * static_cast<std::size_t>(s.smoothing) + 50, "smoothing",
-       "is too wide for a recording of " + std::to_string(n) + " samples");
+  requireThat(s.smoothing >= 0 && s.smoothing <= 100000, "smoothing", "must be in [0, 100000] samples");
+  requireThat(n > 8 * static_cast<std::size_t>(s.smoothing) + 50, "smoothing",
+              "is too wide for a recording of " + std::to_string(n) + " samples");
   return h;
 }
 
@@ -719,14 +712,15 @@ Phases readPhases(const Recording& d, const IdentificationSettings& s, double h)
   {
     p.edges = edgePhases(d, s, p.motor.velocity, p.still, p.motor_seen, p.load_seen);
   }
-  need((resolved && p.range > 0.0) || p.edges.resolved, "data",
-       measured ? "the free play is not resolved by the gap θ_c − ρθ_m: its two flanks are not several times the "
-                  "gap's measurement band (" +
-                      formatNumber(p.band) +
-                      " rad, from the encoders' counts and noise) apart; nothing is estimated without the "
-                      "phases — finer or less noisy encoders are needed"
-                : "the gap θ_c − ρθ_m never spans the backlash: the recording needs reversals that carry the motor "
-                  "across the free play to both flanks");
+  requireThat((resolved && p.range > 0.0) || p.edges.resolved, "data",
+              measured
+                  ? "the free play is not resolved by the gap θ_c − ρθ_m: its two flanks are not several times the "
+                    "gap's measurement band (" +
+                        formatNumber(p.band) +
+                        " rad, from the encoders' counts and noise) apart; nothing is estimated without the "
+                        "phases — finer or less noisy encoders are needed"
+                  : "the gap θ_c − ρθ_m never spans the backlash: the recording needs reversals that carry the motor "
+                    "across the free play to both flanks");
   p.phase = p.edges.resolved ? p.edges.phase : std::vector<int>(n, 0);
   for (std::size_t k = 0; k < n && !p.edges.resolved; ++k)
   {
@@ -785,19 +779,20 @@ void bodiesFromDerivatives(const Recording& d, const IdentificationSettings& s, 
     {
       near += std::min(p.gap[k] - lo, hi - p.gap[k]) <= 0.05 * p.range ? 1 : 0;
     }
-    need(near < n / 10, "data",
-         "the gap θ_c − ρθ_m keeps moving near the flanks while the motor drives the load (never within the contact "
-         "band of " +
-             formatNumber(p.band) +
-             " rad): the mesh looks compliant — give a prior with mesh_stiffness > 0 (a guess) to identify a "
-             "compliant mesh — or, for measured angles, a contact band of their resolution");
+    requireThat(
+        near < n / 10, "data",
+        "the gap θ_c − ρθ_m keeps moving near the flanks while the motor drives the load (never within the contact "
+        "band of " +
+            formatNumber(p.band) +
+            " rad): the mesh looks compliant — give a prior with mesh_stiffness > 0 (a guess) to identify a "
+            "compliant mesh — or, for measured angles, a contact band of their resolution");
   }
-  need(contact.size() >= 20, "data",
-       "too few samples with the teeth in contact and moving (" + std::to_string(contact.size()) +
-           "): the recording needs motion while the motor drives the load");
-  need(apart.size() >= 20, "data",
-       "too few samples with the teeth apart and the motor moving (" + std::to_string(apart.size()) +
-           "): the recording needs the motor to cross the free play");
+  requireThat(contact.size() >= 20, "data",
+              "too few samples with the teeth in contact and moving (" + std::to_string(contact.size()) +
+                  "): the recording needs motion while the motor drives the load");
+  requireThat(apart.size() >= 20, "data",
+              "too few samples with the teeth apart and the motor moving (" + std::to_string(apart.size()) +
+                  "): the recording needs the motor to cross the free play");
   // Contact: ū = J α + F ω + C sgn ω + b.
   Eigen::MatrixXd xc(static_cast<Eigen::Index>(contact.size()), 4);
   Eigen::VectorXd yc(static_cast<Eigen::Index>(contact.size()));
@@ -812,9 +807,9 @@ void bodiesFromDerivatives(const Recording& d, const IdentificationSettings& s, 
   // Contact motion one way only: the Coulomb term and the load torque are one constant, split with the load torque
   // given (then not estimated).
   const bool known_load = !both_ways && std::isfinite(s.load_torque_fallback);
-  need(both_ways || known_load, "data",
-       "in contact the joint moved one way only: Coulomb friction and the load torque cannot be told apart (the "
-       "recording needs contact motion in both directions, or give the load torque)");
+  requireThat(both_ways || known_load, "data",
+              "in contact the joint moved one way only: Coulomb friction and the load torque cannot be told apart (the "
+              "recording needs contact motion in both directions, or give the load torque)");
   if (known_load)
   {
     xc.col(3).setZero();
@@ -1048,16 +1043,16 @@ InitialEstimates estimateInitial(const Recording& d, const IdentificationSetting
 std::vector<ProfileSegment> identificationExperiment(const ServoParams& params, double duration, double travel,
                                                      double dither_amplitude, double dither_frequency)
 {
-  need(std::isfinite(dither_amplitude) && dither_amplitude >= 0.0, "dither", "the amplitude must be >= 0 rad");
-  need(dither_amplitude == 0.0 || (std::isfinite(dither_frequency) && dither_frequency > 0.0), "dither",
-       "the frequency must be > 0 Hz");
-  need(std::isfinite(duration) && duration > 0.0, "duration", "must be > 0 s");
-  need(params.backlash > 0.0, "backlash",
-       "the prior's backlash is 0 (rigid teeth): give a guess of it, from which the experiment's travel (three "
-       "backlashes at least) and its reversals are designed");
-  need(std::isfinite(travel) && travel >= 3.0 * params.backlash, "travel",
-       "must be at least three times the backlash (" + formatNumber(3.0 * params.backlash) +
-           " rad): every reversal must carry the motor across the free play (got " + formatNumber(travel) + ")");
+  requireThat(std::isfinite(dither_amplitude) && dither_amplitude >= 0.0, "dither", "the amplitude must be >= 0 rad");
+  requireThat(dither_amplitude == 0.0 || (std::isfinite(dither_frequency) && dither_frequency > 0.0), "dither",
+              "the frequency must be > 0 Hz");
+  requireThat(std::isfinite(duration) && duration > 0.0, "duration", "must be > 0 s");
+  requireThat(params.backlash > 0.0, "backlash",
+              "the prior's backlash is 0 (rigid teeth): give a guess of it, from which the experiment's travel (three "
+              "backlashes at least) and its reversals are designed");
+  requireThat(std::isfinite(travel) && travel >= 3.0 * params.backlash, "travel",
+              "must be at least three times the backlash (" + formatNumber(3.0 * params.backlash) +
+                  " rad): every reversal must carry the motor across the free play (got " + formatNumber(travel) + ")");
   // (the command stays within the set-point's range)
   param("command").check(travel);
   const double wn = params.naturalFrequency(), pi = 3.14159265358979323846;

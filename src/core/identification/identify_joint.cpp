@@ -86,6 +86,18 @@ std::vector<std::string> identifiedKeysFor(const ServoParams& joint)
 
 namespace
 {
+/// Whether the user's prior gives the key (every key when no statement is tracked).
+bool statedInPrior(const IdentifyOptions& options, const std::string& key)
+{
+  return !options.stated || options.stated->count(key) != 0;
+}
+
+/// The prior's value of a key of the table [its unit].
+double priorValue(const ServoParams& prior, const std::string& key)
+{
+  return prior.*std::get<double ServoParams::*>(findParam(key)->field);
+}
+
 /// The keys to identify: those asked for (all that describe the prior's joint when none), each checked.
 std::set<std::string> keysToIdentify(const ServoParams& prior, const IdentifyOptions& options)
 {
@@ -123,15 +135,14 @@ InitialEstimates replayedBodies(const InitialEstimates& e, const ServoParams& pr
   for (const char* key : {"backlash", "motor_inertia", "load_inertia", "motor_friction", "load_friction",
                           "motor_coulomb_friction", "load_coulomb_friction", "load_torque"})
   {
-    const bool stated = !options.stated || options.stated->count(key) != 0;
     Estimate& x = *bodyField(&bodies, key);
     if (std::isfinite(x.value) && e.not_identifiable.count(key) == 0)
     {
       continue;
     }
-    if (stated)
+    if (statedInPrior(options, key))
     {
-      x = {prior.*std::get<double ServoParams::*>(findParam(key)->field), NAN};
+      x = {priorValue(prior, key), NAN};
       continue;
     }
     unknown_bodies += (unknown_bodies.empty() ? "" : ", ") + std::string(key);
@@ -139,16 +150,13 @@ InitialEstimates replayedBodies(const InitialEstimates& e, const ServoParams& pr
   return bodies;
 }
 
-/// Each key asked for: its initial estimate where the recording informs it (into `out->parameters` and `chosen`), or
-/// why not with the prior's value if stated (into `unknown`).
+/// Each key asked for: its initial estimate where the recording informs it (into `estimated` and `chosen`), or why
+/// not with the prior's value if stated (into `unknown`).
 void chooseEstimates(const std::set<std::string>& keys, const std::map<std::string, Estimate>& initial,
-                     const InitialEstimates& e, const ServoParams& prior, const IdentifyOptions& options,
-                     JointIdentification* out_, std::map<std::string, Estimate>* chosen_,
-                     std::vector<IdentifiedParameter>* unknown_)
+                     const InitialEstimates& e, const std::string& restitution_note, const ServoParams& prior,
+                     const IdentifyOptions& options, std::vector<IdentifiedParameter>* estimated,
+                     std::map<std::string, Estimate>* chosen, std::vector<IdentifiedParameter>* unknown)
 {
-  JointIdentification& out = *out_;
-  std::map<std::string, Estimate>& chosen = *chosen_;
-  std::vector<IdentifiedParameter>& unknown = *unknown_;
   for (const std::string& key : identifiedKeys())
   {
     if (keys.count(key) == 0)
@@ -158,7 +166,7 @@ void chooseEstimates(const std::set<std::string>& keys, const std::map<std::stri
     const auto x = initial.find(key);
     IdentifiedParameter p;
     p.key = key;
-    std::string why = notInformedReason(key, e, out.restitution_note);
+    std::string why = notInformedReason(key, e, restitution_note);
     if (why.empty() && x != initial.end() && std::isfinite(x->second.value))
     {
       // An estimate outside its key's range (a level below zero is zero within its scatter, see withEstimates) is
@@ -180,15 +188,13 @@ void chooseEstimates(const std::set<std::string>& keys, const std::map<std::stri
     {
       p.identifiable = false;
       p.reason = why.empty() ? "the recording does not inform it" : why;
-      const bool stated = !options.stated || options.stated->count(key) != 0;
-      const double prior_value = prior.*std::get<double ServoParams::*>(findParam(key)->field);
-      p.initial = p.value = Estimate{stated ? prior_value : NAN, NAN};
-      unknown.push_back(p);
+      p.initial = p.value = Estimate{statedInPrior(options, key) ? priorValue(prior, key) : NAN, NAN};
+      unknown->push_back(p);
       continue;
     }
-    chosen[key] = x->second;
+    (*chosen)[key] = x->second;
     p.initial = p.value = x->second;
-    out.parameters.push_back(p);
+    estimated->push_back(p);
   }
 }
 
@@ -229,8 +235,7 @@ void judgeRestitution(const IdentificationSettings& s, const ServoParams& prior,
       p.identifiable = false;
       p.reason = "the replays around the impacts give " + formatNumber(p.value.value) + " ± " +
                  formatNumber(p.value.standard_error) + ", not within ±" + formatNumber(LOOSEST_RESTITUTION);
-      const bool stated = !options.stated || options.stated->count(p.key) != 0;
-      p.value = {stated ? prior.restitution : NAN, NAN};
+      p.value = {statedInPrior(options, p.key) ? prior.restitution : NAN, NAN};
     }
   }
 }
@@ -297,7 +302,7 @@ JointIdentification identifyJoint(const Recording& data, const IdentificationSet
   // without impacts, a load torque the data could not tell from friction: the prior's).
   std::map<std::string, Estimate> chosen;
   std::vector<IdentifiedParameter> unknown;
-  chooseEstimates(keys, initial, e, prior, options, &out, &chosen, &unknown);
+  chooseEstimates(keys, initial, e, out.restitution_note, prior, options, &out.parameters, &chosen, &unknown);
   ServoParams start = withEstimates(prior, chosen);
   start.validateValues();
   if (options.stated && options.stated->count("gain") == 0)

@@ -12,14 +12,6 @@ namespace backlash_servo
 {
 namespace
 {
-void need(bool ok, const std::string& key, const std::string& what)
-{
-  if (!ok)
-  {
-    throw InvalidParameterError(key, what);
-  }
-}
-
 /// The body moves one way over the difference stencil of sample k (its filtered sign ±1 on k − 1 … k + 1, so the
 /// raw sign held over the filter's support too) and faster than `still` [rad/s].
 bool moving(const BodyMotion& b, std::size_t k, double still)
@@ -76,13 +68,14 @@ void compliantBodies(const Recording& d, const IdentificationSettings& s, const 
       backward = backward || load.sign[k] < 0.0;
     }
   }
-  need(both.size() >= 50, "data",
-       "too few samples with both bodies moving (" + std::to_string(both.size()) +
-           "): the recording needs the motor to drive the load, and to cross the free play");
+  requireThat(both.size() >= 50, "data",
+              "too few samples with both bodies moving (" + std::to_string(both.size()) +
+                  "): the recording needs the motor to drive the load, and to cross the free play");
   const bool known_load = !(forward && backward) && std::isfinite(s.load_torque_fallback);
-  need((forward && backward) || known_load, "data",
-       "the load moved one way only: its Coulomb friction and the load torque cannot be told apart (the recording "
-       "needs load motion in both directions, or give the load torque)");
+  requireThat(
+      (forward && backward) || known_load, "data",
+      "the load moved one way only: its Coulomb friction and the load torque cannot be told apart (the recording "
+      "needs load motion in both directions, or give the load torque)");
   Eigen::MatrixXd xb(rows(both.size()), known_load ? 6 : 7);
   Eigen::VectorXd yb(rows(both.size()));
   for (std::size_t i = 0; i < both.size(); ++i)
@@ -134,7 +127,7 @@ void compliantMesh(const IdentificationSettings& s, const BothBodies& m, std::ve
       magnitudes.push_back(std::fabs(tau[k]));
     }
   }
-  need(!magnitudes.empty(), "data", "the load never moves");
+  requireThat(!magnitudes.empty(), "data", "the load never moves");
   std::nth_element(magnitudes.begin(), magnitudes.begin() + static_cast<long>(0.99 * (magnitudes.size() - 1)),
                    magnitudes.end());
   const double threshold = 0.1 * magnitudes[static_cast<std::size_t>(0.99 * (magnitudes.size() - 1))];
@@ -161,12 +154,12 @@ void compliantMesh(const IdentificationSettings& s, const BothBodies& m, std::ve
       ++free_samples;
     }
   }
-  need(on_forward >= 20 && on_backward >= 20, "data",
-       "the mesh was seen pressed on " +
-           std::string(on_forward >= 20    ? "the forward flank only"
-                       : on_backward >= 20 ? "the backward flank only"
-                                           : "neither flank") +
-           ": the recording needs reversals that carry the motor across the free play to both flanks");
+  requireThat(on_forward >= 20 && on_backward >= 20, "data",
+              "the mesh was seen pressed on " +
+                  std::string(on_forward >= 20    ? "the forward flank only"
+                              : on_backward >= 20 ? "the backward flank only"
+                                                  : "neither flank") +
+                  ": the recording needs reversals that carry the motor across the free play to both flanks");
   Eigen::MatrixXd xm(rows(pressed.size()), 4);
   Eigen::VectorXd ym(rows(pressed.size()));
   for (std::size_t i = 0; i < pressed.size(); ++i)
@@ -179,9 +172,9 @@ void compliantMesh(const IdentificationSettings& s, const BothBodies& m, std::ve
   std::size_t mesh_rows = 0;
   const LeastSquaresFit mesh = leastSquares(xm, ym, &mesh_rows);
   const double c = mesh.p(0), bf = mesh.p(2), bb = mesh.p(3);
-  need(c > 0.0, "data",
-       "the mesh torque does not grow with the penetration (stiffness " + std::to_string(c) +
-           " N·m/rad): the samples do not resolve the contact — identify the joint as rigid teeth");
+  requireThat(c > 0.0, "data",
+              "the mesh torque does not grow with the penetration (stiffness " + std::to_string(c) +
+                  " N·m/rad): the samples do not resolve the contact — identify the joint as rigid teeth");
   out.mesh_stiffness = {c, mesh.se(0)};
   out.mesh_damping = {mesh.p(1), mesh.se(1)};
   const auto carried = [&](const Eigen::Vector4d& gradient) {
@@ -189,9 +182,9 @@ void compliantMesh(const IdentificationSettings& s, const BothBodies& m, std::ve
   };
   out.zero_offset = bf / c;
   out.backlash = {(bb - bf) / c, carried(Eigen::Vector4d(-(bb - bf) / (c * c), 0.0, -1.0 / c, 1.0 / c))};
-  need(out.backlash.value > 0.0, "data",
-       "the flanks come out crossed (backlash " + std::to_string(out.backlash.value) +
-           " rad): the samples do not resolve the contact — identify the joint as rigid teeth");
+  requireThat(out.backlash.value > 0.0, "data",
+              "the flanks come out crossed (backlash " + std::to_string(out.backlash.value) +
+                  " rad): the samples do not resolve the contact — identify the joint as rigid teeth");
   out.contact_samples = mesh_rows;
   out.apart_samples = free_samples;
   out.contact_rms_residual = mesh.rms;

@@ -12,14 +12,6 @@ namespace backlash_servo
 {
 namespace
 {
-void requireThat(bool ok, const std::string& key, const std::string& what)
-{
-  if (!ok)
-  {
-    throw InvalidParameterError(key, what);
-  }
-}
-
 /// Measured angles: the samples on each side of an anchor its parabola is fitted over.
 constexpr std::size_t ANCHOR_REACH = 8;
 

@@ -16,6 +16,14 @@ void requireFinite(const std::string& field, double value)
   }
 }
 
+void requireThat(bool ok, const std::string& field, const std::string& what)
+{
+  if (!ok)
+  {
+    throw InvalidParameterError(field, what);
+  }
+}
+
 std::string formatNumber(double value)
 {
   char buf[40];
