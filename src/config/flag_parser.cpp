@@ -4,6 +4,7 @@
 #include <cstdlib>
 #include <iostream>
 #include <sstream>
+#include <stdexcept>
 
 #include "backlash_servo/config/run_config_loader.h"
 
@@ -76,6 +77,14 @@ FlagParser::FlagParser(std::string tool, std::string header, std::vector<std::st
   for (const std::string& k : keys_accepted_)
   {
     param(k);  // a key not in the table is a programming error, found at once
+  }
+  for (const ToolOption& o : options_)
+  {
+    // So is a tool option named as an accepted key: one of the two would never be read.
+    if (std::find(keys_accepted_.begin(), keys_accepted_.end(), o.name) != keys_accepted_.end())
+    {
+      throw std::logic_error(tool_ + ": the option --" + o.name + " is also a parameter key");
+    }
   }
 }
 

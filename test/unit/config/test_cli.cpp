@@ -3,6 +3,7 @@
 
 #include "test_helpers.h"
 
+#include "backlash_servo/config/flag_parser.h"
 #include "backlash_servo/config/run_config_loader.h"
 
 #include <sys/stat.h>
@@ -63,6 +64,16 @@ std::string profile(const std::string& name, const std::string& yaml)
   return writeFile("backlash_sim_profile_" + name + ".yaml", yaml + "\n");
 }
 }  // namespace
+
+// A tool option named as one of the tool's keys would shadow one of the two (--duration once read the run's
+// length where backlash_identify meant its experiment's): refused when the parser is made.
+TEST(Cli, AToolOptionCannotShareAKeysName)
+{
+  EXPECT_THROW(
+      backlash_servo::FlagParser("tool", "", {"duration", "gain"}, {{"duration", "S", "the experiment's length"}}),
+      std::logic_error);
+  EXPECT_NO_THROW(backlash_servo::FlagParser("tool", "", {"gain"}, {{"duration", "S", "the experiment's length"}}));
+}
 
 TEST(Cli, ThesisCaseJsonHasTheContractFields)
 {
