@@ -424,86 +424,192 @@ struct Outcome
   std::string detail;
 };
 
+/// The case's joint, drive and profile as a simulator with the given event budget.
+inline Simulator simulatorOf(const Case& c, std::uint64_t event_budget)
+{
+  Simulator sim(c.params, c.start, c.command);
+  if (c.drive.sampled() || c.drive.torque_limit > 0.0 || c.drive.compensation != "none")  // not the plain P law
+  {
+    sim.setDrive(makePositionDrive(c.drive, c.params.gain, c.params.gear_ratio, c.command, c.start.time));
+  }
+  if (c.profile)
+  {
+    sim.setProfile(c.profile);
+  }
+  sim.setEventBudget(event_budget);
+  return sim;
+}
+
+/// The largest figures seen at the probes of a run: kinetic energy [J], motor torque [N·m], angle [rad] and speed
+/// [rad/s] of the bodies and the output gear, and the distance travelled [rad].
+struct ProbeFigures
+{
+  double kinetic_max = 0.0, motor_torque_max = 0.0, angle_max = 0.0, speed_max = 0.0, travel = 0.0;
+};
+
+/**
+ * A compliant joint's laws at one probe: the mesh transmits what its law says of the state (a flank pressed beyond
+ * rounding but not in contact — a missed engagement — or a contact pulling shows here and nowhere else: no energy
+ * flows through it), and a body with dry friction standing still is held by a torque within its static band (the
+ * motor's T_m − ρQ, the load's Q + T_ext; S + T_ext behind a torsional shaft, S its spring–damper torque).
+ */
+inline Outcome compliantLaws(const Case& c, const Simulator& sim)
+{
+  double scale = 0.0;
+  const double q = meshLawTorque(c.params, sim.state(), &scale);
+  if (std::fabs(sim.meshTorque() - q) > scale + 1e-300)
+  {
+    std::ostringstream d;
+    d << "mesh torque " << sim.meshTorque() << " N·m where its law gives " << q << " N·m at t = " << sim.state().time
+      << " s";
+    return {"mesh_law", d.str()};
+  }
+  const State& st = sim.state();
+  const double shaft = c.params.shaft_stiffness * st.shaft_twist + c.params.shaft_damping * st.shaft_twist_rate;
+  const double held[2] = {sim.motorTorque() - c.params.gear_ratio * q,
+                          (c.params.torsionalShaft() ? shaft : q) + c.params.load_torque};
+  const double band[2] = {c.params.motor_static_friction, c.params.load_static_friction};
+  const double speed[2] = {st.motor_velocity, st.load_velocity};
+  for (int b = 0; b < 2; ++b)
+  {
+    const double slack = 1e-9 * (band[b] + std::fabs(held[b])) + (b == 0 ? c.params.gear_ratio : 1.0) * scale;
+    if (band[b] > 0.0 && speed[b] == 0.0 && std::fabs(held[b]) > band[b] + slack)
+    {
+      std::ostringstream d;
+      d << (b == 0 ? "motor" : "load") << " stands under " << held[b] << " N·m beyond its static band " << band[b]
+        << " N·m at t = " << st.time << " s";
+      return {"stick_law", d.str()};
+    }
+  }
+  return {};
+}
+
+/**
+ * The run advanced in 1000 steps, watching the largest kinetic energy (the energy scale of fast, high-gain loops
+ * whose energy swings between the probes) and, for the compliant mesh's and shaft's rounding, the angles, speeds and
+ * distance travelled: their torques are computed from absolute angles and speeds, so c(ρθ_m − θ_o) carries ε·c·|θ|
+ * of rounding however small the penetration, a force the state does not explain, whose work grows with the distance.
+ */
+inline Outcome probeRun(const Case& c, Simulator* sim, GapWatch* watch, ProbeFigures* figures)
+{
+  Simulator& whole = *sim;
+  ProbeFigures& f = *figures;
+  f.kinetic_max = whole.kineticEnergy();
+  f.motor_torque_max = std::fabs(whole.motorTorque());
+  State last = whole.state();
+  const auto angles = [&](const State& st) {
+    return std::max({std::fabs(st.load_position), std::fabs(st.load_position + st.shaft_twist),
+                     c.params.gear_ratio * std::fabs(st.motor_position)});
+  };
+  const auto speeds = [&](const State& st) {
+    return std::max({std::fabs(st.load_velocity), std::fabs(st.load_velocity + st.shaft_twist_rate),
+                     c.params.gear_ratio * std::fabs(st.motor_velocity)});
+  };
+  f.angle_max = angles(last);
+  f.speed_max = speeds(last);
+  for (int i = 1; i <= 1000; ++i)
+  {
+    whole.advanceTo(i == 1000 ? c.start.time + c.duration : c.start.time + c.duration * i / 1000.0, watch);
+    f.kinetic_max = std::max(f.kinetic_max, whole.kineticEnergy());
+    f.motor_torque_max = std::max(f.motor_torque_max, std::fabs(whole.motorTorque()));
+    const State& now = whole.state();
+    f.angle_max = std::max(f.angle_max, angles(now));
+    f.speed_max = std::max(f.speed_max, speeds(now));
+    f.travel += std::fabs(now.load_position - last.load_position) +
+                c.params.gear_ratio * std::fabs(now.motor_position - last.motor_position);
+    last = now;
+    if (c.params.compliant())
+    {
+      Outcome laws = compliantLaws(c, whole);
+      if (laws.klass != "ok")
+      {
+        return laws;
+      }
+    }
+  }
+  return {};
+}
+
+/**
+ * The energy ledger balances. The scale of the energies exchanged: the ledger's terms (the motor's work counted in
+ * magnitude per segment: a sampled loop may pump energy in and out), the largest kinetic energy seen at the probes,
+ * the energy stored in the P law's "spring" K(θ_R − θ_c)²/(2ρ) at both ends, and the work scale of the torques: every
+ * work term is a torque times a displacement of angles known to rounding relative to the position scale, so the
+ * largest torque (motor torque seen at the probes, static frictions, load torque) times that scale bounds what
+ * rounding can make of them (a joint held by a 5 000 N·m stiction moving 1e-7 rad exchanges ~1e-7 J, but its angles
+ * carry 1e-16 rad of rounding each). The compliant mesh's and shaft's rounding work is added with a margin of 8 ulps
+ * (the worst case measured drifts by a quarter of one). A ramp of the continuous law runs in its moving frame, where
+ * the ledger is the frame's: not checked then.
+ */
+inline Outcome energyBalance(const Case& c, const Simulator& whole, const ProbeFigures& f)
+{
+  const State& s = whole.state();
+  const EnergyLedger& e = whole.energy();
+  const MotorInput law = whole.plant().law();
+  auto spring = [&](double x) {
+    return law.stiffness > 0.0 ? law.torque(x) * law.torque(x) / (2.0 * law.stiffness * c.params.gear_ratio) : 0.0;
+  };
+  const double position_scale =
+      std::max({std::fabs(c.start.load_position), std::fabs(s.load_position), std::fabs(c.command), c.params.backlash});
+  const double work_scale =
+      std::max(f.motor_torque_max, c.params.motor_static_friction) * position_scale / c.params.gear_ratio +
+      std::max(std::fabs(c.params.load_torque), c.params.load_static_friction) * position_scale;
+  const double energy_scale = std::max({std::fabs(e.input), e.input_magnitude, f.kinetic_max, std::fabs(e.load_work),
+                                        e.motor_friction + e.load_friction + e.impact_loss + e.motor_dry_friction +
+                                            e.load_dry_friction + e.mesh_loss + e.shaft_loss,
+                                        e.initial_kinetic, e.initial_potential, e.potential, whole.kineticEnergy(),
+                                        spring(c.start.load_position), spring(s.load_position), work_scale, 1e-300});
+  const ServoParams& q = c.params;
+  const double mesh_rounding = 8.0 * std::numeric_limits<double>::epsilon() *
+                               ((q.mesh_stiffness + q.shaft_stiffness) * (f.angle_max + q.backlash) +
+                                (q.mesh_damping + q.shaft_damping) * f.speed_max) *
+                               f.travel;
+  if (whole.energyValid() && std::fabs(whole.energyBalanceError()) > 1e-9 * energy_scale + mesh_rounding)
+  {
+    std::ostringstream d;
+    d << "energy balance " << whole.energyBalanceError() << " J of " << energy_scale << " J (the stiff mesh's "
+      << "rounding " << mesh_rounding << " J)";
+    return {"energy", d.str()};
+  }
+  return {};
+}
+
+/// The same run cut into pieces (as output sampling or a node does) ends in the same state s, to 1e-9 of the scales.
+inline Outcome sameInPieces(const Case& c, const State& s, const State& p)
+{
+  const double x_scale = std::max({std::fabs(s.load_position), std::fabs(c.command), c.params.backlash, 1e-300});
+  const double v_scale = std::max(x_scale * c.params.naturalFrequency(), std::fabs(s.load_velocity));
+  const double dx = std::max(std::fabs(p.load_position - s.load_position),
+                             c.params.gear_ratio * std::fabs(p.motor_position - s.motor_position)) /
+                    x_scale;
+  const double dv = std::max(std::fabs(p.load_velocity - s.load_velocity),
+                             c.params.gear_ratio * std::fabs(p.motor_velocity - s.motor_velocity)) /
+                    v_scale;
+  if (dx > 1e-9 || dv > 1e-9)
+  {
+    std::ostringstream d;
+    d << "chunked run differs: position " << dx << ", velocity " << dv << " (relative)";
+    return {"chunking", d.str()};
+  }
+  return {};
+}
+
+/// One case run and checked: its laws at 1000 probes, a finite end, the gap within [0, Δ] (rigid), the energy
+/// ledger, and the same end when run in 17 pieces.
 inline Outcome check(const Case& c, std::uint64_t event_budget = 100000)
 {
-  Outcome o;
   try
   {
-    Simulator whole(c.params, c.start, c.command);
-    if (c.drive.sampled() || c.drive.torque_limit > 0.0 || c.drive.compensation != "none")  // not the plain P law
-    {
-      whole.setDrive(makePositionDrive(c.drive, c.params.gain, c.params.gear_ratio, c.command, c.start.time));
-    }
-    if (c.profile)
-    {
-      whole.setProfile(c.profile);
-    }
-    whole.setEventBudget(event_budget);
+    Simulator whole = simulatorOf(c, event_budget);
     GapWatch watch;
     watch.mesh = GearMesh(c.params);
     watch.command = c.command;
     watch.profile = c.profile;
-    // Advanced in 1000 steps, watching the largest kinetic energy (the energy scale of fast, high-gain loops whose
-    // energy swings between the probes); the 17-piece run below must still end in the same state, bit for bit.
-    double kinetic_max = whole.kineticEnergy();
-    double motor_torque_max = std::fabs(whole.motorTorque());
-    // The compliant mesh's and shaft's torques are computed from absolute angles and speeds: c(ρθ_m − θ_o) carries
-    // ε·c·|θ| of rounding however small the penetration, a force the state does not explain, whose work grows with
-    // the distance travelled (sampled at the probes below).
-    State last = whole.state();
-    const auto angles = [&](const State& st) {
-      return std::max({std::fabs(st.load_position), std::fabs(st.load_position + st.shaft_twist),
-                       c.params.gear_ratio * std::fabs(st.motor_position)});
-    };
-    const auto speeds = [&](const State& st) {
-      return std::max({std::fabs(st.load_velocity), std::fabs(st.load_velocity + st.shaft_twist_rate),
-                       c.params.gear_ratio * std::fabs(st.motor_velocity)});
-    };
-    double angle_max = angles(last), speed_max = speeds(last), travel = 0.0;
-    for (int i = 1; i <= 1000; ++i)
+    ProbeFigures figures;
+    const Outcome probed = probeRun(c, &whole, &watch, &figures);
+    if (probed.klass != "ok")
     {
-      whole.advanceTo(i == 1000 ? c.start.time + c.duration : c.start.time + c.duration * i / 1000.0, &watch);
-      kinetic_max = std::max(kinetic_max, whole.kineticEnergy());
-      motor_torque_max = std::max(motor_torque_max, std::fabs(whole.motorTorque()));
-      const State& now = whole.state();
-      angle_max = std::max(angle_max, angles(now));
-      speed_max = std::max(speed_max, speeds(now));
-      travel += std::fabs(now.load_position - last.load_position) +
-                c.params.gear_ratio * std::fabs(now.motor_position - last.motor_position);
-      last = now;
-      if (c.params.compliant())
-      {
-        // The mesh transmits what its law says of the state: a flank pressed beyond rounding but not in contact (a
-        // missed engagement), or a contact pulling, shows here and nowhere else (no energy flows through it).
-        double scale = 0.0;
-        const double q = meshLawTorque(c.params, whole.state(), &scale);
-        if (std::fabs(whole.meshTorque() - q) > scale + 1e-300)
-        {
-          std::ostringstream d;
-          d << "mesh torque " << whole.meshTorque() << " N·m where its law gives " << q
-            << " N·m at t = " << whole.state().time << " s";
-          return {"mesh_law", d.str()};
-        }
-        // A body with dry friction standing still (stuck) is held by a torque within its static band: the motor's
-        // T_m − ρQ, the load's Q + T_ext (S + T_ext behind a torsional shaft, S its spring–damper torque).
-        const State& st = whole.state();
-        const double shaft = c.params.shaft_stiffness * st.shaft_twist + c.params.shaft_damping * st.shaft_twist_rate;
-        const double held[2] = {whole.motorTorque() - c.params.gear_ratio * q,
-                                (c.params.torsionalShaft() ? shaft : q) + c.params.load_torque};
-        const double band[2] = {c.params.motor_static_friction, c.params.load_static_friction};
-        const double speed[2] = {st.motor_velocity, st.load_velocity};
-        for (int b = 0; b < 2; ++b)
-        {
-          const double slack = 1e-9 * (band[b] + std::fabs(held[b])) + (b == 0 ? c.params.gear_ratio : 1.0) * scale;
-          if (band[b] > 0.0 && speed[b] == 0.0 && std::fabs(held[b]) > band[b] + slack)
-          {
-            std::ostringstream d;
-            d << (b == 0 ? "motor" : "load") << " stands under " << held[b] << " N·m beyond its static band " << band[b]
-              << " N·m at t = " << st.time << " s";
-            return {"stick_law", d.str()};
-          }
-        }
-      }
+      return probed;
     }
     const State& s = whole.state();
     if (!std::isfinite(s.load_position) || !std::isfinite(s.motor_position) || !std::isfinite(s.load_velocity) ||
@@ -516,73 +622,17 @@ inline Outcome check(const Case& c, std::uint64_t event_budget = 100000)
     {
       return {"gap", "gap left [0, backlash] by " + std::to_string(watch.worst) + " x 1e-12 of the position scale"};
     }
-    // The same run cut into 17 pieces (as output sampling or a node does) ends in the same state.
-    Simulator pieces(c.params, c.start, c.command);
-    if (c.drive.sampled() || c.drive.torque_limit > 0.0 || c.drive.compensation != "none")  // not the plain P law
-    {
-      pieces.setDrive(makePositionDrive(c.drive, c.params.gain, c.params.gear_ratio, c.command, c.start.time));
-    }
-    if (c.profile)
-    {
-      pieces.setProfile(c.profile);
-    }
-    pieces.setEventBudget(event_budget);
+    Simulator pieces = simulatorOf(c, event_budget);
     for (int i = 1; i <= 17; ++i)
     {
       pieces.advanceTo(i == 17 ? c.start.time + c.duration : c.start.time + c.duration * i / 17.0);
     }
-    // The scale of the energies exchanged: the ledger's terms (the motor's work counted in magnitude per segment:
-    // a sampled loop may pump energy in and out), the largest kinetic energy seen (at 1000 probes),
-    // the energy stored in the P law's "spring" K(θ_R − θ_c)²/(2ρ) at both ends, and the work scale of the torques:
-    // every work term is a torque times a displacement of angles known to rounding relative to the position scale,
-    // so the largest torque (motor torque seen at the probes, static frictions, load torque) times that scale
-    // bounds what rounding can make of them (a joint held by a 5 000 N·m stiction moving 1e-7 rad exchanges
-    // ~1e-7 J, but its angles carry 1e-16 rad of rounding each).
-    const EnergyLedger& e = whole.energy();
-    const MotorInput law = whole.plant().law();
-    auto spring = [&](double x) {
-      return law.stiffness > 0.0 ? law.torque(x) * law.torque(x) / (2.0 * law.stiffness * c.params.gear_ratio) : 0.0;
-    };
-    const double position_scale = std::max(
-        {std::fabs(c.start.load_position), std::fabs(s.load_position), std::fabs(c.command), c.params.backlash});
-    const double work_scale =
-        std::max(motor_torque_max, c.params.motor_static_friction) * position_scale / c.params.gear_ratio +
-        std::max(std::fabs(c.params.load_torque), c.params.load_static_friction) * position_scale;
-    const double energy_scale = std::max({std::fabs(e.input), e.input_magnitude, kinetic_max, std::fabs(e.load_work),
-                                          e.motor_friction + e.load_friction + e.impact_loss + e.motor_dry_friction +
-                                              e.load_dry_friction + e.mesh_loss + e.shaft_loss,
-                                          e.initial_kinetic, e.initial_potential, e.potential, whole.kineticEnergy(),
-                                          spring(c.start.load_position), spring(s.load_position), work_scale, 1e-300});
-    // The compliant mesh's and shaft's rounding work (see above), with a margin of 8 ulps (the worst case measured
-    // drifts by a quarter of one).
-    const ServoParams& q = c.params;
-    const double mesh_rounding = 8.0 * std::numeric_limits<double>::epsilon() *
-                                 ((q.mesh_stiffness + q.shaft_stiffness) * (angle_max + q.backlash) +
-                                  (q.mesh_damping + q.shaft_damping) * speed_max) *
-                                 travel;
-    // (A ramp of the continuous law runs in its moving frame, where the ledger is the frame's: not checked then.)
-    if (whole.energyValid() && std::fabs(whole.energyBalanceError()) > 1e-9 * energy_scale + mesh_rounding)
+    const Outcome energy = energyBalance(c, whole, figures);
+    if (energy.klass != "ok")
     {
-      std::ostringstream d;
-      d << "energy balance " << whole.energyBalanceError() << " J of " << energy_scale << " J (the stiff mesh's "
-        << "rounding " << mesh_rounding << " J)";
-      return {"energy", d.str()};
+      return energy;
     }
-    const State& p = pieces.state();
-    const double x_scale = std::max({std::fabs(s.load_position), std::fabs(c.command), c.params.backlash, 1e-300});
-    const double v_scale = std::max(x_scale * c.params.naturalFrequency(), std::fabs(s.load_velocity));
-    const double dx = std::max(std::fabs(p.load_position - s.load_position),
-                               c.params.gear_ratio * std::fabs(p.motor_position - s.motor_position)) /
-                      x_scale;
-    const double dv = std::max(std::fabs(p.load_velocity - s.load_velocity),
-                               c.params.gear_ratio * std::fabs(p.motor_velocity - s.motor_velocity)) /
-                      v_scale;
-    if (dx > 1e-9 || dv > 1e-9)
-    {
-      std::ostringstream d;
-      d << "chunked run differs: position " << dx << ", velocity " << dv << " (relative)";
-      return {"chunking", d.str()};
-    }
+    return sameInPieces(c, s, pieces.state());
   }
   catch (const EventBudgetExceeded& e)
   {
@@ -607,7 +657,6 @@ inline Outcome check(const Case& c, std::uint64_t event_budget = 100000)
     }
     return {what.find("no progress") != std::string::npos ? "no_progress" : "exception", what};
   }
-  return o;
 }
 
 }  // namespace fuzz

@@ -372,6 +372,127 @@ inline bool flightSpan(double f0, double f1, double f2, double delta, double hor
   }
   return true;
 }
+
+/**
+ * The Taylor coefficients y_k of the flight's state (θ_c, ω_c, θ_m, ω_m), written into the four arrays order by
+ * order: y_1 = A y_0 + b, then y_{k+1} = A y_k/(k+1). The latest order is carried in registers (the fields below),
+ * the arrays only written: the recurrence — on the path from one impact to the next — does not wait for its own
+ * stores to be read back.
+ */
+struct FlightOrders
+{
+  double *xc, *vc, *xm, *vm;
+  double y_xc, y_vc, y_xm, y_vm;  ///< the latest order
+  double minus_alpha, minus_stiffness, beta;
+
+  /// Orders 0 and 1 from the state s.
+  template <class Model>
+  FlightOrders(const Model& m, const State& s, double* load_position, double* load_velocity, double* motor_position,
+               double* motor_velocity)
+      : xc(load_position),
+        vc(load_velocity),
+        xm(motor_position),
+        vm(motor_velocity),
+        y_xc(s.load_velocity),
+        y_vc(m.load_accel - m.alpha * s.load_velocity),
+        y_xm(s.motor_velocity),
+        y_vm(m.motor_offset - m.motor_stiffness * s.load_position - m.beta * s.motor_velocity),
+        minus_alpha(-m.alpha),
+        minus_stiffness(-m.motor_stiffness),
+        beta(m.beta)
+  {
+    xc[0] = s.load_position;
+    vc[0] = s.load_velocity;
+    xm[0] = s.motor_position;
+    vm[0] = s.motor_velocity;
+    xc[1] = y_xc;
+    vc[1] = y_vc;
+    xm[1] = y_xm;
+    vm[1] = y_vm;
+  }
+
+  /// y_{k+1} from y_k (k ≥ 1).
+  void next(int k)
+  {
+    const double inv = INVERSE[k + 1];
+    const double xc_next = y_vc * inv;
+    const double vc_next = minus_alpha * y_vc * inv;
+    const double xm_next = y_vm * inv;
+    const double vm_next = (minus_stiffness * y_xc - beta * y_vm) * inv;
+    xc[k + 1] = y_xc = xc_next;
+    vc[k + 1] = y_vc = vc_next;
+    xm[k + 1] = y_xm = xm_next;
+    vm[k + 1] = y_vm = vm_next;
+  }
+
+  /// The latest order of the gap θ_c − ρθ_m [rad s^-k].
+  double gap(double rho) const { return y_xc - rho * y_xm; }
+
+  /// The latest order in the weighted norm ||y||_D = max(|θ_c|, s|ω_c|, ρ|θ_m|, sρ|ω_m|), s = scale_time [s].
+  double weighted(double rho, double scale_time) const
+  {
+    return std::max(std::max(std::fabs(y_xc), rho * std::fabs(y_xm)),
+                    scale_time * std::max(std::fabs(y_vc), rho * std::fabs(y_vm)));
+  }
+};
+
+/// Where the series is cut: order n, ||y_n||_D, T^n and T^{n−2} (T the span certified [s]).
+struct SeriesCut
+{
+  int n = 2;
+  double weighted = 0.0, t_power = 0.0, t_power_2 = 1.0;
+};
+
+/**
+ * The lowest order n ≥ 2 whose remainder on [0, T], R_N ≤ ||y_N|| T^N (MT/(N+1)) / (1 − MT/(N+2)) ≤ 1.03 ||y_N||
+ * T^N MT/(N+1) (MT ≤ 0.1, N ≥ 2), is below tol; the orders up to it computed. False past MAX_ORDER.
+ */
+inline bool cutSeries(FlightOrders* y, double rho, double scale_time, double t_end, double tail_factor, double tol,
+                      SeriesCut* cut)
+{
+  double weighted = 0.0, t_power = t_end * t_end, t_power_2 = 1.0;
+  int n = 2;
+  for (;; ++n)
+  {
+    weighted = y->weighted(rho, scale_time);
+    if (weighted * t_power * tail_factor * INVERSE[n + 1] <= tol)
+    {
+      break;
+    }
+    if (n == ShortFlight::MAX_ORDER)
+    {
+      return false;
+    }
+    y->next(n);
+    t_power *= t_end;
+    t_power_2 *= t_end;
+  }
+  *cut = {n, weighted, t_power, t_power_2};
+  return true;
+}
+
+/// The gap relative to the wall, F(τ) = Σ f_k τ^k, orders 0..2 given, the rest from the arrays of y (its order n
+/// still in registers), the higher orders bounded over [0, t_end] [s].
+template <int N>
+inline void fillGap(GapSeries* gap, const FlightOrders& y, const SeriesCut& cut, double f0, double f1, double f2,
+                    double sign, double rho, double t_end, double mt, bool slope)
+{
+  const int n = cut.n;
+  const int top = N ? N : n;
+  gap->n = n;
+  gap->f[0] = f0;
+  gap->f[1] = f1;
+  gap->f[2] = f2;
+  for (int k = 3; k < top; ++k)
+  {
+    gap->f[k] = sign * (y.xc[k] - rho * y.xm[k]);
+  }
+  if (top >= 3)
+  {
+    gap->f[top] = sign * y.gap(rho);
+  }
+  gap->boundHigherOrders<N>(t_end, cut.weighted, cut.t_power_2, cut.t_power, mt, slope);
+}
 }  // namespace
 
 template <class AtImpact>
@@ -390,42 +511,10 @@ bool ShortFlight::solve(const Model& m, const State& s, double horizon, AtImpact
   }
   wall_ = start.wall;
   const double pos_scale = start.pos_scale, g0 = start.g0, near = start.near, level = start.level, sign = start.sign;
-  // Orders 0..2 (y_1 = A y_0 + b, then y_{k+1} = A y_k/(k+1)).
-  double* xc = load_position_;
-  double* vc = load_velocity_;
-  double* xm = motor_position_;
-  double* vm = motor_velocity_;
-  // The latest order is carried in registers (y_k below), the arrays only written: the recurrence — on the path from
-  // one impact to the next — does not wait for its own stores to be read back.
-  // y_1 = A y_0 + b:
-  double y_xc = s.load_velocity;
-  double y_vc = m.load_accel - m.alpha * s.load_velocity;
-  double y_xm = s.motor_velocity;
-  double y_vm = m.motor_offset - m.motor_stiffness * s.load_position - m.beta * s.motor_velocity;
-  xc[0] = s.load_position;
-  vc[0] = s.load_velocity;
-  xm[0] = s.motor_position;
-  vm[0] = s.motor_velocity;
-  xc[1] = y_xc;
-  vc[1] = y_vc;
-  xm[1] = y_xm;
-  vm[1] = y_vm;
-  // y_{k+1} from y_k (k ≥ 1).
-  const double minus_alpha = -m.alpha, minus_stiffness = -m.motor_stiffness, beta = m.beta;
-  auto next = [&](int k) {
-    const double inv = INVERSE[k + 1];
-    const double xc_next = y_vc * inv;
-    const double vc_next = minus_alpha * y_vc * inv;
-    const double xm_next = y_vm * inv;
-    const double vm_next = (minus_stiffness * y_xc - beta * y_vm) * inv;
-    xc[k + 1] = y_xc = xc_next;
-    vc[k + 1] = y_vc = vc_next;
-    xm[k + 1] = y_xm = xm_next;
-    vm[k + 1] = y_vm = vm_next;
-  };
-  const double f1 = sign * (y_xc - rho * y_xm);
-  next(1);
-  const double f2 = sign * (y_xc - rho * y_xm);
+  FlightOrders y(m, s, load_position_, load_velocity_, motor_position_, motor_velocity_);
+  const double f1 = sign * y.gap(rho);
+  y.next(1);
+  const double f2 = sign * y.gap(rho);
   const double f0 = sign * (g0 - level);
   if (!(f1 > 0.0) && !(f1 == 0.0 && f2 > 0.0))
   {
@@ -445,51 +534,24 @@ bool ShortFlight::solve(const Model& m, const State& s, double horizon, AtImpact
   {
     return false;
   }
-  // Order: the remainder on [0, T], R_N ≤ ||y_N|| T^N (MT/(N+1)) / (1 − MT/(N+2)) ≤ 1.03 ||y_N|| T^N MT/(N+1)
-  // (MT ≤ 0.1, N ≥ 2), below 1 % of the rounding of the positions and of the velocities.
+  // The order: the remainder below 1 % of the rounding of the positions and of the velocities.
   const double vel_scale = std::fabs(s.load_velocity) + rho * std::fabs(s.motor_velocity);
   const double tol = 0.01 * EPS * std::min(pos_scale, scale_time * vel_scale);
   const double tail_factor = 1.03 * mt;
-  double weighted = 0.0, t_power = t_end * t_end, t_power_2 = 1.0;  // ||y_N||_D, T^N, T^{N−2}
-  int n = 2;
-  for (;; ++n)
+  SeriesCut cut;
+  if (!cutSeries(&y, rho, scale_time, t_end, tail_factor, tol, &cut))
   {
-    weighted = std::max(std::max(std::fabs(y_xc), rho * std::fabs(y_xm)),
-                        scale_time * std::max(std::fabs(y_vc), rho * std::fabs(y_vm)));  // y_n
-    if (weighted * t_power * tail_factor * INVERSE[n + 1] <= tol)
-    {
-      break;
-    }
-    if (n == MAX_ORDER)
-    {
-      return false;
-    }
-    next(n);
-    t_power *= t_end;
-    t_power_2 *= t_end;
+    return false;
   }
-  n_ = n;
-  const double remainder = weighted * t_power * tail_factor * INVERSE[n + 1];
+  const int n = n_ = cut.n;
+  const double weighted = cut.weighted;
+  const double remainder = weighted * cut.t_power * tail_factor * INVERSE[n + 1];
   const double rounding_base = 8.0 * EPS * (std::fabs(f0) + f1 * t_end + (returns ? 0.0 : delta));
   // The gap series and its bounds are built inside the order dispatch: their loops unroll for the usual orders.
   const bool found = withOrder(n, [&](auto order) {
     constexpr int N = decltype(order)::value;
-    const int top = N ? N : n;
-    // The gap relative to the wall, F(τ) = Σ f_k τ^k (+ remainder ≤ 2R: two components in it).
     GapSeries gap;
-    gap.n = n;
-    gap.f[0] = f0;
-    gap.f[1] = f1;
-    gap.f[2] = f2;
-    for (int k = 3; k < top; ++k)
-    {
-      gap.f[k] = sign * (xc[k] - rho * xm[k]);
-    }
-    if (top >= 3)
-    {
-      gap.f[top] = sign * (y_xc - rho * y_xm);  // y_n, still in registers
-    }
-    gap.boundHigherOrders<N>(t_end, weighted, t_power_2, t_power, mt, !returns);
+    fillGap<N>(&gap, y, cut, f0, f1, f2, sign, rho, t_end, mt, !returns);
     const double rounding = 2.0 * remainder + rounding_base;
     double x = 0.0;
     const bool root = returns ? gap.returnTime<N>(quadratic_return, t_end, near, delta, rounding, &x)

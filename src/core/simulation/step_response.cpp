@@ -362,132 +362,220 @@ void summarise(const RunConfig& config, Simulator& sim, const ResponseMonitor& m
 }
 }  // namespace
 
-RunSummary runResponse(const RunConfig& config, EventSink* sink, double sample_period, const SampleCallback& on_sample,
-                       const ProgressCallback& on_progress)
+namespace
 {
-  const double command = config.profile ? config.profile->finalValue() : config.command;
-  const double t0 = config.initial.time;
-  Simulator sim = makeSimulator(config);
-  RunSummary out;
-  const double omega_n = config.params.naturalFrequency();
-  ResponseMonitor monitor(config.params, command, loopEquilibrium(config.params, config.drive, command), config.initial,
-                          sim.drive().sampled());
-  Tee tee(&monitor, sink);
-  const bool until_settled = config.duration <= 0.0;
-  // The tracking figures in this pass, at the rate replayTracking() would choose when the run's length is known now
-  // (a run until settled: the nominal rate, replayed at a lower one only when it outlasts the sample budget).
-  std::optional<TrackingPass> pass;
-  if (config.tracking)
+/**
+ * One run of runResponse(): the simulator, the monitor that judges it and the tracking pass, advanced chunk by chunk
+ * (a controller period for a sampled run, a natural period otherwise) until the run stops.
+ */
+class ResponseRun
+{
+ public:
+  ResponseRun(const RunConfig& config, EventSink* sink, double sample_period)
+      : config_(config),
+        command_(config.profile ? config.profile->finalValue() : config.command),
+        t0_(config.initial.time),
+        sample_period_(sample_period),
+        until_settled_(config.duration <= 0.0),
+        sim_(makeSimulator(config)),
+        monitor_(config.params, command_, loopEquilibrium(config.params, config.drive, command_), config.initial,
+                 sim_.drive().sampled()),
+        tee_(&monitor_, sink)
   {
-    const double rate = until_settled ? nominalTrackingRate(config)
-                                      : trackingRateFor(config, config.duration, TrackingPass::MAX_SAMPLES);
-    pass.emplace(config, rate, until_settled ? INFINITY : t0 + config.duration);
-    pass->record(sim);  // (the state as constructed: no drive sample taken yet)
+    startTracking();
+    // With a profile the verdict is judged from its end on, against its final value: a fresh monitor there (a hunt
+    // around an intermediate set-point is not the final limit cycle).
+    judge_from_ = config.profile && config.profile->endTime() > t0_ ? config.profile->endTime() : -INFINITY;
+    t_stop_ = t0_ + (until_settled_
+                         ? (config.max_duration > 0.0 ? config.max_duration : steadyBudget(config.params, config.drive))
+                         : config.duration);
+    chunk_ = sample_period > 0.0 ? sample_period : 2.0 * PI / config.params.naturalFrequency();
   }
-  auto advance = [&](double t) {
-    if (pass)
-    {
-      pass->advanceTo(sim, t, &tee);
-    }
-    else
-    {
-      sim.advanceTo(t, &tee);
-    }
-  };
-  // With a profile the verdict is judged from its end on, against its final value: a fresh monitor there (a hunt
-  // around an intermediate set-point is not the final limit cycle).
-  double judge_from = config.profile && config.profile->endTime() > t0 ? config.profile->endTime() : -INFINITY;
-  double t_stop = t0 + (until_settled ? (config.max_duration > 0.0 ? config.max_duration
-                                                                   : steadyBudget(config.params, config.drive))
-                                      : config.duration);
-  // Without a cap of the user's, a run until settled lasts at least REPETITIONS times the slowest oscillation seen
-  // (the longest interval between maxima): a stick–slip hunt or a slow drive loop whose cycle is long against
-  // 2π/ω_n (ω_n is the P law's; it means nothing for a PID or a cascade) is given the repetitions its verdict needs.
-  constexpr double REPETITIONS = 100.0;
-  const bool auto_cap = until_settled && config.max_duration <= 0.0;
-  const double chunk = sample_period > 0.0 ? sample_period : 2.0 * PI / omega_n;
-  if (on_sample)
+
+  const Simulator& simulator() const { return sim_; }
+  /// The end of the i-th chunk [s].
+  double chunkEnd(long i) const { return std::min(t0_ + static_cast<double>(i) * chunk_, t_stop_); }
+
+  /// Advances to t [s] (restarting the verdict where a profile ends); false when the run stopped on the way (why in
+  /// out->stopped_by and out->message).
+  bool advanceChunk(double t, RunSummary* out)
   {
-    on_sample(sim);
-  }
-  for (long i = 1;; ++i)
-  {
-    const double t = std::min(t0 + static_cast<double>(i) * chunk, t_stop);
     try
     {
-      if (judge_from >= sim.state().time && judge_from <= t)
+      if (judge_from_ >= sim_.state().time && judge_from_ <= t)
       {
-        advance(judge_from);
-        monitor.restartAt(sim.state());
-        judge_from = -INFINITY;
+        advance(judge_from_);
+        monitor_.restartAt(sim_.state());
+        judge_from_ = -INFINITY;
       }
-      // (Sub-steps only once four maxima are recorded: no sustained oscillation is settled before its fifth.)
-      if (until_settled && sample_period <= 0.0 && monitor.judged().size() >= 4)
+      if (settledWithin(t))
       {
-        // A sustained oscillation settled by a maximum ends the run within a sub-step of it, not at the chunk's end
-        // (up to a natural period later: in elastic chatter, 10⁵ impacts). Its figures come from the maxima, and the
-        // motion does not depend on where advanceTo stops: the same verdict, error and period. (A convergence runs
-        // on to the chunk's end: its steady error is read there; the rest tests run at chunk ends only.)
-        const double from = sim.state().time;
-        for (int k = 1; k < SETTLE_STEPS && !monitor.oscillating(); ++k)
-        {
-          advance(from + (t - from) * k / SETTLE_STEPS);
-        }
-        if (monitor.oscillating() && judge_from == -INFINITY)
-        {
-          out.stopped_by = "settled";
-          break;
-        }
+        out->stopped_by = "settled";
+        return false;
       }
       advance(t);
     }
     catch (const EventBudgetExceeded& e)
     {
-      out.stopped_by = "event_budget";
-      out.message = e.what();
-      break;
+      out->stopped_by = "event_budget";
+      out->message = e.what();
+      return false;
     }
     catch (const MotionDiverged& e)
     {
-      out.stopped_by = "diverged";
-      out.message = e.what();
+      out->stopped_by = "diverged";
+      out->message = e.what();
+      return false;
+    }
+    return true;
+  }
+
+  /// A sample on a controller update (to rounding: t_k = k/f and i·T differ in their last bits) shows the torque
+  /// applied from it on, as a drive logs it — not, now and then, the one before.
+  void takeSampleDue() { sim_.takeSampleDue(&tee_); }
+
+  /// The verdict's tests at a chunk's end t [s]; a run until settled without a cap of the user's then lasts at least
+  /// REPETITIONS times the slowest oscillation seen (the longest interval between maxima): a stick–slip hunt or a
+  /// slow drive loop whose cycle is long against 2π/ω_n (ω_n is the P law's; it means nothing for a PID or a
+  /// cascade) is given the repetitions its verdict needs.
+  void check()
+  {
+    constexpr double REPETITIONS = 100.0;
+    monitor_.check(sim_.state(), sim_.drive().winding(), judging() && sim_.atRestForever());
+    if (until_settled_ && config_.max_duration <= 0.0)
+    {
+      t_stop_ = std::max(t_stop_, t0_ + REPETITIONS * monitor_.longestInterval());
+    }
+  }
+
+  /// The share of the run done at t [s], in [0, 1].
+  double progress(double t) const { return (t - t0_) / (t_stop_ - t0_); }
+
+  /// Whether the run ends at the chunk's end t [s] (why in out->stopped_by). A convergence seen in the decay of the
+  /// maxima alone runs on until the joint is near its equilibrium, so that the steady error is the joint's, not a
+  /// point of a wide swing.
+  bool endsAt(double t, RunSummary* out) const
+  {
+    if (until_settled_ && monitor_.settled() && judging() &&
+        (monitor_.status().verdict != Verdict::Converged || monitor_.convergedNear(sim_.state())))
+    {
+      out->stopped_by = "settled";
+      return true;
+    }
+    if (t >= t_stop_)
+    {
+      out->stopped_by = until_settled_ ? "max_duration" : "duration";
+      return true;
+    }
+    return false;
+  }
+
+  /// The run's summary and tracking figures into out (out->stopped_by set).
+  void finish(RunSummary* out)
+  {
+    summarise(config_, sim_, monitor_, command_, out);
+    if (pass_)
+    {
+      finishTracking(config_, &*pass_, sim_, out);
+    }
+  }
+
+ private:
+  /// The tracking figures in this pass, at the rate replayTracking() would choose when the run's length is known now
+  /// (a run until settled: the nominal rate, replayed at a lower one only when it outlasts the sample budget).
+  void startTracking()
+  {
+    if (!config_.tracking)
+    {
+      return;
+    }
+    const double rate = until_settled_ ? nominalTrackingRate(config_)
+                                       : trackingRateFor(config_, config_.duration, TrackingPass::MAX_SAMPLES);
+    pass_.emplace(config_, rate, until_settled_ ? INFINITY : t0_ + config_.duration);
+    pass_->record(sim_);  // (the state as constructed: no drive sample taken yet)
+  }
+
+  void advance(double t)
+  {
+    if (pass_)
+    {
+      pass_->advanceTo(sim_, t, &tee_);
+    }
+    else
+    {
+      sim_.advanceTo(t, &tee_);
+    }
+  }
+
+  /// Whether the verdict is judged now (not before a profile's end).
+  bool judging() const { return judge_from_ == -INFINITY; }
+
+  /// Running until settled unsampled, a sustained oscillation settled by a maximum ends the run within a sub-step of
+  /// it, not at the chunk's end t [s] (up to a natural period later: in elastic chatter, 10⁵ impacts). Its figures
+  /// come from the maxima, and the motion does not depend on where advanceTo stops: the same verdict, error and
+  /// period. (A convergence runs on to the chunk's end: its steady error is read there; the rest tests run at chunk
+  /// ends only. Sub-steps only once four maxima are recorded: no sustained oscillation is settled before its fifth.)
+  bool settledWithin(double t)
+  {
+    if (!until_settled_ || sample_period_ > 0.0 || monitor_.judged().size() < 4)
+    {
+      return false;
+    }
+    const double from = sim_.state().time;
+    for (int k = 1; k < SETTLE_STEPS && !monitor_.oscillating(); ++k)
+    {
+      advance(from + (t - from) * k / SETTLE_STEPS);
+    }
+    return monitor_.oscillating() && judging();
+  }
+
+  const RunConfig& config_;
+  const double command_;  ///< the set-point judged against [rad]
+  const double t0_;       ///< [s]
+  const double sample_period_;
+  const bool until_settled_;
+  Simulator sim_;
+  ResponseMonitor monitor_;
+  Tee tee_;
+  std::optional<TrackingPass> pass_;
+  double judge_from_ = -INFINITY;  ///< where the verdict starts [s]; -inf once it has
+  double t_stop_ = 0.0;            ///< [s]
+  double chunk_ = 0.0;             ///< [s]
+};
+}  // namespace
+
+RunSummary runResponse(const RunConfig& config, EventSink* sink, double sample_period, const SampleCallback& on_sample,
+                       const ProgressCallback& on_progress)
+{
+  ResponseRun run(config, sink, sample_period);
+  RunSummary out;
+  if (on_sample)
+  {
+    on_sample(run.simulator());
+  }
+  for (long i = 1;; ++i)
+  {
+    const double t = run.chunkEnd(i);
+    if (!run.advanceChunk(t, &out))
+    {
       break;
     }
     if (on_sample && sample_period > 0.0)
     {
-      // A sample on a controller update (to rounding: t_k = k/f and i·T differ in their last bits) shows the torque
-      // applied from it on, as a drive logs it — not, now and then, the one before.
-      sim.takeSampleDue(&tee);
-      on_sample(sim);
+      run.takeSampleDue();
+      on_sample(run.simulator());
     }
-    monitor.check(sim.state(), sim.drive().winding(), judge_from == -INFINITY && sim.atRestForever());
-    if (auto_cap)
-    {
-      t_stop = std::max(t_stop, t0 + REPETITIONS * monitor.longestInterval());
-    }
+    run.check();
     if (on_progress)
     {
-      on_progress((t - t0) / (t_stop - t0));
+      on_progress(run.progress(t));
     }
-    // (A convergence seen in the decay of the maxima alone runs on until the joint is near its equilibrium, so that
-    // the steady error is the joint's, not a point of a wide swing.)
-    if (until_settled && monitor.settled() && judge_from == -INFINITY &&
-        (monitor.status().verdict != Verdict::Converged || monitor.convergedNear(sim.state())))
+    if (run.endsAt(t, &out))
     {
-      out.stopped_by = "settled";
-      break;
-    }
-    if (t >= t_stop)
-    {
-      out.stopped_by = until_settled ? "max_duration" : "duration";
       break;
     }
   }
-  summarise(config, sim, monitor, command, &out);
-  if (pass)
-  {
-    finishTracking(config, &*pass, sim, &out);
-  }
+  run.finish(&out);
   return out;
 }
 

@@ -19,20 +19,33 @@
 
 using namespace tools_test;
 
-TEST(IdentifyTool, EstimatesAJointFromItsRecordingAndWritesAModelEveryToolReads)
+namespace
 {
-  // A recording made here with the simulator in effort mode (a torque held over 1 kHz samples, CRLF line ends as
-  // spreadsheets write them), identified by the tool: the estimates against the parameters it was made with.
-  backlash_servo::ServoParams p;
-  p.gear_ratio = 0.5;
-  p.restitution = 0.5;
-  p.motor_coulomb_friction = p.motor_static_friction = 0.05;
-  p.load_coulomb_friction = p.load_static_friction = 0.1;
-  backlash_servo::Simulator sim(p, backlash_servo::State(), 0.0);
-  const std::string dir = testing::TempDir() + "backlash_identify/";
-  ASSERT_EQ(std::system(("rm -rf " + dir + " && mkdir -p " + dir).c_str()), 0);
+/**
+ * A recording made here with the simulator in effort mode (a torque held over 1 kHz samples, CRLF line ends as
+ * spreadsheets write them), written once for the tests below into dir() + "recording.csv"; joint() is the joint it
+ * was made with.
+ */
+class IdentifyRecording : public testing::Test
+{
+ public:
+  static backlash_servo::ServoParams joint()
   {
-    std::ofstream csv(dir + "recording.csv");
+    backlash_servo::ServoParams p;
+    p.gear_ratio = 0.5;
+    p.restitution = 0.5;
+    p.motor_coulomb_friction = p.motor_static_friction = 0.05;
+    p.load_coulomb_friction = p.load_static_friction = 0.1;
+    return p;
+  }
+  static std::string dir() { return testing::TempDir() + "backlash_identify/"; }
+  static std::string recording() { return dir() + "recording.csv"; }
+
+  static void SetUpTestSuite()
+  {
+    ASSERT_EQ(std::system(("rm -rf " + dir() + " && mkdir -p " + dir()).c_str()), 0);
+    backlash_servo::Simulator sim(joint(), backlash_servo::State(), 0.0);
+    std::ofstream csv(recording());
     csv.precision(17);
     csv << "time,motor_torque,motor_position,load_position,command\r\n";
     for (int k = 0; k <= 40000; ++k)
@@ -43,9 +56,16 @@ TEST(IdentifyTool, EstimatesAJointFromItsRecordingAndWritesAModelEveryToolReads)
       csv << t << "," << u << "," << sim.state().motor_position << "," << sim.state().load_position << ",0\r\n";
     }
   }
+};
+}  // namespace
+
+TEST_F(IdentifyRecording, EstimatesTheJointAndWritesAModelEveryToolReads)
+{
+  const backlash_servo::ServoParams p = joint();
+  const std::string dir = IdentifyRecording::dir();
   int code = 0;
   const std::string json = runCapture(
-      IDENTIFY + " --data " + dir + "recording.csv --gear-ratio 0.5 --json --output " + dir + "model.yaml", &code);
+      IDENTIFY + " --data " + recording() + " --gear-ratio 0.5 --json --output " + dir + "model.yaml", &code);
   ASSERT_EQ(code, 0) << json;
   const auto estimate = [&](const std::string& key) {
     return jsonNumber(json.substr(json.find("\"" + key + "\":{")), "value");
@@ -68,6 +88,12 @@ TEST(IdentifyTool, EstimatesAJointFromItsRecordingAndWritesAModelEveryToolReads)
   EXPECT_EQ(json.find("\"informed\":false"), std::string::npos) << json;
   EXPECT_NEAR(estimate("motor_static_friction"), p.motor_static_friction, 1e-2 * p.motor_static_friction);
   EXPECT_LT(jsonNumber(json.substr(json.find("\"joint_fit\":{")), "rms_residual"), 1e-6);
+}
+
+TEST_F(IdentifyRecording, FitEstimatesOnlyTheListedKeys)
+{
+  const std::string dir = IdentifyRecording::dir();
+  int code = 0;
   // --fit: only the listed keys are estimated; the others keep the prior's values, in the fit and in the model (the
   // prior here knows them: the restitution, the friction levels).
   {
@@ -75,7 +101,7 @@ TEST(IdentifyTool, EstimatesAJointFromItsRecordingAndWritesAModelEveryToolReads)
     prior << "gear_ratio: 0.5\nrestitution: 0.5\nmotor_coulomb_friction: 0.05\nmotor_static_friction: 0.05\n"
              "load_coulomb_friction: 0.1\nload_static_friction: 0.1\n";
   }
-  const std::string listed = runCapture(IDENTIFY + " --data " + dir + "recording.csv --config " + dir +
+  const std::string listed = runCapture(IDENTIFY + " --data " + recording() + " --config " + dir +
                                             "known.yaml --fit backlash,load_inertia --output " + dir + "some.yaml 2>&1",
                                         &code);
   ASSERT_EQ(code, 0) << listed;
@@ -89,28 +115,38 @@ TEST(IdentifyTool, EstimatesAJointFromItsRecordingAndWritesAModelEveryToolReads)
   EXPECT_NEAR(value("backlash"), 0.3, 1e-9) << written;
   EXPECT_EQ(written.find("motor_inertia"), std::string::npos) << written;
   EXPECT_NEAR(value("restitution"), 0.5, 0.0) << written;  // (the prior's, unchanged)
+}
+
+TEST_F(IdentifyRecording, DrawsTheFitAndSkipsItWhenTold)
+{
+  const std::string dir = IdentifyRecording::dir();
+  int code = 0;
   // The chart of the fit; --joint-fit off: the initial estimates alone (and no chart to draw).
-  runCapture(IDENTIFY + " --data " + dir + "recording.csv --gear-ratio 0.5 --png " + dir + "fit.png 2>&1", &code);
+  runCapture(IDENTIFY + " --data " + recording() + " --gear-ratio 0.5 --png " + dir + "fit.png 2>&1", &code);
   ASSERT_EQ(code, 0);
   std::ifstream png(dir + "fit.png", std::ios::binary);
   char magic[4] = {};
   png.read(magic, 4);
   EXPECT_EQ(std::string(magic + 1, 3), "PNG");
   const std::string off =
-      runCapture(IDENTIFY + " --data " + dir + "recording.csv --gear-ratio 0.5 --joint-fit off --json", &code);
+      runCapture(IDENTIFY + " --data " + recording() + " --gear-ratio 0.5 --joint-fit off --json", &code);
   ASSERT_EQ(code, 0);
   EXPECT_EQ(off.find("joint_fit"), std::string::npos) << off;
   const std::string both = runCapture(
-      IDENTIFY + " --data " + dir + "recording.csv --gear-ratio 0.5 --joint-fit off --png " + dir + "x.png 2>&1",
-      &code);
+      IDENTIFY + " --data " + recording() + " --gear-ratio 0.5 --joint-fit off --png " + dir + "x.png 2>&1", &code);
   EXPECT_EQ(code, 2);
   EXPECT_NE(both.find("--joint-fit off"), std::string::npos) << both;
+}
+
+TEST_F(IdentifyRecording, RefusesNamingWhatIsMissing)
+{
+  const std::string dir = IdentifyRecording::dir();
+  int code = 0;
   const std::string unknown =
-      runCapture(IDENTIFY + " --data " + dir + "recording.csv --gear-ratio 1 --fit mass 2>&1", &code);
+      runCapture(IDENTIFY + " --data " + recording() + " --gear-ratio 1 --fit mass 2>&1", &code);
   EXPECT_EQ(code, 2);
   EXPECT_NE(unknown.find("--fit: 'mass'"), std::string::npos) << unknown;
-  // Refusals, naming what is missing.
-  const std::string no_ratio = runCapture(IDENTIFY + " --data " + dir + "recording.csv 2>&1", &code);
+  const std::string no_ratio = runCapture(IDENTIFY + " --data " + recording() + " 2>&1", &code);
   EXPECT_EQ(code, 2);
   EXPECT_NE(no_ratio.find("gear ratio must be known"), std::string::npos) << no_ratio;
   {
@@ -127,6 +163,20 @@ TEST(IdentifyTool, EstimatesAJointFromItsRecordingAndWritesAModelEveryToolReads)
   const std::string nan = runCapture(IDENTIFY + " --data " + dir + "nan.csv --gear-ratio 1 2>&1", &code);
   EXPECT_EQ(code, 2);
   EXPECT_NE(nan.find("row 3, column motor_torque: 'x'"), std::string::npos) << nan;
+  {
+    std::ofstream prior(dir + "chart.yaml");
+    prior << "zeta: 0.4\ngear_ratio: 1\n";
+  }
+  const std::string chart =
+      runCapture(IDENTIFY + " --data " + recording() + " --config " + dir + "chart.yaml 2>&1", &code);
+  EXPECT_EQ(code, 2);
+  EXPECT_NE(chart.find("physical form"), std::string::npos) << chart;
+}
+
+TEST_F(IdentifyRecording, ReadsACsvAsSpreadsheetsWriteItAndRefusesMalformedOnesInOneLine)
+{
+  const std::string dir = IdentifyRecording::dir();
+  int code = 0;
   // A CSV as spreadsheets and scripts write it: a byte order mark is read past; a column given twice, a NUL byte
   // inside a number and a huge field are refused in one short line.
   const auto refusal = [&](const std::string& name, const std::string& text) {
@@ -146,14 +196,6 @@ TEST(IdentifyTool, EstimatesAJointFromItsRecordingAndWritesAModelEveryToolReads)
             std::string::npos);
   EXPECT_NE(refusal("huge.csv", header + "\n0," + std::string(5000000, '9') + "x,0,0\n").find("(5000001 characters)"),
             std::string::npos);
-  {
-    std::ofstream prior(dir + "chart.yaml");
-    prior << "zeta: 0.4\ngear_ratio: 1\n";
-  }
-  const std::string chart =
-      runCapture(IDENTIFY + " --data " + dir + "recording.csv --config " + dir + "chart.yaml 2>&1", &code);
-  EXPECT_EQ(code, 2);
-  EXPECT_NE(chart.find("physical form"), std::string::npos) << chart;
 }
 
 namespace
