@@ -38,6 +38,7 @@
 #include "backlash_servo/frequency/limit_cycle_prediction.h"
 #include "backlash_servo/identification/identification.h"
 #include "backlash_servo/identification/identify_joint.h"
+#include "backlash_servo/model/constants.h"
 #include "backlash_servo/model/gear_mesh.h"
 #include "backlash_servo/model/param_table.h"
 #include "backlash_servo/simulation/simulator.h"
@@ -368,7 +369,8 @@ py::dict broadbandResponse(const py::object& config, double amplitude, const std
   if (s.kind == BroadbandKind::Chirp)
   {
     const double rate = excitationRate(c, s.channel, injection_rate);
-    const auto range = chirp.is_none() ? std::pair<double, double>{0.01 * 2.0 * M_PI * rate, 0.25 * 2.0 * M_PI * rate}
+    const auto range = chirp.is_none() ? std::pair<double, double>{0.01 * 2.0 * backlash_servo::PI * rate,
+                                                                   0.25 * 2.0 * backlash_servo::PI * rate}
                                        : chirp.cast<std::pair<double, double>>();
     s.chirp_low = range.first;
     s.chirp_high = range.second;

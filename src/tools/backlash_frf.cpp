@@ -24,6 +24,7 @@
 #include "backlash_servo/files/safe_output.h"
 #include "backlash_servo/frequency/broadband_response.h"
 #include "backlash_servo/frequency/frequency_response.h"
+#include "backlash_servo/model/constants.h"
 #include "frf/broadband_report.h"
 #include "progress.h"
 
@@ -54,9 +55,6 @@ estimate with its coherence per DFT line - what a drive's commissioning tool sho
 SI units: amplitudes and offsets in rad (command) or N*m (torques; the set-point's offset in rad/s), frequencies in
 rad/s, phases in rad.
 )";
-
-constexpr double PI = 3.14159265358979323846;
-
 struct Options
 {
   RunConfig config;

@@ -1,23 +1,9 @@
 /**
  * @file compare_config.h
- * @brief The compensation workbench's experiment file (backlash_compare --config FILE.yaml): one joint, one command
- *        profile, N strategies. See docs/workbench.md.
- *
- * ```yaml
- * motor_inertia: 1.0e-4      # any parameter-table key: the joint and the settings every strategy shares
- * duration: 20               # [s] simulated per strategy (required)
- * sample_rate: 1000          # [Hz] metrics sampling (default 1000)
- * profile:                   # optional; default: a step to `command` at t = 0
- *   - step: {time: 0, target: 0.5}
- *   - ramp: {time: 5, target: 0, duration: 2}        # or rate: [rad/s]
- *   - sine: {time: 8, amplitude: 0.05, frequency: 1, duration: 4}
- *   - move: {time: 12, distance: 0.3, max_velocity: 0.5, max_acceleration: 5}
- *   - points: {time: 15, csv: setpoints.csv}         # time,value rows (relative to the YAML's directory)
- * strategies:
- *   - name: PID on load      # any keys again: they override the shared ones for this strategy
- *     control_law: pid
- *     integral_gain: 30
- * ```
+ * @brief The compensation workbench's experiment file (backlash_compare --config FILE.yaml): one joint and its shared
+ *        settings (any parameter-table key), `duration` [s] (required), `sample_rate` [Hz], an optional command
+ *        `profile` (CSV paths relative to the YAML's directory), and N `strategies`, each overriding shared keys.
+ *        The format with an example: docs/workbench.md. No ROS dependency.
  */
 #pragma once
 

@@ -1,22 +1,9 @@
 /**
  * @file compensator.h
- * @brief Backlash compensators of the digital drive: what they add to the position reference or to the
- *        torque at each controller sample. They only change the held torque at samples, so every mode keeps its
- *        closed form. No ROS dependency.
- *
- * At sample k (period T, reference θ_R,k, motor reading y_m,k referred to the load shaft, load reading y_L,k):
- * - `inverse` (the backlash inverse; needs `feedback: motor`): the motor-side reference jumps by the estimated
- *   backlash Δ̂ (`compensation_backlash` [rad], at the load shaft) when the commanded motion reverses:
- *   \f$ r_k = \theta_{R,k} + o_k \f$, o = 0 while the command last moved up (forward flank), −Δ̂ after it moved down
- *   (backward flank: θ_c = ρθ_m + Δ); with `compensation_width` w > 0 the jump is spread over a commanded travel w
- *   (|Δo| ≤ Δ̂|Δθ_R|/w per sample).
- * - `dual_loop` (needs `feedback: motor`): an outer load loop trims the inner motor loop's reference:
- *   \f$ r_k = \theta_{R,k} + x_k,\; x_k = x_{k-1} + K_o T (\theta_{R,k} - y_{L,k}) \f$ (K_o = `outer_loop_gain` [1/s]).
- * - `friction_feedforward`: \f$ u_k \mathrel{+}= F\,\mathrm{sign}(e_k) \f$, F = `compensation_friction` [N·m], e_k
- *   the loop error (the wanted motion); 0 inside |e_k| ≤ `compensation_width`.
- * - `dither`: \f$ u_k \mathrel{+}= A\,s(2\pi f t_k) \f$, A = `dither_amplitude` [N·m], f = `dither_frequency` [Hz],
- *   s = sin or the square wave sign(sin) (`dither_shape`), sampled by the drive (f ≤ f_s/2).
- * The torque terms are added before the torque limit.
+ * @brief Backlash compensators of the digital drive (`inverse`, `dual_loop`, `friction_feedforward`, `dither`): what
+ *        they add at each controller sample to the position reference [rad] or to the torque [N·m], before the torque
+ *        limit. They only change the held torque at samples, so every mode keeps its closed form. Their laws and
+ *        keys: docs/workbench.md, the strategies' table. No ROS dependency.
  */
 #pragma once
 

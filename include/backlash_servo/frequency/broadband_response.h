@@ -1,26 +1,11 @@
 /**
  * @file broadband_response.h
  * @brief The frequency response as a commissioning tool measures it in one go: a periodic broadband excitation
- *        (PRBS or chirp) sampled and held at the drive's rate, the output recorded at the same samples, and the H1
- *        estimate with its coherence per DFT line. The motion is exact (frequency_response.h: a held input keeps
- *        every mode closed-form). No ROS dependency.
- *
- * **Excitation** over a period of N samples at f_s (frequency_response.h's excitationRate), u_k = u₀ + A s_k:
- * - PRBS: a maximum-length binary sequence of order n (N = h(2ⁿ − 1), each bit held h samples), s_k = ±1 — a flat
- *   spectrum up to about f_s/(2h);
- * - chirp: s_k = sin(2π(k₀ k/N + (k₁ − k₀) k²/(2N²))), a linear sweep from DFT line k₀ to k₁ (k₁ − k₀ even, so the
- *   phase closes on a whole turn and the periodic sequence has no jump).
- * The first `settle_periods` periods let the transient decay (by default as many as cover AUTO_SETTLING_SCALES of the
- * joint's slowest time constant, at least 2); then `periods` periods are recorded.
- *
- * **Estimate.** Each recorded period p gives the DFTs U_p(k), Y_p(k) of the input sequence and of the output sampled
- * at the same instants (y_k: θ_c, ω_m or ω_c at t_k, as the drive's own recording would read it). Per line k
- * (ω_k = 2π k f_s/N [rad/s], over the lines the excitation carries):
- *   H1 = Σ_p Y_p U_p* / Σ_p |U_p|²,   γ² = |Σ_p Y_p U_p*|² / (Σ_p |U_p|² Σ_p |Y_p|²)  (coherence, in [0, 1]).
- * For a linear joint in its periodic steady state, H1 is the sampled-data transfer function from u_k to y_k at
- * z = e^{jω_k/f_s} and γ² = 1; backlash makes the response depend on the excitation and, where it does not repeat
- * from period to period (the joint's own limit cycle, chaotic impacts), lowers γ² — what a drive's tool shows. The
- * rectangular window is exact here: every period holds whole periods of every line.
+ *        (PRBS or chirp, u_k = u₀ + A s_k [N·m or rad]) held at the drive's rate, the output sampled at the same
+ *        instants, and per DFT line ω_k [rad/s] the H1 estimate with its coherence γ² in [0, 1]. The motion is exact
+ *        (a held input keeps every mode closed-form); for a linear joint in its periodic steady state H1 is the
+ *        sampled-data transfer function at z = e^{jω_k/f_s} and γ² = 1. Excitations, settling and the estimate:
+ *        docs/frequency_response.md, "Broadband: PRBS and chirp, H1 and coherence". No ROS dependency.
  */
 #pragma once
 

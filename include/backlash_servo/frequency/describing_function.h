@@ -1,21 +1,10 @@
 /**
  * @file describing_function.h
- * @brief Classical describing functions (DF) of the backlash element, for the harmonic-balance prediction of limit
- *        cycles (G(jω) N(A) = −1) beside the exact simulation. No ROS dependency.
- *
- * A DF is the complex gain of the fundamental: for the input x(t) = A sin ωt, the output's first Fourier harmonic is
- * b₁ sin ωt + a₁ cos ωt and N(A) = (b₁ + j a₁)/A. Amplitudes are those of the element's input about its centre.
- *
- * **Backlash as hysteresis** (the play operator; a friction-controlled load that stops where the driving tooth leaves
- * it — Tustin; Chestnut & Mayer; Gelb & Vander Velde #48): the output follows the input shifted by d = Δ/2 while the
- * input pushes one flank, and stands still across the free play. With r = d/A (A > d):
- *   N_R = ½ + (1/π)[asin(1 − 2r) + 2(1 − 2r)√(r(1 − r))],   N_I = −(4/π) r(1 − r),
- * N = 0 for A ≤ d (the output never moves). E.g. A = 2d: N = ½ − j/π. The lag N_I < 0 is what makes the backlash
- * destabilising.
- *
- * **Dead zone** (a compliant mesh without backlash pre-load: the penetration, hence the mesh spring's torque c·y, is
- * zero within ±δ and grows with unit slope beyond): real, with s = δ/A (A > δ):
- *   N = 1 − (2/π)[asin s + s√(1 − s²)],   N = 0 for A ≤ δ.
+ * @brief Classical describing functions (DF) of the backlash element — hysteresis (the play operator, half-width
+ *        d = Δ/2 [rad]) and dead zone (half-width δ [rad]) — for the harmonic-balance prediction of limit cycles
+ *        (G(jω) N(A) = −1) beside the exact simulation. N(A) = (b₁ + j a₁)/A, the complex gain of the fundamental for
+ *        the input A sin ωt about the element's centre [rad]; N = 0 while A does not exceed the half-width. The closed
+ *        forms and their sources: docs/describing_function.md, "Conventions". No ROS dependency.
  */
 #pragma once
 

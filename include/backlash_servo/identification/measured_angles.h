@@ -1,24 +1,10 @@
 /**
  * @file measured_angles.h
- * @brief How a recording's angles were measured, recognised from the data: each angle's count grid and noise level,
- *        and the smoothing and contact band the identification then uses. No ROS dependency.
- *
- * **Count grid.** An angle whose every sample is a whole number of counts 2π/N [rad] (N the stated resolution, or
- * the one the samples' smallest step gives) is quantised by an N-count encoder.
- *
- * **Noise.** What is not smooth motion: the third difference Δ³θ of a smooth angle is smooth (it follows the jerk),
- * that of white noise of standard deviation σ has standard deviation √20 σ and a lag-one correlation of −3/4. An
- * angle is *measured* when it lies on a count grid or its third differences alternate like noise (lag-one correlation
- * below −0.3); its σ [rad] is 1.4826 × the median |Δ³θ| / √20 over the samples where the angle moves (quantisation
- * while moving counts as noise: a uniform error of one count has σ = 2π/(N√12)). Otherwise the angle is exact (σ 0).
- *
- * **Smoothing** r [samples] (identification.h: the centred mean over 2r + 1 samples, twice) of measured angles: 2 —
- * it classifies the phases and signs the velocity, while the bodies' equations are integrated rather than
- * differentiated (identification.h), so it need not average the noise out of an acceleration; at r = 2 the moving
- * gap's filtered noise falls below a still count's half-width.
- *
- * **Contact band** [rad]: a gap on a flank reads within √3 σ_g of it still (a count's half-width) and within
- * 4σ_g√(2/(3(2r+1))) of it moving (the filter's noise), σ_g = √(σ_c² + ρ²σ_m²) the gap's raw noise.
+ * @brief How a recording's angles were measured, recognised from the data: each angle's count grid 2π/N [rad] and
+ *        noise σ [rad] (0: exact), and the smoothing r [samples] and contact band [rad] the identification then
+ *        uses when they are not given. Exact angles keep the settings as given. The tests (third differences, the
+ *        band's half count plus four filtered σ, r the least of 2, 4, … 32 that resolves the flanks):
+ *        docs/identification.md, "Measured data: counts and noise". No ROS dependency.
  */
 #pragma once
 
@@ -53,8 +39,9 @@ AngleMeasurement recogniseAngle(const std::vector<double>& angle, double stated)
 
 /**
  * Recognises both angles (the settings' encoder resolutions, when stated, are tried first) and fills what the
- * settings leave to the data when an angle is measured: the smoothing (2) when neither it nor the band is given, the
- * contact band when it is not given; exact angles keep the settings as given.
+ * settings leave to the data when an angle is measured: the contact band when it is not given, and with it the
+ * smoothing (the least of 2, 4, … 32 samples at which the band puts the flanks four bands apart) when that is not
+ * given either; exact angles keep the settings as given.
  */
 MeasuredAngles recogniseMeasurement(const Recording& data, const IdentificationSettings& settings);
 

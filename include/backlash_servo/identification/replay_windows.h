@@ -1,22 +1,12 @@
 /**
  * @file replay_windows.h
  * @brief Short windows of a recording replayed by the exact simulator from the measured state: the model side of every
- *        fit that uses the simulator (the restitution, the joint fit). No ROS dependency.
- *
- * An impacting joint replayed open-loop over a whole recording parts from it within seconds even with the true
- * parameters (its motion is chaotic: a 1e-12 change grows to mrad), so each window starts again from the state
- * measured at its first sample k₀ and runs `length` samples under the recorded torque (effort mode, the torque held
- * from each sample to the next):
- * - angles θ_m, θ_c as recorded at k₀, velocities by central differences of the recorded angles — never filtered: the
- *   smoothing blurs an angle and its velocity across an impact, and a fit then mistakes the blur for the impact's
- *   physics (16-bit angles with smoothing 20 in the anchors: e 0.5 fitted as 0.97); their noise is what the fitted
- *   velocity corrections absorb;
- * - the gap g = θ_c − ρθ_m − g₀ (g₀ the zero offset: the gap the encoders read on the forward flank) decides the
- *   teeth: within the contact band of 0 → forward contact, of Δ (or beyond) → backward contact, the common velocity
- *   (ω_c + ρω_m)/2; otherwise apart, g clamped into [0, Δ]; with a compliant mesh (mesh_stiffness > 0) the angles and
- *   velocities as measured, a gap beyond a flank being the mesh's penetration;
- * - the encoders' offset is put back before comparing: the residuals are simulated − measured of ρθ_m and θ_c, both
- *   on the load shaft [rad], at samples k₀+1 … k₀+length.
+ *        fit that uses the simulator (the restitution, the joint fit). Each window starts from the angles recorded
+ *        at its first sample k₀ (velocities by central differences, never filtered; the teeth's contact from the gap
+ *        and the contact band) and runs `length` samples under the recorded torque held from sample to sample; the
+ *        residuals are simulated − measured ρθ_m and θ_c [rad, at the load shaft] at k₀+1 … k₀+length, the encoders'
+ *        offset put back. Why windows (an impacting joint is chaotic) and the anchors' rules:
+ *        docs/identification.md, "The joint fit". No ROS dependency.
  */
 #pragma once
 

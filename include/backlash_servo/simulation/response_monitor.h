@@ -1,20 +1,10 @@
 /**
  * @file response_monitor.h
  * @brief Watches a response and judges it: maxima of θ_c fed to the Poincaré-map detector (limit_cycle.h), plus the
- *        rest and quiet rules. The one judge used by backlash_sim, the sweep, the design tool and the node, so they
- *        all reach the same verdict. Analysis only: it reads events and states, never changes the physics.
- *        No ROS dependency.
- *
- * Rules applied at each check (a time the caller chooses: a natural period, an output sample):
- * - the maxima are judged against the loop's equilibrium θ_eq (loopEquilibrium: θ_R shifted by a load torque
- *   unless integral action removes the offset), so that a joint decaying onto an offset equilibrium is converged;
- * - **rest**: |θ_c − θ_eq|, |ω_c|/ω_n and |ρ ω_m|/ω_n all within LimitCycleDetector::ZERO_FRACTION of the scale
- *   max(Δ, |θ_R − θ_c(0)|, |θ_eq − θ_R|) → converged (the steady error is θ_c − θ_R);
- * - **held for ever**: dry friction holds both bodies under a drive output that can no longer change
- *   (Simulator::atRestForever) → converged, also after maxima that looked like a cycle;
- * - **quiet**: no new positive maximum for max(10 natural periods, 5 × the longest interval between maxima so far)
- *   while |θ_c − θ_eq| ≤ QUIET_ERROR_FRACTION × scale → converged (the motor creeping across the backlash under a
- *   vanishing torque is not an oscillation).
+ *        rest, held-for-ever and quiet rules, all judged against the loop's equilibrium θ_eq [rad]. The one judge
+ *        used by backlash_sim, the sweep, the design tool and the node, so they all reach the same verdict. Analysis
+ *        only: it reads events and states, never changes the physics. The rules: docs/validation.md, "How the
+ *        limit-cycle verdict is made". No ROS dependency.
  */
 #pragma once
 

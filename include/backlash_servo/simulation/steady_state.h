@@ -2,17 +2,9 @@
  * @file steady_state.h
  * @brief Where a converged joint comes to rest: the load's limit position θ_∞ [rad] and the steady error θ_∞ − θ_R
  *        [rad] — the limit, never the offset at the moment the verdict was decided. One answer for every tool, the
- *        node and Python. No ROS dependency.
- *
- * Decided in this order (SteadyBasis):
- * - **held**: dry friction holds the joint for ever (Simulator::atRestForever): the position it is held at, exact;
- * - **equilibrium**: the law has one rest position of the load — no dry friction, the loop reads the load through an
- *   ideal sensor (or is the continuous law), no compensation — loopEquilibrium() in closed form: θ_R + ρT_ext/K
- *   (P laws), θ_R (integral action); a compliant mesh or a shaft changes where the motor rests, not the load;
- * - **limit**: otherwise a copy of the simulator runs on (the run itself is untouched) until the load's remaining
- *   travel, bounded from the geometric decay of its moves over growing windows, is within rounding
- *   (LIMIT_TOLERANCE of the scale): its position then, or held once dry friction holds it for ever;
- * - **unsettled**: the load still moves beyond rounding after the run's own time scale (steadyBudget()): NaN.
+ *        node and Python; the run itself is never changed (a limit is found in a copy). Its basis (SteadyBasis): held
+ *        by dry friction, the law's closed-form equilibrium, the limit of the load's geometric decay, or unsettled
+ *        (NaN) — docs/cli.md, "The steady error". No ROS dependency.
  */
 #pragma once
 

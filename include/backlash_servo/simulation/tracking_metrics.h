@@ -1,18 +1,11 @@
 /**
  * @file tracking_metrics.h
- * @brief How well a sampled response tracks its reference: the settling time into a band, the RMS error over the run
- *        and after the transient, the largest error, the overshoot and the motor torque. Analysis only, from samples
- *        of the exact run (a data logger's view of it): shared by backlash_sim, backlash_design, backlash_compare
- *        and the Python module so that they report the same figures. No ROS dependency.
- *
- * With e = θ_R − θ_c at each sample and t_f the time the reference stops moving (the end of a profile, the time of a
- * step):
- * - settling time = the last sample time after t_f with |e| > band (t_f when never outside); none (NaN) when the
- *   last sample outside lies within 1.5 sample periods of the end — still outside — or when the run's verdict is a
- *   sustained oscillation reaching beyond the band (the samples may end inside a swing that leaves it again);
- * - steady-state RMS error = √(mean e²) from the settling time on; for a response that never settles, over the second
- *   half of what follows t_f (a limit cycle's own error, not the transient's);
- * - overshoot = the largest excursion beyond the final reference in the direction of the reference's last move.
+ * @brief How well a sampled response tracks its reference, e = θ_R − θ_c [rad] at each sample: the settling time [s]
+ *        into a band (NaN when the samples end outside it, or a sustained oscillation leaves it), the RMS error over
+ *        the run and after the transient [rad], the largest error, the overshoot beyond the final reference [rad] and
+ *        the motor torque [N·m]. Analysis only, from samples of the exact run: shared by backlash_sim,
+ *        backlash_design, backlash_compare and the Python module so that they report the same figures. Definitions:
+ *        docs/workbench.md. No ROS dependency.
  */
 #pragma once
 

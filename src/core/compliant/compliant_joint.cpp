@@ -5,6 +5,7 @@
 #include <limits>
 #include <stdexcept>
 
+#include "backlash_servo/model/constants.h"
 #include "backlash_servo/model/gear_mesh.h"
 #include "compliant/compliant_joint_detail.h"
 #include "numerics/linear_mode.h"
@@ -18,8 +19,6 @@ using compliant_detail::roundingOf;
 
 namespace
 {
-constexpr double INF = std::numeric_limits<double>::infinity();
-// A segment's event search windows, in units of its fastest time scale 1/‖Â‖₂: the first FIRST_WINDOW_SCALE long,
 // each next one twice the one before, up to WINDOW_SCALE.
 constexpr double FIRST_WINDOW_SCALE = 4.0;
 constexpr double WINDOW_SCALE = 256.0;

@@ -6,6 +6,7 @@
 #include <string>
 #include <utility>
 
+#include "backlash_servo/model/constants.h"
 #include "backlash_servo/model/gear_mesh.h"
 #include "backlash_servo/rigid/impact.h"
 
@@ -78,7 +79,6 @@ void CompliantJoint::rigidMeshTorque(ModeVector* w, double* w0) const
 
 void CompliantJoint::impact(int sigma)
 {
-  constexpr double EPS = std::numeric_limits<double>::epsilon();
   const double rho = s_.gear_ratio, delta = s_.backlash;
   const int o = out();
   const GearMesh mesh(s_);

@@ -5,6 +5,7 @@
 #include <iterator>
 #include <limits>
 
+#include "backlash_servo/model/constants.h"
 #include "backlash_servo/model/param_table.h"
 #include "backlash_servo/model/params.h"
 
@@ -12,9 +13,6 @@ namespace backlash_servo
 {
 namespace
 {
-constexpr double TWO_PI = 6.283185307179586476925;
-
-/// Trapezoid (or triangle) distance covered after tau [s] of a move of length |d| [rad].
 double trapezoid(double d, double vmax, double amax, double tau)
 {
   const double t_acc = vmax / amax;

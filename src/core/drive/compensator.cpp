@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 
+#include "backlash_servo/model/constants.h"
 #include "backlash_servo/model/drive_params.h"
 
 namespace backlash_servo
@@ -87,7 +88,6 @@ double Compensator::torque(double torque, double error, double time) const
   }
   if (kind_ == Kind::Dither)
   {
-    constexpr double TWO_PI = 6.283185307179586476925;
     const double s = std::sin(TWO_PI * frequency_ * time);
     return torque + amplitude_ * (square_ ? (s >= 0.0 ? 1.0 : -1.0) : s);
   }

@@ -1,4 +1,5 @@
 #include "backlash_servo/drive/drive.h"
+#include "backlash_servo/model/constants.h"
 
 #include <algorithm>
 #include <cmath>
@@ -8,10 +9,6 @@ namespace backlash_servo
 {
 namespace
 {
-constexpr double EPS = std::numeric_limits<double>::epsilon();
-constexpr double INF = std::numeric_limits<double>::infinity();
-
-/// Where the load θ_c = x [rad] lies relative to [lo, hi] [rad]: +1 above, −1 below, 0 inside; on an edge the side
 /// the load is moving to (v [rad/s]) decides, so a switch never repeats at the same instant.
 int sideOf(double x, double v, double lo, double hi)
 {
@@ -264,7 +261,6 @@ double SampledDrive::nextEventTime(double /*t*/) const
 
 double quantiseAngle(double angle, double resolution)
 {
-  constexpr double TWO_PI = 6.283185307179586476925;
   return TWO_PI / resolution * std::floor(resolution * angle / TWO_PI);
 }
 

@@ -6,13 +6,12 @@
 #include <memory>
 
 #include "backlash_servo/drive/command_profile.h"
+#include "backlash_servo/model/constants.h"
 
 namespace backlash_servo
 {
 namespace
 {
-constexpr double PI = 3.14159265358979323846;
-/// Lines whose input power is below this fraction of the largest carry no excitation and are not reported.
 constexpr double LINE_POWER_FLOOR = 1e-4;
 
 /// Feedback taps of a maximal-length Fibonacci LFSR of each order 3 … 20 (bit positions counted from 1; the primitive

@@ -3,14 +3,13 @@
 #include <cmath>
 #include <functional>
 
+#include "backlash_servo/model/constants.h"
 #include "backlash_servo/model/params.h"
 
 namespace backlash_servo
 {
 namespace
 {
-constexpr double PI = 3.14159265358979323846;
-
 void requireLength(const char* key, double value)
 {
   if (!std::isfinite(value) || value < 0.0)

@@ -1,4 +1,5 @@
 #include "backlash_servo/frequency/driven_backlash.h"
+#include "backlash_servo/model/constants.h"
 
 #include <algorithm>
 #include <cmath>
@@ -12,8 +13,6 @@ namespace backlash_servo
 {
 namespace
 {
-constexpr double PI = 3.14159265358979323846;
-
 enum class Phase
 {
   Free,

@@ -1,4 +1,5 @@
 #include "backlash_servo/frequency/driven_mesh.h"
+#include "backlash_servo/model/constants.h"
 
 #include <cmath>
 #include <complex>
@@ -15,10 +16,6 @@ namespace backlash_servo
 {
 namespace
 {
-constexpr double PI = 3.14159265358979323846;
-constexpr double INF = std::numeric_limits<double>::infinity();
-
-/// What a watched output's crossing means.
 enum class Kind
 {
   Engage,    ///< contact on flank σ begins (y rising through 0, or P rising through 0 inside the flank)

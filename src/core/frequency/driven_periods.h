@@ -6,6 +6,8 @@
 #include <algorithm>
 #include <complex>
 
+#include "backlash_servo/model/constants.h"
+
 namespace backlash_servo
 {
 /// Samples of a period for the fundamentals, and periods averaged when the motion did not repeat.
@@ -48,7 +50,6 @@ inline int analysedPeriods(bool periodic)
 template <class Element, class Sample>
 int samplePeriods(Element& element, double period, int periods, bool periodic, Sample&& sample)
 {
-  constexpr double PI = 3.14159265358979323846;
   constexpr int M = DRIVEN_SAMPLES;
   const int analysed = analysedPeriods(periodic);
   for (int p = 0; p < analysed; ++p)

@@ -7,6 +7,7 @@
 #include <vector>
 
 #include "backlash_servo/drive/command_profile.h"
+#include "backlash_servo/model/constants.h"
 #include "compliant/compliant_joint.h"
 #include "numerics/gauss_legendre.h"
 
@@ -14,8 +15,6 @@ namespace backlash_servo
 {
 namespace
 {
-constexpr double PI = 3.14159265358979323846;
-/// An exact sine's period is observed at this many instants (the steady-state test, the Fourier pieces' cuts).
 constexpr int CONTINUOUS_POINTS = 64;
 /// Subharmonics looked for: a response repeating after up to this many periods.
 constexpr int MAX_PERIOD_MULTIPLE = 4;

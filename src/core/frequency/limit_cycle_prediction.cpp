@@ -5,6 +5,7 @@
 
 #include "backlash_servo/frequency/driven_backlash.h"
 #include "backlash_servo/frequency/driven_mesh.h"
+#include "backlash_servo/model/constants.h"
 #include "backlash_servo/model/params.h"
 #include "backlash_servo/simulation/simulator.h"
 
@@ -12,7 +13,6 @@ namespace backlash_servo
 {
 namespace
 {
-constexpr double PI = 3.14159265358979323846;
 constexpr int CYCLE_SAMPLES = 4096;
 }  // namespace
 

@@ -7,6 +7,7 @@
 #include <variant>
 
 #include "backlash_servo/identification/measured_angles.h"
+#include "backlash_servo/model/constants.h"
 #include "backlash_servo/model/param_table.h"
 #include "backlash_servo/model/params.h"
 #include "identification/least_squares.h"
@@ -300,7 +301,6 @@ double flankError(const std::vector<double>& forward, const std::vector<double>&
     // not symmetric about a flank the teeth bounce off: no narrower claim is made).
     variance += spread.sigma * spread.sigma * (1.0 + 1.5708 * width / static_cast<double>(flank->size()));
   }
-  constexpr double TWO_PI = 6.283185307179586;
   for (const auto& [m, factor] : {std::make_pair(load, 1.0), std::make_pair(motor, s.gear_ratio)})
   {
     if (m.resolution > 0.0)

@@ -1,4 +1,5 @@
 #include "backlash_servo/identification/measured_angles.h"
+#include "backlash_servo/model/constants.h"
 
 #include <algorithm>
 #include <cmath>
@@ -9,8 +10,6 @@ namespace backlash_servo
 {
 namespace
 {
-constexpr double TWO_PI = 6.283185307179586;
-/// Third differences alternating at least this much (white noise: −3/4, smooth motion: near +1) are noise.
 constexpr double NOISE_CORRELATION = -0.3;
 /// The smoothing [samples] of measured angles: the least and the widest tried.
 constexpr int CLASSIFYING_SMOOTHING = 2;

@@ -6,13 +6,13 @@
 #include <string_view>
 #include <unordered_map>
 
+#include "backlash_servo/model/constants.h"
 #include "backlash_servo/model/run_config.h"
 
 namespace backlash_servo
 {
 namespace
 {
-constexpr double INF = std::numeric_limits<double>::infinity();
 const ParamRange NON_NEGATIVE{0.0, INF, false, false};
 const ParamRange UNIT{0.0, 1.0, false, false};
 const ParamRange FINITE{};

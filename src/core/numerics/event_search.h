@@ -4,6 +4,8 @@
 #include <cmath>
 #include <limits>
 
+#include "backlash_servo/model/constants.h"
+
 namespace backlash_servo
 {
 /**
@@ -13,7 +15,6 @@ namespace backlash_servo
 template <class Before>
 double bisectChange(const Before& before, double a, double b)
 {
-  constexpr double EPS = std::numeric_limits<double>::epsilon();
   for (int it = 0; it < 200 && b - a > 2.0 * EPS * b; ++it)
   {
     const double mid = 0.5 * (a + b);
@@ -30,7 +31,6 @@ double bisectChange(const Before& before, double a, double b)
 template <class Theta>
 double firstExit(const Theta& theta, const double* crit, int m, double horizon, double lo, double hi, double magnitude)
 {
-  constexpr double EPS = std::numeric_limits<double>::epsilon();
   double p = 0.0;
   for (int i = 0; i <= m; ++i)
   {

@@ -1,4 +1,5 @@
 #include "backlash_servo/numerics/exp_poly.h"
+#include "backlash_servo/model/constants.h"
 
 #include <algorithm>
 #include <cmath>
@@ -9,9 +10,6 @@ namespace backlash_servo
 {
 namespace
 {
-constexpr double EPS = std::numeric_limits<double>::epsilon();
-
-/// Drops exactly-zero leading coefficients; returns false when the whole polynomial is zero.
 template <class Term>
 bool trimDegree(Term& t)
 {

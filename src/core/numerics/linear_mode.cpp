@@ -9,6 +9,8 @@
 #include <stdexcept>
 #include <string>
 
+#include "backlash_servo/model/constants.h"
+
 namespace backlash_servo
 {
 using mode_detail::affine;
@@ -16,8 +18,6 @@ using mode_detail::product;
 
 namespace
 {
-constexpr double INF = std::numeric_limits<double>::infinity();
-
 /**
  * a·x + u, as affine() where its terms do not cancel, else as if in twice the working precision, rounded once (Ogita,
  * Rump & Oishi's Dot2: each product's error by fma, each sum's by TwoSum, the errors summed apart). A mesh's torque

@@ -7,12 +7,10 @@
 #include "numerics/linear_mode.h"
 #include "numerics/mode_products.h"
 
+#include "backlash_servo/model/constants.h"
+
 namespace backlash_servo
 {
-namespace
-{
-constexpr double INF = std::numeric_limits<double>::infinity();
-}  // namespace
 using mode_detail::affine;
 using mode_detail::product;
 
@@ -136,7 +134,6 @@ void LinearMode::curvatureBounds(const Curvature& k, const Point& p, double lo, 
 LinearMode::Local LinearMode::local(const ModeVector& w, double w0, double lo, double h, const Curvature& curv,
                                     bool begins) const
 {
-  constexpr double EPS = std::numeric_limits<double>::epsilon();
   const Point& p = pointAt(lo, begins);
   Local l;
   l.lo = lo;

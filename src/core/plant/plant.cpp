@@ -10,6 +10,7 @@
 #include <type_traits>
 #include <utility>
 
+#include "backlash_servo/model/constants.h"
 #include "backlash_servo/rigid/impact.h"
 #include "compliant/compliant_joint.h"
 #include "plant/plant_detail.h"
@@ -17,7 +18,6 @@
 namespace backlash_servo
 {
 using plant_detail::CONTACT_SEARCH_PERIODS;
-using plant_detail::EPS;
 using plant_detail::FREE_SEARCH_PERIODS;
 using plant_detail::loadTurnaround;
 
@@ -25,9 +25,6 @@ namespace
 {
 /// Iterations without advancing time before the simulator declares a bug instead of hanging.
 constexpr int MAX_STALLED_ITERATIONS = 10000;
-constexpr double PI = 3.14159265358979323846;
-
-/// (J_m + ρ²J_L)/(J_m J_L) [1/(kg·m²)]: the relative acceleration of the teeth per unit of mesh torque.
 double pressFactor(const ServoParams& p)
 {
   const double rho = p.gear_ratio;

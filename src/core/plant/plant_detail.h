@@ -5,14 +5,13 @@
 #include <cmath>
 #include <limits>
 
+#include "backlash_servo/model/constants.h"
 #include "backlash_servo/model/params.h"
 
 namespace backlash_servo
 {
 namespace plant_detail
 {
-constexpr double EPS = std::numeric_limits<double>::epsilon();
-/// Apart mode: impacts are searched this far ahead per segment [natural periods] (fastest on the benchmarks).
 constexpr double FREE_SEARCH_PERIODS = 0.5;
 /// Contact mode: separations and maxima are searched this far ahead per segment [natural periods].
 constexpr double CONTACT_SEARCH_PERIODS = 1.0;

@@ -10,7 +10,6 @@
 
 namespace backlash_servo
 {
-using plant_detail::EPS;
 using plant_detail::FREE_SEARCH_PERIODS;
 using plant_detail::loadTurnaround;
 

@@ -1,4 +1,5 @@
 // The contact mode (modes.h: ContactMotion): both bodies as one on a wall of the free play.
+#include "backlash_servo/model/constants.h"
 #include "backlash_servo/rigid/modes.h"
 
 #include "numerics/event_search.h"
@@ -14,11 +15,6 @@ namespace backlash_servo
 {
 namespace
 {
-constexpr double EPS = std::numeric_limits<double>::epsilon();
-constexpr double INF = std::numeric_limits<double>::infinity();
-constexpr double PI = 3.14159265358979323846;
-
-/// The first of the points τ + kπ/ω (k whole) in (0, half = π/ω], for τ = (atan2(·) + π/2)/ω in [−half/2, 3half/2]
 /// (fmod is exact, so this equals one subtraction or addition of half); +inf (no such point) stays +inf, so a
 /// mesh torque with no oscillating part (a load torque balancing the motor's at the start) does not loop for ever.
 double firstInHalfPeriod(double tau, double half)

@@ -4,6 +4,7 @@
 #include <complex>
 #include <limits>
 
+#include "backlash_servo/model/constants.h"
 #include "backlash_servo/rigid/modes.h"
 #include "numerics/event_search.h"
 #include "numerics/gauss_legendre.h"
@@ -11,12 +12,6 @@
 
 namespace backlash_servo
 {
-namespace
-{
-constexpr double EPS = std::numeric_limits<double>::epsilon();
-constexpr double INF = std::numeric_limits<double>::infinity();
-}  // namespace
-
 namespace
 {
 bool slowRate(double rate, double window, double limit = SLOW_RATE_WINDOW_PRODUCT)

@@ -1,4 +1,5 @@
 #include "backlash_servo/rigid/short_flight.h"
+#include "backlash_servo/model/constants.h"
 
 #include <algorithm>
 #include <array>
@@ -12,10 +13,6 @@ namespace backlash_servo
 {
 namespace
 {
-constexpr double EPS = std::numeric_limits<double>::epsilon();
-constexpr double INF = std::numeric_limits<double>::infinity();
-
-/// 1/k for k = 0..MAX_ORDER + 1 (0 unused): the series' recurrence divides by the order, the remainder bound by N + 1.
 constexpr auto INVERSE = [] {
   std::array<double, ShortFlight::MAX_ORDER + 2> inv{};
   for (int k = 1; k <= ShortFlight::MAX_ORDER + 1; ++k)

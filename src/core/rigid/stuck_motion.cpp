@@ -4,6 +4,7 @@
 #include <cmath>
 #include <limits>
 
+#include "backlash_servo/model/constants.h"
 #include "backlash_servo/model/gear_mesh.h"
 #include "numerics/event_search.h"
 
@@ -11,9 +12,6 @@ namespace backlash_servo
 {
 namespace
 {
-constexpr double INF = std::numeric_limits<double>::infinity();
-
-/// Φ1(τ) = (1 − e^{−pτ})/p [s] (τ when p = 0).
 double phi1(double p, double tau)
 {
   return p == 0.0 ? tau : -std::expm1(-p * tau) / p;

@@ -4,14 +4,12 @@
 #include <cmath>
 
 #include "backlash_servo/drive/drive.h"
+#include "backlash_servo/model/constants.h"
 
 namespace backlash_servo
 {
 namespace
 {
-constexpr double PI = 3.14159265358979323846;
-
-/// Aitken's Δ² limit of three successive values approaching it geometrically (contraction ratio in (−1, 1)); the
 /// latest value otherwise.
 double aitken(const double x[3])
 {

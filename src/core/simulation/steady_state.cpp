@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cstdio>
 
+#include "backlash_servo/model/constants.h"
 #include "backlash_servo/simulation/simulator.h"
 #include "backlash_servo/simulation/step_response.h"
 
@@ -10,8 +11,6 @@ namespace backlash_servo
 {
 namespace
 {
-constexpr double TWO_PI = 6.283185307179586476925;
-
 SteadyAnswer answerAt(double position, double command, SteadyBasis basis)
 {
   SteadyAnswer a;

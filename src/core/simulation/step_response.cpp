@@ -5,14 +5,13 @@
 #include <cstdint>
 #include <optional>
 
+#include "backlash_servo/model/constants.h"
 #include "backlash_servo/simulation/steady_state.h"
 
 namespace backlash_servo
 {
 namespace
 {
-constexpr double PI = 3.14159265358979323846;
-/// Running until settled, each chunk (a natural period) is advanced in this many steps, so that the run stops within
 /// one of them after the maximum that settles the verdict.
 constexpr int SETTLE_STEPS = 16;
 
@@ -180,7 +179,6 @@ double plantTimeScale(const ServoParams& p)
 
 double loopCount(const RunConfig& config)
 {
-  constexpr double TWO_PI = 6.283185307179586476925;
   const DriveParams& d = config.drive;
   if (d.sampled() && d.feedback == "motor" && d.motor_encoder_resolution > 0.0)
   {
