@@ -1,23 +1,14 @@
 #include "servo_node.h"
 
-#include <diagnostic_msgs/DiagnosticStatus.h>
-#include <dynamic_reconfigure/config_tools.h>
-#include <ros/callback_queue.h>
 #include <rosgraph_msgs/Clock.h>
 #include <sensor_msgs/JointState.h>
 
-#include <algorithm>
-#include <cmath>
 #include <cstdint>
-#include <ctime>
 
 #include "backlash_servo/BacklashState.h"
 #include "backlash_servo/ImpactEvent.h"
 #include "backlash_servo/LimitCycleStatus.h"
 #include "backlash_servo/config/run_config_loader.h"
-#include "backlash_servo/model/param_table.h"
-#include "launch_end.h"
-#include "wall_throttle.h"
 
 namespace backlash_servo
 {

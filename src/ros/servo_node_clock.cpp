@@ -4,10 +4,8 @@
 #include <ros/callback_queue.h>
 #include <rosgraph_msgs/Clock.h>
 #include <algorithm>
-#include <cmath>
 #include <ctime>
 #include "launch_end.h"
-#include "wall_throttle.h"
 
 namespace backlash_servo
 {

@@ -2,8 +2,7 @@
 #include "servo_node.h"
 
 #include <algorithm>
-#include <cmath>
-#include "backlash_servo/config/run_config_loader.h"
+
 #include "backlash_servo/model/param_table.h"
 #include "wall_throttle.h"
 

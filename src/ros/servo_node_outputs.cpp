@@ -3,13 +3,11 @@
 
 #include <diagnostic_msgs/DiagnosticStatus.h>
 #include <sensor_msgs/JointState.h>
-#include <algorithm>
 #include <cmath>
 #include <cstdint>
 #include "backlash_servo/BacklashState.h"
 #include "backlash_servo/ImpactEvent.h"
 #include "backlash_servo/LimitCycleStatus.h"
-#include "wall_throttle.h"
 
 namespace backlash_servo
 {

@@ -6,7 +6,6 @@
 #include <cmath>
 #include "backlash_servo/config/run_config_loader.h"
 #include "backlash_servo/model/param_table.h"
-#include "wall_throttle.h"
 
 namespace backlash_servo
 {

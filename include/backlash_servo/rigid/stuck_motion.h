@@ -1,16 +1,9 @@
 /**
  * @file stuck_motion.h
- * @brief Closed-form motion while dry friction holds a body: one body slides (or none) while the other is stuck.
- *        No ROS dependency. The rule that decides who sticks is in dry_friction.h.
- *
- * The sliding body is first order in its velocity under a constant torque c (the motor torque is constant while the
- * load is stuck; the load torque is always constant):
- * \f[ J\dot\omega = c - f\omega \;\Rightarrow\; \omega(\tau) = \omega_0 e^{-p\tau} + \tfrac{c}{J}\Phi_1(\tau),\quad
- *     \theta(\tau) = \theta_0 + \omega_0\Phi_1(\tau) + \tfrac{c}{J}\Phi_2(\tau) \f]
- * with p = f/J, \f$ \Phi_1 = (1 - e^{-p\tau})/p \f$, \f$ \Phi_2 = (\tau - \Phi_1)/p \f$ (→ τ and τ²/2 as p → 0;
- * evaluated with expm1 and a series, without cancellation). ω is monotone, so θ has at most one extremum and every
- * event — the body coming to rest, the gap reaching a wall, θ_c crossing a level — is a closed form or a bisection
- * on a monotone piece.
+ * @brief Closed-form motion while dry friction holds a body: one body slides (or none) while the other is stuck; the
+ *        sliding body's velocity is monotone, so every event (coming to rest, the gap reaching a wall, θ_c [rad]
+ *        crossing a level) is a closed form or a bisection on a monotone piece. Who sticks: dry_friction.h. The
+ *        closed forms: docs/model.md, Part 4, "Motion while a body is stuck". No ROS dependency.
  */
 #pragma once
 
