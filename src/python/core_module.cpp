@@ -870,10 +870,31 @@ void bindFrequency(py::module_& m)
       "(docs/describing_function.md).");
   m.def(
       "harmonic_balance",
-      [](const std::function<std::complex<double>(double)>& g, double backlash, double omega_lo, double omega_hi,
-         int points) {
+      [](const py::function& g, double backlash, double omega_lo, double omega_hi, int points) {
+        // G(jω) as the user's callable gives it: a complex number (or a real one), finite; ConfigError naming g,
+        // the frequency and what it returned otherwise.
+        const auto transfer = [&g](double omega) {
+          const py::object value = g(omega);
+          std::complex<double> z(NAN, NAN);
+          if (PyComplex_Check(value.ptr()) || PyFloat_Check(value.ptr()) || PyLong_Check(value.ptr()) ||
+              py::hasattr(value, "__complex__"))
+          {
+            z = value.cast<std::complex<double>>();
+          }
+          if (!std::isfinite(z.real()) || !std::isfinite(z.imag()))
+          {
+            std::string shown = py::repr(value).cast<std::string>();
+            if (shown.size() > 60)
+            {
+              shown = shown.substr(0, 57) + "...";
+            }
+            throw ConfigError("g: must return a finite complex G(jω) (got " + shown + " at ω = " + formatNumber(omega) +
+                              " rad/s)");
+          }
+          return z;
+        };
         py::list out;
-        for (const HarmonicBalance& h : backlashHarmonicBalance(g, backlash, omega_lo, omega_hi, points))
+        for (const HarmonicBalance& h : backlashHarmonicBalance(transfer, backlash, omega_lo, omega_hi, points))
         {
           py::dict d;
           d["amplitude"] = h.amplitude;

@@ -9,6 +9,7 @@ import io
 import json
 import math
 import os
+import re
 import signal
 import subprocess
 import threading
@@ -320,6 +321,11 @@ def test_describing_functions_and_harmonic_balance():
     assert 0.15 < found[0]["amplitude"] < found[1]["amplitude"]
     with pytest.raises(ValueError, match="backlash"):
         core.harmonic_balance(g, 0.0, 1e-3, 1e3)
+    # G(jω) from a callable that returns no finite complex number: ConfigError naming g, what it returned and where.
+    for bad, shown in [(lambda w: "x" * 500, "'xxx"), (lambda w: float("nan"), "nan"), (lambda w: [1.0], "[1.0]")]:
+        with pytest.raises(core.ConfigError, match=r"g: must return a finite complex .*\(got " + re.escape(shown)):
+            core.harmonic_balance(bad, 0.3, 1e-3, 1e3)
+    assert core.harmonic_balance(lambda w: np.complex128(g(w)), 0.3, 1e-3, 1e3) == found  # numpy scalars are numbers
 
 
 def test_limit_cycle_prediction_is_backlash_dfs_analysis(tmp_path):
