@@ -15,7 +15,7 @@ if ! dpkg-query -W -f='${Status}' libsundials-dev 2>/dev/null | grep -q "install
 fi
 mkdir -p build/release/devel/lib/python3/dist-packages
 cmake -S . -B build/release -DPYTHON_EXECUTABLE=/usr/bin/python3 -DCMAKE_BUILD_TYPE=Release >/dev/null
-make -C build/release -j"$(nproc)" bench_core bench_compliant backlash_sweep backlash_sim backlash_identify >/dev/null
+make -C build/release -j"$(nproc)" bench_core bench_compliant backlash_sweep backlash_sim backlash_identify backlash_frf >/dev/null
 bin=build/release/devel/lib/backlash_servo
 ref=$(mktemp)
 trap 'rm -f "$ref"' EXIT
@@ -48,5 +48,13 @@ sed -i '/^restitution/d' "$work/truth.yaml" "$work/prior.yaml"
   "$bin/backlash_identify" --data "$work/rec.csv" --config "$work/prior.yaml" 2>/dev/null | sed -n 2p
 cat "$work/time"
 rm -rf "$work"
+echo "== broadband FRF of the thesis joint under a 1 kHz P drive: chirp periods of 2^14, 2^16, 2^20 samples, a PRBS of 2^20 - 1"
+echo "   (2 settling + 2 recorded periods each; the estimate's DFTs are fast transforms, the simulation dominates)"
+for excitation in "chirp --chirp-samples 16384" "chirp --chirp-samples 65536" "chirp --chirp-samples 1048576" \
+  "prbs --prbs-order 20"; do
+  # shellcheck disable=SC2086
+  /usr/bin/time -f "--excitation $excitation: wall %e s, peak memory %M kB" "$bin/backlash_frf" --amplitude 0.1 \
+    --controller-rate 1000 --excitation $excitation --settle-periods 2 --periods 2 >/dev/null
+done
 echo "== the thesis study against one scipy solution of App. D1 (whole processes, alternately)"
 bash bench/thesis_vs_scipy.sh "$([ "${1:-}" = --quick ] && echo 1 || echo 5)" "$bin"

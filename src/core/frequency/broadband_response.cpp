@@ -3,10 +3,12 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <cstdio>
 #include <memory>
 
 #include "backlash_servo/drive/command_profile.h"
 #include "backlash_servo/model/constants.h"
+#include "numerics/dft.h"
 
 namespace backlash_servo
 {
@@ -23,29 +25,6 @@ const std::vector<std::vector<int>>& taps()
       {9, 5},   {10, 7},         {11, 9},  {12, 6, 4, 1}, {13, 4, 3, 1}, {14, 5, 3, 1},
       {15, 14}, {16, 15, 13, 4}, {17, 14}, {18, 11},      {19, 6, 2, 1}, {20, 17}};
   return t;
-}
-
-/// The DFT lines 0 … N/2 of a real sequence (direct sum with an exact twiddle table: N need not be a power of 2).
-std::vector<std::complex<double>> dft(const std::vector<double>& x, const std::vector<std::complex<double>>& twiddle)
-{
-  const std::size_t n = x.size();
-  std::vector<std::complex<double>> out(n / 2 + 1);
-  for (std::size_t k = 0; k <= n / 2; ++k)
-  {
-    std::complex<double> sum = 0.0;
-    std::size_t m = 0;  // (k·j) mod N
-    for (std::size_t j = 0; j < n; ++j)
-    {
-      sum += x[j] * twiddle[m];
-      m += k;
-      if (m >= n)
-      {
-        m -= n;
-      }
-    }
-    out[k] = sum;
-  }
-  return out;
 }
 
 }  // namespace
@@ -220,6 +199,30 @@ std::vector<BroadbandLine> estimateLines(const std::vector<std::complex<double>>
 }
 }  // namespace
 
+namespace
+{
+/// The most samples one broadband measurement simulates: about half an hour at the ~2 µs a sample of a quiet joint.
+constexpr double MAX_SAMPLES = 1e9;
+
+/// Refuses, before any work, a measurement of more than MAX_SAMPLES samples (n a period, settle + periods periods, at
+/// rate [Hz]), naming the figures and the keys that shorten it.
+void checkWork(std::size_t n, int settle, int periods, double rate)
+{
+  const double samples = static_cast<double>(n) * (settle + periods);
+  if (samples <= MAX_SAMPLES)
+  {
+    return;
+  }
+  char text[400];
+  std::snprintf(text, sizeof text,
+                "%zu samples a period × (%d settling + %d recorded periods) = %.3g samples (%.3g s simulated) exceed the "
+                "%.0e one measurement simulates: fewer periods (periods, settle_periods) or a shorter period "
+                "(prbs_order, prbs_hold, chirp_samples)",
+                n, settle, periods, samples, samples / rate, MAX_SAMPLES);
+  throw InvalidParameterError("periods", text);
+}
+}  // namespace
+
 BroadbandResponse measureBroadband(const RunConfig& config, const BroadbandSettings& s, double amplitude,
                                    const std::function<void(double)>& progress)
 {
@@ -236,17 +239,14 @@ BroadbandResponse measureBroadband(const RunConfig& config, const BroadbandSetti
                  std::max(2.0, std::ceil(AUTO_SETTLING_SCALES * slowestTimeScale(config, s.channel) / period))));
   }
   const long total = static_cast<long>(n) * (settle + s.periods);
+  checkWork(n, settle, s.periods, rate);
   const double t0 = config.initial.time;
   const auto sampleTime = [&](long k) { return t0 + static_cast<double>(k) / rate; };
   const auto inputAt = [&](long k) { return s.offset + amplitude * shape[static_cast<std::size_t>(k) % n]; };
 
   const bool torque = torqueInput(s.channel), setpoint = setpointInput(s.channel);
   Simulator sim = excitedSimulator(config, s, shape, amplitude, rate, total);
-  std::vector<std::complex<double>> twiddle(n);
-  for (std::size_t m = 0; m < n; ++m)
-  {
-    twiddle[m] = std::polar(1.0, -2.0 * PI * static_cast<double>(m) / static_cast<double>(n));
-  }
+  const Dft dft(n);
   const std::size_t lines = n / 2 + 1;
   std::vector<std::complex<double>> cross(lines, 0.0);
   std::vector<double> uu(lines, 0.0), yy(lines, 0.0);
@@ -269,7 +269,7 @@ BroadbandResponse measureBroadband(const RunConfig& config, const BroadbandSetti
     }
     if (p >= settle)
     {
-      const std::vector<std::complex<double>> uf = dft(u, twiddle), yf = dft(y, twiddle);
+      const std::vector<std::complex<double>> uf = dft.realLines(u), yf = dft.realLines(y);
       for (std::size_t k = 0; k < lines; ++k)
       {
         cross[k] += yf[k] * std::conj(uf[k]);

@@ -385,6 +385,34 @@ TEST(BroadbandResponse, MaximumLengthSequencesHaveTwoValuedAutocorrelation)
   EXPECT_THROW(maximumLengthSequence(2), InvalidParameterError);
 }
 
+TEST(BroadbandResponse, AMeasurementBeyondItsSampleBudgetIsRefusedBeforeAnyWork)
+{
+  // 2^20 samples a period over 1002 periods: 1.05e9 samples, refused at once naming the figure and the keys; one
+  // period fewer of the settling passes the check (and is not run here).
+  RunConfig c = d1(0.3);
+  c.drive.controller_rate = 1000.0;
+  BroadbandSettings s;
+  s.kind = BroadbandKind::Chirp;
+  s.chirp_samples = 1 << 20;
+  s.chirp_low = 10.0;    // [rad/s]
+  s.chirp_high = 500.0;  // [rad/s]
+  s.settle_periods = 2;
+  s.periods = 1000;
+  try
+  {
+    measureBroadband(c, s, 0.1);
+    ADD_FAILURE() << "accepted";
+  }
+  catch (const InvalidParameterError& e)
+  {
+    const std::string what = e.what();
+    EXPECT_NE(what.find("periods: 1048576 samples a period × (2 settling + 1000 recorded periods) = 1.05e+09"),
+              std::string::npos)
+        << what;
+    EXPECT_NE(what.find("chirp_samples"), std::string::npos) << what;
+  }
+}
+
 TEST(BroadbandResponse, LockedJointGivesTheSampledTransferFunctionWithUnitCoherence)
 {
   // Backlash 0. Torque → motor speed sampled at the hold's instants: ω_{k+1} = e ω_k + b u_k, e = e^{−(F/J)T},
