@@ -134,6 +134,7 @@ struct FrfSampling
   double rate = 0.0;        ///< samples [Hz]: the hold's, or the observation points' for the sine itself
   long samples_per_period = 0;
   double frequency = 0.0;  ///< ω used [rad/s]: the one asked for, or placed on the sample grid 2πf_s/N
+  long max_periods = 0;    ///< the most periods run to settle (max_periods, or automatic within a sample budget)
 };
 
 /**

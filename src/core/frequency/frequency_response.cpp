@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <cstdio>
+#include <deque>
 #include <memory>
 #include <vector>
 
@@ -111,7 +113,31 @@ struct Ranges
 
 /// Whether the period starts n − 2m, n − m, n repeat: levels equal, positions advancing by the same step, each
 /// within tol of its scale (plus the rounding of the values themselves).
-bool repeats(const std::vector<Snapshot>& s, std::size_t n, std::size_t m, double angle_scale, double speed_scale,
+/// The latest `keep` entries of a sequence, indexed from its start: the settling test reads only the last few
+/// periods, so its memory stays bounded however many periods a point runs.
+template <class T>
+class RecentHistory
+{
+ public:
+  explicit RecentHistory(std::size_t keep) : keep_(keep) {}
+  void push_back(const T& v)
+  {
+    items_.push_back(v);
+    if (items_.size() > keep_)
+    {
+      items_.pop_front();
+      ++first_;
+    }
+  }
+  const T& operator[](std::size_t i) const { return items_.at(i - first_); }
+
+ private:
+  std::size_t keep_;
+  std::size_t first_ = 0;  ///< the index of the oldest entry kept
+  std::deque<T> items_;
+};
+
+bool repeats(const RecentHistory<Snapshot>& s, std::size_t n, std::size_t m, double angle_scale, double speed_scale,
              double tol)
 {
   const Snapshot &a = s[n - 2 * m], &b = s[n - m], &c = s[n];
@@ -284,6 +310,68 @@ double fastestRate(const ServoParams& p)
   return rate;
 }
 
+namespace
+{
+/// The work a point may take while it settles, in steps — a sample of the period, or one of the joint's fastest time
+/// scales the period spans (the event search follows the motion at that scale): an automatic settling runs at most
+/// AUTO_POINT_WORK (a few seconds; a point that has not settled by then says so) and is refused beyond
+/// AUTO_LEAST_WORK for its fewest periods; max_periods given, at most MAX_POINT_WORK.
+constexpr double AUTO_POINT_WORK = 5e6;
+constexpr double AUTO_LEAST_WORK = 2e7;
+constexpr double MAX_POINT_WORK = 1e9;
+/// The fewest periods a point runs: enough to compare period starts at every multiple up to MAX_PERIOD_MULTIPLE.
+constexpr long MIN_PERIODS = 2 * MAX_PERIOD_MULTIPLE + 2;
+
+/**
+ * The most periods a point at `sampling` runs to settle: max_periods when given, else 40 of the joint's slowest time
+ * constant in [1000, 1e7] periods, fewer where that would take more than AUTO_POINT_WORK (at least MIN_PERIODS).
+ * Refuses, naming the figures and the key, a point beyond its budget: max_periods too many, or a period too long
+ * against the joint's fastest time scale (or of too many samples) for even MIN_PERIODS.
+ */
+long settlingPeriods(const RunConfig& config, const FrfSettings& settings, const FrfSampling& sampling)
+{
+  const double samples = static_cast<double>(sampling.samples_per_period);
+  const double period = samples / sampling.rate;              // [s]
+  const double scales = period * fastestRate(config.params);  // the joint's fastest time scales a period
+  const double per_period = samples + scales;                 // [steps]
+  const long given = settings.max_periods;
+  const long fewest = given > 0 ? given : MIN_PERIODS;
+  const double budget = given > 0 ? MAX_POINT_WORK : AUTO_LEAST_WORK;
+  if (static_cast<double>(fewest) * per_period > budget)
+  {
+    char advice[120];
+    const double room = budget / static_cast<double>(fewest) - samples;  // the scales a period may span [steps]
+    if (given > 0)
+    {
+      std::snprintf(advice, sizeof advice, "fewer max_periods");
+    }
+    else if (scales > samples && room > 0.0)
+    {
+      std::snprintf(advice, sizeof advice, "measure at %.3g rad/s or above", sampling.frequency * scales / room);
+    }
+    else
+    {
+      std::snprintf(advice, sizeof advice, "a higher frequency, or a lower sample rate");
+    }
+    char text[480];
+    std::snprintf(text, sizeof text,
+                  "%.6g rad/s: %ld periods of %.3g samples and %.3g of the joint's fastest time scale (%.3g s) each = "
+                  "%.3g steps, more than the %.0e a point may take: %s",
+                  sampling.frequency, fewest, samples, scales, period / scales,
+                  static_cast<double>(fewest) * per_period, budget, advice);
+    throw InvalidParameterError(given > 0 ? "max_periods" : "frequency", text);
+  }
+  if (given > 0)
+  {
+    return given;
+  }
+  const double settling = std::min(
+      1e7, std::max(1000.0, std::ceil(AUTO_SETTLING_SCALES * slowestTimeScale(config, settings.channel) / period)));
+  return static_cast<long>(
+      std::min(settling, std::max(static_cast<double>(MIN_PERIODS), std::floor(AUTO_POINT_WORK / per_period))));
+}
+}  // namespace
+
 FrfSampling frfSampling(const RunConfig& config, const FrfSettings& settings, double omega)
 {
   if (!(std::isfinite(omega) && omega > 0.0))
@@ -327,6 +415,7 @@ FrfSampling frfSampling(const RunConfig& config, const FrfSettings& settings, do
   }
   out.samples_per_period = std::lround(per_period);
   out.frequency = out.continuous ? omega : 2.0 * PI * out.rate / static_cast<double>(out.samples_per_period);
+  out.max_periods = settlingPeriods(config, settings, out);
   return out;
 }
 
@@ -450,7 +539,8 @@ struct Settling
 {
   long n = 0;  ///< periods run
   int multiple = 0, count_multiple = 0, count_streak = 0;
-  std::vector<double> start_outputs;  ///< the channel's output at each period start
+  /// The channel's output at the latest period starts.
+  RecentHistory<double> start_outputs{2 * MAX_PERIOD_MULTIPLE + 1};
 };
 
 Settling settle(Simulator& sim, const SampledSine& sine, const RunConfig& config, const FrfSettings& settings,
@@ -462,14 +552,14 @@ Settling settle(Simulator& sim, const SampledSine& sine, const RunConfig& config
   Settling out;
   long& n = out.n;
   int &multiple = out.multiple, &count_multiple = out.count_multiple, &count_streak = out.count_streak;
-  std::vector<double>& start_outputs = out.start_outputs;
+  RecentHistory<double>& start_outputs = out.start_outputs;
   // Settle: period starts compared until they repeat (every multiple up to MAX_PERIOD_MULTIPLE). A loop reading a
   // quantised encoder may never repeat to the tolerance, only to its resolution: period starts that repeat within one
   // count [rad at the load] (and one count per sample in the speeds) for COUNT_REPEATS comparisons running are
   // periodic to one count.
   const double count = loopCount(config);
-  std::vector<Snapshot> starts;
-  std::vector<Ranges> ranges;
+  RecentHistory<Snapshot> starts(2 * MAX_PERIOD_MULTIPLE + 1);
+  RecentHistory<Ranges> ranges(2 * MAX_PERIOD_MULTIPLE);
   for (; n <= max_periods; ++n)
   {
     starts.push_back(snapshotOf(sim.state(), rho));
@@ -624,12 +714,7 @@ FrfPoint measureFrequencyResponse(const RunConfig& config, const FrfSettings& se
   out.frequency = sampling.frequency;
   const double w = out.frequency, period = static_cast<double>(n_samples) / rate;
   const double t0 = config.initial.time;
-  long max_periods = settings.max_periods;
-  if (max_periods == 0)
-  {
-    max_periods = static_cast<long>(
-        std::min(1e7, std::max(1000.0, std::ceil(AUTO_SETTLING_SCALES * slowestTimeScale(config, channel) / period))));
-  }
+  const long max_periods = sampling.max_periods;
   SampledSine sine;
   sine.t0 = t0;
   sine.rate = rate;
@@ -644,7 +729,7 @@ FrfPoint measureFrequencyResponse(const RunConfig& config, const FrfSettings& se
   const long n = settled.n;
   const int multiple = settled.multiple, count_multiple = settled.count_multiple;
   const int count_streak = settled.count_streak;
-  const std::vector<double>& start_outputs = settled.start_outputs;
+  const RecentHistory<double>& start_outputs = settled.start_outputs;
   out.periodic_to_count = multiple == 0 && count_streak >= COUNT_REPEATS;
   out.periodic = multiple != 0 || out.periodic_to_count;
   out.period_multiple = multiple != 0 ? multiple : (out.periodic_to_count ? count_multiple : 0);

@@ -732,3 +732,44 @@ TEST(FrequencyResponse, ALoopThroughAQuantisedEncoderIsPeriodicToOneCount)
     EXPECT_LT(std::abs(q.response - exact.response), 0.01 * std::abs(exact.response)) << w;
   }
 }
+
+TEST(FrequencyResponse, APointKeepsToItsWorkBudgetOrIsRefusedBeforeItRuns)
+{
+  // The D1 joint under the continuous law: 64 points a period. Far above the joint's band the automatic settling
+  // (40 slowest time constants: millions of periods) is cut to the budget; the point runs no more than that and says
+  // it did not settle. Far below, one period spans more of the joint's fastest time scale than a point may follow:
+  // refused at once naming the frequency and the lowest one that fits; a max_periods beyond the budget names
+  // max_periods.
+  const RunConfig c = d1(0.3);
+  FrfSettings s;
+  const FrfSampling high = frfSampling(c, s, 1e5);
+  EXPECT_LE(static_cast<double>(high.max_periods) * 64.0, 5e6);
+  EXPECT_GE(high.max_periods, 10);
+  const FrfPoint p = measureFrequencyResponse(c, s, 0.1, 1e5);
+  EXPECT_LE(p.periods, high.max_periods + 4);
+  EXPECT_FALSE(p.periodic);
+  try
+  {
+    frfSampling(c, s, 1e-300);
+    ADD_FAILURE() << "accepted";
+  }
+  catch (const InvalidParameterError& e)
+  {
+    const std::string what = e.what();
+    EXPECT_EQ(what.rfind("frequency: 1e-300 rad/s", 0), 0u) << what;
+    EXPECT_NE(what.find("rad/s or above"), std::string::npos) << what;
+  }
+  EXPECT_NO_THROW(frfSampling(c, s, 1e-3));
+  RunConfig digital = c;
+  digital.drive.controller_rate = 1000.0;
+  s.max_periods = 10000000;
+  try
+  {
+    frfSampling(digital, s, 1.0);
+    ADD_FAILURE() << "accepted";
+  }
+  catch (const InvalidParameterError& e)
+  {
+    EXPECT_EQ(std::string(e.what()).rfind("max_periods: ", 0), 0u) << e.what();
+  }
+}
