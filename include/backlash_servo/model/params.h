@@ -34,6 +34,9 @@ constexpr double NATURAL_FREQUENCY_MAX = 1e4;   ///< ω_n [rad/s]
 constexpr double DAMPING_RATIO_MAX = 100.0;     ///< ζ [-]
 /// A compliant mesh's contact frequency √(c/μ), and a torsional shaft's, at most this many times ω_n [-].
 constexpr double COMPLIANT_FREQUENCY_RATIO_MAX = 1e4;
+/// A compliant mesh's damping rate d/μ, and a torsional shaft's, at most this many times ω_n [-] (a contact damping
+/// ratio far beyond any gear's: a mistyped exponent, whose stiff decay the closed forms follow only slowly).
+constexpr double COMPLIANT_DAMPING_RATE_RATIO_MAX = 1e5;
 
 /**
  * @brief Physical parameters of the geared position servo with backlash.

@@ -95,17 +95,44 @@ void CompliantJoint::integrate(const Segment& seg, double a, double b, Compliant
   *e += sum;
 }
 
+void CompliantJoint::nextPiece(Segment* segment, double* from, double* to)
+{
+  // (Checked every STRETCH_CHECK pieces: a heavily damped contact's fast part is gone after a few of them, and the
+  // check costs as much as a piece.)
+  constexpr long STRETCH_CHECK = 16;
+  constexpr double STRETCH_MIN = 2.0;
+  Segment& seg = *segment;
+  if (!seg.stretched && seg.pieces_done > 0 && seg.pieces_done % STRETCH_CHECK == 0)
+  {
+    const double at = static_cast<double>(seg.pieces_done) * seg.piece;
+    if (seg.motion.decayedSpeedup(at) >= STRETCH_MIN)
+    {
+      seg.stretched = true;
+      seg.pieces_end = at;
+    }
+  }
+  if (!seg.stretched)
+  {
+    *from = static_cast<double>(seg.pieces_done) * seg.piece;
+    *to = static_cast<double>(seg.pieces_done + 1) * seg.piece;
+    return;
+  }
+  *from = seg.pieces_end;
+  *to = seg.pieces_end + seg.piece * seg.motion.decayedSpeedup(seg.pieces_end);
+}
+
 void CompliantJoint::placeEnergy(double tau)
 {
   Segment& seg = *segment_;
-  while (static_cast<double>(seg.pieces_done + 1) * seg.piece <= tau)
+  double from = 0.0, to = 0.0;
+  for (nextPiece(&seg, &from, &to); to <= tau; nextPiece(&seg, &from, &to))
   {
-    integrate(seg, static_cast<double>(seg.pieces_done) * seg.piece,
-              static_cast<double>(seg.pieces_done + 1) * seg.piece, &seg.pieces);
+    integrate(seg, from, to, &seg.pieces);
     ++seg.pieces_done;
+    seg.pieces_end = to;
   }
   CompliantEnergy e = seg.pieces;
-  integrate(seg, static_cast<double>(seg.pieces_done) * seg.piece, tau, &e);
+  integrate(seg, from, tau, &e);
   energy_ = seg.at_start;
   energy_ += e;
 }

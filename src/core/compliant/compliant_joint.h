@@ -251,7 +251,9 @@ class CompliantJoint
     std::array<int, 2> slide;  // the bodies' slides over the segment (slide_ at its start)
     double piece = 0.0;        // length of a piece [s]
     long pieces_done = 0;
-    double resumed = 0.0;  // local time [s] its watches were set up: 0, or a later event's that changed only them
+    bool stretched = false;   // pieces lengthened since the mode's fastest parts decayed below rounding
+    double pieces_end = 0.0;  // where the whole pieces end once stretched [s, local]
+    double resumed = 0.0;     // local time [s] its watches were set up: 0, or a later event's that changed only them
   };
   int out() const { return 2; }  // index of θ_o, the mesh's output-side angle (θ_c itself with a rigid shaft)
   /// The law or the load has a wave: the modes carry its oscillators.
@@ -317,6 +319,9 @@ class CompliantJoint
   void integrate(const Segment& seg, double a, double b, CompliantEnergy* e) const;
   /// The ledger at local time tau of the current segment (its whole pieces kept for the next call).
   void placeEnergy(double tau);
+  /// The next whole piece of the ledger's integration [from, to] of local time [s]: the segment's piece length, or
+  /// longer once its mode's fastest parts have decayed below rounding (LinearMode::decayedSpeedup).
+  static void nextPiece(Segment* seg, double* from, double* to);
   /// The state, time t [s] and ledger at local time tau [s] of the current segment.
   void moveTo(double tau, double t);
   /// Applies the segment's event at the current state (the mode, counters, the mesh's jump of stored energy) and

@@ -131,7 +131,8 @@ void ServoParams::validateEnvelope(bool with_gain) const
   if (compliant())
   {
     // The compliant joint's envelope: the two sides of the mesh (and of the shaft) within the rigid inertia split's
-    // range of each other, and their contact (shaft) frequency at most COMPLIANT_FREQUENCY_RATIO_MAX times ω_n.
+    // range of each other, their contact (shaft) frequency at most COMPLIANT_FREQUENCY_RATIO_MAX times ω_n and their
+    // damping rate at most COMPLIANT_DAMPING_RATE_RATIO_MAX times.
     const double rho = gear_ratio;
     const double jo = torsionalShaft() ? gear_inertia : load_inertia + gear_inertia;
     const double mesh_split = rho * rho * jo / motor_inertia;
@@ -147,6 +148,12 @@ void ServoParams::validateEnvelope(bool with_gain) const
       refuse("contact frequency ratio √(c/μ)/ω_n", contact, "[0, 10000]",
              {"mesh_stiffness", "gear_inertia", "load_inertia", "motor_inertia", "gear_ratio", "gain"});
     }
+    const double contact_damping = mesh_damping / mu / omega_n;
+    if (with_gain && !(contact_damping <= COMPLIANT_DAMPING_RATE_RATIO_MAX * (1.0 + SLACK)))
+    {
+      refuse("contact damping rate ratio (d/μ)/ω_n", contact_damping, "[0, 100000]",
+             {"mesh_damping", "gear_inertia", "load_inertia", "motor_inertia", "gear_ratio", "gain"});
+    }
     if (torsionalShaft())
     {
       const double shaft_split = gear_inertia / load_inertia;
@@ -160,6 +167,13 @@ void ServoParams::validateEnvelope(bool with_gain) const
       {
         refuse("shaft frequency ratio √(k_s(J_g + J_L)/(J_g J_L))/ω_n", shaft, "[0, 10000]",
                {"shaft_stiffness", "gear_inertia", "load_inertia", "gain", "gear_ratio", "motor_inertia"});
+      }
+      const double shaft_damping_rate =
+          shaft_damping * (gear_inertia + load_inertia) / (gear_inertia * load_inertia) / omega_n;
+      if (with_gain && !(shaft_damping_rate <= COMPLIANT_DAMPING_RATE_RATIO_MAX * (1.0 + SLACK)))
+      {
+        refuse("shaft damping rate ratio (d_s(J_g + J_L)/(J_g J_L))/ω_n", shaft_damping_rate, "[0, 100000]",
+               {"shaft_damping", "gear_inertia", "load_inertia", "gain", "gear_ratio", "motor_inertia"});
       }
     }
   }

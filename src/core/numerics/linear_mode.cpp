@@ -282,6 +282,35 @@ ModeVector LinearMode::state(double tau) const
   return slot.x;
 }
 
+double LinearMode::decayedSpeedup(double tau) const
+{
+  const ModeBasis& b = *basis_;
+  if (!b.modal_ || poly_.cols() > 0)
+  {
+    return 1.0;
+  }
+  std::array<double, MAX_MODE_ORDER> part{};
+  double total = 0.0, fastest = 0.0;
+  for (int c = 0; c < b.n_active_; ++c)
+  {
+    const Eigen::Index k = b.active_[static_cast<std::size_t>(c)];
+    const double column = b.dv_re_.col(c).cwiseAbs().sum() + b.dv_im_.col(c).cwiseAbs().sum();
+    part[static_cast<std::size_t>(c)] = column * g_abs_(k) * std::exp(b.lambda_(k).real() * tau);
+    total += part[static_cast<std::size_t>(c)];
+    fastest = std::max(fastest, std::abs(b.lambda_(k)));
+  }
+  double alive = 0.0;
+  for (int c = 0; c < b.n_active_; ++c)
+  {
+    const Eigen::Index k = b.active_[static_cast<std::size_t>(c)];
+    if (part[static_cast<std::size_t>(c)] > DEAD_FRACTION * total)
+    {
+      alive = std::max(alive, std::abs(b.lambda_(k)));
+    }
+  }
+  return alive * MAX_SPEEDUP > fastest ? std::max(1.0, fastest / alive) : (fastest > 0.0 ? MAX_SPEEDUP : 1.0);
+}
+
 ModeVector LinearMode::evaluate(double tau) const
 {
   const Eigen::Index n = x0_.size();

@@ -71,6 +71,13 @@ class LinearMode
   Eigen::VectorXcd eigenvalues() const { return basis_->eigenvalues(); }
   /// ‖Â‖₂ [1/s] of the balanced matrix Â = D⁻¹AD: the mode's fastest time scale is its inverse.
   double norm() const { return basis_->norm(); }
+  /// How much slower than its fastest the motion still varies at τ ≥ 0: max |λ_k| over max |λ_k| of the modes whose
+  /// part of ẋ, ‖Dv_k‖₁|g_k|e^{Re λ_k τ}, is above DEAD_FRACTION of all of them together (a decaying mode below that
+  /// changes no sum it enters), at most MAX_SPEEDUP; 1 without a modal basis or with a polynomial part. A quadrature
+  /// over pieces sized for the fastest time scale may lengthen them by this much from τ on (it only grows with τ).
+  double decayedSpeedup(double tau) const;
+  static constexpr double DEAD_FRACTION = 1e-18;
+  static constexpr double MAX_SPEEDUP = 1e6;
 
  private:
   /// What bounds the derivatives |s''| and |s'''| of one output: per mode |wᵀDv_k λ_k g_k| and Re λ_k (modal; |λ_k|

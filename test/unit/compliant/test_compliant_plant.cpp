@@ -103,7 +103,8 @@ TEST(CompliantPlant, TheSimulatorRunsTheReferenceJointAndChunksCutNothing)
 
 // The energy ledger closes: the motor's and the load torque's work less the viscous, mesh and shaft losses equals the
 // change of kinetic and stored energy computed from the state — to 1e-10 of the energy exchanged, for both mesh laws,
-// a damped torsional shaft, an undamped mesh at Δ = 0, a load torque and a sampled PID loop.
+// a damped torsional shaft, an undamped mesh at Δ = 0, a load torque and a sampled PID loop, and a heavily damped
+// contact.
 TEST(CompliantPlant, TheEnergyLedgerCloses)
 {
   struct Case
@@ -129,6 +130,10 @@ TEST(CompliantPlant, TheEnergyLedgerCloses)
   ServoParams loaded = compliantD1();
   loaded.load_torque = -0.4;
   cases.push_back({"load torque, sampled PID", loaded, 500.0});
+  ServoParams damped = compliantD1();  // contact damping ratio 13: its fast decay's pieces lengthened once it is over
+  damped.mesh_stiffness = 1000.0;
+  damped.mesh_damping = 8000.0;
+  cases.push_back({"heavily damped contact", damped, 0.0});
   for (const Case& k : cases)
   {
     Simulator sim(k.params, State(), 1.0);

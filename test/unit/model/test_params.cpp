@@ -105,3 +105,30 @@ TEST(Params, ChartFormRoundTrips)
   bad.friction_ratio = 1.5;
   EXPECT_THROW(bad.toServoParams(), InvalidParameterError);
 }
+
+TEST(Params, ACompliantJointsDampingRatesStayWithinTheEnvelope)
+{
+  // D1 with resilient teeth: ω_n = 1 rad/s, μ = J_m J_L/(J_m + ρ²J_L) = 0.09 kg·m², so the contact's damping rate
+  // d/μ reaches 1e5 ω_n at d = 9000 N·m·s/rad; a shaft between J_g = 0.1 and J_L = 0.9 kg·m² at d_s = 9000 too.
+  ServoParams p;
+  p.mesh_stiffness = 1e4;
+  p.mesh_damping = 8000.0;
+  EXPECT_NO_THROW(p.validate());
+  p.mesh_damping = 1e6;  // a mistyped exponent: a contact damping ratio of 5e4
+  EXPECT_EQ(failingField(p), "contact damping rate ratio (d/μ)/ω_n");
+  try
+  {
+    p.validate();
+  }
+  catch (const InvalidParameterError& e)
+  {
+    EXPECT_NE(std::string(e.what()).find("mesh_damping 1000000"), std::string::npos) << e.what();
+  }
+  p.mesh_damping = 1.0;
+  p.gear_inertia = 0.1;
+  p.shaft_stiffness = 100.0;
+  p.shaft_damping = 8000.0;
+  EXPECT_NO_THROW(p.validate());
+  p.shaft_damping = 1e5;
+  EXPECT_EQ(failingField(p), "shaft damping rate ratio (d_s(J_g + J_L)/(J_g J_L))/ω_n");
+}

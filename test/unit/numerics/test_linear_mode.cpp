@@ -563,3 +563,26 @@ TEST(LinearMode, ModelicasBacklashExampleEvents)
   EXPECT_NEAR(ts, std::atan(k.d * omega / k.c) / omega, 1e-14);
 }
 }  // namespace
+
+// An overdamped pair ẋ₁ = −x₁, ẋ₂ = −10⁶ x₂ from (1, 1): both parts vary at first (speedup 1); the fast part's
+// velocity starts 10⁶ times the slow one's, so once 10⁶ e^{−10⁶τ} is below 1e-18 of it (τ > 5.5e-5 s) only the slow
+// one varies — the speedup is then the ratio of the rates, 10⁶ (the cap). A ringing mode (a lightly damped oscillator) never decays against itself: 1 at every τ.
+TEST(LinearMode, TheDecayedSpeedupCountsOnlyTheModesThatStillVary)
+{
+  MatrixXd a(2, 2);
+  a << -1.0, 0.0, 0.0, -1e6;
+  const LinearMode fast_and_slow(a, vec({0.0, 0.0}), vec({1.0, 1.0}));
+  ASSERT_TRUE(fast_and_slow.modal());
+  EXPECT_EQ(fast_and_slow.decayedSpeedup(0.0), 1.0);
+  EXPECT_EQ(fast_and_slow.decayedSpeedup(5e-5), 1.0);  // 10⁶ e^{−50} = 2e-16 of the slow part: still varying
+  EXPECT_EQ(fast_and_slow.decayedSpeedup(6e-5), 1e6);
+  a << -1.0, 0.0, 0.0, -1e3;
+  EXPECT_NEAR(LinearMode(a, vec({0.0, 0.0}), vec({1.0, 1.0})).decayedSpeedup(0.1), 1e3, 1e-9);
+  MatrixXd ring(2, 2);
+  ring << 0.0, 1.0, -1.0, -0.02;
+  const LinearMode oscillator(ring, vec({0.0, 0.0}), vec({1.0, 0.0}));
+  for (double t : {0.0, 10.0, 1000.0})
+  {
+    EXPECT_EQ(oscillator.decayedSpeedup(t), 1.0) << t;
+  }
+}
