@@ -1,8 +1,9 @@
 #!/usr/bin/env bash
 # Long property-fuzz run: N cases (default 100000) of seed S on every core, counts per outcome class, one example
 # command line per failure class, and each process's slowest cases.
-# usage: bash scripts/fuzz_long.sh [N] [SEED] [--compliant]
-# (--compliant: the same cases with a compliant mesh and shaft drawn across the envelope, no dry friction)
+# usage: bash scripts/fuzz_long.sh [N] [SEED] [--compliant | --damped]
+# (--compliant: the same cases with a compliant mesh and shaft drawn across the envelope, no dry friction;
+# --damped: those with contact and shaft damping ratios up to the envelope's edge)
 set -euo pipefail
 cd "$(dirname "$0")/.."
 export PATH=/usr/bin:$PATH

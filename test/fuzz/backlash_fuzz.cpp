@@ -1,7 +1,8 @@
 // backlash_fuzz: runs N property-fuzz cases (fuzz_cases.h) and prints counts per outcome class, examples and the
 // slowest cases (a search that crawls shows up there before it becomes a hang).
-// usage: backlash_fuzz [--cases N] [--seed S] [--first K] [--budget IMPACTS] [--compliant] [--verbose]
-// (--compliant: the cases' joints with a compliant mesh, fuzz::makeCompliantCase)
+// usage: backlash_fuzz [--cases N] [--seed S] [--first K] [--budget IMPACTS] [--compliant | --damped] [--verbose]
+// (--compliant: the cases' joints with a compliant mesh, fuzz::makeCompliantCase; --damped: the same with contact and
+// shaft damping across the whole envelope, fuzz::makeDampedCompliantCase)
 #include <chrono>
 #include <cstdio>
 #include <cstdlib>
@@ -14,7 +15,7 @@
 int main(int argc, char** argv)
 {
   std::uint64_t cases = 2000, seed = 1, first = 0, budget = 100000;
-  bool verbose = false, compliant = false;
+  bool verbose = false, compliant = false, damped = false;
   for (int i = 1; i < argc; ++i)
   {
     auto next = [&]() { return i + 1 < argc ? std::strtoull(argv[++i], nullptr, 10) : 0ull; };
@@ -30,11 +31,14 @@ int main(int argc, char** argv)
       verbose = true;
     else if (!std::strcmp(argv[i], "--compliant"))
       compliant = true;
+    else if (!std::strcmp(argv[i], "--damped"))
+      damped = true;
     else
     {
-      std::fprintf(stderr,
-                   "usage: backlash_fuzz [--cases N] [--seed S] [--first K] [--budget IMPACTS] [--compliant] "
-                   "[--verbose]\n");
+      std::fprintf(
+          stderr,
+          "usage: backlash_fuzz [--cases N] [--seed S] [--first K] [--budget IMPACTS] [--compliant | --damped] "
+          "[--verbose]\n");
       return 2;
     }
   }
@@ -47,7 +51,9 @@ int main(int argc, char** argv)
   const auto start = std::chrono::steady_clock::now();
   for (std::uint64_t i = first; i < first + cases; ++i)
   {
-    const fuzz::Case c = compliant ? fuzz::makeCompliantCase(seed, i) : fuzz::makeCase(seed, i);
+    const fuzz::Case c = damped      ? fuzz::makeDampedCompliantCase(seed, i)
+                         : compliant ? fuzz::makeCompliantCase(seed, i)
+                                     : fuzz::makeCase(seed, i);
     if (trace)
     {
       std::fprintf(stderr, "case %llu\n", static_cast<unsigned long long>(i));  // a hang shows its case

@@ -365,6 +365,36 @@ inline Case makeCompliantCase(std::uint64_t seed, std::uint64_t index)
   }
 }
 
+/**
+ * A compliant case of makeCompliantCase(seed, index) with its contact (and shaft) damping redrawn over the whole
+ * envelope: damping ratios log-uniform from 0.01 up to where the damping rate reaches the envelope's edge
+ * (COMPLIANT_DAMPING_RATE_RATIO_MAX ω_n) — overdamped contacts whose fast decay is over in a few of its time scales,
+ * and contacts near their critical ratio (no modal form) — within the parameters' range. The rest of the case is
+ * makeCompliantCase's.
+ */
+inline Case makeDampedCompliantCase(std::uint64_t seed, std::uint64_t index)
+{
+  constexpr double MESH_DAMPING_RANGE_MAX = 1e9;  // [N·m·s/rad] the parameters' own range (mesh and shaft)
+  Case c = makeCompliantCase(seed, index);
+  std::mt19937_64 rng(seed * 0x9E3779B97F4A7C15ull + index * 104729 + 11);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  ServoParams& p = c.params;
+  const double edge = COMPLIANT_DAMPING_RATE_RATIO_MAX * p.naturalFrequency() * 0.999;  // [1/s]
+  // ζ from 0.01 to the ratio whose rate 2ζ√(k/μ) is the edge: d = 2ζ√(kμ).
+  const auto damping = [&](double stiffness, double mu) {
+    const double top = std::max(0.02, edge / (2.0 * std::sqrt(stiffness / mu)));
+    return std::min(MESH_DAMPING_RANGE_MAX, 2.0 * 0.01 * std::pow(top / 0.01, u(rng)) * std::sqrt(stiffness * mu));
+  };
+  const double jm = p.motor_inertia / (p.gear_ratio * p.gear_ratio);
+  const double jo = p.torsionalShaft() ? p.gear_inertia : p.load_inertia;
+  p.mesh_damping = damping(p.mesh_stiffness, jm * jo / (jm + jo));
+  if (p.torsionalShaft())
+  {
+    p.shaft_damping = damping(p.shaft_stiffness, p.gear_inertia * p.load_inertia / (p.gear_inertia + p.load_inertia));
+  }
+  return c;
+}
+
 /// Records the worst excursion of the gap out of [0, Δ] over every event.
 struct GapWatch : EventSink
 {

@@ -8,6 +8,7 @@
 // BasicFreeMotion::energy. Long runs: bash scripts/fuzz_long.sh.
 #include <gtest/gtest.h>
 
+#include <chrono>
 #include <cmath>
 #include <functional>
 #include <map>
@@ -17,14 +18,20 @@
 namespace
 {
 /// Checks cases 0 … n − 1 drawn by `make`: each keeps every property or ends as an allowed outcome (the event budget,
-/// a divergence). Prints and returns the counts per outcome class.
-std::map<std::string, int> checkSample(const std::function<fuzz::Case(std::uint64_t)>& make, int n, const char* label)
+/// a divergence). Prints and returns the counts per outcome class; `timed` is given each case's wall time [s].
+std::map<std::string, int> checkSample(const std::function<fuzz::Case(std::uint64_t)>& make, int n, const char* label,
+                                       const std::function<void(const fuzz::Case&, double)>& timed = nullptr)
 {
   std::map<std::string, int> counts;
   for (int i = 0; i < n; ++i)
   {
     const fuzz::Case c = make(static_cast<std::uint64_t>(i));
+    const auto start = std::chrono::steady_clock::now();
     const fuzz::Outcome o = fuzz::check(c);
+    if (timed)
+    {
+      timed(c, std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count());
+    }
     ++counts[o.klass];
     EXPECT_TRUE(o.klass == "ok" || o.klass == "budget" || o.klass == "diverged")
         << o.klass << " in " << label << " case " << i << ": " << o.detail << "\n  backlash_sim " << c.describe();
@@ -76,6 +83,35 @@ TEST(Fuzz, CompliantJointsKeepEveryProperty)
   EXPECT_GT(msl, 5);
   EXPECT_GT(dry, 5);
   EXPECT_GT(counts["ok"], n * 8 / 10);
+}
+
+// Compliant joints damped across the whole envelope (fuzz::makeDampedCompliantCase: contact damping ratios from 0.01
+// to the damping rate's edge, 1e5 ω_n): the same properties, and each case answered within PER_CASE_SECONDS of wall
+// time (the slowest measured, a stiff contact near its critical ratio, takes about 1 s; the bound is for a crawl,
+// not a speed target).
+TEST(Fuzz, DampedCompliantJointsKeepEveryPropertyInBoundedTime)
+{
+  constexpr double PER_CASE_SECONDS = 30.0;
+  const int n = 30;
+  int overdamped = 0;
+  double slowest = 0.0;
+  std::map<std::string, int> counts = checkSample(
+      [&](std::uint64_t i) {
+        fuzz::Case c = fuzz::makeDampedCompliantCase(3, i);
+        const backlash_servo::ServoParams& p = c.params;
+        const double rho = p.gear_ratio, jm = p.motor_inertia / (rho * rho);
+        const double jo = p.torsionalShaft() ? p.gear_inertia : p.load_inertia, mu = jm * jo / (jm + jo);
+        overdamped += p.mesh_damping > 2.0 * std::sqrt(p.mesh_stiffness * mu);
+        return c;
+      },
+      n, "damped compliant",
+      [&](const fuzz::Case& c, double seconds) {
+        slowest = std::max(slowest, seconds);
+        EXPECT_LT(seconds, PER_CASE_SECONDS) << "backlash_sim " << c.describe();
+      });
+  std::printf("fuzz (damped compliant): %d of %d overdamped contacts, slowest case %.2f s\n", overdamped, n, slowest);
+  EXPECT_GT(overdamped, n / 5);
+  EXPECT_GT(counts["ok"], n * 7 / 10);
 }
 
 // A compliant joint under the continuous law following a ramp runs in the ramp's moving frame, whose load torque
