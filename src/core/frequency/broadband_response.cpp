@@ -203,6 +203,8 @@ namespace
 {
 /// The most samples one broadband measurement simulates: about half an hour at the ~2 µs a sample of a quiet joint.
 constexpr double MAX_SAMPLES = 1e9;
+/// The most samples an automatic settling runs (a few seconds).
+constexpr double AUTO_SETTLING_SAMPLES = 5e6;
 
 /// Refuses, before any work, a measurement of more than MAX_SAMPLES samples (n a period, settle + periods periods, at
 /// rate [Hz]), naming the figures and the keys that shorten it.
@@ -233,10 +235,13 @@ BroadbandResponse measureBroadband(const RunConfig& config, const BroadbandSetti
   int settle = s.settle_periods;
   if (settle == 0)
   {
+    // 40 of the slowest time constant, at least 2 periods, and no more than AUTO_SETTLING_SAMPLES in all (a very slow
+    // joint's transient then lingers in the estimate: the report says how many periods settled it).
     const double period = static_cast<double>(n) / rate;
-    settle = static_cast<int>(
-        std::min(100000.0 - s.periods,
-                 std::max(2.0, std::ceil(AUTO_SETTLING_SCALES * slowestTimeScale(config, s.channel) / period))));
+    const double budget = std::floor(AUTO_SETTLING_SAMPLES / static_cast<double>(n));
+    settle = static_cast<int>(std::max(
+        2.0, std::min({100000.0 - s.periods, budget,
+                       std::ceil(AUTO_SETTLING_SCALES * slowestTimeScale(config, s.channel) / period)})));
   }
   const long total = static_cast<long>(n) * (settle + s.periods);
   checkWork(n, settle, s.periods, rate);

@@ -319,6 +319,8 @@ namespace
 constexpr double AUTO_POINT_WORK = 5e6;
 constexpr double AUTO_LEAST_WORK = 2e7;
 constexpr double MAX_POINT_WORK = 1e9;
+/// A point's events (impacts, apart rests, law switches) beyond its drive's samples, unless max_events says otherwise.
+constexpr double POINT_EVENTS = 1e6;
 /// The fewest periods a point runs: enough to compare period starts at every multiple up to MAX_PERIOD_MULTIPLE.
 constexpr long MIN_PERIODS = 2 * MAX_PERIOD_MULTIPLE + 2;
 
@@ -483,6 +485,15 @@ struct SampledSine
 
 /// The simulator driven by the sine on the channel's input: the command, a set-point injection, the motor torque or
 /// the load torque, for up to `duration` [s].
+/// A point's event budget: max_events as the user set it, or — where it is the run's default — POINT_EVENTS beyond
+/// the drive's samples over the point's `samples` (an impact storm at a very low frequency, teeth chattering at every
+/// reversal, stops the point within seconds, not minutes).
+double pointEventBudget(const RunConfig& config, double samples)
+{
+  return config.max_events == RunConfig().max_events ? std::min(config.max_events, POINT_EVENTS + samples)
+                                                     : config.max_events;
+}
+
 Simulator sineDrivenSimulator(const RunConfig& config, const FrfSettings& settings, const SampledSine& sine, double w,
                               bool continuous, double duration)
 {
@@ -493,6 +504,7 @@ Simulator sineDrivenSimulator(const RunConfig& config, const FrfSettings& settin
   RunConfig run = config;
   run.track_energy = false;
   run.duration = 0.0;
+  run.max_events = pointEventBudget(config, config.drive.sampled() ? duration * config.drive.controller_rate : 0.0);
   const bool load = loadTorqueInput(channel);
   if (load)
   {
