@@ -21,7 +21,7 @@ namespace
 {
 using namespace backlash_servo;
 
-constexpr double PER_CASE_SECONDS = 30.0;
+constexpr double PER_CASE_SECONDS = 90.0;
 
 /// One frequency request: the joint of a fuzz case, and how it is measured.
 struct FrequencyCase

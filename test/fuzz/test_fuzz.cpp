@@ -87,11 +87,10 @@ TEST(Fuzz, CompliantJointsKeepEveryProperty)
 
 // Compliant joints damped across the whole envelope (fuzz::makeDampedCompliantCase: contact damping ratios from 0.01
 // to the damping rate's edge, 1e5 ω_n): the same properties, and each case answered within PER_CASE_SECONDS of wall
-// time (the slowest measured, a stiff contact near its critical ratio, takes about 1 s; the bound is for a crawl,
-// not a speed target).
+// time (the slowest measured takes 5 s; the bound is for a crawl, not a speed target).
 TEST(Fuzz, DampedCompliantJointsKeepEveryPropertyInBoundedTime)
 {
-  constexpr double PER_CASE_SECONDS = 30.0;
+  constexpr double PER_CASE_SECONDS = 90.0;
   const int n = 30;
   int overdamped = 0;
   double slowest = 0.0;
