@@ -50,7 +50,7 @@ struct FrfSettings
   double tolerance = 1e-8;  ///< steady state: relative repeat of the state from one period to the next [-]
   /// Periods run before a point is declared not periodic; 0 = enough to cover AUTO_SETTLING_SCALES of the joint's
   /// slowest time constant (its bodies' viscous decay J/f, the drive's integral time, and for the command 1/ω_n),
-  /// and at least 1000.
+  /// and at least 1000, within the point's work budget (frfSampling).
   int max_periods = 0;
   int harmonics = 10;  ///< harmonics integrated (distortion from 2 … harmonics)
 };
@@ -141,8 +141,9 @@ struct FrfSampling
  * The sampling of a point at ω [rad/s] (> 0): the exact sine (the command under the continuous law, or a torque with
  * `settings.continuous`) is refused on rigid teeth with dry friction; a held sine at least 4 samples a period (ω at
  * most a quarter of the sample rate, placed on the grid ω = 2πf_s/N, N the nearest whole number); at most 1e9 samples a
- * period. Throws InvalidParameterError naming `continuous`, `controller_rate`, `injection_rate` or `frequency`
- * otherwise — what measureFrequencyResponse and backlash_frf's checks before any run both use.
+ * period; and the most periods the point runs to settle, within its work budget (docs/frequency_response.md,
+ * "Bounded work"). Throws InvalidParameterError naming `continuous`, `controller_rate`, `injection_rate`, `frequency`
+ * or `max_periods` otherwise — what measureFrequencyResponse and backlash_frf's checks before any run both use.
  */
 FrfSampling frfSampling(const RunConfig& config, const FrfSettings& settings, double omega);
 
