@@ -318,6 +318,15 @@ inline Case makeCase(std::uint64_t seed, std::uint64_t index)
   }
 }
 
+/// The mesh's reduced inertia μ at the load shaft [kg·m²]: the motor's J_m/ρ² against the output side of the mesh
+/// (the gear J_g behind a torsional shaft, else the load).
+inline double meshReducedInertia(const ServoParams& p)
+{
+  const double jm = p.motor_inertia / (p.gear_ratio * p.gear_ratio);
+  const double jo = p.torsionalShaft() ? p.gear_inertia : p.load_inertia;
+  return jm * jo / (jm + jo);
+}
+
 /// Case number `index` of the sequence `seed` with a compliant joint: the case's servo, command, start and drive, the
 /// rigid teeth replaced by a mesh drawn across the envelope from a stream of its own — the contact frequency √(c/μ)
 /// from ω_n to 1e4 ω_n, the contact damping ratio from 0 to 1, either mesh law, a torsional shaft in a third of the
@@ -345,9 +354,7 @@ inline Case makeCompliantCase(std::uint64_t seed, std::uint64_t index)
       p.shaft_stiffness = mu_s * std::pow(omega_n * logu(1.0, 1e3), 2);
       p.shaft_damping = u(rng) < 0.3 ? 0.0 : 2.0 * logu(1e-3, 1.0) * std::sqrt(p.shaft_stiffness * mu_s);
     }
-    const double jm = p.motor_inertia / (p.gear_ratio * p.gear_ratio);  // at the load shaft
-    const double jo = shaft ? p.gear_inertia : p.load_inertia;
-    const double mu = jm * jo / (jm + jo);
+    const double mu = meshReducedInertia(p);
     p.mesh_stiffness = mu * std::pow(omega_n * logu(1.0, 1e4), 2);
     p.mesh_damping = u(rng) < 0.2 ? 0.0 : 2.0 * logu(1e-3, 1.0) * std::sqrt(p.mesh_stiffness * mu);
     p.mesh_law = u(rng) < 0.3 ? "msl_elastobacklash" : "spring_damper";
@@ -385,9 +392,7 @@ inline Case makeDampedCompliantCase(std::uint64_t seed, std::uint64_t index)
     const double top = std::max(0.02, edge / (2.0 * std::sqrt(stiffness / mu)));
     return std::min(MESH_DAMPING_RANGE_MAX, 2.0 * 0.01 * std::pow(top / 0.01, u(rng)) * std::sqrt(stiffness * mu));
   };
-  const double jm = p.motor_inertia / (p.gear_ratio * p.gear_ratio);
-  const double jo = p.torsionalShaft() ? p.gear_inertia : p.load_inertia;
-  p.mesh_damping = damping(p.mesh_stiffness, jm * jo / (jm + jo));
+  p.mesh_damping = damping(p.mesh_stiffness, meshReducedInertia(p));
   if (p.torsionalShaft())
   {
     p.shaft_damping = damping(p.shaft_stiffness, p.gear_inertia * p.load_inertia / (p.gear_inertia + p.load_inertia));

@@ -98,9 +98,7 @@ TEST(Fuzz, DampedCompliantJointsKeepEveryPropertyInBoundedTime)
       [&](std::uint64_t i) {
         fuzz::Case c = fuzz::makeDampedCompliantCase(3, i);
         const backlash_servo::ServoParams& p = c.params;
-        const double rho = p.gear_ratio, jm = p.motor_inertia / (rho * rho);
-        const double jo = p.torsionalShaft() ? p.gear_inertia : p.load_inertia, mu = jm * jo / (jm + jo);
-        overdamped += p.mesh_damping > 2.0 * std::sqrt(p.mesh_stiffness * mu);
+        overdamped += p.mesh_damping > 2.0 * std::sqrt(p.mesh_stiffness * fuzz::meshReducedInertia(p));
         return c;
       },
       n, "damped compliant",
