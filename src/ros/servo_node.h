@@ -40,7 +40,8 @@ class ServoNode : public EventSink
 {
  public:
   ServoNode(ros::NodeHandle& nh, ros::NodeHandle& pnh, const NodeConfig& config);
-  /// Runs the sample loop until shutdown (or stop_after); false when the recording (record_bag) failed (a message, the close or the rename).
+  /// Runs the sample loop until shutdown (or stop_after); false when the recording (record_bag) failed (a message, the
+  /// close or the rename).
   bool run();
 
   /// Core events (called during Simulator::advanceTo): impacts and maxima are published here.

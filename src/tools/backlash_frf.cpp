@@ -55,6 +55,7 @@ estimate with its coherence per DFT line - what a drive's commissioning tool sho
 SI units: amplitudes and offsets in rad (command) or N*m (torques; the set-point's offset in rad/s), frequencies in
 rad/s, phases in rad.
 )";
+
 struct Options
 {
   RunConfig config;

@@ -19,6 +19,7 @@ using compliant_detail::roundingOf;
 
 namespace
 {
+// A segment's event search windows, in units of its fastest time scale 1/‖Â‖₂: the first FIRST_WINDOW_SCALE long,
 // each next one twice the one before, up to WINDOW_SCALE.
 constexpr double FIRST_WINDOW_SCALE = 4.0;
 constexpr double WINDOW_SCALE = 256.0;

@@ -13,6 +13,7 @@ namespace backlash_servo
 {
 namespace
 {
+/// Trapezoid (or triangle) distance covered after tau [s] of a move of length |d| [rad].
 double trapezoid(double d, double vmax, double amax, double tau)
 {
   const double t_acc = vmax / amax;

@@ -9,6 +9,7 @@ namespace backlash_servo
 {
 namespace
 {
+/// Where the load θ_c = x [rad] lies relative to [lo, hi] [rad]: +1 above, −1 below, 0 inside; on an edge the side
 /// the load is moving to (v [rad/s]) decides, so a switch never repeats at the same instant.
 int sideOf(double x, double v, double lo, double hi)
 {

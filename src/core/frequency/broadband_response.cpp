@@ -14,6 +14,7 @@ namespace backlash_servo
 {
 namespace
 {
+/// Lines whose input power is below this fraction of the largest carry no excitation and are not reported.
 constexpr double LINE_POWER_FLOOR = 1e-4;
 
 /// Feedback taps of a maximal-length Fibonacci LFSR of each order 3 … 20 (bit positions counted from 1; the primitive
@@ -216,11 +217,12 @@ void checkWork(std::size_t n, int settle, int periods, double rate)
     return;
   }
   char text[400];
-  std::snprintf(text, sizeof text,
-                "%zu samples a period × (%d settling + %d recorded periods) = %.3g samples (%.3g s simulated) exceed the "
-                "%.0e one measurement simulates: fewer periods (periods, settle_periods) or a shorter period "
-                "(prbs_order, prbs_hold, chirp_samples)",
-                n, settle, periods, samples, samples / rate, MAX_SAMPLES);
+  std::snprintf(
+      text, sizeof text,
+      "%zu samples a period × (%d settling + %d recorded periods) = %.3g samples (%.3g s simulated) exceed the "
+      "%.0e one measurement simulates: fewer periods (periods, settle_periods) or a shorter period "
+      "(prbs_order, prbs_hold, chirp_samples)",
+      n, settle, periods, samples, samples / rate, MAX_SAMPLES);
   throw InvalidParameterError("periods", text);
 }
 }  // namespace
@@ -239,9 +241,9 @@ BroadbandResponse measureBroadband(const RunConfig& config, const BroadbandSetti
     // joint's transient then lingers in the estimate: the report says how many periods settled it).
     const double period = static_cast<double>(n) / rate;
     const double budget = std::floor(AUTO_SETTLING_SAMPLES / static_cast<double>(n));
-    settle = static_cast<int>(std::max(
-        2.0, std::min({100000.0 - s.periods, budget,
-                       std::ceil(AUTO_SETTLING_SCALES * slowestTimeScale(config, s.channel) / period)})));
+    settle = static_cast<int>(
+        std::max(2.0, std::min({100000.0 - s.periods, budget,
+                                std::ceil(AUTO_SETTLING_SCALES * slowestTimeScale(config, s.channel) / period)})));
   }
   const long total = static_cast<long>(n) * (settle + s.periods);
   checkWork(n, settle, s.periods, rate);

@@ -1,5 +1,4 @@
 #include "backlash_servo/frequency/driven_backlash.h"
-#include "backlash_servo/model/constants.h"
 
 #include <algorithm>
 #include <cmath>
@@ -7,6 +6,7 @@
 #include <string>
 #include <vector>
 
+#include "backlash_servo/model/constants.h"
 #include "frequency/driven_periods.h"
 
 namespace backlash_servo

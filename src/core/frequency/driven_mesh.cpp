@@ -1,5 +1,4 @@
 #include "backlash_servo/frequency/driven_mesh.h"
-#include "backlash_servo/model/constants.h"
 
 #include <cmath>
 #include <complex>
@@ -8,6 +7,7 @@
 #include <string>
 #include <vector>
 
+#include "backlash_servo/model/constants.h"
 #include "frequency/driven_periods.h"
 #include "numerics/gauss_legendre.h"
 #include "numerics/linear_mode.h"
@@ -16,6 +16,7 @@ namespace backlash_servo
 {
 namespace
 {
+/// What a watched output's crossing means.
 enum class Kind
 {
   Engage,    ///< contact on flank σ begins (y rising through 0, or P rising through 0 inside the flank)

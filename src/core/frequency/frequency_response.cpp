@@ -17,6 +17,7 @@ namespace backlash_servo
 {
 namespace
 {
+/// An exact sine's period is observed at this many instants (the steady-state test, the Fourier pieces' cuts).
 constexpr int CONTINUOUS_POINTS = 64;
 /// Subharmonics looked for: a response repeating after up to this many periods.
 constexpr int MAX_PERIOD_MULTIPLE = 4;
@@ -111,8 +112,6 @@ struct Ranges
   double speedScale() const { return std::max({range(4), range(5), range(6)}); }
 };
 
-/// Whether the period starts n − 2m, n − m, n repeat: levels equal, positions advancing by the same step, each
-/// within tol of its scale (plus the rounding of the values themselves).
 /// The latest `keep` entries of a sequence, indexed from its start: the settling test reads only the last few
 /// periods, so its memory stays bounded however many periods a point runs.
 template <class T>
@@ -137,6 +136,8 @@ class RecentHistory
   std::deque<T> items_;
 };
 
+/// Whether the period starts n − 2m, n − m, n repeat: levels equal, positions advancing by the same step, each
+/// within tol of its scale (plus the rounding of the values themselves).
 bool repeats(const RecentHistory<Snapshot>& s, std::size_t n, std::size_t m, double angle_scale, double speed_scale,
              double tol)
 {
@@ -483,8 +484,6 @@ struct SampledSine
   }
 };
 
-/// The simulator driven by the sine on the channel's input: the command, a set-point injection, the motor torque or
-/// the load torque, for up to `duration` [s].
 /// A point's event budget: max_events as the user set it, or — where it is the run's default — POINT_EVENTS beyond
 /// the drive's samples over the point's `samples` (an impact storm at a very low frequency, teeth chattering at every
 /// reversal, stops the point within seconds, not minutes).
@@ -494,6 +493,8 @@ double pointEventBudget(const RunConfig& config, double samples)
                                                      : config.max_events;
 }
 
+/// The simulator driven by the sine on the channel's input: the command, a set-point injection, the motor torque or
+/// the load torque, for up to `duration` [s].
 Simulator sineDrivenSimulator(const RunConfig& config, const FrfSettings& settings, const SampledSine& sine, double w,
                               bool continuous, double duration)
 {

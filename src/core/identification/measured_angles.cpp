@@ -10,6 +10,7 @@ namespace backlash_servo
 {
 namespace
 {
+/// Third differences alternating at least this much (white noise: −3/4, smooth motion: near +1) are noise.
 constexpr double NOISE_CORRELATION = -0.3;
 /// The smoothing [samples] of measured angles: the least and the widest tried.
 constexpr int CLASSIFYING_SMOOTHING = 2;

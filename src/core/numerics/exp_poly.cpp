@@ -10,6 +10,7 @@ namespace backlash_servo
 {
 namespace
 {
+/// Drops exactly-zero leading coefficients; returns false when the whole polynomial is zero.
 template <class Term>
 bool trimDegree(Term& t)
 {

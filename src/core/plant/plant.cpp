@@ -25,6 +25,8 @@ namespace
 {
 /// Iterations without advancing time before the simulator declares a bug instead of hanging.
 constexpr int MAX_STALLED_ITERATIONS = 10000;
+
+/// (J_m + ρ²J_L)/(J_m J_L) [1/(kg·m²)]: the relative acceleration of the teeth per unit of mesh torque.
 double pressFactor(const ServoParams& p)
 {
   const double rho = p.gear_ratio;

@@ -12,6 +12,7 @@ namespace backlash_servo
 {
 namespace plant_detail
 {
+/// Apart mode: impacts are searched this far ahead per segment [natural periods] (fastest on the benchmarks).
 constexpr double FREE_SEARCH_PERIODS = 0.5;
 /// Contact mode: separations and maxima are searched this far ahead per segment [natural periods].
 constexpr double CONTACT_SEARCH_PERIODS = 1.0;

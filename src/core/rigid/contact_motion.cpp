@@ -15,6 +15,7 @@ namespace backlash_servo
 {
 namespace
 {
+/// The first of the points τ + kπ/ω (k whole) in (0, half = π/ω], for τ = (atan2(·) + π/2)/ω in [−half/2, 3half/2]
 /// (fmod is exact, so this equals one subtraction or addition of half); +inf (no such point) stays +inf, so a
 /// mesh torque with no oscillating part (a load torque balancing the motor's at the start) does not loop for ever.
 double firstInHalfPeriod(double tau, double half)

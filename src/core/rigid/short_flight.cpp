@@ -13,6 +13,7 @@ namespace backlash_servo
 {
 namespace
 {
+/// 1/k for k = 0..MAX_ORDER + 1 (0 unused): the series' recurrence divides by the order, the remainder bound by N + 1.
 constexpr auto INVERSE = [] {
   std::array<double, ShortFlight::MAX_ORDER + 2> inv{};
   for (int k = 1; k <= ShortFlight::MAX_ORDER + 1; ++k)

@@ -12,6 +12,7 @@ namespace backlash_servo
 {
 namespace
 {
+/// Φ1(τ) = (1 − e^{−pτ})/p [s] (τ when p = 0).
 double phi1(double p, double tau)
 {
   return p == 0.0 ? tau : -std::expm1(-p * tau) / p;

@@ -10,6 +10,7 @@ namespace backlash_servo
 {
 namespace
 {
+/// Aitken's Δ² limit of three successive values approaching it geometrically (contraction ratio in (−1, 1)); the
 /// latest value otherwise.
 double aitken(const double x[3])
 {

@@ -12,6 +12,7 @@ namespace backlash_servo
 {
 namespace
 {
+/// Running until settled, each chunk (a natural period) is advanced in this many steps, so that the run stops within
 /// one of them after the maximum that settles the verdict.
 constexpr int SETTLE_STEPS = 16;
 
