@@ -4,6 +4,8 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <numeric>
+#include <tuple>
 #include <variant>
 
 #include "backlash_servo/identification/measured_angles.h"
@@ -280,36 +282,6 @@ FlankSpread flankSpread(const std::vector<double>& flank)
   std::vector<double> deviation(flank.size());
   std::transform(flank.begin(), flank.end(), deviation.begin(), [centre](double g) { return std::fabs(g - centre); });
   return {1.4826 * median(deviation), centre - halfSampleMode(flank)};
-}
-
-/**
- * The standard error [rad] of the backlash between the modes of the filtered gap on each flank: each flank's scatter
- * σ and its median's 1.2533 σ/√n_eff (n_eff the samples over the filter's width 4r + 1), how far its median leans from
- * its mode, and for angles on a count grid without noise (`motor`, `load` as recognised) a count's uniform spread q/√12
- * on each flank (a body at rest reads the same count: its error does not average out).
- */
-double flankError(const std::vector<double>& forward, const std::vector<double>& backward,
-                  const AngleMeasurement& motor, const AngleMeasurement& load, const IdentificationSettings& s)
-{
-  const double width = 4.0 * std::max(s.smoothing, 0) + 1.0;
-  double variance = 0.0;
-  for (const std::vector<double>* flank : {&forward, &backward})
-  {
-    const FlankSpread spread = flankSpread(*flank);
-    variance += spread.lean * spread.lean;
-    // The median's scatter, and one sample's scatter for where the crowd's centre lies (the filtered gap's noise is
-    // not symmetric about a flank the teeth bounce off: no narrower claim is made).
-    variance += spread.sigma * spread.sigma * (1.0 + 1.5708 * width / static_cast<double>(flank->size()));
-  }
-  for (const auto& [m, factor] : {std::make_pair(load, 1.0), std::make_pair(motor, s.gear_ratio)})
-  {
-    if (m.resolution > 0.0)
-    {
-      const double q = factor * TWO_PI / m.resolution;
-      variance += 2.0 * q * q / 12.0;
-    }
-  }
-  return std::sqrt(variance);
 }
 
 /// The samples in runs on a flank (phase ±1, one flank per run) longer than 2·trim + 6 (what a stretch keeps of
@@ -857,6 +829,132 @@ void bodiesFromDerivatives(const Recording& d, const IdentificationSettings& s, 
   out->apart_rms_residual = a.rms;
 }
 
+/// The samples of the teeth driving on one flank: the filtered gap at each [rad], where each episode (a run of
+/// consecutive samples) begins in it, and how many distinct counts each encoder read there.
+struct FlankSamples
+{
+  std::vector<double> gap;
+  std::vector<std::size_t> episodes;
+  std::size_t motor_counts = 0, load_counts = 0;
+};
+
+/// The number of distinct values of `angle` over the samples `at` (counts of an encoder on a grid).
+std::size_t distinctCounts(const std::vector<double>& angle, const std::vector<std::size_t>& at)
+{
+  std::vector<double> seen;
+  seen.reserve(at.size());
+  for (std::size_t k : at)
+  {
+    seen.push_back(angle[k]);
+  }
+  std::sort(seen.begin(), seen.end());
+  return static_cast<std::size_t>(std::unique(seen.begin(), seen.end()) - seen.begin());
+}
+
+/// The driven samples on the flank `side` (+1 forward, −1 backward) of the filtered gap.
+FlankSamples flankSamples(const Recording& d, const Phases& p, const std::vector<bool>& driven, int side,
+                          std::size_t trim)
+{
+  FlankSamples out;
+  std::vector<std::size_t> at;
+  const std::size_t n = p.gap.size();
+  for (std::size_t a = 0; a < n;)
+  {
+    if (!(driven[a] && p.phase[a] == side))
+    {
+      ++a;
+      continue;
+    }
+    std::size_t b = a;
+    while (b < n && driven[b] && p.phase[b] == side)
+    {
+      ++b;
+    }
+    // (the filter reaches into the flights on either side of an episode for `trim` samples at its ends)
+    if (b - a > 2 * trim)
+    {
+      out.episodes.push_back(out.gap.size());
+      for (std::size_t k = a + trim; k < b - trim; ++k)
+      {
+        at.push_back(k);
+        out.gap.push_back(p.gap[k]);
+      }
+    }
+    a = b;
+  }
+  out.motor_counts = distinctCounts(d.motor_position, at);
+  out.load_counts = distinctCounts(d.load_position, at);
+  return out;
+}
+
+/// The fewest episodes on a flank whose scatter measures the error of where the teeth meet there.
+constexpr std::size_t FEWEST_EPISODES = 8;
+/// How far the filtered gap on a flank may scatter beyond what the encoders' noise explains while the samples there
+/// are taken as contact alone (more: chatter or flights within the band, which lean the crowd into the play).
+constexpr double CONTACT_SCATTER = 1.5;
+
+/// The standard deviation [rad] of the filtered gap's noise: each angle's σ through the smoothing filter (a box of
+/// L = 2r + 1 samples applied twice: Σw² = (2L² + 1)/(3L³)); infinite when the angles' noise is not known.
+double filteredGapNoise(const AngleMeasurement& motor, const AngleMeasurement& load, const IdentificationSettings& s)
+{
+  const double raw = std::hypot(load.noise, s.gear_ratio * motor.noise);
+  const double l = 2.0 * std::max(s.smoothing, 0) + 1.0;
+  return raw > 0.0 ? raw * std::sqrt((2.0 * l * l + 1.0) / (3.0 * l * l * l)) : INF;
+}
+
+/**
+ * The variance [rad²] of a flank's position `centre` (the mode of its samples' filtered gap). With enough episodes
+ * of the teeth on it and a scatter the encoders' noise explains, their means' scatter about the centre over their
+ * number (cluster-robust: the noise within an episode, the quantisation of where it ran and a mode leaning from them
+ * all count, each episode once); else each
+ * sample's scatter σ, the median's 1.2533 σ/√n_eff (n_eff the samples over the filter's width 4r + 1) and its lean
+ * from the mode. A count grid without noise adds a count's uniform spread q/√12 over √(distinct counts read there):
+ * a reading's rounding is a fixed function of the angle, averaged only over the counts visited.
+ */
+double flankVariance(const FlankSamples& f, double centre, const AngleMeasurement& motor, const AngleMeasurement& load,
+                     const IdentificationSettings& s)
+{
+  double variance = 0.0;
+  const std::size_t m = f.episodes.size();
+  const FlankSpread spread = flankSpread(f.gap);
+  if (m >= FEWEST_EPISODES && spread.sigma <= CONTACT_SCATTER * filteredGapNoise(motor, load, s))
+  {
+    std::vector<double> means(m);
+    for (std::size_t i = 0; i < m; ++i)
+    {
+      const auto first = f.gap.begin() + static_cast<long>(f.episodes[i]);
+      const auto last = i + 1 < m ? f.gap.begin() + static_cast<long>(f.episodes[i + 1]) : f.gap.end();
+      means[i] = std::accumulate(first, last, 0.0) / static_cast<double>(last - first);
+    }
+    const double mean = std::accumulate(means.begin(), means.end(), 0.0) / static_cast<double>(m);
+    double sum = 0.0;
+    for (double x : means)
+    {
+      sum += (x - mean) * (x - mean);
+    }
+    // (the episodes' mean and the samples' mode part where flights within the band lean the crowd into the play)
+    variance = sum / static_cast<double>(m * (m - 1)) + (centre - mean) * (centre - mean);
+  }
+  else
+  {
+    const double width = 4.0 * std::max(s.smoothing, 0) + 1.0;
+    // The median's scatter, and one sample's scatter for where the crowd's centre lies (the filtered gap's noise is
+    // not symmetric about a flank the teeth bounce off: no narrower claim is made).
+    variance = spread.lean * spread.lean +
+               spread.sigma * spread.sigma * (1.0 + 1.5708 * width / static_cast<double>(f.gap.size()));
+  }
+  for (const auto& [seen, factor, counts] :
+       {std::make_tuple(load, 1.0, f.load_counts), std::make_tuple(motor, s.gear_ratio, f.motor_counts)})
+  {
+    if (seen.resolution > 0.0)
+    {
+      const double q = factor * TWO_PI / seen.resolution;
+      variance += q * q / (12.0 * static_cast<double>(std::max<std::size_t>(counts, 1)));
+    }
+  }
+  return variance;
+}
+
 /// Measured angles: a flank the teeth never drove on (the gap only turned there, in flight) is no flank — its samples
 /// become no phase (2) and the backlash is only bounded by the gap's range. Returns the flank so dropped ("forward",
 /// "backward") or "".
@@ -881,8 +979,8 @@ std::string dropUndrivenFlanks(const std::vector<bool>& driven, std::vector<int>
 
 /// The backlash and the zero offset from the gaps on each flank (their medians; with integrated equations, where the
 /// samples crowd), with what the recording cannot give said in `out->not_identifiable`.
-void locateBacklash(const IdentificationSettings& s, const Phases& p, const std::vector<bool>& driven,
-                    const std::string& unreached, InitialEstimates* out)
+void locateBacklash(const Recording& d, const IdentificationSettings& s, const Phases& p,
+                    const std::vector<bool>& driven, const std::string& unreached, InitialEstimates* out)
 {
   const std::size_t n = p.gap.size();
   // The backlash between the flanks' typical gaps (medians over the samples in contact on each: quantisation and
@@ -912,13 +1010,17 @@ void locateBacklash(const IdentificationSettings& s, const Phases& p, const std:
     {
       // Where the samples on a flank crowd (its mode): the medians lean into the play, as the band also holds the
       // samples of short flights and small rebounds beside the flank.
-      out->zero_offset = halfSampleMode(on_forward);
-      const double backward = halfSampleMode(on_backward);
+      const std::size_t trim = 2 * static_cast<std::size_t>(std::max(s.smoothing, 0)) + 2;
+      const FlankSamples forward = flankSamples(d, p, driven, 1, trim), backward = flankSamples(d, p, driven, -1, trim);
+      out->zero_offset = halfSampleMode(forward.gap);
+      const double backward_mode = halfSampleMode(backward.gap);
       // (and how far each mode lies from where the gap's extreme crowd was found: a gap that hovers beside a flank
       // moves the one but not the other)
-      out->backlash = {backward - out->zero_offset,
-                       std::hypot(flankError(on_forward, on_backward, p.motor_seen, p.load_seen, s),
-                                  out->zero_offset - p.flanks.forward, backward - p.flanks.backward)};
+      const double variance = flankVariance(forward, out->zero_offset, p.motor_seen, p.load_seen, s) +
+                              flankVariance(backward, backward_mode, p.motor_seen, p.load_seen, s);
+      out->backlash = {
+          backward_mode - out->zero_offset,
+          std::hypot(std::sqrt(variance), out->zero_offset - p.flanks.forward, backward_mode - p.flanks.backward)};
     }
   }
   else
@@ -1024,7 +1126,7 @@ InitialEstimates estimateInitial(const Recording& d, const IdentificationSetting
   {
     bodiesFromDerivatives(d, s, p, &out);
   }
-  locateBacklash(s, p, driven, unreached, &out);
+  locateBacklash(d, s, p, driven, unreached, &out);
   staticFromRests(d, s, h, p, &out);
   // Nothing at all: say what the recording lacks (the backlash's reason and the bodies').
   const bool nothing = out.not_identifiable.count("backlash") && out.not_identifiable.count("motor_inertia") &&
