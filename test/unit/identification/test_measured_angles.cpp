@@ -34,10 +34,10 @@ std::vector<double> smoothAngle(std::size_t n)
 }
 
 /// The recording read through N-count encoders on both shafts, with Gaussian noise of σ counts (a fixed seed).
-Recording readThroughEncoders(Recording r, double counts, double sigma_counts)
+Recording readThroughEncoders(Recording r, double counts, double sigma_counts, unsigned seed = 11)
 {
   const double q = TWO_PI / counts;
-  std::mt19937 gen(11);
+  std::mt19937 gen(seed);
   std::normal_distribution<double> noise(0.0, sigma_counts * q);
   for (std::vector<double>* angle : {&r.motor_position, &r.load_position})
   {
@@ -186,6 +186,32 @@ TEST(MeasuredAngles, AJointReadThroughNoisyEncodersIsIdentifiedWithoutFlags)
   {
     const double sum = std::stod(load.reason.substr(at + std::string("J_m + ρ²J_L = ").size()));
     EXPECT_NEAR(sum, p.motor_inertia + p.gear_ratio * p.gear_ratio * p.load_inertia, 0.01) << load.reason;
+  }
+}
+
+TEST(MeasuredAngles, TheBacklashsErrorIsTheScatterOfItsContactEpisodes)
+{
+  // One motion read through 4096-count encoders (the backlash 196 counts) with one count of noise, four draws of the
+  // noise: each backlash is reported with a standard error from the scatter of the episodes of contact on the two
+  // flanks — informative (within 0.35 % of the backlash, where one sample's scatter on each flank claims 0.41 %) and
+  // honest (the truth within four of them).
+  ServoParams p = dryFrictionJoint();
+  p.restitution = 0.5;
+  const Recording exact = recordJoint(p, 60.0, 1000.0, 1.0);
+  IdentificationSettings s;
+  s.gear_ratio = p.gear_ratio;
+  ServoParams prior;
+  prior.gear_ratio = p.gear_ratio;
+  IdentifyOptions options;
+  options.stated = std::set<std::string>{"gear_ratio"};
+  options.keys = std::set<std::string>{"backlash"};
+  for (unsigned seed : {1u, 2u, 3u, 4u})
+  {
+    const JointIdentification id = identifyJoint(readThroughEncoders(exact, 4096.0, 1.0, seed), s, prior, options);
+    const IdentifiedParameter& backlash = parameter(id, "backlash");
+    ASSERT_TRUE(backlash.identifiable) << backlash.reason;
+    EXPECT_LE(backlash.value.standard_error, 0.0035 * p.backlash) << seed;
+    EXPECT_LE(std::fabs(backlash.value.value - p.backlash), 4.0 * backlash.value.standard_error) << seed;
   }
 }
 
