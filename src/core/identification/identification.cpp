@@ -637,6 +637,13 @@ struct Phases
   std::vector<std::size_t> changes, stills;  ///< prefix counts of phase changes and of standing samples
 };
 
+/// The range max − min of the samples.
+double span(const std::vector<double>& x)
+{
+  const auto [lo, hi] = std::minmax_element(x.begin(), x.end());
+  return *hi - *lo;
+}
+
 Phases readPhases(const Recording& d, const IdentificationSettings& s, double h)
 {
   const std::size_t n = d.time.size();
@@ -686,11 +693,14 @@ Phases readPhases(const Recording& d, const IdentificationSettings& s, double h)
   }
   requireThat((resolved && p.range > 0.0) || p.edges.resolved, "data",
               measured
-                  ? "the free play is not resolved by the gap θ_c − ρθ_m: its two flanks are not several times the "
-                    "gap's measurement band (" +
-                        formatNumber(p.band) +
-                        " rad, from the encoders' counts and noise) apart; nothing is estimated without the "
-                        "phases — finer or less noisy encoders are needed"
+                  ? "the free play is not resolved by the gap θ_c − ρθ_m: its flanks lie " + formatNumber(p.range) +
+                        " rad apart, under four times the gap's measurement band (" + formatNumber(p.band) +
+                        " rad, from the encoders' counts and noise), while the load moved over " +
+                        formatNumber(span(d.load_position)) +
+                        " rad — either the free play is smaller than that (finer or less noisy encoders resolve it) "
+                        "or the teeth never left one flank (a load torque or friction holding them there: reversals "
+                        "that carry the motor across the free play, as backlash_identify --experiment designs, show "
+                        "it); nothing is estimated without the phases"
                   : "the gap θ_c − ρθ_m never spans the backlash: the recording needs reversals that carry the motor "
                     "across the free play to both flanks");
   p.phase = p.edges.resolved ? p.edges.phase : std::vector<int>(n, 0);

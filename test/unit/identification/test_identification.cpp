@@ -87,6 +87,33 @@ TEST(Identification, RefusesARecordingThatDoesNotCrossTheBacklash)
   Recording bad = r;
   bad.time[10] += 1e-4;
   EXPECT_THROW(estimateInitial(bad, s), InvalidParameterError);
+  // Read through 2^16-count encoders: the gap stays within its measurement band, and the refusal names both causes
+  // it cannot tell apart (a free play below the band, or teeth that never left one flank) and what shows each.
+  Recording counted = r;
+  const double q = 2.0 * M_PI / 65536.0;  // [rad] a count
+  for (std::vector<double>* angle : {&counted.motor_position, &counted.load_position})
+  {
+    for (double& x : *angle)
+    {
+      x = q * std::round(x / q);
+    }
+  }
+  ServoParams prior;
+  IdentifyOptions options;
+  options.stated = std::set<std::string>{"gear_ratio"};
+  try
+  {
+    identifyJoint(counted, s, prior, options);
+    FAIL() << "accepted a counted recording without reversals across the backlash";
+  }
+  catch (const InvalidParameterError& e)
+  {
+    for (const char* says : {"under four times the gap's measurement band", "the load moved over",
+                             "finer or less noisy encoders", "never left one flank", "--experiment"})
+    {
+      EXPECT_NE(std::string(e.what()).find(says), std::string::npos) << says << ": " << e.what();
+    }
+  }
 }
 
 // Time stamps as recorders write them: a clock's nanosecond jitter and Unix-epoch times (rounded to 2.4e-7 s at
