@@ -2,7 +2,7 @@
 """A corpus of joints drawn at random, recorded as encoders give them, and backlash_identify's accuracy on it.
 
     identification_corpus.py generate --seed S --count N --out DIR [--first K] [--jobs J]
-    identification_corpus.py evaluate DIR [--jobs J] [--markdown] [--json FILE]
+    identification_corpus.py evaluate DIR [DIR ...] [--jobs J] [--markdown] [--json FILE]
 
 `generate` draws each joint from wide ranges (a fixed seed: the same corpus on every machine), simulates 60 s at
 1 kHz with the exact simulator and writes, per recording, `NNN.csv` (time, motor_torque, motor_position,
@@ -289,20 +289,21 @@ def judge(truth, estimates):
 
 
 def evaluate(args):
-    names = sorted(os.path.join(args.dir, f[:-4]) for f in os.listdir(args.dir)
-                   if f.endswith(".csv"))
+    names = sorted(os.path.join(d, f[:-4]) for d in args.dir for f in os.listdir(d) if f.endswith(".csv"))
     rows = []
     with ProcessPoolExecutor(args.jobs) as pool:
         for name, code, result, err, elapsed in pool.map(identify, names):
             with open(name + ".truth.json") as f:
                 truth = json.load(f)
             verdicts = judge(truth, result["estimates"]) if result else {}
-            rows.append({"name": os.path.basename(name), "kind": truth["kind"], "exit": code, "seconds": elapsed,
+            label = os.path.relpath(name, os.path.dirname(os.path.dirname(name))) if len(args.dir) > 1 else \
+                os.path.basename(name)
+            rows.append({"name": label, "kind": truth["kind"], "exit": code, "seconds": elapsed,
                          "verdicts": verdicts, "error": err, "truth": truth,
                          "estimates": result["estimates"] if result else None})
             line = " ".join("%s:%s" % (k.replace("_friction", "").replace("motor_", "m_").replace("load_", "L_"), v)
                             for k, v in verdicts.items())
-            print("%s %-10s exit %d %5.1f s  %s %s" % (os.path.basename(name), truth["kind"], code, elapsed, line,
+            print("%s %-10s exit %d %5.1f s  %s %s" % (label, truth["kind"], code, elapsed, line,
                                                       " ".join(err)), flush=True)
     summarise(rows, args.markdown)
     if args.json:
@@ -326,7 +327,8 @@ def summarise(rows, markdown):
         for key in targets:
             ok = sum(1 for r in sub if r["verdicts"].get(key) == "ok")
             declared = sum(1 for r in sub if r["verdicts"].get(key) == "declared")
-            cells.append("%d ok, %d declared" % (ok, declared))
+            missed = sum(1 for r in sub if r["verdicts"].get(key) == "miss")
+            cells.append("%d ok, %d declared" % (ok, declared) + (", %d miss" % missed if missed else ""))
         # Honest: every estimate within its target or declared, or nothing estimated with the reason (exit 2).
         honest = sum(1 for r in sub if (r["exit"] == 2 and r["error"]) or
                      (r["verdicts"] and all(v != "miss" for v in r["verdicts"].values())))
@@ -346,7 +348,7 @@ def main():
     g.add_argument("--out", required=True)
     g.add_argument("--jobs", type=int, default=2)
     e = sub.add_parser("evaluate")
-    e.add_argument("dir")
+    e.add_argument("dir", nargs="+", help="corpus directories (several: one table over them all)")
     e.add_argument("--jobs", type=int, default=2)
     e.add_argument("--markdown", action="store_true")
     e.add_argument("--json")
