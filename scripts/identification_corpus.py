@@ -2,7 +2,7 @@
 """A corpus of joints drawn at random, recorded as encoders give them, and backlash_identify's accuracy on it.
 
     identification_corpus.py generate --seed S --count N --out DIR [--first K] [--jobs J]
-    identification_corpus.py evaluate DIR [DIR ...] [--jobs J] [--markdown] [--json FILE]
+    identification_corpus.py evaluate DIR [DIR ...] [--jobs J] [--markdown] [--json FILE] [--known KEY,...]
 
 `generate` draws each joint from wide ranges (a fixed seed: the same corpus on every machine), simulates 60 s at
 1 kHz with the exact simulator and writes, per recording, `NNN.csv` (time, motor_torque, motor_position,
@@ -245,10 +245,23 @@ def generate(args):
             print("wrote", name + ".csv", flush=True)
 
 
-def identify(name):
+def identify(job):
+    """backlash_identify on one recording; `known` keys are stated in the prior with their true values and not fitted
+    (what a datasheet gives)."""
+    name, known = job
+    prior = name + ".prior.yaml"
+    command = [tool("backlash_identify"), "--data", name + ".csv", "--json"]
+    if known:
+        with open(name + ".truth.json") as f:
+            truth = json.load(f)
+        with open(prior) as f:
+            text = f.read()
+        prior = name + ".known.yaml"
+        with open(prior, "w") as f:
+            f.write(text + "".join("%s: %r\n" % (key, truth[key]) for key in known))
+        command += ["--fit", ",".join(key for key in KEYS if key not in known)]
     start = time.monotonic()
-    run = subprocess.run([tool("backlash_identify"), "--data", name + ".csv", "--config", name + ".prior.yaml", "--json"],
-                         capture_output=True, text=True)
+    run = subprocess.run(command + ["--config", prior], capture_output=True, text=True)
     elapsed = time.monotonic() - start
     result = json.loads(run.stdout) if run.returncode == 0 and run.stdout.strip() else None
     return name, run.returncode, result, run.stderr.strip().splitlines()[-1:] if run.returncode else [], elapsed
@@ -292,10 +305,11 @@ def evaluate(args):
     names = sorted(os.path.join(d, f[:-4]) for d in args.dir for f in os.listdir(d) if f.endswith(".csv"))
     rows = []
     with ProcessPoolExecutor(args.jobs) as pool:
-        for name, code, result, err, elapsed in pool.map(identify, names):
+        for name, code, result, err, elapsed in pool.map(identify, [(name, args.known) for name in names]):
             with open(name + ".truth.json") as f:
                 truth = json.load(f)
             verdicts = judge(truth, result["estimates"]) if result else {}
+            verdicts.update({key: "known" for key in args.known if key in verdicts})
             label = os.path.relpath(name, os.path.dirname(os.path.dirname(name))) if len(args.dir) > 1 else \
                 os.path.basename(name)
             rows.append({"name": label, "kind": truth["kind"], "exit": code, "seconds": elapsed,
@@ -328,7 +342,9 @@ def summarise(rows, markdown):
             ok = sum(1 for r in sub if r["verdicts"].get(key) == "ok")
             declared = sum(1 for r in sub if r["verdicts"].get(key) == "declared")
             missed = sum(1 for r in sub if r["verdicts"].get(key) == "miss")
-            cells.append("%d ok, %d declared" % (ok, declared) + (", %d miss" % missed if missed else ""))
+            known = sum(1 for r in sub if r["verdicts"].get(key) == "known")
+            cells.append("known" if known and not ok + declared + missed else
+                         "%d ok, %d declared" % (ok, declared) + (", %d miss" % missed if missed else ""))
         # Honest: every estimate within its target or declared, or nothing estimated with the reason (exit 2).
         honest = sum(1 for r in sub if (r["exit"] == 2 and r["error"]) or
                      (r["verdicts"] and all(v != "miss" for v in r["verdicts"].values())))
@@ -351,6 +367,9 @@ def main():
     e.add_argument("dir", nargs="+", help="corpus directories (several: one table over them all)")
     e.add_argument("--jobs", type=int, default=2)
     e.add_argument("--markdown", action="store_true")
+    e.add_argument("--known", type=lambda text: [key for key in text.split(",") if key], default=[],
+                   help="keys stated in every prior with their true values and not fitted, e.g. motor_inertia "
+                        "(a datasheet's value)")
     e.add_argument("--json")
     args = parser.parse_args()
     generate(args) if args.command == "generate" else evaluate(args)

@@ -33,6 +33,9 @@ struct IdentificationSettings
   /// [N·m]: used when the contact motion goes one way only (a limit cycle pushed from one side, say), where the
   /// Coulomb friction and the load torque cannot be told apart; NaN: none (such a recording is then refused).
   double load_torque_fallback = NAN;
+  /// J_m, J_L [kg·m²] known (stated in the prior and not fitted): on measured angles each holds its column of the
+  /// bodies' equations, so the other inertia follows from the pair's sum; NaN: estimated.
+  double known_motor_inertia = NAN, known_load_inertia = NAN;
   /// Measured angles without a smoothing given: the bodies' equations integrated twice over stretches of one phase
   /// (no derivative of an angle; errors in the angles corrected for) instead of differentiated after the filter.
   bool integrated = false;

@@ -142,7 +142,8 @@ void bodiesFromIntegrals(const Recording& d, const IdentificationSettings& s, co
   const PhaseRows c = integratedRows(d, sign, contact, piece, a.cluster.empty() ? 0 : a.cluster.back() + 1);
   // Contact one way only: the load torque is not told from the Coulomb friction; the settings' (or 0) holds it.
   const double known_load = both_ways ? NAN : std::isfinite(s.load_torque_fallback) ? s.load_torque_fallback : 0.0;
-  const BodiesFit f = fitBodies(a, c, rho, known_load, motor.noise, motor.resolution == 0.0);
+  const BodiesFit f = fitBodies(a, c, rho, known_load, {s.known_motor_inertia, s.known_load_inertia}, motor.noise,
+                                motor.resolution == 0.0);
   out->apart_samples = f.apart_rows;
   out->contact_samples = f.contact_rows;
   out->apart_rms_residual = f.apart_rms;
@@ -211,21 +212,33 @@ void bodiesFromIntegrals(const Recording& d, const IdentificationSettings& s, co
     unsplit = "the motor alone is seen in " + std::to_string(f.apart_pieces) + " stretches apart only (at least " +
               std::to_string(FEWEST_PIECES) + " make its standard errors trustworthy)";
   }
-  else if (const std::string why = loose(0); !why.empty())
+  else if (const std::string why = loose(0); !why.empty() && !std::isfinite(s.known_motor_inertia))
   {
     unsplit = "the motor alone is not resolved (its inertia: " + why + ")";
   }
+  // (a known inertia splits the pair's: then only the frictions wait for the motor alone)
+  const bool known_inertia[6] = {std::isfinite(s.known_motor_inertia), false, false,
+                                 std::isfinite(s.known_load_inertia), false, false};
+  const bool inertia_split = known_inertia[0] || known_inertia[3];
   if (!unsplit.empty())
   {
     const std::string sums = pairSums(f, rho, out->load_torque_given, known_load);
     for (int j = f.apart_rows > 0 && f.contact_rows == 0 ? 3 : 0; j < 6; ++j)
     {
+      if (inertia_split && j % 3 == 0)
+      {
+        continue;
+      }
       out->not_identifiable[keys[j]] = unsplit + (j >= 3 || f.contact_rows == 0 ? sums : "");
       *fields[j] = {NAN, NAN};
     }
   }
   for (int j = 0; j < 6; ++j)
   {
+    if (known_inertia[j])
+    {
+      continue;  // (stated in the prior: held, not estimated)
+    }
     if (out->not_identifiable.count(keys[j]) == 0)
     {
       if (const std::string why = loose(j); !why.empty())

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <map>
+#include <tuple>
 #include <variant>
 
 #include "backlash_servo/identification/measured_angles.h"
@@ -271,6 +272,15 @@ JointIdentification identifyJoint(const Recording& data, const IdentificationSet
   s.smoothing = out.measurement.smoothing;
   s.contact_band = out.measurement.contact_band;
   s.integrated = out.measurement.integrated;
+  // An inertia stated in the prior and not fitted is known: it holds its column of the bodies' equations.
+  for (const auto& [key, field, value] : {std::make_tuple("motor_inertia", &s.known_motor_inertia, prior.motor_inertia),
+                                          std::make_tuple("load_inertia", &s.known_load_inertia, prior.load_inertia)})
+  {
+    if (statedInPrior(options, key) && keys.count(key) == 0)
+    {
+      *field = value;
+    }
+  }
   out.settings = s;
   const InitialEstimates& e = out.initial =
       prior.compliant() ? estimateCompliantInitial(data, s) : estimateInitial(data, s);

@@ -56,13 +56,22 @@ Eigen::Matrix2d noiseGram(std::size_t m, double h)
   return g;
 }
 
-/// Solves the normal equations (XᵀX − N) p = Xᵀy of the columns `free` (N: the noise's share of XᵀX).
-Eigen::VectorXd correctedSolve(const Eigen::MatrixXd& x, const Eigen::VectorXd& y, const Eigen::MatrixXd& noise,
+/// The noise's share N of XᵀX over all seven columns, and what it adds to Xᵀy where known values were moved to the
+/// right-hand side (N_fk p_k: the noise of a known column's regressor, now in y, correlates with the free ones').
+struct NoiseShare
+{
+  Eigen::MatrixXd gram;
+  Eigen::VectorXd rhs;
+};
+
+/// Solves the normal equations (XᵀX − N) p = Xᵀy + N_fk p_k of the columns `free`.
+Eigen::VectorXd correctedSolve(const Eigen::MatrixXd& x, const Eigen::VectorXd& y, const NoiseShare& noise,
                                const std::vector<Eigen::Index>& free, Eigen::MatrixXd* inverse)
 {
   const Eigen::MatrixXd xf = x(Eigen::all, free);
   const Eigen::VectorXd scale = xf.colwise().norm().transpose().cwiseMax(1e-300);
-  const Eigen::MatrixXd normal = (xf.transpose() * xf - noise(free, free)).cwiseQuotient(scale * scale.transpose());
+  const Eigen::MatrixXd normal =
+      (xf.transpose() * xf - noise.gram(free, free)).cwiseQuotient(scale * scale.transpose());
   // The noise's share may not exceed what the rows hold: corrected normal equations that are not positive definite
   // say the noise swamps the motion (NaN: nothing determined).
   if (Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(normal, Eigen::EigenvaluesOnly).eigenvalues().minCoeff() <= 0.0)
@@ -78,7 +87,7 @@ Eigen::VectorXd correctedSolve(const Eigen::MatrixXd& x, const Eigen::VectorXd& 
   {
     *inverse = inv;
   }
-  return inv * (xf.transpose() * y);
+  return inv * (xf.transpose() * y + noise.rhs(free));
 }
 
 }  // namespace
@@ -141,7 +150,7 @@ namespace
 /// Pieces an unseen impact spoils (a jump of the motor's speed inside a piece, between samples that read apart) fit
 /// far worse than the rest: left out, as the rows beyond 5 × the median piece's rms after a first fit. Counts the
 /// pieces kept in each phase (the first na rows are the motor alone's) and dropped into `out`.
-void dropSpoiledPieces(const Eigen::MatrixXd& gram, const std::vector<Eigen::Index>& free, Eigen::Index na,
+void dropSpoiledPieces(const NoiseShare& gram, const std::vector<Eigen::Index>& free, Eigen::Index na,
                        Eigen::MatrixXd* x_io, Eigen::VectorXd* y_io, std::vector<std::size_t>* cluster_io,
                        BodiesFit* fit)
 {
@@ -190,7 +199,7 @@ void dropSpoiledPieces(const Eigen::MatrixXd& gram, const std::vector<Eigen::Ind
 
 /// The corrected fit with the levels constrained ≥ 0: the most negative of the constrained levels (columns < 6) held
 /// at 0 (taken out of `free`, marked in `out`), until none is. False when no column is left.
-bool holdNegativeLevels(const Eigen::MatrixXd& x, const Eigen::VectorXd& y, const Eigen::MatrixXd& gram,
+bool holdNegativeLevels(const Eigen::MatrixXd& x, const Eigen::VectorXd& y, const NoiseShare& gram,
                         std::vector<Eigen::Index>* free_io, BodiesFit* fit)
 {
   std::vector<Eigen::Index>& free = *free_io;
@@ -225,7 +234,7 @@ bool holdNegativeLevels(const Eigen::MatrixXd& x, const Eigen::VectorXd& y, cons
 /// The parameters of the free columns with cluster-robust errors (XᵀX)⁻¹ (Σ_c X_cᵀ r_c r_cᵀ X_c) (XᵀX)⁻¹, widened by
 /// the correction's own size on a count grid (`white` false: a count's error is white only while the angle crosses
 /// counts quickly).
-void robustEstimates(const Eigen::MatrixXd& x, const Eigen::VectorXd& y, const Eigen::MatrixXd& gram,
+void robustEstimates(const Eigen::MatrixXd& x, const Eigen::VectorXd& y, const NoiseShare& gram,
                      const std::vector<Eigen::Index>& free, const std::vector<std::size_t>& cluster, bool white,
                      BodiesFit* fit)
 {
@@ -254,7 +263,8 @@ void robustEstimates(const Eigen::MatrixXd& x, const Eigen::VectorXd& y, const E
   const Eigen::MatrixXd cov = bread * meat * bread * (g > 1.0 ? g / (g - 1.0) : 1.0);
   // A count's error is white only while the angle crosses counts quickly: on a grid, the correction's own size is
   // counted as uncertain.
-  const Eigen::VectorXd uncorrected = white ? p : correctedSolve(x, y, Eigen::MatrixXd::Zero(7, 7), free, nullptr);
+  const Eigen::VectorXd uncorrected =
+      white ? p : correctedSolve(x, y, {Eigen::MatrixXd::Zero(7, 7), Eigen::VectorXd::Zero(7)}, free, nullptr);
   for (std::size_t i = 0; i < free.size(); ++i)
   {
     const Eigen::Index j = static_cast<Eigen::Index>(i);
@@ -264,8 +274,8 @@ void robustEstimates(const Eigen::MatrixXd& x, const Eigen::VectorXd& y, const E
 }
 }  // namespace
 
-BodiesFit fitBodies(const PhaseRows& apart, const PhaseRows& contact, double rho, double known_load, double noise,
-                    bool white)
+BodiesFit fitBodies(const PhaseRows& apart, const PhaseRows& contact, double rho, double known_load,
+                    std::pair<double, double> known_inertia, double noise, bool white)
 {
   constexpr std::size_t FEWEST_ROWS = 20;
   const bool motor_alone = static_cast<std::size_t>(apart.x.rows()) >= FEWEST_ROWS;
@@ -312,7 +322,8 @@ BodiesFit fitBodies(const PhaseRows& apart, const PhaseRows& contact, double rho
     cluster.insert(cluster.end(), contact.cluster.begin(), contact.cluster.end());
   }
   // The angle's noise in XᵀX: the θ and ∫θ columns of each phase (the pair's also in J_L's and f_L's columns).
-  Eigen::MatrixXd gram = Eigen::MatrixXd::Zero(7, 7);
+  NoiseShare share{Eigen::MatrixXd::Zero(7, 7), Eigen::VectorXd::Zero(7)};
+  Eigen::MatrixXd& gram = share.gram;
   const double variance = noise * noise;
   if (motor_alone)
   {
@@ -328,31 +339,38 @@ BodiesFit fitBodies(const PhaseRows& apart, const PhaseRows& contact, double rho
     gram += wc * wc * variance * map.transpose() * contact.noise_gram * map;
   }
   // The free columns: a phase without rows leaves its parameters out (the pair alone gives J_m + ρ²J_L, …: the
-  // motor's columns then carry the pair's sums, reported by the caller as such).
+  // motor's columns then carry the pair's sums, reported by the caller as such); a known value moves its column to
+  // the right-hand side (a known inertia splits the pair's inertia without the motor alone).
+  const double known[7] = {known_inertia.first, NAN, NAN, known_inertia.second, NAN, NAN, known_load};
+  const bool split = motor_alone || std::isfinite(known[0]) || std::isfinite(known[3]);
   std::vector<Eigen::Index> free;
   for (Eigen::Index j = 0; j < 7; ++j)
   {
-    const bool load_column = j >= 3;
-    if ((load_column && !(motor_alone && pair)) || (j == 6 && !pair))
+    const bool present = j == 3 ? pair && split : j == 4 || j == 5 ? motor_alone && pair : j != 6 || pair;
+    if (!present)
     {
       continue;
     }
-    if (j == 6 && std::isfinite(known_load))
+    if (std::isfinite(known[j]))
     {
-      y.tail(nc) -= x.block(na, 6, nc, 1) * known_load;
+      y -= x.col(j) * known[j];
+      share.rhs += gram.col(j) * known[j];
       continue;
     }
     free.push_back(j);
   }
-  dropSpoiledPieces(gram, free, na, &x, &y, &cluster, &out);
-  if (!holdNegativeLevels(x, y, gram, &free, &out))
+  dropSpoiledPieces(share, free, na, &x, &y, &cluster, &out);
+  if (!holdNegativeLevels(x, y, share, &free, &out))
   {
     return out;
   }
-  robustEstimates(x, y, gram, free, cluster, white, &out);
-  if (std::isfinite(known_load) && pair)
+  robustEstimates(x, y, share, free, cluster, white, &out);
+  for (Eigen::Index j : {0, 3, 6})
   {
-    out.p(6) = known_load;
+    if (std::isfinite(known[j]) && (j == 0 || pair))
+    {
+      out.p(j) = known[j];
+    }
   }
   return out;
 }

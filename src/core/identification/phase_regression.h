@@ -52,10 +52,12 @@ struct BodiesFit
   bool swamped = false;  // the angle's noise exceeds what the rows hold (the corrected equations not positive definite)
 };
 
-/// `known_load` (NaN: estimated) holds T_ext; a phase without rows leaves its parameters out (NaN). `noise` [rad]:
+/// `known_load` (NaN: estimated) holds T_ext, `known_inertia` (J_m, J_L; NaN: estimated) the inertias — a known
+/// inertia splits the pair's sum without the motor alone; a phase without rows leaves its parameters out (NaN), the
+/// motor's columns then carrying the pair's sums. `noise` [rad]:
 /// the motor angle's noise level (measured_angles.h), whose share of XᵀX is subtracted; not `white` (the counts of
 /// a grid, correlated while the angle creeps) the correction's size joins each standard error.
-BodiesFit fitBodies(const PhaseRows& apart, const PhaseRows& contact, double rho, double known_load, double noise,
-                    bool white);
+BodiesFit fitBodies(const PhaseRows& apart, const PhaseRows& contact, double rho, double known_load,
+                    std::pair<double, double> known_inertia, double noise, bool white);
 
 }  // namespace backlash_servo

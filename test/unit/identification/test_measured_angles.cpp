@@ -132,11 +132,16 @@ TEST(MeasuredAngles, TheNoiseInTheAngleNoLongerShrinksTheInertia)
   }
   const PhaseRows apart = integratedRows(r, sign, {{100, r.time.size() - 100}}, 60, 0);
   const PhaseRows none;
-  const BodiesFit corrected = fitBodies(apart, none, 1.0, NAN, sigma, true);
-  const BodiesFit naive = fitBodies(apart, none, 1.0, NAN, 0.0, true);
+  const BodiesFit corrected = fitBodies(apart, none, 1.0, NAN, {NAN, NAN}, sigma, true);
+  const BodiesFit naive = fitBodies(apart, none, 1.0, NAN, {NAN, NAN}, 0.0, true);
   EXPECT_NEAR(corrected.p(0), p.motor_inertia, 0.02 * p.motor_inertia);
   EXPECT_NEAR(corrected.p(1), p.motor_friction, 0.02 * p.motor_friction);
   EXPECT_LT(naive.p(0), 0.9 * p.motor_inertia);  // (what the correction is for)
+  // A known inertia moves its column to the right-hand side (its regressor's noise with it): the viscous coefficient
+  // follows from the rest, unbiased.
+  const BodiesFit held = fitBodies(apart, none, 1.0, NAN, {p.motor_inertia, NAN}, sigma, true);
+  EXPECT_EQ(held.p(0), p.motor_inertia);
+  EXPECT_NEAR(held.p(1), p.motor_friction, 0.02 * p.motor_friction);
 }
 
 TEST(MeasuredAngles, AJointReadThroughNoisyEncodersIsIdentifiedWithoutFlags)
