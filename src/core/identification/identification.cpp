@@ -125,6 +125,23 @@ std::string pairSums(const BodiesFit& f, double rho, bool load_torque_given, dou
              : "";
 }
 
+/**
+ * A stated motor inertia checks the stretches read apart: fitted freely, they must give it back (within four standard
+ * errors or 5 %), else they do not move the motor alone (samples in contact among them) and the frictions are not
+ * split. Returns the reason, or "" when they agree.
+ */
+std::string disagreesWithKnownInertia(const BodiesFit& free_fit, double known)
+{
+  const double j = free_fit.p(0), se = free_fit.se(0);
+  if (!std::isfinite(j) || std::fabs(j - known) <= std::max(4.0 * se, 0.05 * known))
+  {
+    return "";
+  }
+  return "the stretches read apart do not move the motor as its stated inertia (" + formatNumber(known) +
+         " kg·m²) says — fitted freely they give " + formatNumber(j) + " ± " + formatNumber(se) +
+         " kg·m², so samples in contact are among them";
+}
+
 void bodiesFromIntegrals(const Recording& d, const IdentificationSettings& s, const std::vector<int>& phase,
                          const std::vector<double>& velocity, const std::vector<std::size_t>& stills, std::size_t trim,
                          const AngleMeasurement& motor, InitialEstimates* out)
@@ -216,9 +233,15 @@ void bodiesFromIntegrals(const Recording& d, const IdentificationSettings& s, co
   {
     unsplit = "the motor alone is not resolved (its inertia: " + why + ")";
   }
+  else if (std::isfinite(s.known_motor_inertia))
+  {
+    unsplit = disagreesWithKnownInertia(
+        fitBodies(a, c, rho, known_load, {NAN, s.known_load_inertia}, motor.noise, motor.resolution == 0.0),
+        s.known_motor_inertia);
+  }
   // (a known inertia splits the pair's: then only the frictions wait for the motor alone)
   const bool known_inertia[6] = {std::isfinite(s.known_motor_inertia), false, false,
-                                 std::isfinite(s.known_load_inertia), false, false};
+                                 std::isfinite(s.known_load_inertia),  false, false};
   const bool inertia_split = known_inertia[0] || known_inertia[3];
   if (!unsplit.empty())
   {
