@@ -194,6 +194,36 @@ TEST(MeasuredAngles, AJointReadThroughNoisyEncodersIsIdentifiedWithoutFlags)
   }
 }
 
+TEST(MeasuredAngles, AStatedMotorInertiaSplitsThePair)
+{
+  // The noisy recording above, where the flights are too short for the motor alone: a prior stating J_m (a datasheet's
+  // value) and not fitting it gives the load's inertia from the pair's sum, within 5 % and the truth within four
+  // standard errors. A stated J_m 30 % off is caught by the stretches apart, which then split no friction.
+  ServoParams p = dryFrictionJoint();
+  p.restitution = 0.5;
+  const Recording r = readThroughEncoders(recordJoint(p, 60.0, 1000.0, 1.0), 262144.0, 0.5);
+  IdentificationSettings s;
+  s.gear_ratio = p.gear_ratio;
+  IdentifyOptions options;
+  options.stated = std::set<std::string>{"gear_ratio", "motor_inertia"};
+  options.keys = std::set<std::string>{"backlash", "load_inertia", "motor_friction", "load_friction",
+                                       "motor_coulomb_friction", "load_coulomb_friction", "load_torque"};
+  ServoParams prior;
+  prior.gear_ratio = p.gear_ratio;
+  prior.motor_inertia = p.motor_inertia;
+  const JointIdentification id = identifyJoint(r, s, prior, options);
+  const IdentifiedParameter& load = parameter(id, "load_inertia");
+  ASSERT_TRUE(load.identifiable) << load.reason;
+  EXPECT_NEAR(load.value.value, p.load_inertia, 0.05 * p.load_inertia);
+  EXPECT_LE(std::fabs(load.value.value - p.load_inertia), 4.0 * load.value.standard_error);
+  EXPECT_EQ(id.model.motor_inertia, p.motor_inertia);  // (held, not estimated)
+  prior.motor_inertia = 1.3 * p.motor_inertia;
+  const JointIdentification wrong = identifyJoint(r, s, prior, options);
+  const IdentifiedParameter& friction = parameter(wrong, "motor_coulomb_friction");
+  EXPECT_FALSE(friction.identifiable);
+  EXPECT_NE(friction.reason.find("do not move the motor as its stated inertia"), std::string::npos) << friction.reason;
+}
+
 TEST(MeasuredAngles, TheBacklashsErrorIsTheScatterOfItsContactEpisodes)
 {
   // One motion read through 4096-count encoders (the backlash 196 counts) with one count of noise, four draws of the
