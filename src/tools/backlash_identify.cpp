@@ -22,6 +22,7 @@
 #include "backlash_servo/files/json_writer.h"
 #include "backlash_servo/files/run_program.h"
 #include "backlash_servo/files/safe_output.h"
+#include "backlash_servo/identification/experiment_design.h"
 #include "backlash_servo/identification/identification.h"
 #include "backlash_servo/identification/identify_joint.h"
 #include "backlash_servo/identification/replay_windows.h"
@@ -56,7 +57,8 @@ anything else optional (the encoders' resolutions need no drive); a parameter th
 reported not identifiable, with the reason.
 --output writes the prior with the estimates in place: a YAML every tool and the node accept.
 --experiment writes instead a command profile that informs the estimates (sines at three speeds, each reversal
-across the backlash), designed from the prior's gain, inertias and backlash, for the node or backlash_sim to run.
+across the backlash), designed from the prior's gain, inertias and backlash and checked on the prior's joint (its
+drive, load torque and friction simulated and read back), for the node or backlash_sim to run.
 )";
 
 struct Options
@@ -131,7 +133,8 @@ FlagParser identifyFlags()
        {"experiment", "", "write an excitation (a command profile) to --output instead of identifying"},
        {"duration", "S", "--experiment: its length [s] (default 60)"},
        {"travel", "RAD",
-        "--experiment: the command's largest excursion [rad] (default and least: 3 times the backlash)"},
+        "--experiment: the command's largest excursion [rad], at least 3 times the backlash (default: 3, 6, 12, 24, "
+        "48 times it tried on the prior's joint, the first that informs every estimate kept)"},
        {"dither", "RAD[,HZ]",
         "--experiment: a small fast sine on the command, amplitude RAD (a torque gain*RAD) at HZ (default: 20 times "
         "the "
@@ -145,7 +148,7 @@ void readExperiment(const FlagParser& parser, Options* options)
   Options& o = *options;
   o.prior_config = runConfigFrom(parser.keys());
   o.duration = parser.optionNumber("duration", 60.0);
-  o.travel = parser.optionNumber("travel", 3.0 * o.prior_config.params.backlash);
+  o.travel = parser.given("travel") ? parser.optionNumber("travel", 0.0) : 0.0;  // (0: grown until it informs)
   // The profile's positions are commands: within the command's range, as every tool reads them.
   const ParamRange& positions = param("command").range;
   if (parser.given("travel") && !positions.contains(o.travel))
@@ -466,8 +469,15 @@ void drawChart(const Recording& data, double rho, const ReplayWindows& windows, 
 /// --experiment: the excitation as a command profile (YAML segments) in `out`.
 void writeExperiment(const Options& o, std::ostream& out)
 {
-  const std::vector<ProfileSegment> segments =
-      identificationExperiment(o.prior_config.params, o.duration, o.travel, o.dither_amplitude, o.dither_frequency);
+  ExperimentRequest request;
+  request.duration = o.duration;
+  request.travel = o.travel;
+  request.dither_amplitude = o.dither_amplitude;
+  request.dither_frequency = o.dither_frequency;
+  std::cerr << "backlash_identify: checking the experiment on the prior's joint (its guesses, drive and load torque)\n";
+  const CheckedExperiment design = designExperiment(
+      o.prior_config, request, [](const std::string& line) { std::cerr << "backlash_identify:   " << line << "\n"; });
+  const std::vector<ProfileSegment>& segments = design.segments;
   out.precision(10);
   out << "# backlash_identify --experiment: " << o.duration << " s of command about its start, for a joint with "
       << "backlash " << o.prior_config.params.backlash << " rad and loop natural frequency "
@@ -475,6 +485,22 @@ void writeExperiment(const Options& o, std::ostream& out)
       << "# The slow sine: contact motion both ways (friction, load torque); the faster ones: accelerations (the "
          "inertias);\n# every reversal crosses the backlash (the motor alone while the teeth are apart). SI "
          "units: s, rad, Hz.\n";
+  out << "# Checked on the prior's joint (simulated, read back by the initial estimates): travel " << design.travel
+      << " rad, " << design.impacts << " impacts; ";
+  if (design.uninformed.empty())
+  {
+    out << "every body parameter given back within " << 100.0 * request.tolerance << " %.\n";
+  }
+  else
+  {
+    out << "not given back within " << 100.0 * request.tolerance << " %:\n";
+    for (const auto& [key, why] : design.uninformed)
+    {
+      out << "#   " << key << ": " << why << "\n";
+      std::cerr << "backlash_identify: warning: the experiment does not inform " << key << " on the prior's joint ("
+                << why << ")" << (o.travel > 0.0 ? "; a larger --travel may" : "") << "\n";
+    }
+  }
   if (o.dither_amplitude > 0.0)
   {
     out << "# A dither on every sine: " << o.dither_amplitude << " rad at " << o.dither_frequency << " Hz (a torque of "

@@ -322,6 +322,9 @@ TEST(IdentifyTool, ExperimentInformsTheEstimates)
   const std::string made = runCapture(
       IDENTIFY + " --experiment --config " + dir + "prior.yaml --output " + dir + "experiment.yaml 2>&1", &code);
   ASSERT_EQ(code, 0) << made;
+  // (checked on the prior's joint before it was written: the progress, and the finding in the profile's header)
+  EXPECT_NE(made.find("impacts, every key given back"), std::string::npos) << made;
+  EXPECT_NE(readFile(dir + "experiment.yaml").find("every body parameter given back within 2 %"), std::string::npos);
   runCapture(SIM + " --config " + dir + "truth.yaml --duration 60 --sample-rate 1000 --csv " + dir + "rec.csv", &code);
   ASSERT_EQ(code, 0);
   const std::string json =

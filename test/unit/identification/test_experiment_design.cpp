@@ -1,0 +1,65 @@
+// The identification experiment checked on the prior's own joint: the travel grows until the simulated run gives
+// every body parameter back, gravity included (the truth is the prior: the experiment is run on it).
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <string>
+
+#include "backlash_servo/identification/experiment_design.h"
+#include "backlash_servo/identification/identification.h"
+
+using namespace backlash_servo;
+
+namespace
+{
+/// A 100:1 robot joint under a 1 kHz PID on a 17-bit load encoder with a 0.5 N·m torque limit (SI).
+RunConfig robotJoint(double load_torque)
+{
+  RunConfig c;
+  ServoParams& p = c.params;
+  p.motor_inertia = 3e-5;
+  p.load_inertia = 0.12;
+  p.motor_friction = 5e-5;
+  p.load_friction = 0.05;
+  p.gear_ratio = 0.01;
+  p.backlash = 0.002618;
+  p.restitution = 0.3;
+  p.load_torque = load_torque;
+  p.motor_coulomb_friction = p.motor_static_friction = 0.005;
+  p.load_coulomb_friction = p.load_static_friction = 0.2;
+  p.gain = 15.0;
+  c.drive.control_law = "pid";
+  c.drive.integral_gain = 100.0;
+  c.drive.derivative_gain = 0.3;
+  c.drive.controller_rate = 1000.0;
+  c.drive.load_encoder_resolution = 131072.0;
+  c.drive.torque_limit = 0.5;
+  c.command = 0.0;
+  return c;
+}
+}  // namespace
+
+TEST(ExperimentDesign, TheTravelGrowsUntilTheRunGivesEveryParameterBack)
+{
+  // Under −3.5 N·m of gravity a travel of 3Δ never lifts the teeth off their flank (no impact: no backlash); the
+  // design doubles it until the run on the prior's joint gives every body parameter back within 2 %.
+  const RunConfig prior = robotJoint(-3.5);
+  ExperimentRequest request;
+  const CheckedExperiment design = designExperiment(prior, request);
+  ASSERT_GE(design.travels_tried.size(), 2u);
+  EXPECT_DOUBLE_EQ(design.travels_tried.front(), 3.0 * prior.params.backlash);
+  EXPECT_TRUE(design.uninformed.empty()) << design.uninformed.begin()->first << ": "
+                                         << design.uninformed.begin()->second;
+  EXPECT_GT(design.travel, 3.0 * prior.params.backlash);
+  EXPECT_GT(design.impacts, 100u);
+  for (const auto& [key, error] : design.errors)
+  {
+    EXPECT_LE(error, request.tolerance) << key;
+  }
+  // The first travel, checked alone, says what it leaves uninformed (the backlash: the teeth stayed on one flank).
+  request.travel = 3.0 * prior.params.backlash;
+  const CheckedExperiment small = designExperiment(prior, request);
+  EXPECT_EQ(small.impacts, 0u);
+  EXPECT_EQ(small.uninformed.count("backlash"), 1u);
+  EXPECT_EQ(small.travels_tried.size(), 1u);
+}
