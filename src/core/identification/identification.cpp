@@ -855,16 +855,24 @@ void bodiesFromDerivatives(const Recording& d, const IdentificationSettings& s, 
   out->load_friction = {(c.p(1) - a.p(1)) / (rho * rho), combined(c.se(1), a.se(1)) / (rho * rho)};
   out->load_coulomb_friction = {(c.p(2) - a.p(2)) / rho, combined(c.se(2), a.se(2)) / rho};
   out->load_torque = known_load ? Estimate{s.load_torque_fallback, NAN} : Estimate{-c.p(3) / rho, c.se(3) / rho};
-  // Measured angles: a level that came out below zero by more than two standard errors is not what the data say
-  // of it, but a sign that the model does not fit these samples (noise the filter left, a phase misread). (Exact
-  // angles: a level a hair below zero is zero, and the model takes it so.)
+  // A level that came out below zero by more than two standard errors is not what the data say of it, but a sign
+  // that the model does not fit these samples (noise the filter left, a phase misread, an excitation that does not
+  // tell the terms apart). Exact angles: a level a hair below zero is zero, and the model takes it so — a hair is a
+  // torque (the term at the motor shaft, at the motion's rms) under 0.5 % of the recorded torque's rms.
+  const auto rms = [](const std::vector<double>& v) {
+    return std::sqrt(std::inner_product(v.begin(), v.end(), v.begin(), 0.0) / static_cast<double>(v.size()));
+  };
+  const double u_rms = rms(d.motor_torque), w_rms = rms(wm), a_rms = rms(am);
+  const double at_motor[6] = {a_rms, rho * rho * a_rms, w_rms, rho * rho * w_rms, 1.0, rho};
+  int term = 0;
   for (const auto& [key, x] :
        {std::make_pair("motor_inertia", out->motor_inertia), std::make_pair("load_inertia", out->load_inertia),
         std::make_pair("motor_friction", out->motor_friction), std::make_pair("load_friction", out->load_friction),
         std::make_pair("motor_coulomb_friction", out->motor_coulomb_friction),
         std::make_pair("load_coulomb_friction", out->load_coulomb_friction)})
   {
-    if (measured && x.value < -2.0 * x.standard_error)
+    const bool hair = !measured && -x.value * at_motor[term++] < 0.005 * u_rms;
+    if (x.value < -2.0 * x.standard_error && !hair)
     {
       out->not_identifiable[key] = "it came out negative (" + formatNumber(x.value) + " ± " +
                                    formatNumber(x.standard_error) + "): these samples do not fit the model";

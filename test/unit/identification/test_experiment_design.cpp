@@ -3,10 +3,15 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <memory>
+#include <set>
 #include <string>
 
 #include "backlash_servo/identification/experiment_design.h"
 #include "backlash_servo/identification/identification.h"
+#include "backlash_servo/identification/identify_joint.h"
+#include "backlash_servo/simulation/simulator.h"
+#include "backlash_servo/simulation/step_response.h"
 
 using namespace backlash_servo;
 
@@ -62,4 +67,47 @@ TEST(ExperimentDesign, TheTravelGrowsUntilTheRunGivesEveryParameterBack)
   EXPECT_EQ(small.impacts, 0u);
   EXPECT_EQ(small.uninformed.count("backlash"), 1u);
   EXPECT_EQ(small.travels_tried.size(), 1u);
+}
+
+TEST(ExperimentDesign, AnExcitationThatDoesNotTellTheTermsApartWritesNoNegativeLevel)
+{
+  // The joint without gravity under a travel of 3Δ: the load hardly slides in contact, and the exact recording's
+  // equations give its viscous coefficient far below zero (a torque beyond 0.5 % of the recorded one). The check on the
+  // prior's joint names it among the keys the travel leaves uninformed; identification reports it not identifiable
+  // ("came out negative") and keeps the prior's value — no clamp to 0 written as an estimate.
+  RunConfig prior = robotJoint(0.0);
+  ExperimentRequest request;
+  request.travel = 3.0 * prior.params.backlash;
+  const CheckedExperiment design = designExperiment(prior, request);
+  EXPECT_EQ(design.uninformed.count("load_friction"), 1u);
+  prior.profile = std::make_shared<CommandProfile>(0.0, design.segments);
+  Simulator sim = makeSimulator(prior);
+  Recording r;
+  for (int k = 0; k <= 60000; ++k)
+  {
+    sim.advanceTo(1e-3 * k);
+    sim.takeSampleDue();
+    r.time.push_back(1e-3 * k);
+    r.motor_torque.push_back(sim.motorTorque());
+    r.motor_position.push_back(sim.state().motor_position);
+    r.load_position.push_back(sim.state().load_position);
+  }
+  IdentificationSettings s;
+  s.gear_ratio = prior.params.gear_ratio;
+  IdentifyOptions options;
+  options.stated = std::set<std::string>{"gear_ratio", "load_friction"};
+  options.joint = JointFitMode::Off;
+  const JointIdentification id = identifyJoint(r, s, prior.params, options);
+  bool reported = false;
+  for (const IdentifiedParameter& p : id.parameters)
+  {
+    if (p.key == "load_friction")
+    {
+      reported = true;
+      EXPECT_FALSE(p.identifiable) << p.initial.value << " +- " << p.initial.standard_error;
+      EXPECT_NE(p.reason.find("came out negative"), std::string::npos) << p.reason;
+    }
+  }
+  EXPECT_TRUE(reported);
+  EXPECT_EQ(id.model.load_friction, prior.params.load_friction);  // (the prior's, not a clamped estimate)
 }
