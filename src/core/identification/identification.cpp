@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <functional>
 #include <numeric>
 #include <tuple>
 #include <variant>
@@ -125,6 +126,26 @@ std::string pairSums(const BodiesFit& f, double rho, bool load_torque_given, dou
              : "";
 }
 
+/// How well parameter j of the fit (fitBodies' order) is known: an inertia to LOOSEST_INERTIA, a friction level to
+/// LOOSEST_LEVEL of itself, not held at 0 by the constraint; else the reason, in words ("" when it is).
+std::string looseness(const BodiesFit& f, int j)
+{
+  const double value = f.p(j), error = f.se(j);
+  const bool inertia = j % 3 == 0;
+  const char* unit = inertia ? " kg·m²" : j % 3 == 1 ? " N·m·s/rad" : " N·m";
+  if (f.at_bound[static_cast<std::size_t>(j)])
+  {
+    return "the fit holds it at 0 (it came out below): the recording does not tell it from zero";
+  }
+  const double loosest = inertia ? LOOSEST_INERTIA : LOOSEST_LEVEL;
+  if (!(error <= loosest * value))
+  {
+    return "the recording gives " + formatNumber(value) + " ± " + formatNumber(error) + unit + ", not within ±" +
+           formatNumber(100.0 * loosest) + " %";
+  }
+  return "";
+}
+
 /**
  * A stated motor inertia checks the stretches read apart: fitted freely, they must give it back (within four standard
  * errors or 5 %), else they do not move the motor alone (samples in contact among them) and the frictions are not
@@ -140,6 +161,31 @@ std::string disagreesWithKnownInertia(const BodiesFit& free_fit, double known)
   return "the stretches read apart do not move the motor as its stated inertia (" + formatNumber(known) +
          " kg·m²) says — fitted freely they give " + formatNumber(j) + " ± " + formatNumber(se) +
          " kg·m², so samples in contact are among them";
+}
+
+/**
+ * Why the motor alone does not split the pair's sums ("" when it does): no stretch apart or in contact, too few
+ * stretches apart, its inertia not resolved — or, with a known motor inertia `known` [kg·m²] (NaN: none), the
+ * stretches apart disagreeing with it (`free_fit`: the fit with J_m free).
+ */
+std::string whyNotSplit(const BodiesFit& f, double known, const std::function<BodiesFit()>& free_fit)
+{
+  if (f.apart_rows == 0 || f.contact_rows == 0)
+  {
+    return f.apart_rows == 0 ? "the teeth were never seen apart with the motor moving"
+                             : "the teeth were never seen in contact with the joint moving";
+  }
+  if (f.apart_pieces < FEWEST_PIECES)
+  {
+    return "the motor alone is seen in " + std::to_string(f.apart_pieces) + " stretches apart only (at least " +
+           std::to_string(FEWEST_PIECES) + " make its standard errors trustworthy)";
+  }
+  if (std::isfinite(known))
+  {
+    return disagreesWithKnownInertia(free_fit(), known);
+  }
+  const std::string why = looseness(f, 0);
+  return why.empty() ? "" : "the motor alone is not resolved (its inertia: " + why + ")";
 }
 
 void bodiesFromIntegrals(const Recording& d, const IdentificationSettings& s, const std::vector<int>& phase,
@@ -187,27 +233,6 @@ void bodiesFromIntegrals(const Recording& d, const IdentificationSettings& s, co
     *fields[j] = {f.p(j), f.se(j)};
   }
   out->load_torque_given = f.contact_rows > 0 && !both_ways;
-  // How well each is known: an inertia to LOOSEST_INERTIA, a friction level to LOOSEST_LEVEL of itself, not held
-  // at 0 by the constraint; else the reason, in words.
-  const auto loose = [&](int j) -> std::string {
-    const Estimate& x = *fields[j];
-    const bool inertia = j % 3 == 0;
-    const char* unit = inertia ? " kg·m²" : j % 3 == 1 ? " N·m·s/rad" : " N·m";
-    if (f.at_bound[static_cast<std::size_t>(j)])
-    {
-      return "the fit holds it at 0 (it came out below): the recording does not tell it from zero";
-    }
-    const double loosest = inertia ? LOOSEST_INERTIA : LOOSEST_LEVEL;
-    if (!(x.standard_error <= loosest * x.value))
-    {
-      return "the recording gives " + formatNumber(x.value) + " ± " + formatNumber(x.standard_error) + unit +
-             ", not within ±" + formatNumber(100.0 * loosest) + " %";
-    }
-    return "";
-  };
-  // The motor alone splits the pair's sums: without it (no stretch apart, or its inertia not resolved) only the sums
-  // are known, and are given in the reason.
-  std::string unsplit;
   if (f.swamped)
   {
     for (int j = 0; j < 7; ++j)
@@ -219,26 +244,9 @@ void bodiesFromIntegrals(const Recording& d, const IdentificationSettings& s, co
     }
     return;
   }
-  if (f.apart_rows == 0 || f.contact_rows == 0)
-  {
-    unsplit = f.apart_rows == 0 ? "the teeth were never seen apart with the motor moving"
-                                : "the teeth were never seen in contact with the joint moving";
-  }
-  else if (f.apart_pieces < FEWEST_PIECES)
-  {
-    unsplit = "the motor alone is seen in " + std::to_string(f.apart_pieces) + " stretches apart only (at least " +
-              std::to_string(FEWEST_PIECES) + " make its standard errors trustworthy)";
-  }
-  else if (const std::string why = loose(0); !why.empty() && !std::isfinite(s.known_motor_inertia))
-  {
-    unsplit = "the motor alone is not resolved (its inertia: " + why + ")";
-  }
-  else if (std::isfinite(s.known_motor_inertia))
-  {
-    unsplit = disagreesWithKnownInertia(
-        fitBodies(a, c, rho, known_load, {NAN, s.known_load_inertia}, motor.noise, motor.resolution == 0.0),
-        s.known_motor_inertia);
-  }
+  const std::string unsplit = whyNotSplit(f, s.known_motor_inertia, [&] {
+    return fitBodies(a, c, rho, known_load, {NAN, s.known_load_inertia}, motor.noise, motor.resolution == 0.0);
+  });
   // (a known inertia splits the pair's: then only the frictions wait for the motor alone)
   const bool known_inertia[6] = {std::isfinite(s.known_motor_inertia), false, false,
                                  std::isfinite(s.known_load_inertia),  false, false};
@@ -264,7 +272,7 @@ void bodiesFromIntegrals(const Recording& d, const IdentificationSettings& s, co
     }
     if (out->not_identifiable.count(keys[j]) == 0)
     {
-      if (const std::string why = loose(j); !why.empty())
+      if (const std::string why = looseness(f, j); !why.empty())
       {
         // (a loose value stays in the estimates, for the replays; it is reported as not identified)
         out->not_identifiable[keys[j]] = why;
