@@ -497,6 +497,14 @@ def test_identify_measured_angles_from_a_prior_of_what_is_known():
     assert e["backlash"] == pytest.approx(0.3, rel=0.05)
     for key in ("motor_inertia", "load_inertia", "motor_coulomb_friction", "load_coulomb_friction", "restitution"):
         assert math.isfinite(e[key]) or e["not_identifiable"][key], key
+    # A motor inertia the prior states and `keys` leaves out is known: it holds its column, the load's follows.
+    keys = ["backlash", "load_inertia", "motor_friction", "load_friction", "motor_coulomb_friction",
+            "load_coulomb_friction", "load_torque"]
+    known = core.identify(t, u, mq, lq, prior=dict(prior, motor_inertia=0.1), keys=keys, joint_fit="off")
+    assert "motor_inertia" not in known
+    assert known["load_inertia"] == pytest.approx(0.9, rel=0.05)
+    unknown = core.identify(t, u, mq, lq, prior=prior, keys=keys + ["motor_inertia"], joint_fit="off")
+    assert math.isnan(unknown["load_inertia"]) and "motor alone" in unknown["not_identifiable"]["load_inertia"]
     exact = core.identify(t, u, m, l, gear_ratio=1.0, joint_fit="off")
     assert exact["measurement"]["motor_noise"] == 0.0
     assert set(exact["not_identifiable"]) <= {"motor_static_friction", "load_static_friction"}  # (no rests here)
