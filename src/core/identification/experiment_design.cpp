@@ -14,6 +14,9 @@ namespace backlash_servo
 {
 namespace
 {
+/// The most samples the check simulates and holds (640 MB).
+constexpr double MAX_CHECKED_SAMPLES = 2e7;
+
 /// The travels tried when growing: 3Δ doubled up to the largest allowed (at most 48Δ unless given).
 std::vector<double> travelsToTry(const ServoParams& params, const ExperimentRequest& request)
 {
@@ -40,6 +43,11 @@ Recording simulatedRecording(const RunConfig& prior, const std::vector<ProfileSe
   config.profile = std::make_shared<CommandProfile>(prior.initial.load_position, segments);
   Simulator sim = makeSimulator(config);
   const double rate = prior.drive.sampled() ? prior.drive.controller_rate : 1000.0;
+  // (the check holds the run in memory: 32 bytes a sample)
+  requireThat(duration * rate <= MAX_CHECKED_SAMPLES, "duration",
+              formatNumber(duration) + " s at " + formatNumber(rate) + " Hz is " + formatNumber(duration * rate) +
+                  " samples; the check on the prior's joint simulates at most " + formatNumber(MAX_CHECKED_SAMPLES) +
+                  " (give a shorter --duration)");
   const auto n = static_cast<std::size_t>(std::floor(duration * rate)) + 1;
   Recording out;
   for (std::size_t k = 0; k < n; ++k)

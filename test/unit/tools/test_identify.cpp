@@ -346,6 +346,12 @@ TEST(IdentifyTool, ExperimentInformsTheEstimates)
   ASSERT_EQ(code, 0);
   const std::string long_profile = readFile(dir + "long.yaml");
   EXPECT_NE(long_profile.find("duration: 40}"), std::string::npos) << long_profile;
+  // An experiment too long for its check to hold in memory is refused before it is simulated, naming the flag.
+  const std::string huge = runCapture(
+      IDENTIFY + " --experiment --config " + dir + "prior.yaml --duration 1e6 --output " + dir + "huge.yaml 2>&1",
+      &code);
+  EXPECT_EQ(code, 2);
+  EXPECT_NE(huge.find("duration: 1000000 s at 1000 Hz is 1000000000 samples"), std::string::npos) << huge;
   const std::string stray =
       runCapture(IDENTIFY + " --data " + dir + "rec.csv --config " + dir + "prior.yaml --duration 5 2>&1", &code);
   EXPECT_EQ(code, 2);
