@@ -1042,7 +1042,8 @@ std::string dropUndrivenFlanks(const std::vector<bool>& driven, std::vector<int>
 /// The backlash and the zero offset from the gaps on each flank (their medians; with integrated equations, where the
 /// samples crowd), with what the recording cannot give said in `out->not_identifiable`.
 void locateBacklash(const Recording& d, const IdentificationSettings& s, const Phases& p,
-                    const std::vector<bool>& driven, const std::string& unreached, InitialEstimates* out)
+                    const std::vector<bool>& driven, std::size_t trim, const std::string& unreached,
+                    InitialEstimates* out)
 {
   const std::size_t n = p.gap.size();
   // The backlash between the flanks' typical gaps (medians over the samples in contact on each: quantisation and
@@ -1072,7 +1073,6 @@ void locateBacklash(const Recording& d, const IdentificationSettings& s, const P
     {
       // Where the samples on a flank crowd (its mode): the medians lean into the play, as the band also holds the
       // samples of short flights and small rebounds beside the flank.
-      const std::size_t trim = 2 * static_cast<std::size_t>(std::max(s.smoothing, 0)) + 2;
       const FlankSamples forward = flankSamples(d, p, driven, 1, trim), backward = flankSamples(d, p, driven, -1, trim);
       out->zero_offset = halfSampleMode(forward.gap);
       const double backward_mode = halfSampleMode(backward.gap);
@@ -1177,18 +1177,20 @@ InitialEstimates estimateInitial(const Recording& d, const IdentificationSetting
   Phases p = readPhases(d, s, h);
   InitialEstimates out;
   out.zero_offset = p.flanks.forward;
-  const std::vector<bool> driven = drivenMask(p.phase, 2 * r + 2);
+  // (a stretch's trimmed ends: where the filter reaches across a change of phase)
+  const std::size_t trim = 2 * r + 2;
+  const std::vector<bool> driven = drivenMask(p.phase, trim);
   const std::string unreached =
       measured && s.integrated && !p.edges.resolved ? dropUndrivenFlanks(driven, &p.phase) : std::string();
   if (measured && s.integrated)
   {
-    bodiesFromIntegrals(d, s, p.phase, p.motor.velocity, p.stills, 2 * r + 2, p.motor_seen, &out);
+    bodiesFromIntegrals(d, s, p.phase, p.motor.velocity, p.stills, trim, p.motor_seen, &out);
   }
   else
   {
     bodiesFromDerivatives(d, s, p, &out);
   }
-  locateBacklash(d, s, p, driven, unreached, &out);
+  locateBacklash(d, s, p, driven, trim, unreached, &out);
   staticFromRests(d, s, h, p, &out);
   // Nothing at all: say what the recording lacks (the backlash's reason and the bodies').
   const bool nothing = out.not_identifiable.count("backlash") && out.not_identifiable.count("motor_inertia") &&

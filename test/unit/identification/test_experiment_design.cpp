@@ -12,32 +12,22 @@
 #include "backlash_servo/identification/identify_joint.h"
 #include "backlash_servo/simulation/simulator.h"
 #include "backlash_servo/simulation/step_response.h"
+#include "test_helpers.h"
 
 using namespace backlash_servo;
 
 namespace
 {
-/// A 100:1 robot joint under a 1 kHz PID on a 17-bit load encoder with a 0.5 N·m torque limit (SI).
+/// The quantised robot joint of the tests (test_helpers.h) with dry friction on both bodies, integral action, a
+/// 0.5 N·m torque limit, K = 15 N·m/rad and the load torque [N·m] given, held at its start (SI).
 RunConfig robotJoint(double load_torque)
 {
-  RunConfig c;
+  RunConfig c = test_helpers::quantisedRobotJoint(15.0);
   ServoParams& p = c.params;
-  p.motor_inertia = 3e-5;
-  p.load_inertia = 0.12;
-  p.motor_friction = 5e-5;
-  p.load_friction = 0.05;
-  p.gear_ratio = 0.01;
-  p.backlash = 0.002618;
-  p.restitution = 0.3;
   p.load_torque = load_torque;
   p.motor_coulomb_friction = p.motor_static_friction = 0.005;
   p.load_coulomb_friction = p.load_static_friction = 0.2;
-  p.gain = 15.0;
-  c.drive.control_law = "pid";
   c.drive.integral_gain = 100.0;
-  c.drive.derivative_gain = 0.3;
-  c.drive.controller_rate = 1000.0;
-  c.drive.load_encoder_resolution = 131072.0;
   c.drive.torque_limit = 0.5;
   c.command = 0.0;
   return c;

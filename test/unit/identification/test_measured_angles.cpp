@@ -49,6 +49,21 @@ Recording readThroughEncoders(Recording r, double counts, double sigma_counts, u
   return r;
 }
 
+/// The dry-friction joint (rigid teeth, a load torque) with restitution 0.5.
+ServoParams bouncyJoint()
+{
+  ServoParams p = dryFrictionJoint();
+  p.restitution = 0.5;
+  return p;
+}
+
+/// bouncyJoint()'s exact 60 s recording at 1 kHz (recordJoint, amplitude 1), simulated once for the tests that read it.
+const Recording& bouncyRecording()
+{
+  static const Recording r = recordJoint(bouncyJoint(), 60.0, 1000.0, 1.0);
+  return r;
+}
+
 const IdentifiedParameter& parameter(const JointIdentification& id, const std::string& key)
 {
   for (const IdentifiedParameter& p : id.parameters)
@@ -150,9 +165,8 @@ TEST(MeasuredAngles, AJointReadThroughNoisyEncodersIsIdentifiedWithoutFlags)
   // noise: no smoothing, band or still speed given — all from the data. Every estimate it reports is within its
   // target and has the truth within four standard errors; what it does not report says why (this excitation's
   // flights are too short for the motor alone at this noise: the pair's sums are given instead).
-  ServoParams p = dryFrictionJoint();
-  p.restitution = 0.5;
-  const Recording r = readThroughEncoders(recordJoint(p, 60.0, 1000.0, 1.0), 262144.0, 0.5);
+  const ServoParams p = bouncyJoint();
+  const Recording r = readThroughEncoders(bouncyRecording(), 262144.0, 0.5);
   IdentificationSettings s;
   s.gear_ratio = p.gear_ratio;
   ServoParams prior;
@@ -199,15 +213,15 @@ TEST(MeasuredAngles, AStatedMotorInertiaSplitsThePair)
   // The noisy recording above, where the flights are too short for the motor alone: a prior stating J_m (a datasheet's
   // value) and not fitting it gives the load's inertia from the pair's sum, within 5 % and the truth within four
   // standard errors. A stated J_m 30 % off is caught by the stretches apart, which then split no friction.
-  ServoParams p = dryFrictionJoint();
-  p.restitution = 0.5;
-  const Recording r = readThroughEncoders(recordJoint(p, 60.0, 1000.0, 1.0), 262144.0, 0.5);
+  const ServoParams p = bouncyJoint();
+  const Recording r = readThroughEncoders(bouncyRecording(), 262144.0, 0.5);
   IdentificationSettings s;
   s.gear_ratio = p.gear_ratio;
   IdentifyOptions options;
   options.stated = std::set<std::string>{"gear_ratio", "motor_inertia"};
-  options.keys = std::set<std::string>{"backlash", "load_inertia", "motor_friction", "load_friction",
-                                       "motor_coulomb_friction", "load_coulomb_friction", "load_torque"};
+  options.keys = std::set<std::string>{"backlash",      "load_inertia",           "motor_friction",
+                                       "load_friction", "motor_coulomb_friction", "load_coulomb_friction",
+                                       "load_torque"};
   ServoParams prior;
   prior.gear_ratio = p.gear_ratio;
   prior.motor_inertia = p.motor_inertia;
@@ -230,9 +244,8 @@ TEST(MeasuredAngles, TheBacklashsErrorIsTheScatterOfItsContactEpisodes)
   // noise: each backlash is reported with a standard error from the scatter of the episodes of contact on the two
   // flanks — informative (within 0.35 % of the backlash, where one sample's scatter on each flank claims 0.41 %) and
   // honest (the truth within four of them).
-  ServoParams p = dryFrictionJoint();
-  p.restitution = 0.5;
-  const Recording exact = recordJoint(p, 60.0, 1000.0, 1.0);
+  const ServoParams p = bouncyJoint();
+  const Recording& exact = bouncyRecording();
   IdentificationSettings s;
   s.gear_ratio = p.gear_ratio;
   ServoParams prior;
