@@ -649,6 +649,15 @@ py::list compare(const std::string& path, int jobs)
       d[py::str(names[names.size() - values.size() + i])] =
           std::isnan(values[i]) ? py::object(py::none()) : py::object(py::float_(values[i]));
     }
+    d["run_on"] = py::none();
+    if (!m.run_on_verdict.empty())
+    {
+      py::dict on;
+      on["verdict"] = m.run_on_verdict;
+      on["time"] = m.run_on_time;
+      on["stopped_by"] = m.run_on_stopped_by;
+      d["run_on"] = on;
+    }
     out.append(d);
   }
   return out;

@@ -2,12 +2,14 @@
 
 #include <algorithm>
 #include <atomic>
+#include <chrono>
 #include <cmath>
 #include <mutex>
 #include <thread>
 
 #include "backlash_servo/plant/plant.h"
 #include "backlash_servo/simulation/simulator.h"
+#include "backlash_servo/simulation/steady_state.h"
 #include "backlash_servo/simulation/tracking_metrics.h"
 
 namespace backlash_servo
@@ -33,6 +35,46 @@ struct ImpactTally : EventSink
     }
   }
 };
+
+/// Thrown out of a run-on that used up its wall-time budget.
+struct OutOfTime
+{
+  double simulated;  ///< where the run-on stood [s]
+};
+
+/// m's run-on figures: config run from its start until its verdict settles, without samples; capped by max_duration
+/// when set, else by the shorter of a run until settled's own cap and RUN_ON_FACTOR × the duration; stopped after
+/// `budget` of wall time.
+void runOn(const RunConfig& config, std::chrono::duration<double> budget, CompareMetrics* m)
+{
+  RunConfig on = config;
+  on.duration = 0.0;
+  if (!(config.max_duration > 0.0))
+  {
+    on.max_duration = std::min(steadyBudget(config.params, config.drive), RUN_ON_FACTOR * config.duration);
+  }
+  on.tracking = false;
+  const auto start = std::chrono::steady_clock::now();
+  const double span = on.max_duration > 0.0 ? on.max_duration : steadyBudget(config.params, config.drive);
+  try
+  {
+    const RunSummary r = runResponse(on, nullptr, 0.0, nullptr, [&](double done) {
+      if (std::chrono::steady_clock::now() - start > budget)
+      {
+        throw OutOfTime{done * span};
+      }
+    });
+    m->run_on_verdict = toString(r.status.verdict);
+    m->run_on_time = r.simulated;
+    m->run_on_stopped_by = r.stopped_by;
+  }
+  catch (const OutOfTime& stop)
+  {
+    m->run_on_verdict = "undecided";
+    m->run_on_time = stop.simulated;
+    m->run_on_stopped_by = "wall_time";
+  }
+}
 }  // namespace
 
 const std::vector<std::string>& metricNames()
@@ -66,6 +108,7 @@ CompareMetrics runStrategy(const std::string& name, const RunConfig& config, dou
   const long chart_stride = std::max(1L, (n + kMaxChartSamples) / kMaxChartSamples);
   long count = 0;
   ImpactTally tally;
+  const auto start = std::chrono::steady_clock::now();
   const RunSummary r = runResponse(config, &tally, dt, [&](const Simulator& sim) {
     const State& s = sim.state();
     const double ref = profile.at(s.time);
@@ -106,6 +149,11 @@ CompareMetrics runStrategy(const std::string& name, const RunConfig& config, dou
   m.impacts_per_second = (compliant ? tally.engagements : tally.impacts) / simulated;
   m.impact_energy_per_second = (compliant ? r.energy.mesh_loss : tally.energy) / simulated;
   m.settling_band = band;
+  if (r.status.verdict == Verdict::Undecided && r.stopped_by == "duration")
+  {
+    const std::chrono::duration<double> own = std::chrono::steady_clock::now() - start;
+    runOn(config, std::max(RUN_ON_WALL_FACTOR * own, std::chrono::duration<double>(RUN_ON_LEAST_WALL)), &m);
+  }
   return m;
 }
 

@@ -34,7 +34,8 @@ compensators) and prints a table of metrics (SI units): verdict, limit-cycle err
 pattern and the load's peak-to-peak amplitude [rad] in the cycle (the JSON and CSV also its centre), steady error
 [rad], settling time [s] into the settling band (`settling_band`, default the joint's resolution), RMS tracking error
 over the run and after the transient, max tracking error [rad], overshoot [rad], impacts per second, impact energy
-per second [W], peak and RMS motor torque [N·m].
+per second [W], peak and RMS motor torque [N·m]. A strategy the duration leaves undecided is run on until its
+verdict settles (capped by max_duration): a note says what it becomes and the duration that would decide it.
   --json       print {"strategies": [{...}, ...]} instead of the table (null where a metric does not apply)
   --csv FILE   also write the table as CSV
   --png FILE   also draw trajectories, tracking errors and one bar chart per metric (matplotlib)
@@ -275,6 +276,21 @@ std::vector<CompareStrategy> planRuns(const CompareConfig& config, const Vary& v
   return runs;
 }
 
+/// The run-on of an undecided run (CompareMetrics::run_on_verdict) as the JSON field "run_on", null for any other.
+void writeRunOn(JsonWriter& j, const CompareMetrics& m)
+{
+  if (m.run_on_verdict.empty())
+  {
+    j.null("run_on");
+    return;
+  }
+  j.beginObject("run_on")
+      .field("verdict", m.run_on_verdict)
+      .field("time", m.run_on_time)
+      .field("stopped_by", m.run_on_stopped_by)
+      .endObject();
+}
+
 /// --json with --vary: each strategy's points, its metrics at each value.
 void writeVariedJson(std::ostream& out, const std::vector<CompareStrategy>& runs, const std::vector<double>& run_values,
                      const std::vector<CompareMetrics>& metrics, const Vary& vary)
@@ -296,6 +312,7 @@ void writeVariedJson(std::ostream& out, const std::vector<CompareStrategy>& runs
     {
       j.field(names[k].c_str(), values[k]);
     }
+    writeRunOn(j, metrics[i]);
     j.endObject();
     if ((i + 1) % vary.steps.size() == 0)
     {
@@ -319,9 +336,60 @@ void writeJson(std::ostream& out, const std::vector<CompareMetrics>& metrics)
     {
       j.field(names[k].c_str(), values[k]);  // NaN is written as null
     }
+    writeRunOn(j, m);
     j.endObject();
   }
   j.endArray().endObject();
+}
+
+/// v with four significant digits.
+std::string shortNumber(double v)
+{
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%.4g", v);
+  return buf;
+}
+
+/// What ended a run-on that did not settle, and what would look further.
+std::string runOnEnd(const CompareMetrics& m, const RunConfig& config)
+{
+  if (m.run_on_stopped_by == "max_duration")
+  {
+    return config.max_duration > 0.0 ? "the run-on's cap ended it (max_duration)"
+                                     : "the run-on's cap ended it (set max_duration to look further)";
+  }
+  if (m.run_on_stopped_by == "wall_time")
+  {
+    return "its wall-time budget ended it (" + shortNumber(RUN_ON_WALL_FACTOR) +
+           " × the strategy's own run: the motion there costs more to simulate; a longer duration looks further)";
+  }
+  return "it ended: " + m.run_on_stopped_by;
+}
+
+/// Under the table, a line for each run the duration left undecided: what it became when run on, and when.
+void writeRunOnNotes(std::ostream& out, const std::vector<CompareStrategy>& runs, const std::vector<double>& run_values,
+                     const std::vector<CompareMetrics>& metrics, const Vary& vary, bool varied)
+{
+  for (std::size_t i = 0; i < runs.size(); ++i)
+  {
+    const CompareMetrics& m = metrics[i];
+    if (m.run_on_verdict.empty())
+    {
+      continue;
+    }
+    out << "note: '" << m.name << "'" << (varied ? " at " + vary.key + " = " + formatNumber(run_values[i]) : "")
+        << " is undecided within duration " << shortNumber(runs[i].config.duration) << " s; run on until settled, ";
+    if (m.run_on_stopped_by != "settled")
+    {
+      out << "it is " << (m.run_on_verdict == "undecided" ? "still " : "") << m.run_on_verdict << " at "
+          << shortNumber(m.run_on_time) << " s, where " << runOnEnd(m, runs[i].config) << "\n";
+    }
+    else
+    {
+      out << "it is " << m.run_on_verdict << " at " << shortNumber(m.run_on_time) << " s (a duration of "
+          << formatNumber(std::ceil(m.run_on_time)) << " s decides it here)\n";
+    }
+  }
 }
 
 /// The text table: a row a run, the units under the header.
@@ -350,6 +418,7 @@ void writeTable(std::ostream& out, const std::vector<CompareStrategy>& runs, con
                   cell(m.peak_torque).c_str(), cell(m.rms_torque).c_str());
     out << buf;
   }
+  writeRunOnNotes(out, runs, run_values, metrics, vary, varied);
 }
 
 /// The outputs, checked and their temporaries created before any strategy runs.

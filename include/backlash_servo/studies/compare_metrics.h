@@ -35,6 +35,14 @@ struct CompareMetrics
   double peak_torque = NAN;               ///< max |T_m| [N·m]
   double rms_torque = NAN;                ///< √(mean T_m²) [N·m]
   double settling_band = NAN;             ///< the band of settling_time and steady_rms_error [rad] (not a column)
+  /// An `undecided` run, run on from the start until its verdict settles (capped by max_duration when set, else at
+  /// most RUN_ON_FACTOR × the duration): the verdict it reaches and the simulated time it needed [s] — how long
+  /// `duration` must be to decide it. Empty / NaN otherwise.
+  std::string run_on_verdict;
+  double run_on_time = NAN;
+  /// why the run-on ended: RunSummary::stopped_by ("settled", "max_duration", …) or "wall_time" (its budget of wall
+  /// time, RUN_ON_WALL_FACTOR; run_on_time is then where it stood)
+  std::string run_on_stopped_by;
 };
 
 /// One sampled trajectory point of a run (for charts).
@@ -43,11 +51,18 @@ struct CompareSample
   double time, reference, load_position, motor_position, motor_torque;
 };
 
+/// How much longer than its duration an undecided run is run on, unless max_duration says how far [-].
+constexpr double RUN_ON_FACTOR = 10.0;
+/// A run-on stops after this many times the wall time of the strategy's own run, and at least RUN_ON_LEAST_WALL [s].
+constexpr double RUN_ON_WALL_FACTOR = 20.0;
+constexpr double RUN_ON_LEAST_WALL = 2.0;
+
 /// Most trajectory points kept per strategy for the chart (every k-th sample beyond that; the metrics use all).
 constexpr long kMaxChartSamples = 20000;
 
 /// Runs one strategy (its config carries the profile and duration), sampling at sample_rate [Hz]; the chart's
-/// trajectory (if asked for) holds at most kMaxChartSamples + 1 of the samples, evenly strided.
+/// trajectory (if asked for) holds at most kMaxChartSamples + 1 of the samples, evenly strided. A run the duration
+/// leaves undecided is run again until settled (the metrics stay those of the duration; see run_on_verdict).
 CompareMetrics runStrategy(const std::string& name, const RunConfig& config, double sample_rate,
                            std::vector<CompareSample>* trajectory);
 

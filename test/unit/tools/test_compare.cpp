@@ -214,3 +214,70 @@ TEST(Compare, VaryRerunsEveryStrategyOverTheRange)
     EXPECT_EQ(std::count(err.begin(), err.end(), '\n'), 1) << bad << ": " << err;
   }
 }
+
+// A strategy the duration leaves undecided is run on until settled: its verdict and the time it needed equal
+// backlash_sim's run until settled (with the same cap), a duration of that time (rounded up) decides it in the table,
+// the metrics stay those of the given duration, and a strategy decided within the duration has no run-on. Without
+// max_duration the run-on stops at ten times the duration and says so.
+TEST(Compare, AnUndecidedStrategySaysHowLongItWouldNeed)
+{
+  const std::string joint =
+      "backlash: 0.05\nrestitution: 0.5\nload_coulomb_friction: 0.02\nload_static_friction: 0.05\n"
+      "controller_rate: 1000\ncommand: 1.0\nsample_rate: 1000\nmax_duration: 2000\n"
+      "strategies:\n"
+      "  - {name: P, control_law: proportional}\n"
+      "  - {name: PID, control_law: pid, integral_gain: 0.5, derivative_gain: 0.3}\n";
+  const std::string yaml = "/tmp/backlash_compare_run_on.yaml";
+  std::ofstream(yaml) << joint << "duration: 2\n";
+  int code = 0;
+  const std::string json = runCapture(COMPARE + " --config " + yaml + " --json", &code);
+  ASSERT_EQ(code, 0) << json;
+  const std::vector<std::string> flags = {"--control-law proportional",
+                                          "--control-law pid --integral-gain 0.5 --derivative-gain 0.3"};
+  const std::string sim = SIM +
+                          " --backlash 0.05 --restitution 0.5 --load-coulomb-friction 0.02 --load-static-friction 0.05 "
+                          "--controller-rate 1000 --json ";
+  std::size_t pos = 0;
+  int undecided = 0;
+  for (const std::string& f : flags)
+  {
+    pos = json.find("{\"name\"", pos + 1);
+    ASSERT_NE(pos, std::string::npos);
+    const std::size_t run_on = json.find("\"run_on\":", pos);
+    const std::string entry = json.substr(pos, json.find('}', json.find('}', run_on) + 1) - pos + 1);
+    ASSERT_EQ(jsonText(entry, "verdict"), "undecided") << entry;  // 2 s decides neither
+    ++undecided;
+    const std::string settled = runCapture(sim + "--duration 0 --max-duration 2000 " + f);
+    const std::string on = entry.substr(entry.find("\"run_on\":"));
+    EXPECT_EQ(jsonText(on, "verdict"), jsonText(settled, "verdict")) << entry;
+    EXPECT_EQ(jsonText(on, "stopped_by"), "settled") << entry;
+    EXPECT_DOUBLE_EQ(jsonNumber(on, "time"), jsonNumber(settled, "simulated_time")) << entry << settled;
+    // The metrics are the 2 s run's: its RMS tracking error equals backlash_sim's over 2 s.
+    const std::string two = runCapture(sim + "--duration 2 " + f);
+    EXPECT_NEAR(jsonNumber(entry, "rms_error"), jsonNumber(two, "rms_error"), 1e-9) << entry;
+    // Given the time it asked for, the table decides it.
+    char duration[32];
+    std::snprintf(duration, sizeof duration, "%g", std::ceil(jsonNumber(on, "time")));
+    std::ofstream(yaml) << joint << "duration: " << duration << "\n";
+    const std::string longer = runCapture(COMPARE + " --config " + yaml + " --json", &code);
+    ASSERT_EQ(code, 0) << longer;
+    const std::size_t at =
+        longer.find("{\"name\":\"" + std::string(f.find("pid") != std::string::npos ? "PID" : "P") + "\"");
+    ASSERT_NE(at, std::string::npos) << longer;
+    EXPECT_EQ(jsonText(longer.substr(at), "verdict"), jsonText(settled, "verdict")) << longer;
+    EXPECT_NE(longer.find("\"run_on\":null", at), std::string::npos) << longer;
+  }
+  EXPECT_EQ(undecided, 2);
+  // The text table says it under the table, with the duration that decides it; without max_duration the PID's
+  // limit cycle (found at ~1000 s above) is beyond the run-on's cap of 10 × 2 s.
+  std::ofstream(yaml) << std::regex_replace(joint, std::regex("max_duration: 2000\n"), "") << "duration: 2\n";
+  const std::string table = runCapture(COMPARE + " --config " + yaml, &code);
+  EXPECT_NE(table.find("note: 'P' is undecided within duration 2 s; run on until settled, it is converged at "),
+            std::string::npos)
+      << table;
+  EXPECT_NE(table.find("decides it here)"), std::string::npos) << table;
+  EXPECT_NE(table.find("note: 'PID' is undecided within duration 2 s; run on until settled, it is still undecided at "
+                       "20 s, where the run-on's cap ended it (set max_duration to look further)"),
+            std::string::npos)
+      << table;
+}
