@@ -113,6 +113,9 @@ class ServoNode : public EventSink
   /// Judges afresh from now on (a new command, trajectory, reset, mode or a live change of a plant or drive
   /// parameter); `reason` says what restarted it and /limit_cycle is published at once with verdict undecided.
   void restartMonitor(const std::string& reason = "");
+  /// Whether a maximum of the load (its state there) leaves a converged verdict: above the quiet band of where the
+  /// load was judged to rest. The node then withdraws the verdict, says so and judges afresh.
+  bool leftConvergence(const State& at_maximum) const;
   void reanchorWallClock();
   ros::Time stamp(double sim_time) const { return origin_ + ros::Duration(sim_time); }
   /// Publishes an output and writes it to the node's bag (record_bag) under its resolved topic name.

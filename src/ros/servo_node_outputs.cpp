@@ -213,12 +213,30 @@ void ServoNode::onEvent(const Event& e)
     {
       return;  // not above the command
     }
+    if (leftConvergence(e.state))
+    {
+      const std::string why = "the converged verdict of t = " + formatNumber(converged_at_) +
+                              " s is withdrawn: the load moved again (maximum at t = " + formatNumber(e.state.time) +
+                              " s, " + formatNumber(e.state.load_position - monitor_->equilibrium()) +
+                              " rad beyond where it rested)";
+      ROS_WARN("backlash_servo_node: %s", why.c_str());
+      restartMonitor(why);  // published at once: undecided, with the reason
+      return;
+    }
     publishLimitCycle(e.state.time, true);
   }
   else if (e.type == EventType::Minimum)
   {
     monitor_->onEvent(e);  // the cycle's lowest points (peak to peak, centre)
   }
+}
+
+bool ServoNode::leftConvergence(const State& at_maximum) const
+{
+  // A maximum above the quiet band after a converged verdict: the load moved again (an external controller's
+  // integrator, a breakaway, a push) — the verdict no longer describes the joint.
+  return announced_ == Verdict::Converged && monitor_->status().verdict == Verdict::Converged && fault_.empty() &&
+         at_maximum.load_position - monitor_->equilibrium() > ResponseMonitor::QUIET_ERROR_FRACTION * monitor_->scale();
 }
 
 TrackingFigures ServoNode::trackingNow() const
