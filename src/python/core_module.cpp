@@ -44,6 +44,7 @@
 #include "backlash_servo/simulation/simulator.h"
 #include "backlash_servo/simulation/step_response.h"
 #include "backlash_servo/studies/compare_metrics.h"
+#include "backlash_servo/studies/monte_carlo.h"
 #include "backlash_servo/studies/run_report.h"
 #include "backlash_servo/studies/sweep_csv.h"
 #include "backlash_servo/studies/sweep_grid.h"
@@ -550,14 +551,24 @@ py::dict identify(const std::vector<double>& time, const std::vector<double>& mo
   return d;
 }
 
-/// The sweep's CSV as `backlash_sweep` writes it (header and rows, in grid order).
-std::string sweepCsv(const py::object& settings, bool thesis, int jobs, double max_duration, bool tracking)
+/// A tolerance study's size and seed (SweepGrid::setMonteCarlo); n = 0: a grid sweep.
+struct Batch
+{
+  std::size_t n = 0;
+  std::uint64_t seed = 1;
+};
+
+/// The points' CSV as `backlash_sweep` writes it (header and rows, in point order): a grid, or a batch of draws.
+std::string pointsCsv(const KeyValues& kv, bool thesis, int jobs, double max_duration, bool tracking,
+                      const Batch& batch)
 {
   SweepGrid grid = thesis ? SweepGrid::thesis() : SweepGrid();
   grid.setTracking(tracking);
-  InlineYaml inline_yaml;  // every point reads the profile: kept for the whole sweep
-  const KeyValues kv = keyValuesOf(settings, &inline_yaml);
   addSweepKeys(kv, &grid);
+  if (batch.n > 0)
+  {
+    grid.setMonteCarlo(batch.n, batch.seed);
+  }
   if (kv.has("max_duration"))
   {
     max_duration = kv.number("max_duration");
@@ -582,10 +593,16 @@ std::string sweepCsv(const py::object& settings, bool thesis, int jobs, double m
   return csv;
 }
 
-/// The sweep as columns: numbers as float arrays, the verdict as a list of text.
-py::dict sweep(const py::object& settings, bool thesis, int jobs, double max_duration, bool tracking)
+/// The sweep's CSV as `backlash_sweep` writes it (header and rows, in grid order).
+std::string sweepCsv(const py::object& settings, bool thesis, int jobs, double max_duration, bool tracking)
 {
-  const std::string csv = sweepCsv(settings, thesis, jobs, max_duration, tracking);
+  InlineYaml inline_yaml;  // every point reads the profile: kept for the whole sweep
+  return pointsCsv(keyValuesOf(settings, &inline_yaml), thesis, jobs, max_duration, tracking, Batch());
+}
+
+/// A sweep CSV as columns: numbers as float arrays, the verdict as a list of text.
+py::dict columnsOf(const std::string& csv)
+{
   std::istringstream in(csv);
   std::string line;
   std::getline(in, line);
@@ -615,6 +632,93 @@ py::dict sweep(const py::object& settings, bool thesis, int jobs, double max_dur
     }
     out[py::str(names[i])] = column;
   }
+  return out;
+}
+
+/// The sweep as columns.
+py::dict sweep(const py::object& settings, bool thesis, int jobs, double max_duration, bool tracking)
+{
+  return columnsOf(sweepCsv(settings, thesis, jobs, max_duration, tracking));
+}
+
+/// A distribution from Python: "uniform(a,b)" as text, or a tuple ("uniform", a, b).
+std::string distributionText(const std::string& key, const py::handle& v)
+{
+  if (py::isinstance<py::str>(v))
+  {
+    return v.cast<std::string>();
+  }
+  if (py::isinstance<py::tuple>(v) && py::len(v) == 3 && py::isinstance<py::str>(v.cast<py::tuple>()[0]))
+  {
+    const py::tuple t = v.cast<py::tuple>();
+    return t[0].cast<std::string>() + "(" + formatNumber(numberOf(key, t[1])) + "," +
+           formatNumber(numberOf(key, t[2])) + ")";
+  }
+  throw ConfigError(key +
+                    ": a distribution is 'uniform(a,b)', 'normal(mean,sigma)', 'lognormal(mu,sigma)' or a "
+                    "tuple such as ('uniform', a, b)");
+}
+
+/// A tolerance study (`backlash_sweep --monte-carlo N --seed S`): the columns, and the summary under "summary".
+py::dict monteCarlo(const py::object& config, const py::dict& draws, long long n, long long seed, int jobs,
+                    double max_duration)
+{
+  if (n < 1 || n > 1000000000LL)
+  {
+    throw ConfigError("n: a whole number of joints in [1, 1e9] (got " + std::to_string(n) + ")");
+  }
+  if (seed < 0)
+  {
+    throw ConfigError("seed: a whole number >= 0 (got " + std::to_string(seed) + ")");
+  }
+  InlineYaml inline_yaml;
+  KeyValues kv = keyValuesOf(config, &inline_yaml);
+  std::vector<std::string> drawn;
+  for (const auto& item : draws)
+  {
+    const std::string key = py::str(item.first);
+    if (kv.has(key))
+    {
+      throw ConfigError(key + " is both in config and drawn");
+    }
+    const std::string text = distributionText(key, item.second);
+    parseDistribution(key, text);  // (a malformed one named here, with its key)
+    kv.set(key, text);
+    drawn.push_back(key);
+  }
+  if (drawn.empty())
+  {
+    throw ConfigError("draws: give at least one key a distribution, e.g. {'backlash': 'uniform(0.002,0.006)'}");
+  }
+  Batch batch;
+  batch.n = static_cast<std::size_t>(n);
+  batch.seed = static_cast<std::uint64_t>(seed);
+  const std::string csv = pointsCsv(kv, false, jobs, max_duration, false, batch);
+  py::dict out = columnsOf(csv);
+  const MonteCarloSummary s = summarizeBatch(csv, drawn);
+  py::dict summary, shares;
+  for (const MonteCarloSummary::Share& v : s.verdicts)
+  {
+    shares[py::str(v.verdict)] = py::make_tuple(v.fraction, v.low, v.high);
+  }
+  summary["verdicts"] = shares;
+  summary["quantile_levels"] = s.quantile_levels;
+  summary["peak_to_peak_quantiles"] = s.peak_to_peak_quantiles;
+  summary["period_quantiles"] = s.period_quantiles;
+  py::list influences;
+  for (const KeyInfluence& k : s.influences)
+  {
+    py::dict d;
+    d["key"] = k.key;
+    d["rank_correlation"] = k.rank_correlation;
+    d["threshold"] = k.threshold;
+    d["hunts_above"] = k.above;
+    d["accuracy"] = k.accuracy;
+    influences.append(d);
+  }
+  summary["influences"] = influences;
+  summary["text"] = summaryText(s);
+  out["summary"] = summary;
   return out;
 }
 
@@ -842,6 +946,13 @@ void bindStudies(py::module_& m)
   m.def("sweep_csv", &sweepCsv, py::arg("settings") = py::none(), py::kw_only(), py::arg("thesis") = false,
         py::arg("jobs") = 0, py::arg("max_duration") = 0.0, py::arg("tracking") = false,
         "The same sweep as `backlash_sweep`'s CSV text.");
+  m.def("monte_carlo", &monteCarlo, py::arg("config"), py::arg("draws"), py::arg("n"), py::arg("seed") = 1,
+        py::kw_only(), py::arg("jobs") = 0, py::arg("max_duration") = 0.0,
+        "A tolerance study as `backlash_sweep --monte-carlo N --seed S` runs it: config's keys shared, each key of "
+        "`draws` drawn per joint from its distribution ('uniform(a,b)', 'normal(mean,sigma)', 'lognormal(mu,sigma)' "
+        "or a tuple ('uniform', a, b); truncated to the key's range). Returns the CSV's columns (numpy arrays; "
+        "`verdict` a list) and `summary`: verdict fractions with 95 % intervals, quantiles of the hunting joints' "
+        "peak to peak [rad] and period [s], each drawn key's rank correlation with hunting and best split, the text.");
   m.def("compare", &compare, py::arg("path"), py::kw_only(), py::arg("jobs") = 0,
         "The compensation workbench (`backlash_compare --config PATH`): one dict of metrics per strategy.");
 }

@@ -164,6 +164,20 @@ void SweepGrid::requireOneForm()
   }
 }
 
+void SweepGrid::addDraw(const Distribution& d)
+{
+  setAxis(d.key, {d.kind == Distribution::Kind::Uniform ? d.a : drawValue(d, seed_, 0)});
+  draws_.erase(std::remove_if(draws_.begin(), draws_.end(), [&](const Distribution& o) { return o.key == d.key; }),
+               draws_.end());
+  draws_.push_back(d);
+}
+
+void SweepGrid::setMonteCarlo(std::size_t n, std::uint64_t seed)
+{
+  draw_count_ = n;
+  seed_ = seed;
+}
+
 std::string SweepGrid::header() const
 {
   std::string h;
@@ -176,6 +190,10 @@ std::string SweepGrid::header() const
 
 std::size_t SweepGrid::size() const
 {
+  if (!draws_.empty() || draw_count_ > 0)
+  {
+    return monteCarloSize();
+  }
   double n = 1.0;
   for (const SweepAxis& a : axes_)
   {
@@ -190,11 +208,47 @@ std::size_t SweepGrid::size() const
   return static_cast<std::size_t>(n);
 }
 
+std::size_t SweepGrid::monteCarloSize() const
+{
+  if (draws_.empty())
+  {
+    throw ConfigError("--monte-carlo needs a key drawn from a distribution, e.g. --backlash 'uniform(0.002,0.006)'");
+  }
+  if (draw_count_ == 0)
+  {
+    throw ConfigError(flagName(draws_.front().key) + " is drawn from " + draws_.front().text() +
+                      ": say how many joints with --monte-carlo N");
+  }
+  for (const SweepAxis& a : axes_)
+  {
+    if (a.values.size() > 1)
+    {
+      throw ConfigError("--monte-carlo draws every joint: give " + flagName(a.key) +
+                        " one value or a distribution, not " + std::to_string(a.values.size()) + " values");
+    }
+  }
+  if (static_cast<double>(draw_count_) > MAX_POINTS)
+  {
+    throw std::length_error("--monte-carlo: more than the 1e9 points a sweep accepts");
+  }
+  return draw_count_;
+}
+
 SweepPoint SweepGrid::point(std::size_t index) const
 {
   SweepPoint p;
   p.grid = this;
   p.values.resize(axes_.size());
+  if (!draws_.empty())
+  {
+    for (std::size_t i = 0; i < axes_.size(); ++i)
+    {
+      const auto d =
+          std::find_if(draws_.begin(), draws_.end(), [&](const Distribution& x) { return x.key == axes_[i].key; });
+      p.values[i] = d != draws_.end() ? drawValue(*d, seed_, index) : axes_[i].values[0];
+    }
+    return p;
+  }
   for (std::size_t i = axes_.size(); i-- > 0;)
   {
     const std::vector<double>& v = axes_[i].values;
@@ -249,9 +303,18 @@ std::string SweepGrid::fingerprint() const
   {
     mixText(signature_);
   }
+  for (const Distribution& d : draws_)
+  {
+    mixText(d.key + "=" + d.text());
+  }
+  if (!draws_.empty())
+  {
+    mix(draw_count_);
+    mix(seed_);
+  }
   char buf[20];
   std::snprintf(buf, sizeof buf, "%016llx", static_cast<unsigned long long>(h));
-  return buf;
+  return draws_.empty() ? std::string(buf) : std::string(buf) + DRAWN_SUFFIX;
 }
 
 const std::string& resultColumns()
@@ -346,8 +409,12 @@ void addSweepKeys(const KeyValues& keys, SweepGrid* grid)
       continue;
     }
     const bool chart_axis = std::find(chart_axes.begin(), chart_axes.end(), key) != chart_axes.end();
-    if (spec.type == ParamType::Real && spec.section != ParamSection::Run &&
-        (chart_axis || isAxisText(keys.text(key, ""))))
+    if (spec.type == ParamType::Real && isDistributionText(keys.text(key, "")))
+    {
+      grid->addDraw(parseDistribution(key, keys.text(key, "")));
+    }
+    else if (spec.type == ParamType::Real && spec.section != ParamSection::Run &&
+             (chart_axis || isAxisText(keys.text(key, ""))))
     {
       grid->setAxis(key, parseAxis(key, keys.text(key, "")));
     }

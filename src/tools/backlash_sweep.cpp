@@ -5,17 +5,21 @@
 
 #include <algorithm>
 #include <atomic>
+#include <cmath>
 #include <csignal>
 #include <cstdio>
 #include <fstream>
 #include <iostream>
 #include <memory>
+#include <sstream>
 #include <thread>
 
 #include "backlash_servo/config/flag_parser.h"
 #include "backlash_servo/config/safe_input.h"
 #include "backlash_servo/files/part_files.h"
 #include "backlash_servo/files/safe_output.h"
+#include "backlash_servo/model/param_table.h"
+#include "backlash_servo/studies/monte_carlo.h"
 #include "backlash_servo/studies/sweep_csv.h"
 #include "backlash_servo/studies/sweep_grid.h"
 #include "backlash_servo/studies/sweep_runner.h"
@@ -53,6 +57,56 @@ struct SweepOptions
   std::size_t shard_k = 1, shard_n = 1;  // --shard K/N
 };
 
+/// --vary KEY=DIST[;KEY=DIST] and --monte-carlo N --seed S into the grid (a key given its own flag as well is
+/// refused, naming both).
+void addVaried(const FlagParser& parser, SweepGrid* grid)
+{
+  if (parser.given("vary"))
+  {
+    std::stringstream items(parser.option("vary"));
+    std::string item;
+    while (std::getline(items, item, ';'))
+    {
+      const std::size_t eq = item.find('=');
+      const std::string key = item.substr(0, eq);
+      if (eq == std::string::npos || !isDistributionText(item.substr(eq + 1)))
+      {
+        throw ConfigError(
+            "--vary: expected KEY=uniform(a,b), KEY=normal(mean,sigma) or KEY=lognormal(mu,sigma) (got '" + item +
+            "')");
+      }
+      if (parser.keys().has(key))
+      {
+        throw ConfigError("--vary draws " + key + ", which is also given as " + flagName(key) + " (or in --config)");
+      }
+      if (findParam(key) == nullptr)
+      {
+        throw ConfigError("--vary: unknown key '" + key + "'" + didYouMean(key));
+      }
+      grid->addDraw(parseDistribution(key, item.substr(eq + 1)));
+    }
+  }
+  if (parser.given("monte_carlo") || !grid->draws().empty())
+  {
+    const double n = parser.optionNumber("monte_carlo", 0.0), seed = parser.optionNumber("seed", 1.0);
+    if (parser.given("monte_carlo") && !(n >= 1.0 && n <= 1e9 && n == std::floor(n)))
+    {
+      throw ConfigError("--monte-carlo: a whole number of joints in [1, 1e9] (got " + parser.option("monte_carlo") +
+                        ")");
+    }
+    if (!(seed >= 0.0 && seed < 0x1p64 && seed == std::floor(seed)))
+    {
+      throw ConfigError("--seed: a whole number in [0, 2^64) (got " + parser.option("seed") + ")");
+    }
+    grid->setMonteCarlo(static_cast<std::size_t>(n), static_cast<std::uint64_t>(seed));
+    grid->size();  // its checks: draws without N, N without draws, other axes with several values
+  }
+  else if (parser.given("seed"))
+  {
+    throw ConfigError("--seed needs --monte-carlo N");
+  }
+}
+
 SweepOptions parse(int argc, char** argv)
 {
   std::vector<std::string> keys =
@@ -74,7 +128,14 @@ SweepOptions parse(int argc, char** argv)
         "also the tracking figures of every point: settling_band, settling_time, steady_rms_error (a sampled replay "
         "of each run, as backlash_sim reports them; about twice the time)"},
        {"shard", "K/N", "compute only part K of N (contiguous points by grid index) into a part file for --merge"},
-       {"merge", "PART...", "join part files (any order) into --output: exactly the CSV of an unsharded run"}});
+       {"merge", "PART...", "join part files (any order) into --output: exactly the CSV of an unsharded run"},
+       {"monte_carlo", "N",
+        "a tolerance study: N joints whose drawn keys (KEY 'uniform(a,b)', 'normal(mean,sigma)', "
+        "'lognormal(mu,sigma)', truncated to the key's range) are drawn anew for each; every other key one value; "
+        "a summary follows the CSV"},
+       {"vary", "KEY=DIST[;KEY=DIST]",
+        "keys drawn for --monte-carlo, as an alternative to giving KEY its distribution"},
+       {"seed", "S", "the draws' seed (default 1): joint i of seed S is the same in every shard, resume and rerun"}});
   parser.parse(argc, argv);
   SweepOptions o;
   if (parser.given("preset"))
@@ -87,6 +148,7 @@ SweepOptions parse(int argc, char** argv)
   }
   const KeyValues& kv = parser.keys();
   addSweepKeys(kv, &o.grid);
+  addVaried(parser, &o.grid);
   o.output = parser.option("output", "-");
   o.inputs = {parser.option("config"), kv.text("profile", "")};
   o.jobs = static_cast<int>(parser.optionNumber("jobs", std::max(1u, std::thread::hardware_concurrency())));
@@ -280,9 +342,11 @@ int main(int argc, char** argv)
     *out << shard.headerLine(o.grid) << "\n";
   }
   csv.header(o.grid);
+  std::string batch = o.grid.draws().empty() ? "" : o.grid.header() + "\n";  // a tolerance study's rows, summarised
   for (const std::string& line : kept)
   {
     csv.row(line);
+    batch += line + "\n";
   }
   bool write_failed = !csv.flush();
   std::size_t written = write_failed ? 0 : kept.size();
@@ -302,6 +366,7 @@ int main(int argc, char** argv)
             return;  // rows computed before the pool saw the stop
           }
           csv.row(row);
+          batch += row + "\n";
           if (!csv.flush())
           {
             write_failed = true;
@@ -321,5 +386,16 @@ int main(int argc, char** argv)
   end.last = last;
   end.kept = kept.size();
   end.elapsed = progress.elapsed();
-  return endRun(o, shard, file.get(), run, end);
+  const int code = endRun(o, shard, file.get(), run, end);
+  if (code == 0 && shard.whole() && !o.grid.draws().empty())
+  {
+    std::vector<std::string> drawn;
+    for (const Distribution& d : o.grid.draws())
+    {
+      drawn.push_back(d.key);
+    }
+    // The summary goes beside the CSV: after it on standard output when the CSV is a file, else to stderr.
+    (o.output == "-" ? std::cerr : std::cout) << summaryText(summarizeBatch(batch, drawn)) << std::flush;
+  }
+  return code;
 }

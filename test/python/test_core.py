@@ -160,6 +160,30 @@ def test_sweep_equals_backlash_sweep(tmp_path):
     assert "steady_rms_error" in core.sweep(settings, tracking=True)
 
 
+def test_monte_carlo_equals_backlash_sweep():
+    """A tolerance study from Python: the CSV's columns of `backlash_sweep --monte-carlo`, draws given as text or
+    tuples, and the summary's fractions counted from the verdicts."""
+    code, out, err = tool("backlash_sweep", "--monte-carlo", 16, "--seed", 4, "--backlash", "uniform(0.05,0.5)",
+                          "--zeta", "normal(0.35,0.1)")
+    assert code == 0, err
+    got = core.monte_carlo({}, {"backlash": ("uniform", 0.05, 0.5), "zeta": "normal(0.35,0.1)"}, 16, seed=4)
+    rows = list(csv.DictReader(io.StringIO(out)))
+    assert got["verdict"] == [r["verdict"] for r in rows]
+    for key in ("zeta", "backlash", "limit_cycle_error", "period"):
+        expected = np.array([float(r[key]) if r[key] else np.nan for r in rows])
+        np.testing.assert_array_equal(got[key], expected)
+    summary = got["summary"]
+    for verdict, (fraction, low, high) in summary["verdicts"].items():
+        assert fraction == got["verdict"].count(verdict) / 16
+        assert low <= fraction <= high
+    assert summary["text"] in err
+    assert {k["key"] for k in summary["influences"]} == {"zeta", "backlash"}
+    with pytest.raises(core.ConfigError, match="backlash"):
+        core.monte_carlo({}, {"backlash": "uniform(-1,1)"}, 4)
+    with pytest.raises(core.ConfigError, match="draws"):
+        core.monte_carlo({"zeta": 0.3}, {}, 4)
+
+
 def test_numpy_values_and_paths_are_taken_as_the_numbers_and_files_they_are(tmp_path):
     # numpy scalars and 1-D arrays and a pathlib.Path are what Python users pass: the same results as plain values.
     import pathlib

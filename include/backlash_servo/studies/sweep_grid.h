@@ -8,6 +8,7 @@
 
 #include "backlash_servo/config/key_values.h"
 #include "backlash_servo/simulation/step_response.h"
+#include "backlash_servo/studies/monte_carlo.h"
 
 namespace backlash_servo
 {
@@ -19,6 +20,9 @@ struct SweepAxis
 };
 
 class SweepGrid;
+
+/// The end of a tolerance study's fingerprint: its rows are draws, not a grid's enumeration.
+constexpr const char* DRAWN_SUFFIX = "-drawn";
 
 /// One point of the grid: a value per axis.
 struct SweepPoint
@@ -65,11 +69,17 @@ class SweepGrid
   /// Builds every point's run before any work: throws (one clear message) on the first that is not valid.
   void requireValidPoints() const;
   /// A fingerprint of the axes' keys and values, the fixed settings and the run signature (FNV-1a, hex): parts of
-  /// one grid agree.
+  /// one grid agree. A tolerance study's also holds its draws, N and seed, and ends in DRAWN_SUFFIX.
   std::string fingerprint() const;
   /// What else changes a row besides the settings (the run-length cap, a profile file's content), as text; hashed
   /// into the fingerprint when not empty.
   void setRunSignature(const std::string& signature) { signature_ = signature; }
+  /// A key drawn from a distribution (a tolerance study): its axis column holds each point's draw.
+  void addDraw(const Distribution& d);
+  /// The tolerance study's size: `n` points, drawn under `seed` (drawValue; point i's joint is the same in any shard
+  /// or rerun). With draws, size() refuses a study without n, and any other axis with more than one value.
+  void setMonteCarlo(std::size_t n, std::uint64_t seed);
+  const std::vector<Distribution>& draws() const { return draws_; }
   /// Rows also carry the tracking figures (trackingColumns(); a sampled replay of each run, replayTracking).
   void setTracking(bool on) { tracking_ = on; }
   bool tracking() const { return tracking_; }
@@ -77,12 +87,17 @@ class SweepGrid
  private:
   /// Refuses a mix of the two forms; the physical form drops the chart axes left at their defaults.
   void requireOneForm();
+  /// size() of a tolerance study (setMonteCarlo), after its checks.
+  std::size_t monteCarloSize() const;
 
   std::vector<SweepAxis> axes_;
   std::vector<bool> given_;  // axis set explicitly (a chart axis left at its default is dropped by the physical form)
   KeyValues fixed_;
   std::string signature_;
   bool tracking_ = false;
+  std::vector<Distribution> draws_;
+  std::size_t draw_count_ = 0;  // --monte-carlo N (0: none)
+  std::uint64_t seed_ = 1;
 };
 
 /// The result columns of every sweep CSV, after the axis columns (the last columns of SweepGrid::header()).
@@ -101,7 +116,7 @@ std::vector<double> parseAxis(const std::string& flag, const std::string& text);
  */
 void addSweepKeys(const KeyValues& keys, SweepGrid* grid);
 
-/// Whether `text` is an axis (a list or a range) rather than one value.
+/// Whether `text` is an axis (a list or a range) rather than one value (a distribution is neither).
 bool isAxisText(const std::string& text);
 
 }  // namespace backlash_servo

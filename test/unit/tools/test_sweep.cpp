@@ -11,6 +11,7 @@
 #include <csignal>
 #include <cstdio>
 #include <fstream>
+#include <map>
 #include <regex>
 #include <sstream>
 #include <string>
@@ -339,4 +340,79 @@ TEST(SweepShards, PartsInAnyOrderMergeIntoExactlyTheUnshardedCsv)
   runCapture(sweep + " --shard 2/4 --resume --output " + dir + "shard_torn.csv 2>/dev/null", &code);
   EXPECT_EQ(code, 0);
   EXPECT_EQ(readFile(dir + "shard_torn.csv"), part);
+}
+
+// --monte-carlo: N joints with the drawn keys as columns (each row equals backlash_sim at its drawn values), the
+// same draws for the same seed in any shard (parts merge into the unsharded CSV) and other draws for another seed;
+// the summary's verdict counts are the CSV's; bad requests are one line, exit 2.
+TEST(Sweep, MonteCarloDrawsABatchAndSummarisesIt)
+{
+  const std::string dir = "/tmp/backlash_sweep_mc/";
+  std::system(("rm -rf " + dir + " && mkdir -p " + dir).c_str());
+  const std::string study =
+      SWEEP + " --monte-carlo 24 --seed 5 --backlash 'uniform(0.05,0.5)' --vary 'zeta=normal(0.35,0.1)'";
+  int code = 0;
+  const std::string summary = runCapture(study + " --output " + dir + "all.csv 2>/dev/null", &code);
+  ASSERT_EQ(code, 0) << summary;
+  const std::string csv = readFile(dir + "all.csv");
+  EXPECT_EQ(csv.rfind("zeta,inertia_ratio,friction_ratio,restitution,backlash,verdict,", 0), 0u) << csv;
+  const auto rows = csvRows(csv);
+  ASSERT_EQ(rows.size(), 24u);
+  std::map<std::string, int> verdicts;
+  std::vector<std::string> distinct;
+  for (std::size_t i = 0; i < rows.size(); ++i)
+  {
+    const auto& r = rows[i];
+    const double backlash = std::stod(r[4]);
+    EXPECT_TRUE(backlash >= 0.05 && backlash <= 0.5) << r[4];
+    ++verdicts[r[5]];
+    distinct.push_back(r[0] + r[4]);
+    if (i < 4)  // a few rows against single runs at the drawn values
+    {
+      const std::string json =
+          runCapture(SIM + " --json --zeta " + r[0] + " --inertia-ratio " + r[1] + " --friction-ratio " + r[2] +
+                     " --restitution " + r[3] + " --backlash " + r[4]);
+      EXPECT_EQ(r[5], jsonText(json, "verdict")) << r[0] << " " << r[4];
+    }
+  }
+  std::sort(distinct.begin(), distinct.end());
+  EXPECT_EQ(std::unique(distinct.begin(), distinct.end()), distinct.end());  // every joint drawn anew
+  EXPECT_NE(summary.find("batch of 24 joints"), std::string::npos) << summary;
+  for (const auto& v : verdicts)
+  {
+    EXPECT_TRUE(std::regex_search(summary, std::regex("  " + v.first + " +" + std::to_string(v.second) + " ")))
+        << v.first << " " << v.second << "\n"
+        << summary;
+  }
+  EXPECT_NE(summary.find("what separates hunting from settling"), std::string::npos) << summary;
+  // Shards of the same study merge into exactly its CSV; another seed draws other joints.
+  for (int k = 1; k <= 3; ++k)
+  {
+    runCapture(
+        study + " --shard " + std::to_string(k) + "/3 --output " + dir + "p" + std::to_string(k) + ".csv 2>/dev/null",
+        &code);
+    ASSERT_EQ(code, 0);
+  }
+  runCapture(SWEEP + " --merge " + dir + "p3.csv " + dir + "p1.csv " + dir + "p2.csv --output " + dir +
+                 "merged.csv 2>/dev/null",
+             &code);
+  ASSERT_EQ(code, 0);
+  EXPECT_EQ(readFile(dir + "merged.csv"), csv);
+  const std::string other = runCapture(std::regex_replace(study, std::regex("--seed 5"), "--seed 6") + " 2>/dev/null");
+  EXPECT_NE(csvRows(other)[0][4], rows[0][4]);
+  for (const char* bad :
+       {" --monte-carlo 10", " --backlash 'uniform(0.1,0.2)'",
+        " --monte-carlo 10 --backlash "
+        "'uniform(0.1,0.2)' --zeta 0.2,0.4",
+        " --monte-carlo 10 --backlash 'uniform(-1,1)'", " --monte-carlo 10 --vary 'backlsh=uniform(0.1,0.2)'",
+        " --monte-carlo 0 --backlash "
+        "'uniform(0.1,0.2)'",
+        " --seed 3",
+        " --monte-carlo 10 --backlash 0.2 --vary "
+        "'backlash=uniform(0.1,0.2)'"})
+  {
+    const std::string err = runCapture(SWEEP + bad + " 2>&1 >/dev/null", &code);
+    EXPECT_EQ(code, 2) << bad << ": " << err;
+    EXPECT_EQ(std::count(err.begin(), err.end(), '\n'), 1) << bad << ": " << err;
+  }
 }
