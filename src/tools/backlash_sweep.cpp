@@ -17,6 +17,7 @@
 #include "backlash_servo/config/flag_parser.h"
 #include "backlash_servo/config/safe_input.h"
 #include "backlash_servo/files/part_files.h"
+#include "backlash_servo/files/run_program.h"
 #include "backlash_servo/files/safe_output.h"
 #include "backlash_servo/model/param_table.h"
 #include "backlash_servo/studies/monte_carlo.h"
@@ -55,6 +56,7 @@ struct SweepOptions
   bool resume = false;
   double max_duration = 0.0;
   std::size_t shard_k = 1, shard_n = 1;  // --shard K/N
+  std::string png;                       ///< --png FILE (a tolerance study's chart), "" = none
 };
 
 /// --vary KEY=DIST[;KEY=DIST] and --monte-carlo N --seed S into the grid (a key given its own flag as well is
@@ -135,7 +137,10 @@ SweepOptions parse(int argc, char** argv)
         "a summary follows the CSV"},
        {"vary", "KEY=DIST[;KEY=DIST]",
         "keys drawn for --monte-carlo, as an alternative to giving KEY its distribution"},
-       {"seed", "S", "the draws' seed (default 1): joint i of seed S is the same in every shard, resume and rerun"}});
+       {"seed", "S", "the draws' seed (default 1): joint i of seed S is the same in every shard, resume and rerun"},
+       {"png", "FILE",
+        "with --monte-carlo: also chart the study (verdict shares, cycle sizes and periods, the best-separating keys); "
+        "FILE.svg beside it"}});
   parser.parse(argc, argv);
   SweepOptions o;
   if (parser.given("preset"))
@@ -157,6 +162,15 @@ SweepOptions parse(int argc, char** argv)
     throw ConfigError("--jobs must be in [1, 4096]");
   }
   o.resume = parser.given("resume");
+  o.png = parser.option("png");
+  if (!o.png.empty() && o.grid.draws().empty())
+  {
+    throw ConfigError("--png charts a tolerance study: it needs --monte-carlo N and a drawn key");
+  }
+  if (!o.png.empty() && (o.png.size() < 5 || o.png.compare(o.png.size() - 4, 4, ".png") != 0))
+  {
+    throw ConfigError("--png: '" + o.png + "' must end in .png (the SVG is written beside it)");
+  }
   o.grid.setTracking(parser.given("tracking"));
   if (parser.given("shard"))
   {
@@ -169,6 +183,10 @@ SweepOptions parse(int argc, char** argv)
     }
     o.shard_k = k;
     o.shard_n = n;
+    if (!o.png.empty())
+    {
+      throw ConfigError("--png charts a whole study: run it without --shard (or chart the merged CSV's study again)");
+    }
   }
   o.max_duration = parser.keys().number("max_duration", 0.0);
   param("max_duration").check(o.max_duration);
@@ -198,6 +216,60 @@ SweepOptions parse(int argc, char** argv)
 }
 
 }  // namespace
+
+/// --png: the chart's outputs, checked and created before the study runs, and its script and data directory.
+struct BatchChart
+{
+  explicit BatchChart(const SweepOptions& o)
+      : png("--png", o.png, o.inputs),
+        svg("--png", o.png.substr(0, o.png.size() - 4) + ".svg", o.inputs),
+        script(helperBesideExecutable("batch_chart.py")),
+        dir("backlash_sweep")
+  {
+    if (o.output != "-" && (o.output == o.png || o.output == svg.path() || sameFile(o.output, o.png)))
+    {
+      throw ConfigError("--png: '" + o.png + "' (or its SVG) is also the --output file");
+    }
+  }
+  SafeOutput png, svg;
+  std::string script;
+  TemporaryDirectory dir;
+};
+
+/// The study's rows and summary into the chart's directory, drawn there by its script, then moved into place.
+void drawBatchChart(BatchChart& chart, const std::string& batch, const MonteCarloSummary& s)
+{
+  {
+    std::ofstream(chart.dir.file("batch.csv")) << batch;
+    std::ofstream v(chart.dir.file("verdicts.csv"));
+    v << "verdict,count,fraction,low,high\n";
+    v.precision(10);
+    for (const MonteCarloSummary::Share& share : s.verdicts)
+    {
+      v << share.verdict << "," << share.count << "," << share.fraction << "," << share.low << "," << share.high
+        << "\n";
+    }
+    std::ofstream k(chart.dir.file("influences.csv"));
+    k << "key,unit,rank_correlation,threshold,above,accuracy\n";
+    k.precision(10);
+    for (const KeyInfluence& i : s.influences)
+    {
+      k << i.key << "," << param(i.key).unit << "," << csvNumber(i.rank_correlation) << "," << csvNumber(i.threshold)
+        << "," << i.above << "," << i.accuracy << "\n";
+    }
+    if (!v.flush() || !k.flush())
+    {
+      throw std::runtime_error("--png: writing the chart data to '" + chart.dir.path() + "' failed (disk full?)");
+    }
+  }
+  const std::string png_tmp = chart.dir.file("chart.png"), svg_tmp = chart.dir.file("chart.svg");
+  runChartScript(chart.script, chart.dir.path(), png_tmp);
+  for (auto* to : {&chart.png, &chart.svg})
+  {
+    copyFileInto(to == &chart.png ? png_tmp : svg_tmp, *to);
+    std::cerr << "backlash_sweep: wrote " << to->path() << "\n";
+  }
+}
 
 /// `--merge PART... --output FILE`: the parts of a sharded sweep joined into the unsharded CSV.
 int merge(int argc, char** argv)
@@ -336,6 +408,19 @@ int main(int argc, char** argv)
     }
     out = &file->stream();
   }
+  std::unique_ptr<BatchChart> chart;
+  if (!o.png.empty())
+  {
+    try
+    {
+      chart = std::make_unique<BatchChart>(o);
+    }
+    catch (const std::exception& e)
+    {
+      std::cerr << "backlash_sweep: error: " << e.what() << "\n";
+      return 2;
+    }
+  }
   SweepCsvWriter csv(*out);
   if (!shard.whole())
   {
@@ -394,8 +479,21 @@ int main(int argc, char** argv)
     {
       drawn.push_back(d.key);
     }
+    const MonteCarloSummary summary = summarizeBatch(batch, drawn);
     // The summary goes beside the CSV: after it on standard output when the CSV is a file, else to stderr.
-    (o.output == "-" ? std::cerr : std::cout) << summaryText(summarizeBatch(batch, drawn)) << std::flush;
+    (o.output == "-" ? std::cerr : std::cout) << summaryText(summary) << std::flush;
+    if (chart)
+    {
+      try
+      {
+        drawBatchChart(*chart, batch, summary);
+      }
+      catch (const std::exception& e)
+      {
+        std::cerr << "backlash_sweep: error: " << e.what() << "\n";
+        return 1;
+      }
+    }
   }
   return code;
 }

@@ -398,6 +398,12 @@ TEST(Sweep, MonteCarloDrawsABatchAndSummarisesIt)
              &code);
   ASSERT_EQ(code, 0);
   EXPECT_EQ(readFile(dir + "merged.csv"), csv);
+  // --png: the chart beside the CSV (a PNG and its SVG), drawn from the same study.
+  runCapture(study + " --output " + dir + "charted.csv --png " + dir + "batch.png >/dev/null 2>&1", &code);
+  ASSERT_EQ(code, 0);
+  EXPECT_EQ(readFile(dir + "charted.csv"), csv);
+  EXPECT_EQ(readFile(dir + "batch.png").substr(1, 3), "PNG");
+  EXPECT_NE(readFile(dir + "batch.svg").find("<svg"), std::string::npos);
   const std::string other = runCapture(std::regex_replace(study, std::regex("--seed 5"), "--seed 6") + " 2>/dev/null");
   EXPECT_NE(csvRows(other)[0][4], rows[0][4]);
   for (const char* bad :
@@ -409,7 +415,10 @@ TEST(Sweep, MonteCarloDrawsABatchAndSummarisesIt)
         "'uniform(0.1,0.2)'",
         " --seed 3",
         " --monte-carlo 10 --backlash 0.2 --vary "
-        "'backlash=uniform(0.1,0.2)'"})
+        "'backlash=uniform(0.1,0.2)'",
+        " --png /tmp/backlash_sweep_mc/x.png",
+        " --monte-carlo 10 --backlash 'uniform(0.1,0.2)' --shard 1/2 --png /tmp/backlash_sweep_mc/x.png",
+        " --monte-carlo 10 --backlash 'uniform(0.1,0.2)' --png /tmp/backlash_sweep_mc/x.jpg"})
   {
     const std::string err = runCapture(SWEEP + bad + " 2>&1 >/dev/null", &code);
     EXPECT_EQ(code, 2) << bad << ": " << err;
