@@ -413,6 +413,11 @@ int main(int argc, char** argv)
   {
     try
     {
+      if (total > MAX_SUMMARY_JOINTS)
+      {
+        throw ConfigError("--png: a study of more than " + std::to_string(MAX_SUMMARY_JOINTS) +
+                          " joints is not charted (its summary is not kept)");
+      }
       chart = std::make_unique<BatchChart>(o);
     }
     catch (const std::exception& e)
@@ -427,11 +432,13 @@ int main(int argc, char** argv)
     *out << shard.headerLine(o.grid) << "\n";
   }
   csv.header(o.grid);
-  std::string batch = o.grid.draws().empty() ? "" : o.grid.header() + "\n";  // a tolerance study's rows, summarised
+  // A tolerance study's rows, kept for its summary (a whole study of at most MAX_SUMMARY_JOINTS).
+  const bool summarised = !o.grid.draws().empty() && shard.whole() && total <= MAX_SUMMARY_JOINTS;
+  std::string batch = summarised ? o.grid.header() + "\n" : "";
   for (const std::string& line : kept)
   {
     csv.row(line);
-    batch += line + "\n";
+    batch += summarised ? line + "\n" : "";
   }
   bool write_failed = !csv.flush();
   std::size_t written = write_failed ? 0 : kept.size();
@@ -451,7 +458,7 @@ int main(int argc, char** argv)
             return;  // rows computed before the pool saw the stop
           }
           csv.row(row);
-          batch += row + "\n";
+          batch += summarised ? row + "\n" : "";
           if (!csv.flush())
           {
             write_failed = true;
@@ -472,7 +479,12 @@ int main(int argc, char** argv)
   end.kept = kept.size();
   end.elapsed = progress.elapsed();
   const int code = endRun(o, shard, file.get(), run, end);
-  if (code == 0 && shard.whole() && !o.grid.draws().empty())
+  if (code == 0 && shard.whole() && !o.grid.draws().empty() && !summarised)
+  {
+    std::cerr << "backlash_sweep: no summary of more than " << MAX_SUMMARY_JOINTS
+              << " joints (the CSV holds every draw and verdict)\n";
+  }
+  if (code == 0 && summarised)
   {
     std::vector<std::string> drawn;
     for (const Distribution& d : o.grid.draws())

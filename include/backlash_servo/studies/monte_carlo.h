@@ -72,6 +72,9 @@ struct MonteCarloSummary
   std::vector<KeyInfluence> influences;        ///< one per drawn key, strongest |rank correlation| first
 };
 
+/// The largest study whose rows are kept for its summary (about 200 bytes a row).
+constexpr std::size_t MAX_SUMMARY_JOINTS = 1000000;
+
 /// The summary of a sweep CSV's rows (header included) whose columns `drawn` were drawn.
 MonteCarloSummary summarizeBatch(const std::string& csv, const std::vector<std::string>& drawn);
 /// The summary as text, a line per figure.

@@ -398,6 +398,11 @@ TEST(Sweep, MonteCarloDrawsABatchAndSummarisesIt)
              &code);
   ASSERT_EQ(code, 0);
   EXPECT_EQ(readFile(dir + "merged.csv"), csv);
+  // --resume of a torn study finishes it with the same draws.
+  std::ofstream(dir + "torn.csv") << csv.substr(0, csv.size() / 2);
+  runCapture(study + " --resume --output " + dir + "torn.csv >/dev/null 2>&1", &code);
+  ASSERT_EQ(code, 0);
+  EXPECT_EQ(readFile(dir + "torn.csv"), csv);
   // --png: the chart beside the CSV (a PNG and its SVG), drawn from the same study.
   runCapture(study + " --output " + dir + "charted.csv --png " + dir + "batch.png >/dev/null 2>&1", &code);
   ASSERT_EQ(code, 0);
