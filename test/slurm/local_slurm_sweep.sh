@@ -101,4 +101,20 @@ if ! cmp -s "$dir/frf_merged.csv" "$dir/frf_single.csv"; then
   exit 1
 fi
 echo "local_slurm_sweep: 3-part backlash_frf array job + merge job = the unsharded CSV ($(($(wc -l < "$dir/frf_single.csv") - 1)) rows)"
+# A tolerance study (keys drawn per joint, the distributions' parentheses through sbatch's command line).
+mc_args=(--monte-carlo 12 --seed 3 --backlash 'uniform(0.05,0.5)' --zeta 'normal(0.35,0.1)')
+ids=$(bash "$here/scripts/slurm_sweep.sh" -n 3 -o "$dir/mc_merged.csv" -d "$dir/mc_parts" -- "${mc_args[@]}" | tail -1)
+merge_id=${ids#* }
+while squeue -h -j "$merge_id" 2>/dev/null | grep -q .; do
+  [ $SECONDS -lt $deadline ] || { echo "local_slurm_sweep: timed out waiting for merge job $merge_id" >&2; squeue >&2; exit 1; }
+  sleep 0.5
+done
+"$sweep" "${mc_args[@]}" --jobs 1 --output "$dir/mc_single.csv" >/dev/null 2>&1
+if ! cmp -s "$dir/mc_merged.csv" "$dir/mc_single.csv"; then
+  echo "local_slurm_sweep: the tolerance study's merged CSV differs from the unsharded run" >&2
+  ls -la "$dir/mc_parts" >&2 || true
+  cat "$dir/mc_parts/merge.log" "$dir/mc_parts"/part_*.log >&2 || true
+  exit 1
+fi
+echo "local_slurm_sweep: 3-part tolerance study array job + merge job = the unsharded CSV ($(($(wc -l < "$dir/mc_single.csv") - 1)) rows)"
 exit 0
