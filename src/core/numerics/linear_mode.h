@@ -142,6 +142,8 @@ class LinearMode
                       double floor, double origin, Local* at_lo = nullptr) const;
   /// What rounding can do to w·v of a rate v = A x + u (or a higher derivative) computed from an evaluated state.
   double rateNoise(const ModeVector& w, const ModeVector& v) const;
+  /// The rounding of the output w·x + w0 at the point p [the output's unit] (`weight`: Curvature::weight).
+  double valueNoise(const ModeVector& w, double w0, const Point& p, double weight) const;
   /// The bracketed crossing in (lo, hi] (direction·s(lo) ≤ 0 < direction·s(hi), `at_lo` the window's local picture at
   /// lo) refined until the end past it is within a few ulps of the output's terms or the ends are adjacent doubles
   /// (Newton from the Taylor model's root, then ITP); returns that end.

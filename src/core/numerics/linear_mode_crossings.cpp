@@ -145,15 +145,20 @@ LinearMode::Local LinearMode::local(const ModeVector& w, double w0, double lo, d
   // of each |x_i|. (Relative to the whole state instead, a joint spinning at 3e4 rad/s had a penetration "within
   // rounding" over its whole 2 mrad excursion, and the search passed two crossings as one grazing.) The rate's
   // likewise (see rateNoise()).
+  l.noise0 = valueNoise(w, w0, p, curv.weight);
+  l.noise1 = basis_->rounding_ * curv.weight * p.xd_norm;
+  curvatureBounds(curv, p, lo, h, &l.m2, &l.m3);
+  return l;
+}
+
+double LinearMode::valueNoise(const ModeVector& w, double w0, const Point& p, double weight) const
+{
   double size = std::fabs(w0);
   for (Eigen::Index j = 0; j < p.x.size(); ++j)
   {
     size += std::fabs(w(j) * p.x(j));
   }
-  l.noise0 = basis_->rounding_ * curv.weight * p.dev_norm + 8.0 * EPS * size;
-  l.noise1 = basis_->rounding_ * curv.weight * p.xd_norm;
-  curvatureBounds(curv, p, lo, h, &l.m2, &l.m3);
-  return l;
+  return basis_->rounding_ * weight * p.dev_norm + 8.0 * EPS * size;
 }
 
 void LinearMode::completeSecond(const ModeVector& w, Local* local) const
@@ -374,6 +379,15 @@ double LinearMode::searchWindow(const ModeVector& w, double w0, int direction, d
   }
   const double s = l.s, s1 = l.s1, m = l.m2, rounding = l.noise0;
   const double s_hi = output(w, w0, hi);
+  // Exclusion by the ends, without the rate: where |s''| <= m2 on the window, s lies above the chord between its ends
+  // less m2 h^2/8 (linear interpolation's error), so ends of one sign beyond that and their rounding leave no zero.
+  // (An output tiny beside the state's rate — a load's velocity decaying to nothing while the motor drifts — has a
+  // rate whose rounding dwarfs it: the Taylor tests above could clear only windows as short as |s|/noise1.)
+  if (s * s_hi > 0.0 &&
+      std::min(std::fabs(s), std::fabs(s_hi)) > m * h * h / 8.0 + rounding + valueNoise(w, w0, pointAt(hi), l.weight))
+  {
+    return INF;
+  }
   // (Either direction: the one the window's end tells — a crossing can only end on the side the output ends on.)
   const int dir = direction != 0 ? direction : s_hi > 0.0 ? 1 : -1;
   // The start of a motion begun by this output's own crossing, where the output is within rounding of zero and

@@ -7,6 +7,7 @@
 
 #include <algorithm>
 #include <array>
+#include <chrono>
 #include <cmath>
 #include <complex>
 #include <vector>
@@ -14,6 +15,7 @@
 #include "backlash_servo/drive/command_profile.h"
 #include "backlash_servo/drive/drive.h"
 #include "backlash_servo/simulation/simulator.h"
+#include "backlash_servo/simulation/step_response.h"
 #include "compliant/compliant_joint.h"
 #include "test_helpers.h"
 
@@ -388,5 +390,39 @@ TEST(CompliantPlant, KeysAreValidatedTogether)
   EXPECT_NO_THROW(sim.setParams(stiffer));
   EXPECT_EQ(sim.state().load_position, before.load_position);
   EXPECT_EQ(sim.params().mesh_stiffness, 2e4);
+}
+
+// A load coasting in the free play towards a flank it never quite reaches (1e-14 rad short, its speed decaying as
+// e^{-t f_L/J_L} to 1e-33 rad/s) while the motor, held by a cascade, drifts at 1e-13 rad/s: the search for the load's
+// turning point once halved every sample down to windows of |v|/(the rate's rounding) — a cost growing as e^t, 60 s
+// taking minutes. The coasting is the closed form: between two samples 10 s apart its speed falls by exactly e^{-10}.
+// (Guarded in wall time, generously: 60 simulated seconds take about 0.1 s.)
+TEST(CompliantPlant, ALoadCoastingTowardsAFlankItNeverReachesIsNotSearchedToTheFloor)
+{
+  RunConfig c;
+  c.params = test_helpers::compliantRobotJoint();
+  c.drive.controller_rate = 1000.0;
+  c.drive.control_law = "cascade";
+  c.drive.feedback = "motor";
+  c.drive.position_loop_gain = 10.0;
+  c.drive.velocity_loop_gain = 1.0;
+  c.drive.velocity_loop_integral_gain = 10.0;
+  c.drive.compensation = "inverse";
+  c.drive.compensation_backlash = c.params.backlash;
+  c.command = 0.3;
+  c.duration = 60.0;
+  Simulator sim = makeSimulator(c);
+  const auto start = std::chrono::steady_clock::now();
+  sim.advanceTo(50.0);
+  const State at50 = sim.state();
+  sim.advanceTo(60.0);
+  const State at60 = sim.state();
+  const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  ASSERT_EQ(at50.contact, Contact::Apart);
+  ASSERT_EQ(at60.contact, Contact::Apart);
+  ASSERT_GT(at50.load_velocity, 0.0);
+  EXPECT_NEAR(at60.load_velocity / at50.load_velocity, std::exp(-10.0 * c.params.load_friction / c.params.load_inertia),
+              1e-9);
+  EXPECT_LT(wall, 10.0);
 }
 }  // namespace
