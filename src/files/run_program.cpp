@@ -67,6 +67,11 @@ void runChartScript(const std::string& script, const std::string& dir, const std
   }
 }
 
+bool isPngPath(const std::string& path)
+{
+  return path.size() >= 5 && path.compare(path.size() - 4, 4, ".png") == 0;
+}
+
 std::string helperBesideExecutable(const std::string& name)
 {
   char exe[4096];

@@ -55,13 +55,12 @@ void runOn(const RunConfig& config, std::chrono::duration<double> budget, Compar
   }
   on.tracking = false;
   const auto start = std::chrono::steady_clock::now();
-  const double span = on.max_duration > 0.0 ? on.max_duration : steadyBudget(config.params, config.drive);
   try
   {
     const RunSummary r = runResponse(on, nullptr, 0.0, nullptr, [&](double done) {
       if (std::chrono::steady_clock::now() - start > budget)
       {
-        throw OutOfTime{done * span};
+        throw OutOfTime{done * on.max_duration};
       }
     });
     m->run_on_verdict = toString(r.status.verdict);

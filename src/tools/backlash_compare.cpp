@@ -342,14 +342,6 @@ void writeJson(std::ostream& out, const std::vector<CompareMetrics>& metrics)
   j.endArray().endObject();
 }
 
-/// v with four significant digits.
-std::string shortNumber(double v)
-{
-  char buf[32];
-  std::snprintf(buf, sizeof buf, "%.4g", v);
-  return buf;
-}
-
 /// What ended a run-on that did not settle, and what would look further.
 std::string runOnEnd(const CompareMetrics& m, const RunConfig& config)
 {
@@ -360,7 +352,7 @@ std::string runOnEnd(const CompareMetrics& m, const RunConfig& config)
   }
   if (m.run_on_stopped_by == "wall_time")
   {
-    return "its wall-time budget ended it (" + shortNumber(RUN_ON_WALL_FACTOR) +
+    return "its wall-time budget ended it (" + cell(RUN_ON_WALL_FACTOR) +
            " × the strategy's own run: the motion there costs more to simulate; a longer duration looks further)";
   }
   return "it ended: " + m.run_on_stopped_by;
@@ -378,15 +370,15 @@ void writeRunOnNotes(std::ostream& out, const std::vector<CompareStrategy>& runs
       continue;
     }
     out << "note: '" << m.name << "'" << (varied ? " at " + vary.key + " = " + formatNumber(run_values[i]) : "")
-        << " is undecided within duration " << shortNumber(runs[i].config.duration) << " s; run on until settled, ";
+        << " is undecided within duration " << cell(runs[i].config.duration) << " s; run on until settled, ";
     if (m.run_on_stopped_by != "settled")
     {
       out << "it is " << (m.run_on_verdict == "undecided" ? "still " : "") << m.run_on_verdict << " at "
-          << shortNumber(m.run_on_time) << " s, where " << runOnEnd(m, runs[i].config) << "\n";
+          << cell(m.run_on_time) << " s, where " << runOnEnd(m, runs[i].config) << "\n";
     }
     else
     {
-      out << "it is " << m.run_on_verdict << " at " << shortNumber(m.run_on_time) << " s (a duration of "
+      out << "it is " << m.run_on_verdict << " at " << cell(m.run_on_time) << " s (a duration of "
           << formatNumber(std::ceil(m.run_on_time)) << " s decides it here)\n";
     }
   }
@@ -438,7 +430,7 @@ Outputs openOutputs(const Options& o)
   }
   if (!o.png_path.empty())
   {
-    if (o.png_path.size() < 5 || o.png_path.compare(o.png_path.size() - 4, 4, ".png") != 0)
+    if (!isPngPath(o.png_path))
     {
       throw ConfigError("--png: '" + o.png_path + "' must end in .png (the SVG is written beside it)");
     }

@@ -241,7 +241,7 @@ void readOutputs(const FlagParser& parser, bool sine, Options* options)
   o.json = parser.given("json");
   o.csv_path = parser.option("csv");
   o.png_path = parser.option("png");
-  if (parser.given("png") && (o.png_path.size() < 5 || o.png_path.compare(o.png_path.size() - 4, 4, ".png") != 0))
+  if (parser.given("png") && !isPngPath(o.png_path))
   {
     throw ConfigError("--png: '" + o.png_path + "' must end in .png");
   }

@@ -167,7 +167,7 @@ SweepOptions parse(int argc, char** argv)
   {
     throw ConfigError("--png charts a tolerance study: it needs --monte-carlo N and a drawn key");
   }
-  if (!o.png.empty() && (o.png.size() < 5 || o.png.compare(o.png.size() - 4, 4, ".png") != 0))
+  if (!o.png.empty() && !isPngPath(o.png))
   {
     throw ConfigError("--png: '" + o.png + "' must end in .png (the SVG is written beside it)");
   }

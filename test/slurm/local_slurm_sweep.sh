@@ -69,52 +69,34 @@ until sinfo -h -o %t 2>/dev/null | grep -qE "idle|mix"; do
   [ $SECONDS -lt $deadline ] || { echo "local_slurm_sweep: the node never came up" >&2; tail -20 "$dir/slurmctld.log" "$dir/slurmd.log" >&2; exit 1; }
   sleep 0.5
 done
-args=(--zeta 0.2,0.5 --inertia-ratio 1,9 --friction-ratio 0,0.4 --restitution 0.6,1)
-ids=$(bash "$here/scripts/slurm_sweep.sh" -n "$parts" -o "$dir/merged.csv" -d "$dir/parts" -- "${args[@]}" | tail -1)
-merge_id=${ids#* }
-while squeue -h -j "$merge_id" 2>/dev/null | grep -q .; do
-  [ $SECONDS -lt $deadline ] || { echo "local_slurm_sweep: timed out waiting for merge job $merge_id" >&2; squeue >&2; exit 1; }
-  sleep 0.5
-done
-"$sweep" "${args[@]}" --jobs 1 --output "$dir/single.csv" 2>/dev/null
-if ! cmp -s "$dir/merged.csv" "$dir/single.csv"; then
-  echo "local_slurm_sweep: merged CSV differs from the unsharded run" >&2
-  ls -la "$dir/parts" >&2 || true
-  cat "$dir/parts/merge.log" >&2 || true
-  exit 1
-fi
-echo "local_slurm_sweep: $parts-part array job + merge job = the unsharded CSV ($(($(wc -l < "$dir/single.csv") - 1)) rows)"
+# Submits an array job of PARTS parts and its merge job through SCRIPT, waits for the merge, and compares the merged
+# CSV byte for byte with one unsharded run of EXE (its CSV flag OUT_FLAG) under the name NAME.
+#   array_equals_unsharded LABEL SCRIPT EXE OUT_FLAG PARTS NAME ARGS...   (LABEL "" for the grid sweep)
+array_equals_unsharded() {
+  local label=$1 script=$2 exe=$3 out_flag=$4 n=$5 name=$6
+  shift 6
+  local ids merge_id
+  ids=$(bash "$here/scripts/$script" -n "$n" -o "$dir/${name}merged.csv" -d "$dir/${name}parts" -- "$@" | tail -1)
+  merge_id=${ids#* }
+  while squeue -h -j "$merge_id" 2>/dev/null | grep -q .; do
+    [ $SECONDS -lt $deadline ] || { echo "local_slurm_sweep: timed out waiting for merge job $merge_id" >&2; squeue >&2; exit 1; }
+    sleep 0.5
+  done
+  "$exe" "$@" --jobs 1 "$out_flag" "$dir/${name}single.csv" >/dev/null 2>&1
+  if ! cmp -s "$dir/${name}merged.csv" "$dir/${name}single.csv"; then
+    echo "local_slurm_sweep: ${label:-the sweep}'s merged CSV differs from the unsharded run" >&2
+    ls -la "$dir/${name}parts" >&2 || true
+    cat "$dir/${name}parts/merge.log" "$dir/${name}parts"/part_*.log >&2 || true
+    exit 1
+  fi
+  echo "local_slurm_sweep: $n-part ${label:+$label }array job + merge job = the unsharded CSV ($(($(wc -l < "$dir/${name}single.csv") - 1)) rows)"
+}
+array_equals_unsharded "" slurm_sweep.sh "$sweep" --output "$parts" "" \
+  --zeta 0.2,0.5 --inertia-ratio 1,9 --friction-ratio 0,0.4 --restitution 0.6,1
 # The same for the stepped-sine frequency response (scripts/slurm_frf.sh).
-frf=$here/build/devel/lib/backlash_servo/backlash_frf
-frf_args=(--controller-rate 100 --restitution 0.8 --amplitude 0.5,1 --frequency 0.3,1,2)
-ids=$(bash "$here/scripts/slurm_frf.sh" -n 3 -o "$dir/frf_merged.csv" -d "$dir/frf_parts" -- "${frf_args[@]}" | tail -1)
-merge_id=${ids#* }
-while squeue -h -j "$merge_id" 2>/dev/null | grep -q .; do
-  [ $SECONDS -lt $deadline ] || { echo "local_slurm_sweep: timed out waiting for merge job $merge_id" >&2; squeue >&2; exit 1; }
-  sleep 0.5
-done
-"$frf" "${frf_args[@]}" --jobs 1 --csv "$dir/frf_single.csv" >/dev/null 2>&1
-if ! cmp -s "$dir/frf_merged.csv" "$dir/frf_single.csv"; then
-  echo "local_slurm_sweep: backlash_frf's merged CSV differs from the unsharded run" >&2
-  ls -la "$dir/frf_parts" >&2 || true
-  cat "$dir/frf_parts/merge.log" "$dir/frf_parts"/part_*.log >&2 || true
-  exit 1
-fi
-echo "local_slurm_sweep: 3-part backlash_frf array job + merge job = the unsharded CSV ($(($(wc -l < "$dir/frf_single.csv") - 1)) rows)"
+array_equals_unsharded backlash_frf slurm_frf.sh "$here/build/devel/lib/backlash_servo/backlash_frf" --csv 3 frf_ \
+  --controller-rate 100 --restitution 0.8 --amplitude 0.5,1 --frequency 0.3,1,2
 # A tolerance study (keys drawn per joint, the distributions' parentheses through sbatch's command line).
-mc_args=(--monte-carlo 12 --seed 3 --backlash 'uniform(0.05,0.5)' --zeta 'normal(0.35,0.1)')
-ids=$(bash "$here/scripts/slurm_sweep.sh" -n 3 -o "$dir/mc_merged.csv" -d "$dir/mc_parts" -- "${mc_args[@]}" | tail -1)
-merge_id=${ids#* }
-while squeue -h -j "$merge_id" 2>/dev/null | grep -q .; do
-  [ $SECONDS -lt $deadline ] || { echo "local_slurm_sweep: timed out waiting for merge job $merge_id" >&2; squeue >&2; exit 1; }
-  sleep 0.5
-done
-"$sweep" "${mc_args[@]}" --jobs 1 --output "$dir/mc_single.csv" >/dev/null 2>&1
-if ! cmp -s "$dir/mc_merged.csv" "$dir/mc_single.csv"; then
-  echo "local_slurm_sweep: the tolerance study's merged CSV differs from the unsharded run" >&2
-  ls -la "$dir/mc_parts" >&2 || true
-  cat "$dir/mc_parts/merge.log" "$dir/mc_parts"/part_*.log >&2 || true
-  exit 1
-fi
-echo "local_slurm_sweep: 3-part tolerance study array job + merge job = the unsharded CSV ($(($(wc -l < "$dir/mc_single.csv") - 1)) rows)"
+array_equals_unsharded "tolerance study" slurm_sweep.sh "$sweep" --output 3 mc_ \
+  --monte-carlo 12 --seed 3 --backlash 'uniform(0.05,0.5)' --zeta 'normal(0.35,0.1)'
 exit 0

@@ -25,6 +25,9 @@ void runChartScript(const std::string& script, const std::string& dir, const std
  */
 std::string helperBesideExecutable(const std::string& name);
 
+/// Whether `path` names a PNG chart: it ends in ".png" after at least one character.
+bool isPngPath(const std::string& path);
+
 /**
  * A fresh private directory (mkdtemp under $TMPDIR or /tmp). The destructor removes the files that were named
  * through file() and then the directory itself — nothing else: a directory that still holds other files is left.

@@ -268,6 +268,7 @@ TEST(Slurm, ArrayJobPlusMergeEqualsTheUnshardedSweep)
   EXPECT_EQ(code, 0) << log;
   EXPECT_NE(log.find("4-part array job + merge job = the unsharded CSV"), std::string::npos) << log;
   EXPECT_NE(log.find("3-part backlash_frf array job + merge job = the unsharded CSV"), std::string::npos) << log;
+  EXPECT_NE(log.find("3-part tolerance study array job + merge job = the unsharded CSV"), std::string::npos) << log;
 }
 
 TEST(SweepOutput, RefusesDevicesAndGridsItDidNotWrite)
