@@ -23,6 +23,7 @@ RANKS = {
     "simulation": 5,
     "frequency": 6,
     "identification": 6,
+    "robot": 6,
     "config": 7,
     "files": 8,
     "studies": 9,

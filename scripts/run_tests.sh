@@ -31,7 +31,7 @@ if [ "${1:-}" = "--quick" ]; then
     fi
   }
   gtest core &
-  (gtest tools; gtest cli; gtest golden; gtest param_table) &
+  (gtest tools; gtest cli; gtest golden; gtest param_table; gtest robot) &
   wait
   /usr/bin/python3 -m pytest -q -p no:cacheprovider test/python --junitxml="$results/pytest.xml" 2>&1 | tail -n 5
   /usr/bin/python3 scripts/count_results.py "$results"

@@ -13,6 +13,7 @@ PACKAGES=(
   libeigen3-dev librosbag-dev python3-rosbag python3-sensor-msgs python3-std-msgs python3-std-srvs rosbash
   libyaml-cpp-dev googletest libgtest-dev python3-matplotlib python3-scipy python3-numpy libboost-dev
   slurm-wlm munge rviz ros-robot-state-publisher clang libclang-rt-14-dev catkin-lint
+  liborocos-kdl-dev liburdfdom-dev libtinyxml2-dev
   pybind11-dev python3-pytest python3-nbclient python3-ipykernel jupyter-nbconvert
 )
 

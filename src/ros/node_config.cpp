@@ -105,6 +105,7 @@ NodeConfig nodeSettingsFrom(const KeyValues& kv, const NodeConfig& base)
   c.publish_rate = realValue(kv, "publish_rate", c.publish_rate);
   c.real_time_factor = realValue(kv, "real_time_factor", c.real_time_factor);
   c.publish_clock = kv.has("publish_clock") ? kv.boolean("publish_clock") : c.publish_clock;
+  c.clock_publish_rate = realValue(kv, "clock_publish_rate", c.clock_publish_rate);
   c.motor_joint_name = textValue(kv, "motor_joint_name", c.motor_joint_name);
   c.load_joint_name = textValue(kv, "load_joint_name", c.load_joint_name);
   c.gear_joint_name = textValue(kv, "gear_joint_name", c.gear_joint_name);

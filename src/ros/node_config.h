@@ -25,6 +25,7 @@ struct NodeConfig
   double publish_rate = 0.0;                         ///< joint_states / backlash_state rate [Hz of sim time]
   double real_time_factor = 0.0;                     ///< sim seconds per wall second; 0 = as fast as possible
   bool publish_clock = false;                        ///< the node publishes /clock (use with use_sim_time)
+  double clock_publish_rate = 1000.0;                ///< most /clock messages per wall second [Hz]; 0 = every sample
   std::string motor_joint_name;                      ///< JointState name of the motor shaft
   std::string load_joint_name;                       ///< JointState name of the load shaft
   std::string gear_joint_name;                       ///< JointState name of the output gear (compliant mesh)

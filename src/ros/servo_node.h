@@ -53,6 +53,9 @@ class ServoNode : public EventSink
   void awaitStart();
   /// Whether the sample at t [s] is due by the clock (external /clock or the wall clock scaled); false: not yet.
   bool due(double t);
+  /// /clock at sim time t [s] when the node is the clock: every sample in lockstep, when `force`d, or when the
+  /// samples come no faster than clock_publish_rate of wall time; else at most at that rate (the rest skipped).
+  void publishClock(double t, bool force);
   /// Advances to t [s] and judges the state (verdict, tracking); false after a fault (the node pauses).
   bool stepTo(double t);
   /// The figures at stop_after: verdict, lockstep misses, achieved real-time factor and CPU.
@@ -189,7 +192,9 @@ class ServoNode : public EventSink
   // Effort timeout: sim time of the last motor_effort [s]; the torque was dropped for want of one.
   double last_effort_time_ = 0.0;
   bool effort_timed_out_ = false;
-  ros::WallTime wall_anchor_;  // wall time at which the sim was at sim_anchor_
+  ros::WallTime wall_anchor_;      // wall time at which the sim was at sim_anchor_
+  ros::WallTime last_clock_wall_;  // wall time of the last /clock message
+  double clock_skipped_ = -1.0;    // sim time of the newest sample whose /clock was skipped [s]; < 0 = none
   double sim_anchor_ = 0.0;
   bool paused_ = false;
   std::string fault_;  // the core error holding the simulation; empty while healthy

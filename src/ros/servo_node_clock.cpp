@@ -80,6 +80,29 @@ bool ServoNode::due(double t)
   return true;
 }
 
+void ServoNode::publishClock(double t, bool force)
+{
+  if (clock_mode_ != ClockMode::Publisher)
+  {
+    return;
+  }
+  const double rate = config_.clock_publish_rate;
+  const bool every_sample = config_.sync || rate == 0.0 ||
+                            (config_.real_time_factor > 0.0 && config_.publish_rate * config_.real_time_factor <= rate);
+  const ros::WallTime now = ros::WallTime::now();
+  if (!force && !every_sample && (now - last_clock_wall_).toSec() < 1.0 / rate)
+  {
+    clock_skipped_ = t;
+    return;
+  }
+  rosgraph_msgs::Clock clock;
+  clock.clock = stamp(t);
+  emit(clock_pub_, clock_topic_, clock);
+  ++published_;
+  last_clock_wall_ = now;
+  clock_skipped_ = -1.0;
+}
+
 bool ServoNode::stepTo(double t)
 {
   try
@@ -157,12 +180,7 @@ bool ServoNode::run()
   awaitStart();
   reanchorWallClock();
   const ros::WallTime run_start = ros::WallTime::now();
-  if (clock_mode_ == ClockMode::Publisher)
-  {
-    rosgraph_msgs::Clock clock;
-    clock.clock = stamp(0.0);
-    emit(clock_pub_, clock_topic_, clock);
-  }
+  publishClock(0.0, true);
   publishSample();
   sample_index_ = 1;
   awaitAnswer();
@@ -177,6 +195,10 @@ bool ServoNode::run()
     }
     if (paused_ || !fault_.empty())
     {
+      if (clock_skipped_ >= 0.0)
+      {
+        publishClock(clock_skipped_, true);  // a paused graph sees the time the node stands at
+      }
       ros::WallDuration(0.005).sleep();
       reanchorWallClock();
       continue;
@@ -191,18 +213,14 @@ bool ServoNode::run()
       continue;
     }
     checkEffortTimeout();
-    if (clock_mode_ == ClockMode::Publisher)
-    {
-      rosgraph_msgs::Clock clock;
-      clock.clock = stamp(t);
-      emit(clock_pub_, clock_topic_, clock);
-    }
+    const bool stop = config_.stop_after > 0.0 && t >= config_.stop_after;
+    publishClock(t, stop);
     publishSample();
-    if (!(config_.stop_after > 0.0 && t >= config_.stop_after))
+    if (!stop)
     {
       awaitAnswer();
     }
-    if (config_.stop_after > 0.0 && t >= config_.stop_after)
+    if (stop)
     {
       reportStop(t, run_start);
       reached_stop = true;

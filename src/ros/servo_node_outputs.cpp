@@ -153,7 +153,7 @@ void ServoNode::publishSample()
                      {sim_.meshTorque(), p.shaft_stiffness * s.shaft_twist + p.shaft_damping * s.shaft_twist_rate});
   }
   emit(joint_pub_, joint_topic_, js);
-  published_ += 2 + (clock_mode_ == ClockMode::Publisher ? 1 : 0);  // joint_states, backlash_state, /clock
+  published_ += 2;  // joint_states, backlash_state (/clock counts where it is published)
 
   BacklashState b;
   b.header.stamp = now;

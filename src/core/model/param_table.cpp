@@ -233,6 +233,10 @@ std::vector<ParamSpec> nodeKeys()
      "sim seconds per wall second; 0 = as fast as possible (publish_clock only)", true, {}, {}},
     {"publish_clock", "", "-", T::Boolean, S::Node, FINITE, "false", "the node publishes /clock (with use_sim_time)",
      false, {}, {}},
+    {"clock_publish_rate", "", "Hz", T::Real, S::Node, ParamRange{0.0, 1e6, false, false}, "1000",
+     "most /clock messages per second of wall time when the node is the clock and its samples come faster (as fast "
+     "as possible): every node on sim time reads each one; every sample still gets one in lockstep (0 = every sample)",
+     false, {}, {}},
     {"motor_joint_name", "", "-", T::Text, S::Node, FINITE, "motor_joint", "JointState name of the motor shaft", false,
      {}, {}},
     {"load_joint_name", "", "-", T::Text, S::Node, FINITE, "load_joint", "JointState name of the load shaft", false, {},

@@ -1,0 +1,296 @@
+// An arm's URDF read into a KDL tree (links' inertials, joints' axes) and its transmissions read from the XML.
+#include "backlash_servo/robot/arm_model.h"
+
+#include <tinyxml2.h>
+#include <urdf_parser/urdf_parser.h>
+#include <kdl/tree.hpp>
+#include <kdl/treeidsolver_recursive_newton_euler.hpp>
+
+#include <algorithm>
+#include <cmath>
+#include <map>
+#include <stdexcept>
+
+namespace backlash_servo
+{
+namespace
+{
+const char* const SIMPLE_TRANSMISSION = "transmission_interface/SimpleTransmission";
+
+KDL::Vector toKdl(const urdf::Vector3& v)
+{
+  return KDL::Vector(v.x, v.y, v.z);
+}
+
+KDL::Frame toKdl(const urdf::Pose& p)
+{
+  return KDL::Frame(KDL::Rotation::Quaternion(p.rotation.x, p.rotation.y, p.rotation.z, p.rotation.w),
+                    toKdl(p.position));
+}
+
+bool isMovable(const urdf::Joint& joint)
+{
+  return joint.type == urdf::Joint::REVOLUTE || joint.type == urdf::Joint::CONTINUOUS ||
+         joint.type == urdf::Joint::PRISMATIC;
+}
+
+KDL::Joint jointOf(const urdf::Joint& joint)
+{
+  const KDL::Frame origin = toKdl(joint.parent_to_joint_origin_transform);
+  if (!isMovable(joint))
+  {
+    return KDL::Joint(joint.name, KDL::Joint::None);  // fixed; floating and planar joints are held too
+  }
+  const KDL::Vector axis = toKdl(joint.axis);
+  if (!(axis.Norm() > 0.0))
+  {
+    throw std::invalid_argument("URDF joint '" + joint.name + "': <axis> must be a non-zero vector");
+  }
+  return KDL::Joint(joint.name, origin.p, origin.M * (axis / axis.Norm()),
+                    joint.type == urdf::Joint::PRISMATIC ? KDL::Joint::TransAxis : KDL::Joint::RotAxis);
+}
+
+/// The link's inertial in KDL's convention: mass, centre of mass and rotational inertia about it, all in the link's
+/// frame (URDF gives the inertia in the inertial's own frame: rotated into the link's).
+KDL::RigidBodyInertia inertiaOf(const urdf::Link& link)
+{
+  if (!link.inertial)
+  {
+    return KDL::RigidBodyInertia(0.0);
+  }
+  const urdf::Inertial& i = *link.inertial;
+  const double values[] = {i.mass, i.ixx, i.iyy, i.izz, i.ixy, i.ixz, i.iyz};
+  for (double v : values)
+  {
+    if (!std::isfinite(v))
+    {
+      throw std::invalid_argument("URDF link '" + link.name + "': <inertial> values must be finite");
+    }
+  }
+  if (i.mass < 0.0 || i.ixx < 0.0 || i.iyy < 0.0 || i.izz < 0.0)
+  {
+    throw std::invalid_argument("URDF link '" + link.name + "': <mass> and <inertia> ixx, iyy, izz must be ≥ 0 (mass " +
+                                std::to_string(i.mass) + " kg)");
+  }
+  const KDL::Frame origin = toKdl(i.origin);
+  const KDL::RigidBodyInertia about_com_rotated =
+      origin.M *
+      KDL::RigidBodyInertia(0.0, KDL::Vector::Zero(), KDL::RotationalInertia(i.ixx, i.iyy, i.izz, i.ixy, i.ixz, i.iyz));
+  return KDL::RigidBodyInertia(i.mass, origin.p, about_com_rotated.getRotationalInertia());
+}
+
+void addSubtree(const urdf::Link& link, KDL::Tree* tree)
+{
+  const urdf::Joint& joint = *link.parent_joint;
+  const KDL::Segment segment(link.name, jointOf(joint), toKdl(joint.parent_to_joint_origin_transform), inertiaOf(link));
+  if (!tree->addSegment(segment, joint.parent_link_name))
+  {
+    throw std::invalid_argument("URDF link '" + link.name + "': cannot attach it to '" + joint.parent_link_name + "'");
+  }
+  for (const urdf::LinkSharedPtr& child : link.child_links)
+  {
+    addSubtree(*child, tree);
+  }
+}
+
+const char* textOf(const tinyxml2::XMLElement* e)
+{
+  return e != nullptr && e->GetText() != nullptr ? e->GetText() : "";
+}
+
+/// <transmission> elements: type SimpleTransmission, one <joint name> and one <actuator name>, the reduction from
+/// the actuator's (or the joint's) <mechanicalReduction>. Returns joint name → (reduction, actuator).
+std::map<std::string, std::pair<double, std::string>> transmissionsOf(const tinyxml2::XMLElement* robot)
+{
+  std::map<std::string, std::pair<double, std::string>> found;
+  for (const tinyxml2::XMLElement* t = robot->FirstChildElement("transmission"); t != nullptr;
+       t = t->NextSiblingElement("transmission"))
+  {
+    const std::string name = t->Attribute("name") != nullptr ? t->Attribute("name") : "";
+    const std::string where = "URDF transmission '" + name + "'";
+    const tinyxml2::XMLElement* type = t->FirstChildElement("type");
+    const std::string type_text = type != nullptr ? textOf(type) : (t->Attribute("type") ? t->Attribute("type") : "");
+    if (type_text != SIMPLE_TRANSMISSION)
+    {
+      throw std::invalid_argument(where + ": type '" + type_text + "' is not " + SIMPLE_TRANSMISSION +
+                                  " (the only one a geared joint here has)");
+    }
+    const tinyxml2::XMLElement* joint = t->FirstChildElement("joint");
+    const tinyxml2::XMLElement* actuator = t->FirstChildElement("actuator");
+    if (joint == nullptr || joint->Attribute("name") == nullptr || actuator == nullptr ||
+        actuator->Attribute("name") == nullptr)
+    {
+      throw std::invalid_argument(where + ": needs <joint name=…> and <actuator name=…>");
+    }
+    const tinyxml2::XMLElement* reduction = actuator->FirstChildElement("mechanicalReduction");
+    if (reduction == nullptr)
+    {
+      reduction = joint->FirstChildElement("mechanicalReduction");
+    }
+    double n = 1.0;  // SimpleTransmission's default when none is given
+    if (reduction != nullptr &&
+        (reduction->QueryDoubleText(&n) != tinyxml2::XML_SUCCESS || !std::isfinite(n) || n == 0.0))
+    {
+      throw std::invalid_argument(where + ": <mechanicalReduction> must be a finite non-zero number (got '" +
+                                  std::string(textOf(reduction)) + "')");
+    }
+    if (!found.emplace(joint->Attribute("name"), std::make_pair(n, std::string(actuator->Attribute("name")))).second)
+    {
+      throw std::invalid_argument(where + ": joint '" + joint->Attribute("name") + "' has a transmission already");
+    }
+  }
+  return found;
+}
+}  // namespace
+
+struct ArmModel::Dynamics
+{
+  KDL::Tree tree;
+  std::vector<int> kdl_index;                       // joints_[i] → its q_nr in the tree
+  std::unique_ptr<KDL::TreeIdSolver_RNE> inertial;  // without gravity: M(q) q̈ alone
+
+  KDL::JntArray toKdl(const Eigen::VectorXd& q) const
+  {
+    KDL::JntArray a(tree.getNrOfJoints());
+    for (std::size_t i = 0; i < kdl_index.size(); ++i)
+    {
+      a(kdl_index[i]) = q(static_cast<Eigen::Index>(i));
+    }
+    return a;
+  }
+};
+
+ArmModel::ArmModel(const std::string& urdf_xml) : dynamics_(std::make_unique<Dynamics>())
+{
+  tinyxml2::XMLDocument doc;
+  if (doc.Parse(urdf_xml.c_str(), urdf_xml.size()) != tinyxml2::XML_SUCCESS)
+  {
+    throw std::invalid_argument(std::string("URDF: not well-formed XML (") + doc.ErrorStr() + ")");
+  }
+  const tinyxml2::XMLElement* robot = doc.FirstChildElement("robot");
+  if (robot == nullptr)
+  {
+    throw std::invalid_argument("URDF: no <robot> element");
+  }
+  const urdf::ModelInterfaceSharedPtr model = urdf::parseURDF(urdf_xml);
+  if (!model || !model->getRoot())
+  {
+    throw std::invalid_argument(
+        "URDF: not a valid robot description (urdfdom refused it, its reason printed above: every joint needs its "
+        "parent and child links, "
+        "one root link, well-formed origins, axes and limits)");
+  }
+  robot_name_ = model->getName();
+  dynamics_->tree = KDL::Tree(model->getRoot()->name);
+  for (const urdf::LinkSharedPtr& child : model->getRoot()->child_links)
+  {
+    addSubtree(*child, &dynamics_->tree);
+  }
+  const auto transmissions = transmissionsOf(robot);
+  // KDL numbers the movable joints depth-first; keep that order.
+  std::vector<std::pair<int, ArmJoint>> ordered;
+  for (const auto& [name, element] : dynamics_->tree.getSegments())
+  {
+    const KDL::Joint& kj = element.segment.getJoint();
+    if (kj.getType() == KDL::Joint::None)
+    {
+      continue;
+    }
+    const urdf::JointConstSharedPtr uj = model->getJoint(kj.getName());
+    ArmJoint j;
+    j.name = kj.getName();
+    j.prismatic = uj->type == urdf::Joint::PRISMATIC;
+    if (uj->type != urdf::Joint::CONTINUOUS && uj->limits)
+    {
+      j.lower = uj->limits->lower;
+      j.upper = uj->limits->upper;
+    }
+    if (uj->limits)
+    {
+      j.velocity_limit = uj->limits->velocity;
+      j.effort_limit = uj->limits->effort;
+    }
+    const auto t = transmissions.find(j.name);
+    if (t != transmissions.end())
+    {
+      j.reduction = t->second.first;
+      j.actuator = t->second.second;
+    }
+    ordered.emplace_back(static_cast<int>(element.q_nr), j);
+  }
+  for (const auto& [joint, unused] : transmissions)
+  {
+    const urdf::JointConstSharedPtr uj = model->getJoint(joint);
+    if (!uj || !isMovable(*uj))
+    {
+      throw std::invalid_argument("URDF transmission of joint '" + joint +
+                                  "': the URDF has no movable joint by that name");
+    }
+  }
+  std::sort(ordered.begin(), ordered.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
+  for (const auto& [index, joint] : ordered)
+  {
+    dynamics_->kdl_index.push_back(index);
+    joints_.push_back(joint);
+  }
+  dynamics_->inertial = std::make_unique<KDL::TreeIdSolver_RNE>(dynamics_->tree, KDL::Vector(0.0, 0.0, 0.0));
+}
+
+ArmModel::~ArmModel() = default;
+
+int ArmModel::indexOf(const std::string& name) const
+{
+  for (std::size_t i = 0; i < joints_.size(); ++i)
+  {
+    if (joints_[i].name == name)
+    {
+      return static_cast<int>(i);
+    }
+  }
+  return -1;
+}
+
+Eigen::VectorXd ArmModel::gravityOnLoad(const Eigen::VectorXd& q, double g) const
+{
+  const unsigned n = dynamics_->tree.getNrOfJoints();
+  KDL::TreeIdSolver_RNE solver(dynamics_->tree, KDL::Vector(0.0, 0.0, -g));
+  const KDL::JntArray zero(n);
+  KDL::JntArray held(n);
+  if (solver.CartToJnt(dynamics_->toKdl(q), zero, zero, KDL::WrenchMap(), held) < 0)
+  {
+    throw std::runtime_error("ArmModel: KDL's inverse dynamics failed");
+  }
+  Eigen::VectorXd on_load(static_cast<Eigen::Index>(joints_.size()));
+  for (std::size_t i = 0; i < joints_.size(); ++i)
+  {
+    on_load(static_cast<Eigen::Index>(i)) = -held(dynamics_->kdl_index[i]);  // gravity's torque opposes the holding one
+  }
+  return on_load;
+}
+
+Eigen::MatrixXd ArmModel::massMatrix(const Eigen::VectorXd& q) const
+{
+  const unsigned n = dynamics_->tree.getNrOfJoints();
+  const KDL::JntArray pose = dynamics_->toKdl(q);
+  const KDL::JntArray zero(n);
+  const auto count = static_cast<Eigen::Index>(joints_.size());
+  Eigen::MatrixXd m(count, count);
+  for (Eigen::Index c = 0; c < count; ++c)
+  {
+    // Column c: the torques that give joint c a unit acceleration from rest without gravity, M(q) e_c.
+    KDL::JntArray unit(n);
+    unit(dynamics_->kdl_index[static_cast<std::size_t>(c)]) = 1.0;
+    KDL::JntArray column(n);
+    if (dynamics_->inertial->CartToJnt(pose, zero, unit, KDL::WrenchMap(), column) < 0)
+    {
+      throw std::runtime_error("ArmModel: KDL's inverse dynamics failed");
+    }
+    for (Eigen::Index r = 0; r < count; ++r)
+    {
+      m(r, c) = column(dynamics_->kdl_index[static_cast<std::size_t>(r)]);
+    }
+  }
+  return m;
+}
+
+}  // namespace backlash_servo
