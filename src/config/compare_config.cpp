@@ -11,27 +11,6 @@ namespace backlash_servo
 {
 namespace
 {
-/// Scalar keys of a map into kv (checked against the parameter table), skipping `skip`.
-void readKeys(const YAML::Node& map, const std::vector<std::string>& skip, const std::string& where, KeyValues* kv)
-{
-  for (const auto& item : map)
-  {
-    const std::string key = yamlScalar(item.first, where + ": a key");
-    if (std::find(skip.begin(), skip.end(), key) != skip.end())
-    {
-      continue;
-    }
-    if (findParam(key) == nullptr)
-    {
-      throw ConfigError(where + ": unknown key '" + key + "'" + didYouMean(key));
-    }
-    if (!item.second.IsScalar())
-    {
-      throw ConfigError(where + ": key '" + key + "' must have a single value");
-    }
-    kv->set(key, item.second.Scalar());
-  }
-}
 /// st->config from st->keys, with the file's duration and profile (null: a step to the run's `command`, created
 /// here); `where` names the strategy in errors.
 void buildRun(CompareStrategy* st, double duration, std::shared_ptr<const CommandProfile>* profile,
@@ -84,7 +63,7 @@ CompareConfig loadCompareConfig(const std::string& path)
     throw ConfigError(path + ": sample_rate must be > 0 Hz with at most 5e7 samples per strategy");
   }
   KeyValues shared;
-  readKeys(root, {"duration", "sample_rate", "profile", "strategies"}, path, &shared);
+  readYamlKeys(root, {"duration", "sample_rate", "profile", "strategies"}, path, &shared);
   if (!root["strategies"] || !root["strategies"].IsSequence() || root["strategies"].size() == 0)
   {
     throw ConfigError(path + ": strategies: a non-empty list of {name: ..., keys...} is required");
@@ -104,7 +83,7 @@ CompareConfig loadCompareConfig(const std::string& path)
     CompareStrategy st;
     st.name = yamlScalar(s["name"], where + ": name");
     st.keys = shared;
-    readKeys(s, {"name"}, where + " (" + st.name + ")", &st.keys);
+    readYamlKeys(s, {"name"}, where + " (" + st.name + ")", &st.keys);
     buildRun(&st, c.duration, &c.profile, where + " (" + st.name + ")");
     c.strategies.push_back(st);
   }

@@ -6,6 +6,7 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "backlash_servo/config/robot_config.h"
 #include "backlash_servo/config/run_config_loader.h"
 
 namespace backlash_servo
@@ -150,10 +151,15 @@ void FlagParser::parse(int argc, char** argv)
   if (options_given_.has("config"))
   {
     const std::string path = options_given_.text("config", "");
-    keys_.loadYaml(path);
-    requireKnownKeys(keys_, "config file '" + path + "'");
+    robot_config_ = isRobotFile(path);
+    if (!robot_config_)
+    {
+      keys_.loadYaml(path);
+      requireKnownKeys(keys_, "config file '" + path + "'");
+    }
   }
   keys_.overrideWith(flags);
+  flags_ = flags;
 }
 
 std::string FlagParser::option(const std::string& name, const std::string& fallback) const

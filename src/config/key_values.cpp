@@ -171,6 +171,27 @@ std::string yamlScalar(const YAML::Node& node, const std::string& what)
   return node.Scalar();
 }
 
+void readYamlKeys(const YAML::Node& map, const std::vector<std::string>& skip, const std::string& where, KeyValues* kv)
+{
+  for (const auto& item : map)
+  {
+    const std::string key = yamlScalar(item.first, where + ": a key");
+    if (std::find(skip.begin(), skip.end(), key) != skip.end())
+    {
+      continue;
+    }
+    if (findParam(key) == nullptr)
+    {
+      throw ConfigError(where + ": unknown key '" + key + "'" + didYouMean(key));
+    }
+    if (!item.second.IsScalar())
+    {
+      throw ConfigError(where + ": key '" + key + "' must have a single value");
+    }
+    kv->set(key, item.second.Scalar());
+  }
+}
+
 void KeyValues::loadYaml(const std::string& path)
 {
   const YAML::Node root = loadYamlFile(path);

@@ -18,6 +18,7 @@
 #include "backlash_servo/rigid/modes.h"
 #include "backlash_servo/studies/run_report.h"
 #include "progress.h"
+#include "sim_robot.h"
 
 using namespace backlash_servo;
 
@@ -35,7 +36,9 @@ FlagParser makeParser()
       "backlash_sim", HEADER,
       keysOfSections(
           {ParamSection::Servo, ParamSection::Chart, ParamSection::Drive, ParamSection::Initial, ParamSection::Run}),
-      {{"config", "FILE.yaml", "the same keys in snake_case (the YAML the node loads; flags override it)"},
+      {{"config", "FILE.yaml",
+        "the same keys in snake_case (the YAML the node loads; flags override it); a robot file (`joints:`, "
+        "docs/robot.md) runs every joint of the arm together, a verdict each"},
        {"json", "", "one JSON object on stdout"},
        {"csv", "FILE", "trajectory samples plus one row per event"},
        {"sample_rate", "HZ", "CSV sample rate [Hz] in (0, 1e6] (default 100)"}});
@@ -216,6 +219,17 @@ int main(int argc, char** argv)
   try
   {
     options.parse(argc, argv);
+    csv_path = options.option("csv");
+    sample_rate = options.optionNumber("sample_rate", sample_rate);
+    // Above 1 MHz the sample period nears the rounding of the time itself (a rate of 1e308 Hz never advances).
+    if (!(sample_rate > 0.0 && sample_rate <= 1e6))
+    {
+      throw ConfigError("--sample-rate must be in (0, 1e6] Hz (got " + options.option("sample_rate") + ")");
+    }
+    if (options.robotConfig())
+    {
+      return simulateRobot(options, sample_rate);
+    }
     config = runConfigFrom(options.keys());
     config.tracking = true;
     if (!options.given("json"))
@@ -224,13 +238,6 @@ int main(int argc, char** argv)
       {
         std::cerr << "backlash_sim: warning: " << w << "\n";
       }
-    }
-    csv_path = options.option("csv");
-    sample_rate = options.optionNumber("sample_rate", sample_rate);
-    // Above 1 MHz the sample period nears the rounding of the time itself (a rate of 1e308 Hz never advances).
-    if (!(sample_rate > 0.0 && sample_rate <= 1e6))
-    {
-      throw ConfigError("--sample-rate must be in (0, 1e6] Hz (got " + options.option("sample_rate") + ")");
     }
   }
   catch (const std::exception& e)

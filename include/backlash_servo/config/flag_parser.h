@@ -41,6 +41,10 @@ class FlagParser
   void parse(int argc, char** argv);
 
   const KeyValues& keys() const { return keys_; }
+  /// The parameter flags given on the command line alone (without the config file's keys).
+  const KeyValues& flags() const { return flags_; }
+  /// Whether --config names a robot file (robot_config.h): its keys are then not in keys(), the tool reads the file.
+  bool robotConfig() const { return robot_config_; }
   bool given(const std::string& option) const { return options_given_.has(option); }
   /// The text of a tool option, or fallback.
   std::string option(const std::string& name, const std::string& fallback = "") const;
@@ -55,7 +59,9 @@ class FlagParser
   std::vector<std::string> keys_accepted_;
   std::vector<ToolOption> options_;
   KeyValues keys_;
+  KeyValues flags_;
   KeyValues options_given_;
+  bool robot_config_ = false;
 };
 
 /// Every table key of the given sections (param_table.h), in table order.

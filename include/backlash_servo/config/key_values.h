@@ -53,6 +53,11 @@ std::string yamlScalar(const YAML::Node& node, const std::string& what);
 double yamlNumber(const YAML::Node& map, const std::string& key, const std::string& where, bool required,
                   double fallback = 0.0);
 
+class KeyValues;
+/// The scalar keys of a YAML map into *kv, each checked against the parameter table, skipping the keys in `skip`
+/// (the file's own structure); throws ConfigError naming `where` and the key (an unknown key with its nearest).
+void readYamlKeys(const YAML::Node& map, const std::vector<std::string>& skip, const std::string& where, KeyValues* kv);
+
 class KeyValues
 {
  public:

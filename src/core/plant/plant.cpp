@@ -239,6 +239,7 @@ void Plant::setParams(const ServoParams& params, EventSink* sink, bool frame)
   restartSegment();  // the closed form restarts from the state now
   const double balance_before = energyBalanceError();
   const double old_gap = gap();
+  const double old_delta = params_.backlash;
   params_ = params;
   flight_model_.reset();
   forced_motor_breakaway_ = 0;
@@ -250,9 +251,16 @@ void Plant::setParams(const ServoParams& params, EventSink* sink, bool frame)
   {
     g = 0.0;
   }
-  if (state_.contact == Contact::Backward && g < delta)
+  if (state_.contact == Contact::Backward)
   {
-    state_.contact = Contact::Apart;  // Δ grew: the teeth float at relative rest inside the larger gap
+    if (delta > old_delta)
+    {
+      state_.contact = Contact::Apart;  // Δ grew: the teeth float at relative rest inside the larger gap
+    }
+    else
+    {
+      g = delta;  // still on the flank (a gap read from the positions may differ from Δ in its last bits)
+    }
   }
   state_.motor_position = mesh_.motorPosition(state_.load_position, g);
   if (state_.contact != Contact::Apart)

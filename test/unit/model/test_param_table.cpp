@@ -13,6 +13,7 @@
 
 #include "backlash_servo/config/compare_config.h"
 #include "backlash_servo/config/flag_parser.h"
+#include "backlash_servo/config/robot_config.h"
 #include "backlash_servo/config/run_config_loader.h"
 #include "backlash_servo/model/param_table.h"
 #include "test_helpers.h"
@@ -256,6 +257,15 @@ TEST(ParamTable, ShippedYamlFilesUseOnlyTableKeys)
     if (name.rfind("compare_", 0) == 0)
     {
       EXPECT_NO_THROW(loadCompareConfig(dir + name)) << name;  // workbench experiment files (lists inside)
+      ++files;
+      continue;
+    }
+    if (name.size() > 5 && name.substr(name.size() - 5) == ".yaml" && isRobotFile(dir + name))
+    {
+      // An arm: the top level and every joint's keys are table keys, and every joint is a valid one.
+      const RobotFile file = loadRobotFile(dir + name);
+      const auto arm = file.urdf.empty() ? nullptr : std::make_unique<ArmModel>(readFile(file.urdf));
+      EXPECT_NO_THROW(robotJointsFrom(file.top, file.joints, arm.get())) << name;
       ++files;
       continue;
     }

@@ -368,3 +368,40 @@ TEST(LoadTorque, TheMeshTorqueBoundIsAboveTheComputedMeshTorque)
   EXPECT_GT(tight, 10000);  // the same-sign states are decided at the torque's own size
 }
 }  // namespace
+
+namespace
+{
+TEST(LoadTorque, ANewLoadTorqueKeepsTheTeethOnTheirFlank)
+{
+  // A joint whose load torque is updated at every sample (an arm's gravity) stays on the flank it rests on: the gap
+  // read back from the positions may differ from Δ in its last bits, which must not count as the teeth parting
+  // (each parting is a new flight and an impact, thousands a second).
+  ServoParams p;
+  p.gear_ratio = 0.01;
+  p.backlash = 0.0026;
+  p.motor_inertia = 2e-4;  // a robot joint: 100:1, reflected motor twice the load
+  p.load_inertia = 1.0;
+  p.motor_friction = 1e-3;
+  p.load_friction = 0.5;
+  p.gain = 30.0;
+  p.load_torque = 2.0;  // presses the load in +: the motor's tooth holds it back on the g = Δ flank
+  std::mt19937_64 rng(7);
+  std::uniform_real_distribution<double> where(-3.0, 3.0);
+  for (int k = 0; k < 200; ++k)
+  {
+    State s;
+    s.load_position = where(rng);
+    s.motor_position = (s.load_position - p.backlash) / p.gear_ratio;
+    s.contact = Contact::Backward;
+    Simulator sim(p, s, s.load_position);
+    ServoParams q = p;
+    q.load_torque = 2.0 + 1e-3 * k;
+    sim.setParams(q);
+    EXPECT_EQ(sim.state().contact, Contact::Backward) << s.load_position;
+    EXPECT_NEAR(sim.gap(), p.backlash, 1e-12) << s.load_position;
+    q.backlash = 0.003;  // a larger backlash: now the teeth float inside it
+    sim.setParams(q);
+    EXPECT_EQ(sim.state().contact, Contact::Apart) << s.load_position;
+  }
+}
+}  // namespace
