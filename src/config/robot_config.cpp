@@ -179,6 +179,13 @@ std::vector<RobotJoint> robotJointsFrom(const KeyValues& top,
     }
     out.push_back(std::move(j));
   }
+  if (arm != nullptr)
+  {
+    // The URDF's order (a parameter server keeps no order of its own: the node reads ~joints sorted by name).
+    std::stable_sort(out.begin(), out.end(), [arm](const RobotJoint& a, const RobotJoint& b) {
+      return arm->indexOf(a.name) < arm->indexOf(b.name);
+    });
+  }
   return out;
 }
 

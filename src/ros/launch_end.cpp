@@ -1,5 +1,7 @@
 #include "launch_end.h"
 
+#include <ros/ros.h>
+
 #include <unistd.h>
 
 #include <csignal>
@@ -44,5 +46,19 @@ bool endParentLaunch()
     return false;
   }
   return kill(parent, SIGINT) == 0;
+}
+
+void endParentLaunchAndWait()
+{
+  if (endParentLaunch())
+  {
+    // roslaunch stops every node of the launch, this one with SIGINT (SIGTERM after 15 s): exit then, so that the
+    // end is roslaunch's ordinary shutdown and not a required node's death.
+    const ros::WallTime asked = ros::WallTime::now();
+    while (ros::ok() && (ros::WallTime::now() - asked).toSec() < 20.0)
+    {
+      ros::WallDuration(0.01).sleep();
+    }
+  }
 }
 }  // namespace backlash_servo

@@ -11,4 +11,6 @@ namespace backlash_servo
 {
 /// Sends SIGINT to the parent process if it is roslaunch; true when it did.
 bool endParentLaunch();
+/// endParentLaunch(), then waits (at most 20 s) for roslaunch's SIGINT to end this node.
+void endParentLaunchAndWait();
 }  // namespace backlash_servo

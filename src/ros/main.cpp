@@ -1,4 +1,5 @@
 // backlash_servo_node: loads ~params (exits with a message naming the key if they are bad) and runs the servo.
+#include "robot_node.h"
 #include "servo_node.h"
 
 #include <clocale>
@@ -30,6 +31,22 @@ int main(int argc, char** argv)
   ros::init(argc, argv, "backlash_servo_node");
   std::signal(SIGTERM, requestShutdown);
   ros::NodeHandle nh, pnh("~");
+  try
+  {
+    // An arm (~joints given): every joint of the robot description in one node.
+    const backlash_servo::PrivateParams given = backlash_servo::readPrivateParams(pnh);
+    if (given.arm)
+    {
+      const backlash_servo::RobotNodeConfig config = backlash_servo::loadRobotNodeConfig(nh, pnh, given);
+      backlash_servo::RobotNode node(nh, pnh, config);
+      return node.run() ? 0 : 1;
+    }
+  }
+  catch (const std::exception& e)
+  {
+    ROS_FATAL("backlash_servo_node: bad parameter: %s", e.what());
+    return 1;
+  }
   backlash_servo::NodeConfig config;
   try
   {

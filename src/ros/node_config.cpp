@@ -124,31 +124,79 @@ NodeConfig nodeSettingsFrom(const KeyValues& kv, const NodeConfig& base)
   return c;
 }
 
-NodeConfig loadNodeConfig(const ros::NodeHandle& pnh)
+PrivateParams readPrivateParams(const ros::NodeHandle& pnh)
 {
+  PrivateParams out;
+  out.given.nameKeysAsFlags(false);
   XmlRpc::XmlRpcValue all;
+  if (!pnh.getParam(pnh.getNamespace(), all) || all.getType() != XmlRpc::XmlRpcValue::TypeStruct)
+  {
+    return out;
+  }
+  for (auto& item : all)
+  {
+    const ParamSpec* spec = findParam(item.first);
+    if (spec != nullptr)
+    {
+      putValue(&out.given, *spec, item.second);
+    }
+    else if (item.first == "joints" && item.second.getType() == XmlRpc::XmlRpcValue::TypeStruct)
+    {
+      out.arm = true;
+      for (auto& joint : item.second)
+      {
+        if (joint.second.getType() != XmlRpc::XmlRpcValue::TypeStruct)
+        {
+          throw ConfigError("~joints/" + joint.first + ": must be a mapping of key: value (or empty: {})");
+        }
+        KeyValues own;
+        own.nameKeysAsFlags(false);
+        for (auto& key : joint.second)
+        {
+          const ParamSpec* joint_spec = findParam(key.first);
+          if (joint_spec == nullptr)
+          {
+            throw ConfigError("~joints/" + joint.first + "/" + key.first + ": unknown parameter" +
+                              didYouMean(key.first));
+          }
+          putValue(&own, *joint_spec, key.second);
+        }
+        out.joints.emplace_back(joint.first, own);
+      }
+    }
+    else if (item.first == "urdf" && item.second.getType() == XmlRpc::XmlRpcValue::TypeString)
+    {
+      out.urdf = static_cast<std::string>(item.second);
+    }
+    else if (item.second.getType() != XmlRpc::XmlRpcValue::TypeStruct)  // dynamic_reconfigure keeps groups
+    {
+      // A typo must not run as the key's default (a derivative gain of 0): refused, the nearest key named.
+      throw ConfigError("~" + item.first + ": unknown parameter" + didYouMean(item.first));
+    }
+  }
+  return out;
+}
+
+KeyValues withNodeDefaults(const KeyValues& given)
+{
   KeyValues kv;
   kv.nameKeysAsFlags(false);
   for (const ParamSpec* spec : paramsIn(ParamSection::Node))
   {
     kv.set(spec->key, spec->fallback);  // the table's defaults, under the params given
   }
-  if (pnh.getParam(pnh.getNamespace(), all) && all.getType() == XmlRpc::XmlRpcValue::TypeStruct)
+  kv.overrideWith(given);
+  return kv;
+}
+
+NodeConfig loadNodeConfig(const ros::NodeHandle& pnh)
+{
+  const PrivateParams params = readPrivateParams(pnh);
+  if (params.arm)
   {
-    for (auto& item : all)
-    {
-      const ParamSpec* spec = findParam(item.first);
-      if (spec != nullptr)
-      {
-        putValue(&kv, *spec, item.second);
-      }
-      else if (item.second.getType() != XmlRpc::XmlRpcValue::TypeStruct)  // dynamic_reconfigure keeps groups
-      {
-        // A typo must not run as the key's default (a derivative gain of 0): refused, the nearest key named.
-        throw ConfigError("~" + item.first + ": unknown parameter" + didYouMean(item.first));
-      }
-    }
+    throw ConfigError("~joints: an arm's parameters (the node reads them as an arm: loadRobotNodeConfig)");
   }
+  const KeyValues kv = withNodeDefaults(params.given);
   NodeConfig c = nodeSettingsFrom(kv, NodeConfig());
   c.run = runConfigFrom(kv, c.control_mode);
   return c;

@@ -10,6 +10,8 @@
 #include <ros/node_handle.h>
 
 #include <string>
+#include <utility>
+#include <vector>
 
 #include "backlash_servo/config/key_values.h"
 #include "backlash_servo/simulation/step_response.h"
@@ -44,6 +46,19 @@ struct NodeConfig
 
 /// Reads and validates the private parameters; throws std::runtime_error naming the key on any problem.
 NodeConfig loadNodeConfig(const ros::NodeHandle& private_nh);
+
+/// The private parameters as given: the table's keys, and an arm's `joints` (name → its keys) and `urdf` (a path).
+struct PrivateParams
+{
+  KeyValues given;                                        ///< the table's keys given (no defaults filled)
+  std::vector<std::pair<std::string, KeyValues>> joints;  ///< ~joints/NAME/KEY, in the server's order
+  std::string urdf;                                       ///< ~urdf: the robot description's file; "" = none
+  bool arm = false;                                       ///< ~joints is given: the node runs an arm
+};
+/// Reads ~: unknown keys (in the top level or a joint) refused naming them and their nearest key.
+PrivateParams readPrivateParams(const ros::NodeHandle& private_nh);
+/// The Node section's table defaults under the keys given.
+KeyValues withNodeDefaults(const KeyValues& given);
 
 /**
  * Node settings from key values (Node-section keys; absent keys keep the values of `base`), validated by the table

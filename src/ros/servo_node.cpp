@@ -23,8 +23,7 @@ constexpr uint32_t SAMPLE_QUEUE = 100000;
 
 ServoNode::ServoNode(ros::NodeHandle& nh, ros::NodeHandle& pnh, const NodeConfig& config)
     : config_(config),
-      clock_mode_(config.publish_clock ? ClockMode::Publisher
-                                       : (ros::Time::isSimTime() ? ClockMode::External : ClockMode::RealTime)),
+      clock_(nh, config_, SAMPLE_QUEUE),
       sim_(config.run.params, config.run.initial, config.run.command),
       command_(config.run.command),
       profile_(config.run.profile),
@@ -51,16 +50,6 @@ ServoNode::ServoNode(ros::NodeHandle& nh, ros::NodeHandle& pnh, const NodeConfig
   limit_cycle_pub_ = nh.advertise<LimitCycleStatus>("limit_cycle", 1000, true);
   encoder_pub_ = nh.advertise<sensor_msgs::JointState>("encoder_states", SAMPLE_QUEUE);
   sim_.setSampleObserver([this](const State& s, const Drive& drive) { publishEncoders(s, drive); });
-  if (clock_mode_ == ClockMode::Publisher)
-  {
-    clock_pub_ = nh.advertise<rosgraph_msgs::Clock>("/clock", SAMPLE_QUEUE);
-    if (!ros::Time::isSimTime())
-    {
-      ROS_WARN(
-          "backlash_servo_node: publish_clock is true but /use_sim_time is false: other nodes will not follow "
-          "the simulator's clock (launch with publish_clock:=true, or set use_sim_time:=true)");
-    }
-  }
   diagnostics_.setHardwareID("backlash_servo");
   diagnostics_.add("simulation", this, &ServoNode::diagnose);
   sim_.setEventBudget(static_cast<std::uint64_t>(config_.run.max_events));
@@ -77,7 +66,7 @@ ServoNode::ServoNode(ros::NodeHandle& nh, ros::NodeHandle& pnh, const NodeConfig
   state_topic_ = state_pub_.getTopic();
   limit_cycle_topic_ = limit_cycle_pub_.getTopic();
   encoder_topic_ = encoder_pub_.getTopic();
-  clock_topic_ = clock_pub_ ? clock_pub_.getTopic() : std::string();
+  clock_topic_ = clock_.publisher() ? clock_.publisher().getTopic() : std::string();
   command_topic_ = command_sub_.getTopic();
   trajectory_topic_ = trajectory_sub_.getTopic();
   effort_topic_ = effort_sub_.getTopic();
@@ -89,24 +78,10 @@ ServoNode::ServoNode(ros::NodeHandle& nh, ros::NodeHandle& pnh, const NodeConfig
   reconfigure_->updateConfig(last_good_);
   reconfigure_->setCallback([this](BacklashServoConfig& c, uint32_t level) { onReconfigure(c, level); });
 
-  if (clock_mode_ == ClockMode::External)
-  {
-    ros::Time::waitForValid();
-    origin_ = ros::Time::now();
-  }
-  else if (clock_mode_ == ClockMode::Publisher)
-  {
-    origin_ = ros::Time(config_.start_time);  // sim time 0 is ROS time start_time (default 0, as in Gazebo)
-  }
-  else
-  {
-    origin_ = ros::Time::now();
-  }
-  const char* modes[] = {"real time", "publishing /clock", "following /clock"};
+  clock_.start();
   ROS_INFO("backlash_servo_node: %s, real_time_factor %g, %g Hz, zeta %.3g, w_n %.3g rad/s, backlash %g rad, e %g",
-           modes[static_cast<int>(clock_mode_)], config_.real_time_factor, config_.publish_rate,
-           sim_.params().dampingRatio(), sim_.params().naturalFrequency(), sim_.params().backlash,
-           sim_.params().restitution);
+           clock_.modeName(), config_.real_time_factor, config_.publish_rate, sim_.params().dampingRatio(),
+           sim_.params().naturalFrequency(), sim_.params().backlash, sim_.params().restitution);
   for (const std::string& w : inputWarnings(config_.run))
   {
     ROS_WARN("backlash_servo_node: %s", w.c_str());

@@ -33,6 +33,7 @@
 #include "backlash_servo/simulation/tracking_metrics.h"
 #include "node_config.h"
 #include "node_recorder.h"
+#include "sim_clock.h"
 
 namespace backlash_servo
 {
@@ -51,8 +52,6 @@ class ServoNode : public EventSink
   // The sample loop's stages (run()).
   /// Waits start_delay (and in lockstep for a controller) before sim time starts.
   void awaitStart();
-  /// Whether the sample at t [s] is due by the clock (external /clock or the wall clock scaled); false: not yet.
-  bool due(double t);
   /// /clock at sim time t [s] when the node is the clock: every sample in lockstep, when `force`d, or when the
   /// samples come no faster than clock_publish_rate of wall time; else at most at that rate (the rest skipped).
   void publishClock(double t, bool force);
@@ -62,13 +61,6 @@ class ServoNode : public EventSink
   void reportStop(double t, const ros::WallTime& run_start);
   /// With stop_launch: ends the parent launch and waits for roslaunch's SIGINT.
   void endLaunch(bool reached_stop);
-
-  enum class ClockMode
-  {
-    RealTime,   ///< follow the wall clock scaled by real_time_factor
-    Publisher,  ///< the node publishes /clock
-    External    ///< follow /clock from elsewhere
-  };
 
   void onCommand(const std_msgs::Float64& msg);
   /// command_trajectory: the load joint's points → a profile of ramps (steps where time_from_start repeats),
@@ -119,8 +111,7 @@ class ServoNode : public EventSink
   /// Whether a maximum of the load (its state there) leaves a converged verdict: above the quiet band of where the
   /// load was judged to rest. The node then withdraws the verdict, says so and judges afresh.
   bool leftConvergence(const State& at_maximum) const;
-  void reanchorWallClock();
-  ros::Time stamp(double sim_time) const { return origin_ + ros::Duration(sim_time); }
+  ros::Time stamp(double sim_time) const { return clock_.stamp(sim_time); }
   /// Publishes an output and writes it to the node's bag (record_bag) under its resolved topic name.
   template <class M>
   void emit(const ros::Publisher& pub, const std::string& topic, const M& msg)
@@ -140,7 +131,7 @@ class ServoNode : public EventSink
   BacklashServoConfig currentConfig() const;
 
   NodeConfig config_;
-  ClockMode clock_mode_;
+  SimClock clock_;  // when samples are due, /clock
   Simulator sim_;
   double command_;                                 // θ_R [rad] (a profile's final value), kept also in effort mode
   std::shared_ptr<const CommandProfile> profile_;  // θ_R(t) in sim time (YAML `profile`, command_trajectory) or null
@@ -161,7 +152,7 @@ class ServoNode : public EventSink
   double converged_at_ = 0.0;    // sim time the latest converged verdict was announced [s]
 
   std::unique_ptr<NodeRecorder> recorder_;  // the node's own bag (record_bag), or null
-  ros::Publisher joint_pub_, impact_pub_, state_pub_, limit_cycle_pub_, clock_pub_, encoder_pub_;
+  ros::Publisher joint_pub_, impact_pub_, state_pub_, limit_cycle_pub_, encoder_pub_;
   std::string joint_topic_, impact_topic_, state_topic_, limit_cycle_topic_, encoder_topic_, clock_topic_;
   std::string command_topic_, trajectory_topic_, effort_topic_, load_torque_topic_;
   // The per-sample messages, kept so that a sample allocates nothing of its own (names and arrays are reused).
@@ -177,7 +168,6 @@ class ServoNode : public EventSink
   /// Brings last_good_ and the dynamic_reconfigure parameters up to date (called once per wall second).
   void refreshReconfigureMirror();
 
-  ros::Time origin_;          // ROS time of sim time 0
   double sample_base_ = 0.0;  // sim time of sample 0 of the current schedule [s]
   long sample_index_ = 0;     // index of the next sample
   // Lockstep (sync): waiting for the answer to the state just published; its arrival; answers that came too late.
@@ -192,10 +182,6 @@ class ServoNode : public EventSink
   // Effort timeout: sim time of the last motor_effort [s]; the torque was dropped for want of one.
   double last_effort_time_ = 0.0;
   bool effort_timed_out_ = false;
-  ros::WallTime wall_anchor_;      // wall time at which the sim was at sim_anchor_
-  ros::WallTime last_clock_wall_;  // wall time of the last /clock message
-  double clock_skipped_ = -1.0;    // sim time of the newest sample whose /clock was skipped [s]; < 0 = none
-  double sim_anchor_ = 0.0;
   bool paused_ = false;
   std::string fault_;  // the core error holding the simulation; empty while healthy
   diagnostic_updater::Updater diagnostics_;

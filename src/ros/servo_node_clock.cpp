@@ -9,12 +9,6 @@
 
 namespace backlash_servo
 {
-void ServoNode::reanchorWallClock()
-{
-  wall_anchor_ = ros::WallTime::now();
-  sim_anchor_ = sim_.state().time;
-}
-
 void ServoNode::awaitStart()
 {
   // Give recorders and monitors time to subscribe before sim time starts (callbacks are served meanwhile).
@@ -51,56 +45,15 @@ void ServoNode::awaitStart()
   }
 }
 
-bool ServoNode::due(double t)
-{
-  if (clock_mode_ == ClockMode::External)
-  {
-    if (ros::Time::now() < stamp(t))
-    {
-      ros::WallDuration(0.0005).sleep();
-      return false;
-    }
-  }
-  else if (config_.real_time_factor > 0.0)
-  {
-    // Long waits are cut into 5 ms slices so callbacks stay responsive; the last slice ends exactly on time and
-    // falls through (one wake-up and one spinOnce per sample at high rates).
-    const double wait =
-        (wall_anchor_.toSec() + (t - sim_anchor_) / config_.real_time_factor) - ros::WallTime::now().toSec();
-    if (wait > 0.005)
-    {
-      ros::WallDuration(0.005).sleep();
-      return false;
-    }
-    if (wait > 0.0)
-    {
-      ros::WallDuration(wait).sleep();
-    }
-  }
-  return true;
-}
-
 void ServoNode::publishClock(double t, bool force)
 {
-  if (clock_mode_ != ClockMode::Publisher)
+  if (clock_.clockDue(t, force))
   {
-    return;
+    rosgraph_msgs::Clock clock;
+    clock.clock = stamp(t);
+    emit(clock_.publisher(), clock_topic_, clock);
+    ++published_;
   }
-  const double rate = config_.clock_publish_rate;
-  const bool every_sample = config_.sync || rate == 0.0 ||
-                            (config_.real_time_factor > 0.0 && config_.publish_rate * config_.real_time_factor <= rate);
-  const ros::WallTime now = ros::WallTime::now();
-  if (!force && !every_sample && (now - last_clock_wall_).toSec() < 1.0 / rate)
-  {
-    clock_skipped_ = t;
-    return;
-  }
-  rosgraph_msgs::Clock clock;
-  clock.clock = stamp(t);
-  emit(clock_pub_, clock_topic_, clock);
-  ++published_;
-  last_clock_wall_ = now;
-  clock_skipped_ = -1.0;
 }
 
 bool ServoNode::stepTo(double t)
@@ -163,22 +116,16 @@ void ServoNode::reportStop(double t, const ros::WallTime& run_start)
 void ServoNode::endLaunch(bool reached_stop)
 {
   // Every input served so far is in the bag (the drain above serves the last ones).
-  if (reached_stop && config_.stop_launch && endParentLaunch())
+  if (reached_stop && config_.stop_launch)
   {
-    // roslaunch stops every node of the launch, this one with SIGINT (SIGTERM after 15 s): exit then, so that the
-    // end is roslaunch's ordinary shutdown and not a required node's death.
-    const ros::WallTime asked = ros::WallTime::now();
-    while (ros::ok() && (ros::WallTime::now() - asked).toSec() < 20.0)
-    {
-      ros::WallDuration(0.01).sleep();
-    }
+    endParentLaunchAndWait();
   }
 }
 
 bool ServoNode::run()
 {
   awaitStart();
-  reanchorWallClock();
+  clock_.reanchor(sim_.state().time);
   const ros::WallTime run_start = ros::WallTime::now();
   publishClock(0.0, true);
   publishSample();
@@ -195,16 +142,16 @@ bool ServoNode::run()
     }
     if (paused_ || !fault_.empty())
     {
-      if (clock_skipped_ >= 0.0)
+      if (clock_.skipped() >= 0.0)
       {
-        publishClock(clock_skipped_, true);  // a paused graph sees the time the node stands at
+        publishClock(clock_.skipped(), true);  // a paused graph sees the time the node stands at
       }
       ros::WallDuration(0.005).sleep();
-      reanchorWallClock();
+      clock_.reanchor(sim_.state().time);
       continue;
     }
     const double t = sample_base_ + static_cast<double>(sample_index_) / config_.publish_rate;
-    if (!due(t))
+    if (!clock_.due(t))
     {
       continue;
     }

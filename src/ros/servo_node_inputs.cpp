@@ -4,6 +4,7 @@
 #include <algorithm>
 
 #include "backlash_servo/model/param_table.h"
+#include "trajectory_profile.h"
 #include "wall_throttle.h"
 
 namespace backlash_servo
@@ -82,54 +83,14 @@ void ServoNode::onTrajectory(const trajectory_msgs::JointTrajectory& msg)
     {
       throw ConfigError("the node is in effort mode (control_mode: effort); a trajectory is a position command");
     }
-    const auto joint = std::find(msg.joint_names.begin(), msg.joint_names.end(), config_.load_joint_name);
-    if (joint == msg.joint_names.end())
-    {
-      throw ConfigError("no joint named '" + config_.load_joint_name + "' in joint_names");
-    }
-    const std::size_t j = static_cast<std::size_t>(joint - msg.joint_names.begin());
-    if (msg.points.empty())
-    {
-      throw ConfigError("no points");
-    }
-    // Start: the header's stamp in sim time, or now for a zero stamp (the ROS convention).
-    const double start = msg.header.stamp.isZero() ? now : (msg.header.stamp - origin_).toSec();
-    if (!(start >= 0.0))
-    {
-      throw ConfigError("header.stamp lies before the simulation's time 0");
-    }
+    const double start = trajectoryStart(msg, clock_.origin(), now);
     const double from = profile_ ? profile_->at(std::max(start, now)) : command_;
-    std::vector<ProfileSegment> segments;
-    double previous = 0.0;
-    for (std::size_t i = 0; i < msg.points.size(); ++i)
-    {
-      const trajectory_msgs::JointTrajectoryPoint& point = msg.points[i];
-      const std::string where = "point " + std::to_string(i + 1);
-      if (point.positions.size() != msg.joint_names.size())
-      {
-        throw ConfigError(where + ": " + std::to_string(point.positions.size()) + " positions for " +
-                          std::to_string(msg.joint_names.size()) + " joint names");
-      }
-      param("command").check(point.positions[j]);  // finite and inside the validated envelope
-      const double t = point.time_from_start.toSec();
-      if (!(t >= previous))
-      {
-        throw ConfigError(where + ": time_from_start " + std::to_string(t) + " s is before the previous point's");
-      }
-      ProfileSegment s;
-      s.time = start + previous;
-      s.target = point.positions[j];
-      s.kind = t > previous ? ProfileSegment::Kind::Ramp : ProfileSegment::Kind::Step;
-      s.duration = t - previous;  // linear interpolation from the previous point (the first: from the set-point)
-      segments.push_back(s);
-      previous = t;
-    }
-    auto profile = std::make_shared<CommandProfile>(from, segments);
+    auto profile = trajectoryProfile(msg, config_.load_joint_name, start, from);
     sim_.setProfile(profile);  // throws before changing anything if the law cannot take it (ramps with dry friction)
     profile_ = profile;
     command_ = profile_->finalValue();
     ROS_INFO("backlash_servo_node: command_trajectory: %zu points from t = %.6g s to %.6g s, final %g rad",
-             msg.points.size(), start, start + previous, command_);
+             msg.points.size(), start, profile_->endTime(), command_);
   }
   catch (const std::exception& e)
   {
@@ -195,7 +156,7 @@ bool ServoNode::onReset(std_srvs::Trigger::Request&, std_srvs::Trigger::Response
     ROS_INFO("backlash_servo_node: reset clears the simulation error; running again");
     fault_.clear();
     fault_diverged_ = false;
-    reanchorWallClock();
+    clock_.reanchor(sim_.state().time);
     publishDiagnostics();
   }
   res.success = true;
@@ -214,7 +175,7 @@ bool ServoNode::onPause(std_srvs::Trigger::Request&, std_srvs::Trigger::Response
 bool ServoNode::onResume(std_srvs::Trigger::Request&, std_srvs::Trigger::Response& res)
 {
   paused_ = false;
-  reanchorWallClock();
+  clock_.reanchor(sim_.state().time);
   res.success = true;
   res.message = "running from t = " + std::to_string(sim_.state().time) + " s";
   return true;

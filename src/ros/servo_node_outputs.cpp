@@ -8,6 +8,7 @@
 #include "backlash_servo/BacklashState.h"
 #include "backlash_servo/ImpactEvent.h"
 #include "backlash_servo/LimitCycleStatus.h"
+#include "status_messages.h"
 
 namespace backlash_servo
 {
@@ -191,18 +192,7 @@ void ServoNode::onEvent(const Event& e)
     {
       return;  // filtered from publishing only; it was simulated
     }
-    ImpactEvent m;
-    m.header.stamp = stamp(e.state.time);
-    m.sim_time = e.state.time;
-    m.wall = e.impact.wall == Contact::Backward ? ImpactEvent::BACKWARD : ImpactEvent::FORWARD;
-    m.motor_velocity_before = e.impact.motor_velocity_before;
-    m.motor_velocity_after = e.impact.motor_velocity_after;
-    m.load_velocity_before = e.impact.load_velocity_before;
-    m.load_velocity_after = e.impact.load_velocity_after;
-    m.approach_speed = e.impact.approach_speed;
-    m.impulse = e.impact.impulse;
-    m.energy_loss = e.impact.energy_loss;
-    m.stuck = e.impact.stuck;
+    const ImpactEvent m = impactMessage(e, stamp(e.state.time), config_.load_joint_name);
     emit(impact_pub_, impact_topic_, m);
   }
   else if (e.type == EventType::Maximum)  // both modes: effort mode is judged against `command` as well
@@ -235,8 +225,7 @@ bool ServoNode::leftConvergence(const State& at_maximum) const
 {
   // A maximum above the quiet band after a converged verdict: the load moved again (an external controller's
   // integrator, a breakaway, a push) — the verdict no longer describes the joint.
-  return announced_ == Verdict::Converged && monitor_->status().verdict == Verdict::Converged && fault_.empty() &&
-         at_maximum.load_position - monitor_->equilibrium() > ResponseMonitor::QUIET_ERROR_FRACTION * monitor_->scale();
+  return announced_ == Verdict::Converged && fault_.empty() && monitor_->leavesConvergence(at_maximum);
 }
 
 TrackingFigures ServoNode::trackingNow() const
@@ -286,19 +275,12 @@ void ServoNode::publishLimitCycle(double sim_time, bool maximum, bool diverged)
   LimitCycleStatus m;
   m.header.stamp = stamp(sim_time);
   m.sim_time = sim_time;
-  m.verdict = diverged ? toString(Verdict::Diverged) : toString(st.verdict);
-  m.detected = monitor_->oscillating();
-  m.error = m.detected ? st.error : 0.0;
-  m.period = m.detected ? st.period : 0.0;
-  m.maxima_per_period = m.detected ? static_cast<uint32_t>(st.multiplicity) : 0;
-  const CycleShape cycle = monitor_->cycleShape();
-  m.peak_to_peak = m.detected ? cycle.peak_to_peak : 0.0;
-  m.cycle_centre = m.detected ? cycle.centre : 0.0;
-  const CycleResolution resolution = resolutionNow(cycle);
-  m.peak_to_peak_counts = m.detected ? resolution.counts : NAN;
-  m.peak_to_peak_arcmin = m.detected ? resolution.arcmin : NAN;
-  m.below_encoder_resolution = m.detected && resolution.below_count;
-  m.equilibrium = monitor_->equilibrium();
+  fillVerdict(*monitor_, resolutionNow(monitor_->cycleShape()), &m);
+  if (diverged)
+  {
+    m.verdict = toString(Verdict::Diverged);
+  }
+  m.joint = config_.load_joint_name;
   const SteadyAnswer& steady = steadyNow();
   m.steady_error = steady.error;
   m.steady_basis = steady.basis == SteadyBasis::None ? "" : steadyBasisName(steady.basis);
@@ -306,14 +288,6 @@ void ServoNode::publishLimitCycle(double sim_time, bool maximum, bool diverged)
   m.settling_band = tracking.band;
   m.settling_time = tracking.settling_time;
   m.steady_rms_error = tracking.steady_rms_error;
-  m.maxima_observed = static_cast<uint32_t>(monitor_->maxima().size());
-  if (!monitor_->maxima().empty())
-  {
-    const Maximum& last = monitor_->maxima().back();
-    m.last_maximum_time = last.time;
-    m.last_maximum_position = last.position;
-    m.last_maximum_velocity = last.velocity;
-  }
   m.command = command_;
   if (st.verdict != Verdict::Undecided && fault_.empty())
   {

@@ -206,7 +206,7 @@ void ServoNode::onReconfigure(BacklashServoConfig& c, uint32_t)
     sample_index_ = 1;
   }
   config_ = next;
-  reanchorWallClock();
+  clock_.reanchor(sim_.state().time);
   last_good_ = c;
   if (!fault_.empty() && !fault_diverged_)
   {

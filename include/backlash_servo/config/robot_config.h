@@ -41,7 +41,8 @@ RobotFile loadRobotFile(const std::string& path);
  * the keys leave it. `arm` may be null (no URDF). The load inertia of an arm-loaded joint is validated at the
  * initial pose (every joint's initial load_position, the others 0). Throws ConfigError naming the joint and the key
  * (a joint the URDF does not have, with its nearest; a key given both in the YAML and by the URDF) or the
- * joint's invalid parameter ("joints/NAME: …").
+ * joint's invalid parameter ("joints/NAME: …"). The joints come in the URDF's order (depth-first from its root), or
+ * in the given order without one.
  */
 std::vector<RobotJoint> robotJointsFrom(const KeyValues& top,
                                         const std::vector<std::pair<std::string, KeyValues>>& joints,

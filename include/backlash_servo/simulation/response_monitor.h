@@ -86,6 +86,14 @@ class ResponseMonitor : public EventSink
   /// (a loop just inside its stability limit) is sure, but its steady error is not yet readable: a run until settled
   /// goes on until this holds (or its cap).
   bool convergedNear(const State& state) const;
+  /// A maximum of the load (the state there) that contradicts a converged verdict: above the quiet band
+  /// (QUIET_ERROR_FRACTION of the scale) beyond the equilibrium — the load moved again (a push, a breakaway, an
+  /// external controller's integrator). False unless the verdict is converged.
+  bool leavesConvergence(const State& at_maximum) const
+  {
+    return status().verdict == Verdict::Converged &&
+           at_maximum.load_position - equilibrium_ > QUIET_ERROR_FRACTION * scale_;
+  }
   const LimitCycleReport& status() const { return detector_.status(); }
   /// The positive maxima above θ_R (reported).
   const std::vector<Maximum>& maxima() const { return detector_.maxima(); }

@@ -1,0 +1,112 @@
+/**
+ * @file robot_node.h
+ * @brief backlash_servo_node for an arm (~joints given): every joint of the robot description in one simulated
+ *        time (RobotSimulator: each joint's plant and drive, gravity and inertia following the pose), one
+ *        /joint_states, one /clock. A thin adapter: the physics and the judges are the core's.
+ *
+ * Topics (in the node's namespace): joint_states (every load joint by its URDF name, every motor by its actuator's
+ * name; effort: the motor's torque [N·m], the mesh torque on the load [N·m]), impact (with the joint's name),
+ * <joint>/limit_cycle (latched, per joint), <joint>/command (std_msgs/Float64, rad), command_trajectory (any subset
+ * of the joints; the others hold their set-points). Services ~pause, ~resume. Position mode with each joint's own
+ * drive.
+ */
+#pragma once
+
+#include <ros/ros.h>
+#include <sensor_msgs/JointState.h>
+#include <std_msgs/Float64.h>
+#include <std_srvs/Trigger.h>
+#include <trajectory_msgs/JointTrajectory.h>
+
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "backlash_servo/robot/robot_simulator.h"
+#include "backlash_servo/simulation/response_monitor.h"
+#include "node_config.h"
+#include "node_recorder.h"
+#include "sim_clock.h"
+
+namespace backlash_servo
+{
+/// What an arm's node reads: the node's own settings (rates, clock, stop) and the joints.
+struct RobotNodeConfig
+{
+  NodeConfig node;                 ///< publish_rate, real_time_factor, publish_clock, stop_after, … (the Node keys)
+  std::string urdf;                ///< the robot description's text; "" = independent joints
+  std::vector<RobotJoint> joints;  ///< each joint's run (robot_config.h)
+};
+
+/// From ~joints, the top-level keys, and the robot description: the `robot_description` parameter (the node's
+/// namespace, as robot_state_publisher reads it) or the file ~urdf. Throws ConfigError naming the key.
+RobotNodeConfig loadRobotNodeConfig(const ros::NodeHandle& nh, const ros::NodeHandle& pnh, const PrivateParams& given);
+
+class RobotNode
+{
+ public:
+  RobotNode(ros::NodeHandle& nh, ros::NodeHandle& pnh, const RobotNodeConfig& config);
+  /// Runs the sample loop until shutdown (or stop_after); false when the recording (record_bag) failed.
+  bool run();
+
+ private:
+  /// One joint's judge and its ROS ends: events in, status out.
+  struct Channel : EventSink
+  {
+    RobotNode* node = nullptr;
+    std::size_t index = 0;
+    std::unique_ptr<ResponseMonitor> monitor;
+    Verdict announced = Verdict::Undecided;
+    std::string reason;        // why the verdict is (still) what it is
+    double judge_from = -1.0;  // a profile's end [s]: the verdict starts afresh there (-1: none pending)
+    ros::Publisher limit_cycle_pub;
+    std::string limit_cycle_topic, command_topic;
+    ros::Subscriber command_sub;
+    void onEvent(const Event& e) override;
+  };
+
+  void onCommand(std::size_t joint, const std_msgs::Float64& msg);
+  /// The points of every joint named in the message become that joint's profile; refused whole (ROS_ERROR) if any
+  /// joint is unknown or its points are bad.
+  void onTrajectory(const trajectory_msgs::JointTrajectory& msg);
+  bool onPause(std_srvs::Trigger::Request& req, std_srvs::Trigger::Response& res);
+  bool onResume(std_srvs::Trigger::Request& req, std_srvs::Trigger::Response& res);
+  /// Judges joint i afresh from now on (a new command); `reason` is published at once with verdict undecided.
+  void restartMonitor(std::size_t i, const std::string& reason);
+  void publishLimitCycle(std::size_t i, double sim_time);
+  /// Joint i's set-point [rad]: its profile's final value, else its command.
+  double setPoint(std::size_t i) const;
+  void publishSample();
+  void publishClock(double t, bool force);
+  /// Advances every joint to t [s] and judges each; false after a simulation error (the node pauses, says why).
+  bool stepTo(double t);
+  void reportStop(double t, const ros::WallTime& run_start);
+  ros::Time stamp(double sim_time) const { return clock_.stamp(sim_time); }
+  template <class M>
+  void emit(const ros::Publisher& pub, const std::string& topic, const M& msg)
+  {
+    pub.publish(msg);
+    if (recorder_)
+    {
+      recorder_->write(topic, msg);
+    }
+  }
+
+  RobotNodeConfig config_;
+  SimClock clock_;
+  std::unique_ptr<ArmModel> arm_;
+  std::unique_ptr<RobotSimulator> robot_;
+  std::vector<std::unique_ptr<Channel>> channels_;
+  std::vector<EventSink*> sinks_;
+  std::unique_ptr<NodeRecorder> recorder_;
+  ros::Publisher joint_pub_, impact_pub_;
+  std::string joint_topic_, impact_topic_, clock_topic_, trajectory_topic_;
+  ros::Subscriber trajectory_sub_;
+  ros::ServiceServer pause_srv_, resume_srv_;
+  sensor_msgs::JointState joint_msg_;
+  long sample_index_ = 0;
+  bool paused_ = false;
+  std::string fault_;  // the simulation error holding the arm; empty while healthy
+};
+
+}  // namespace backlash_servo

@@ -1,0 +1,105 @@
+#!/usr/bin/python3
+"""An arm in one node: every joint on joint_states, gravity carried through each gear, commands per joint."""
+import math
+import os
+import sys
+import unittest
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import rospy  # noqa: E402
+import rostest  # noqa: E402
+from sensor_msgs.msg import JointState  # noqa: E402
+from std_msgs.msg import Float64  # noqa: E402
+from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint  # noqa: E402
+
+from backlash_servo.msg import ImpactEvent, LimitCycleStatus  # noqa: E402
+from helpers import Collector, call_trigger, wait_for  # noqa: E402
+
+NODE = "/backlash_servo"
+JOINTS = ["shoulder", "elbow", "wrist"]
+RHO = {"shoulder": 0.01, "elbow": 0.01, "wrist": 0.02}  # 1 / the URDF's mechanicalReduction
+G = 9.80665
+
+
+def gravity(q):
+    """Gravity's torque on each load of the example arm by hand: link masses at their centres, +q turning down."""
+    c1, c12, c123 = math.cos(q[0]), math.cos(q[0] + q[1]), math.cos(q[0] + q[1] + q[2])
+    wrist = G * 0.9 * 0.08 * c123
+    elbow = G * (2.1 * 0.175 + 0.9 * 0.35) * c12 + wrist
+    shoulder = G * (3.2 * 0.2 + 3.0 * 0.4) * c1 + elbow
+    return [shoulder, elbow, wrist]
+
+
+class RobotArm(unittest.TestCase):
+    def test_an_arm_in_one_node(self):
+        rospy.init_node("test_robot_arm")
+        joints = Collector("/joint_states", JointState)
+        impacts = Collector("/impact", ImpactEvent)
+        cycles = {j: Collector("/%s/limit_cycle" % j, LimitCycleStatus) for j in JOINTS}
+        trajectory = rospy.Publisher("/command_trajectory", JointTrajectory, queue_size=10)
+        elbow_command = rospy.Publisher("/elbow/command", Float64, queue_size=10)
+        self.assertTrue(joints.wait_connected() and impacts.wait_connected())
+        self.assertTrue(all(c.wait_connected() for c in cycles.values()))
+        self.assertTrue(wait_for(lambda: trajectory.get_num_connections() > 0
+                                 and elbow_command.get_num_connections() > 0, 10.0))
+        self.assertTrue(call_trigger(NODE + "/resume").success)
+
+        def now():
+            return joints.msgs[-1].header.stamp.to_sec() if joints.msgs else 0.0
+
+        def pose():
+            js = joints.msgs[-1]
+            return [js.position[js.name.index(j)] for j in JOINTS]
+
+        # Held at the commands (0.3, -0.6, 0.4 rad); each motor carries its load's gravity through its gear.
+        self.assertTrue(wait_for(lambda: now() >= 4.0, 60.0))
+        js = joints.msgs[-1]
+        self.assertEqual(list(js.name), JOINTS + [j + "_motor" for j in JOINTS])
+        q = pose()
+        for got, want in zip(q, [0.3, -0.6, 0.4]):
+            self.assertAlmostEqual(got, want, delta=1e-3)
+        # (A PID on a quantised encoder hunts a fraction of a count: one count's step in its derivative is 0.05 N·m at
+        # the shoulder, so the torque balances gravity on average over the hunt, here over 2.5 s.)
+        held = gravity(q)
+        recent = [m for m in joints.msgs if m.header.stamp.to_sec() >= 1.5]
+        for i, j in enumerate(JOINTS):
+            k = js.name.index(j + "_motor")
+            motor = sum(m.effort[k] for m in recent) / len(recent)
+            print("%s: mean motor torque %.6g N·m, -rho * gravity %.6g N·m" % (j, motor, -RHO[j] * held[i]))
+            self.assertAlmostEqual(motor, -RHO[j] * held[i], delta=0.03 * RHO[j] * abs(held[i]), msg=j)
+        for j in JOINTS:
+            self.assertTrue(cycles[j].msgs, j)
+            self.assertEqual(cycles[j].msgs[-1].joint, j)
+
+        # A trajectory for the wrist alone: it goes to 0 rad in 0.5 s; the others hold their set-points.
+        msg = JointTrajectory()
+        msg.joint_names = ["wrist"]
+        msg.points = [JointTrajectoryPoint(positions=[0.0], time_from_start=rospy.Duration(0.5))]
+        sent = now()
+        trajectory.publish(msg)
+        self.assertTrue(wait_for(lambda: now() >= sent + 3.0, 60.0))
+        q = pose()
+        self.assertAlmostEqual(q[2], 0.0, delta=1e-3)
+        self.assertAlmostEqual(q[0], 0.3, delta=2e-3)
+        self.assertAlmostEqual(q[1], -0.6, delta=2e-3)
+        wrist_status = cycles["wrist"].msgs[-1]
+        self.assertEqual(wrist_status.command, 0.0)
+
+        # A joint the arm does not have: refused whole, nothing moves.
+        bad = JointTrajectory()
+        bad.joint_names = ["wrist", "gripper"]
+        bad.points = [JointTrajectoryPoint(positions=[0.5, 0.0], time_from_start=rospy.Duration(0.1))]
+        trajectory.publish(bad)
+
+        # The forearm upright: gravity on the elbow's load nearly vanishes, its teeth float and rattle in the play.
+        sent = now()
+        elbow_command.publish(Float64(math.pi / 2 - 0.3))
+        self.assertTrue(wait_for(lambda: any(m.joint == "elbow" and m.sim_time > sent + 1.0 for m in impacts.msgs),
+                                 60.0))
+        self.assertTrue(wait_for(lambda: now() >= sent + 2.0, 60.0))
+        self.assertAlmostEqual(pose()[2], 0.0, delta=1e-3)  # the refused trajectory did not move the wrist
+        self.assertTrue(all(m.joint in JOINTS for m in impacts.msgs))
+
+
+if __name__ == "__main__":
+    rostest.rosrun("backlash_servo", "robot_arm", RobotArm)
