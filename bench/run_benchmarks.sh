@@ -33,6 +33,12 @@ echo "== tolerance study: 10 000 robot joints (config/robot_batch.yaml; four key
   --monte-carlo 10000 --seed 1 --backlash 'uniform(0.0015,0.0045)' --restitution 'uniform(0.1,0.6)' \
   --load-coulomb-friction 'lognormal(-1.6,0.3)' --load-torque 'normal(-3.5,0.5)' --output "$ref.batch.csv" | head -5
 rm -f "$ref.batch.csv"
+echo "== the example arm: 3 joints under 1 kHz PIDs for 100 s, the arm's gravity and inertia at every sample vs held constant"
+"$bin/backlash_sim" --config config/three_joint_arm.yaml --duration 100 | head -1
+sed -e "s#^urdf: \.\./#urdf: $PWD/#" -e '/^  \(shoulder\|elbow\|wrist\):/a\    load_torque: 1.0\n    load_inertia: 0.5' \
+  config/three_joint_arm.yaml >"$ref.arm.yaml"
+"$bin/backlash_sim" --config "$ref.arm.yaml" --duration 100 | head -1
+rm -f "$ref.arm.yaml"
 echo "== identification of a 60 s recording at 1 kHz (the experiment through a 1 kHz P drive; target: seconds)"
 work=$(mktemp -d)
 printf 'controller_rate: 1000.0\ngain: 5.0\ngear_ratio: 1.0\nrestitution: 0.5\nbacklash: 0.3\n' >"$work/prior.yaml"
