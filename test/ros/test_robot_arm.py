@@ -1,8 +1,11 @@
 #!/usr/bin/python3
 """An arm in one node: every joint on joint_states, gravity carried through each gear, commands per joint."""
+import json
 import math
 import os
+import subprocess
 import sys
+import time
 import unittest
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
@@ -16,6 +19,7 @@ from backlash_servo.msg import ImpactEvent, LimitCycleStatus  # noqa: E402
 from helpers import Collector, call_trigger, wait_for  # noqa: E402
 
 NODE = "/backlash_servo"
+REPORT = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..", "bin", "backlash_bag_report")
 JOINTS = ["shoulder", "elbow", "wrist"]
 RHO = {"shoulder": 0.01, "elbow": 0.01, "wrist": 0.02}  # 1 / the URDF's mechanicalReduction
 G = 9.80665
@@ -99,6 +103,23 @@ class RobotArm(unittest.TestCase):
         self.assertTrue(wait_for(lambda: now() >= sent + 2.0, 60.0))
         self.assertAlmostEqual(pose()[2], 0.0, delta=1e-3)  # the refused trajectory did not move the wrist
         self.assertTrue(all(m.joint in JOINTS for m in impacts.msgs))
+
+        # The node's bag, reported joint by joint: each joint's last verdict as its topic said it.
+        path = rospy.get_param("~bag")
+        self.assertTrue(wait_for(lambda: os.path.exists(path) and not os.path.exists(path + ".active"), 60.0), path)
+        time.sleep(0.5)  # the last messages in flight to this client
+        got = subprocess.run(["/usr/bin/python3", REPORT, path, "--json"], capture_output=True, text=True)
+        self.assertEqual(got.returncode, 0, got.stderr)
+        report = json.loads(got.stdout)
+        self.assertEqual([r["joint"] for r in report["joints"]], JOINTS)
+        for r in report["joints"]:
+            last = cycles[r["joint"]].msgs[-1]
+            self.assertEqual(r["node"]["verdict"], last.verdict, r["joint"])
+            self.assertEqual(r["command"], last.command, r["joint"])
+        self.assertAlmostEqual(report["simulated_time"], 16.0, delta=1e-9)
+        elbow = report["joints"][1]
+        self.assertGreater(elbow["impacts_per_second"], 10.0)  # the upright forearm rattled
+        os.remove(path)
 
 
 if __name__ == "__main__":
