@@ -151,7 +151,7 @@ void FlagParser::parse(int argc, char** argv)
   if (options_given_.has("config"))
   {
     const std::string path = options_given_.text("config", "");
-    robot_config_ = isRobotFile(path);
+    robot_config_ = accept_robot_files_ && isRobotFile(path);
     if (!robot_config_)
     {
       keys_.loadYaml(path);

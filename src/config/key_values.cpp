@@ -211,6 +211,12 @@ void KeyValues::loadYaml(const std::string& path)
       set(key, path);  // an inline profile: the profile loader reads this file's `profile:` list
       continue;
     }
+    if (key == "joints" && item.second.IsMap())
+    {
+      throw ConfigError("config file '" + path +
+                        "' describes an arm (joints:): backlash_sim --config runs it, a joint at a time elsewhere "
+                        "(docs/robot.md)");
+    }
     if (!item.second.IsScalar())
     {
       throw ConfigError("config file '" + path + "': key '" + key + "' must have a single value");

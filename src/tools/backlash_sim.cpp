@@ -218,6 +218,7 @@ int main(int argc, char** argv)
   double sample_rate = 100.0;
   try
   {
+    options.acceptRobotFiles();
     options.parse(argc, argv);
     csv_path = options.option("csv");
     sample_rate = options.optionNumber("sample_rate", sample_rate);

@@ -43,7 +43,10 @@ class FlagParser
   const KeyValues& keys() const { return keys_; }
   /// The parameter flags given on the command line alone (without the config file's keys).
   const KeyValues& flags() const { return flags_; }
-  /// Whether --config names a robot file (robot_config.h): its keys are then not in keys(), the tool reads the file.
+  /// A tool that runs arms calls this before parse(): a robot file (robot_config.h) given to --config is then left to
+  /// the tool (robotConfig()); elsewhere it is refused as a config file, naming the tool that runs it.
+  void acceptRobotFiles() { accept_robot_files_ = true; }
+  /// Whether --config names a robot file the tool accepts: its keys are then not in keys(), the tool reads the file.
   bool robotConfig() const { return robot_config_; }
   bool given(const std::string& option) const { return options_given_.has(option); }
   /// The text of a tool option, or fallback.
@@ -61,6 +64,7 @@ class FlagParser
   KeyValues keys_;
   KeyValues flags_;
   KeyValues options_given_;
+  bool accept_robot_files_ = false;
   bool robot_config_ = false;
 };
 

@@ -119,4 +119,8 @@ TEST(Sim, ARobotFileRunsEveryJointOfTheArm)
   EXPECT_EQ(code, 2);
   EXPECT_NE(refused.find("--backlash with a robot file: the joints' keys are the file's"), std::string::npos)
       << refused;
+  // A single-joint tool never runs an arm's file as the default joint: refused, naming the tool that runs it.
+  const std::string sweep = runCapture(SWEEP + arm + " --backlash 0.1,0.2 2>&1", &code);
+  EXPECT_EQ(code, 2);
+  EXPECT_NE(sweep.find("describes an arm (joints:): backlash_sim --config runs it"), std::string::npos) << sweep;
 }
