@@ -7,6 +7,7 @@
 #include <cmath>
 
 #include "backlash_servo/config/run_config_loader.h"
+#include "backlash_servo/config/safe_input.h"
 
 namespace backlash_servo
 {
@@ -187,6 +188,28 @@ std::vector<RobotJoint> robotJointsFrom(const KeyValues& top,
     });
   }
   return out;
+}
+
+RobotModel loadRobot(const std::string& path)
+{
+  constexpr std::size_t MAX_URDF_BYTES = 64u << 20;
+  const RobotFile file = loadRobotFile(path);
+  RobotModel model;
+  model.top = file.top;
+  if (!file.urdf.empty())
+  {
+    const std::string text = readRegularFile("urdf", file.urdf, MAX_URDF_BYTES);
+    try
+    {
+      model.arm = std::make_unique<ArmModel>(text);
+    }
+    catch (const std::invalid_argument& e)
+    {
+      throw ConfigError("urdf '" + file.urdf + "': " + e.what());
+    }
+  }
+  model.joints = robotJointsFrom(file.top, file.joints, model.arm.get());
+  return model;
 }
 
 }  // namespace backlash_servo

@@ -27,6 +27,7 @@
 
 #include "backlash_servo/config/compare_config.h"
 #include "backlash_servo/config/key_values.h"
+#include "backlash_servo/config/robot_config.h"
 #include "backlash_servo/config/run_config_loader.h"
 #include "backlash_servo/config/safe_input.h"
 #include "backlash_servo/drive/drive.h"
@@ -285,6 +286,39 @@ py::object run(const py::object& config)
       });
       const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
       writeRunJson(out, c, r, wall);
+    }
+    catch (const SignalWatch::Interrupted&)
+    {}
+  }
+  watch.raiseIfInterrupted();
+  return parseJson(out.str());
+}
+
+py::object robot(const std::string& path, double duration, double max_duration)
+{
+  RobotModel model = loadRobot(path);
+  if (!(duration >= 0.0) || !(max_duration >= 0.0) || !std::isfinite(duration) || !std::isfinite(max_duration))
+  {
+    throw ConfigError("duration and max_duration must be finite and >= 0 s (got " + formatNumber(duration) + ", " +
+                      formatNumber(max_duration) + ")");
+  }
+  const double check_period = robotCheckPeriod(model.joints);
+  RobotSimulator sim(model.joints, model.arm.get(), check_period);
+  std::ostringstream out;
+  SignalWatch watch;
+  {
+    py::gil_scoped_release release;
+    const auto start = std::chrono::steady_clock::now();
+    try
+    {
+      const RobotRunResult r = runRobot(&sim, duration, max_duration, check_period, {}, [&](double) {
+        if (watch.interrupted())
+        {
+          throw SignalWatch::Interrupted();
+        }
+      });
+      const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+      writeRobotRunJson(out, model.arm ? model.arm->robotName() : path, r, wall);
     }
     catch (const SignalWatch::Interrupted&)
     {}
@@ -938,6 +972,10 @@ void bindStudies(py::module_& m)
 {
   m.def("run", &run, py::arg("config") = py::none(),
         "One run until its verdict is settled (or for `duration` [s]): the dict `backlash_sim --json` prints.");
+  m.def("robot", &robot, py::arg("path"), py::kw_only(), py::arg("duration") = 0.0, py::arg("max_duration") = 0.0,
+        "An arm's robot file (joints:, urdf:; docs/robot.md) run as `backlash_sim --config PATH --json` runs it: every "
+        "joint in one simulated time for `duration` [s] (0: until every verdict is settled, at most `max_duration`), "
+        "a verdict per joint.");
   m.def("sweep", &sweep, py::arg("settings") = py::none(), py::kw_only(), py::arg("thesis") = false,
         py::arg("jobs") = 0, py::arg("max_duration") = 0.0, py::arg("tracking") = false,
         "A parameter study as `backlash_sweep` runs it: keys given a list (or 'a:b:n', 'log:a:b:n') are axes, the "

@@ -193,4 +193,21 @@ std::string resolutionText(const CycleResolution& r)
   return buf;
 }
 
+void writeRobotRunJson(std::ostream& out, const std::string& robot_name, const RobotRunResult& r, double wall_seconds)
+{
+  JsonWriter w(out);
+  w.beginObject().field("robot", robot_name).field("simulated", r.simulated).field("stopped_by", r.stopped_by);
+  w.field("wall_time", wall_seconds).beginArray("joints");
+  for (const RobotJointResult& j : r.joints)
+  {
+    w.beginObject().field("name", j.name).field("verdict", std::string(toString(j.status.verdict)));
+    w.field("error", j.status.error).field("period", j.status.period).field("peak_to_peak", j.cycle.peak_to_peak);
+    w.field("impacts", static_cast<long long>(j.impacts)).field("load_position", j.state.load_position);
+    w.field("motor_position", j.state.motor_position).field("load_torque", j.load_torque);
+    w.field("load_inertia", j.load_inertia).endObject();
+  }
+  w.endArray().endObject();
+  out << "\n";
+}
+
 }  // namespace backlash_servo

@@ -9,18 +9,15 @@
 #include <memory>
 
 #include "backlash_servo/config/robot_config.h"
-#include "backlash_servo/config/safe_input.h"
-#include "backlash_servo/files/json_writer.h"
 #include "backlash_servo/files/safe_output.h"
 #include "backlash_servo/robot/robot_run.h"
+#include "backlash_servo/studies/run_report.h"
 #include "progress.h"
 
 namespace backlash_servo
 {
 namespace
 {
-constexpr std::size_t MAX_URDF_BYTES = 64u << 20;
-
 /// The joints' CSV: the time, then each joint's load and motor positions [rad], velocities [rad/s] and gap [rad].
 class RobotCsv
 {
@@ -86,23 +83,6 @@ void writeTable(std::ostream& out, const std::string& robot_name, const RobotRun
   }
 }
 
-void writeJson(std::ostream& out, const std::string& robot_name, const RobotRunResult& r, double wall)
-{
-  JsonWriter w(out);
-  w.beginObject().field("robot", robot_name).field("simulated", r.simulated).field("stopped_by", r.stopped_by);
-  w.field("wall_time", wall).beginArray("joints");
-  for (const RobotJointResult& j : r.joints)
-  {
-    w.beginObject().field("name", j.name).field("verdict", std::string(toString(j.status.verdict)));
-    w.field("error", j.status.error).field("period", j.status.period).field("peak_to_peak", j.cycle.peak_to_peak);
-    w.field("impacts", static_cast<long long>(j.impacts)).field("load_position", j.state.load_position);
-    w.field("motor_position", j.state.motor_position).field("load_torque", j.load_torque);
-    w.field("load_inertia", j.load_inertia).endObject();
-  }
-  w.endArray().endObject();
-  out << "\n";
-}
-
 /// The flags a robot run takes: how long; every joint's keys are the file's.
 void requireRunFlagsOnly(const FlagParser& options)
 {
@@ -122,58 +102,40 @@ void requireRunFlagsOnly(const FlagParser& options)
 int simulateRobot(const FlagParser& options, double sample_rate)
 {
   const std::string path = options.option("config");
-  RobotFile file;
-  std::unique_ptr<ArmModel> arm;
+  RobotModel model;
   std::unique_ptr<RobotSimulator> robot;
   double duration = 0.0, max_duration = 0.0, check_period = 0.0;
   try
   {
     requireRunFlagsOnly(options);
-    file = loadRobotFile(path);
-    if (!file.urdf.empty())
-    {
-      try
-      {
-        arm = std::make_unique<ArmModel>(readRegularFile("urdf", file.urdf, MAX_URDF_BYTES));
-      }
-      catch (const std::invalid_argument& e)
-      {
-        throw ConfigError("urdf '" + file.urdf + "': " + e.what());
-      }
-    }
-    KeyValues run = file.top;
+    model = loadRobot(path);
+    KeyValues run = model.top;
     run.overrideWith(options.flags());
     duration = run.number("duration", 0.0);
     max_duration = run.number("max_duration", 0.0);
-    std::vector<RobotJoint> joints = robotJointsFrom(file.top, file.joints, arm.get());
     // The judges check at the fastest controller's samples (1 kHz for continuous laws), as often as loads change.
-    double fastest = 1000.0;
-    for (const RobotJoint& j : joints)
-    {
-      fastest = std::max(fastest, j.run.drive.controller_rate);
-    }
-    check_period = 1.0 / fastest;
-    if (options.given("csv") && sample_rate > fastest)
+    check_period = robotCheckPeriod(model.joints);
+    if (options.given("csv") && sample_rate * check_period > 1.0)
     {
       throw ConfigError("--sample-rate " + formatNumber(sample_rate) +
                         " Hz: a robot file's rows come at most at its "
                         "fastest controller's rate, " +
-                        formatNumber(fastest) + " Hz");
+                        formatNumber(1.0 / check_period) + " Hz");
     }
-    robot = std::make_unique<RobotSimulator>(std::move(joints), arm.get(), check_period);
+    robot = std::make_unique<RobotSimulator>(model.joints, model.arm.get(), check_period);
   }
   catch (const std::exception& e)
   {
     std::cerr << "backlash_sim: error: " << e.what() << "\n";
     return 2;
   }
-  const std::string name = arm ? arm->robotName() : path;
+  const std::string name = model.arm ? model.arm->robotName() : path;
   std::unique_ptr<SafeOutput> csv_file;
   std::unique_ptr<RobotCsv> csv;
   if (options.given("csv"))
   {
     removeTemporariesOnSignals();
-    csv_file = std::make_unique<SafeOutput>("--csv", options.option("csv"), std::vector<std::string>{path, file.urdf});
+    csv_file = std::make_unique<SafeOutput>("--csv", options.option("csv"), std::vector<std::string>{path});
     csv = std::make_unique<RobotCsv>(csv_file->stream(), *robot);
     csv->row(*robot);
   }
@@ -209,7 +171,7 @@ int simulateRobot(const FlagParser& options, double sample_rate)
   }
   if (options.given("json"))
   {
-    writeJson(std::cout, name, result, wall);
+    writeRobotRunJson(std::cout, name, result, wall);
   }
   else
   {

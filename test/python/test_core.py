@@ -68,6 +68,19 @@ def test_run_equals_backlash_sim_json(tmp_path, config):
     assert without_wall_time(core.run(path)) == without_wall_time(cli)
 
 
+def test_robot_equals_backlash_sim_json():
+    arm = os.path.join(ROOT, "config", "three_joint_arm.yaml")
+    code, out, err = tool("backlash_sim", "--config", arm, "--duration", 2, "--json")
+    assert code == 0, err
+    cli = json.loads(out)
+    got = core.robot(arm, duration=2.0)
+    assert without_wall_time(got) == without_wall_time(cli)
+    assert [j["name"] for j in got["joints"]] == ["shoulder", "elbow", "wrist"]
+    with pytest.raises(ValueError) as e:
+        core.run(arm)  # a single joint's run never takes an arm's file as the default joint
+    assert "describes an arm (joints:)" in str(e.value)
+
+
 def test_errors_are_value_errors_with_the_tools_message(tmp_path):
     for bad, message in (({"restitution": 2.0}, "restitution: must be in [0, 1] (got 2)"),
                          ({"motor_inertai": 1.0}, "unknown key 'motor_inertai'")):

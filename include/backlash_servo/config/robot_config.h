@@ -12,6 +12,7 @@
  */
 #pragma once
 
+#include <memory>
 #include <string>
 #include <utility>
 #include <vector>
@@ -47,5 +48,17 @@ RobotFile loadRobotFile(const std::string& path);
 std::vector<RobotJoint> robotJointsFrom(const KeyValues& top,
                                         const std::vector<std::pair<std::string, KeyValues>>& joints,
                                         const ArmModel* arm, ControlMode mode = ControlMode::Position);
+
+/// A robot file read whole: its arm (null without `urdf:`), its joints, its top-level keys (the run's keys among them).
+struct RobotModel
+{
+  std::unique_ptr<ArmModel> arm;
+  std::vector<RobotJoint> joints;
+  KeyValues top;
+};
+
+/// loadRobotFile(), the URDF read (a regular file of at most 64 MiB) and robotJointsFrom(). Throws ConfigError naming
+/// the file and the key, "urdf 'PATH': …" for a URDF it cannot read.
+RobotModel loadRobot(const std::string& path);
 
 }  // namespace backlash_servo

@@ -35,6 +35,10 @@ struct RobotRunResult
   std::vector<RobotJointResult> joints;
 };
 
+/// How often an arm's judges check and its continuous laws' loads are updated [s]: a sample of the fastest
+/// controller among the joints, at least 1 kHz.
+double robotCheckPeriod(const std::vector<RobotJoint>& joints);
+
 /**
  * Runs the arm from its current time: `duration` [s] > 0 exactly, or 0 = until every joint's verdict is settled,
  * at most `max_duration` [s]. The monitors check every `check_period` [s] (a sample of the fastest controller);

@@ -18,6 +18,16 @@ bool settledNow(const ResponseMonitor& monitor, const Simulator& sim)
 }
 }  // namespace
 
+double robotCheckPeriod(const std::vector<RobotJoint>& joints)
+{
+  double fastest = 1000.0;
+  for (const RobotJoint& j : joints)
+  {
+    fastest = std::max(fastest, j.run.drive.controller_rate);
+  }
+  return 1.0 / fastest;
+}
+
 RobotRunResult runRobot(RobotSimulator* robot, double duration, double max_duration, double check_period,
                         const std::function<void(const RobotSimulator&)>& on_check,
                         const std::function<void(double)>& progress)
