@@ -13,6 +13,7 @@
 #include "backlash_servo/config/run_config_loader.h"
 #include "backlash_servo/model/param_table.h"
 #include "launch_end.h"
+#include "reconfigure_values.h"
 #include "status_messages.h"
 #include "trajectory_profile.h"
 
@@ -109,6 +110,16 @@ RobotNode::RobotNode(ros::NodeHandle& nh, ros::NodeHandle& pnh, const RobotNodeC
     sinks_.push_back(ch.get());
     channels_.push_back(std::move(ch));
   }
+  for (std::size_t i = 0; i < robot_->size(); ++i)
+  {
+    // One group per joint (rqt: ~<joint>), seeded with the joint's values before the callback is set.
+    Channel& ch = *channels_[i];
+    ch.reconfigure = std::make_unique<dynamic_reconfigure::Server<BacklashServoConfig>>(
+        ch.reconfigure_mutex, ros::NodeHandle(pnh, robot_->spec(i).name));
+    ch.last_good = reconfigureConfig(robot_->joint(i).params(), config_.joints[i].run.drive, config_.node);
+    ch.reconfigure->updateConfig(ch.last_good);
+    ch.reconfigure->setCallback([this, i](BacklashServoConfig& c, uint32_t) { onReconfigure(i, c); });
+  }
   trajectory_sub_ = nh.subscribe("command_trajectory", 10, &RobotNode::onTrajectory, this);
   trajectory_topic_ = trajectory_sub_.getTopic();
   pause_srv_ = pnh.advertiseService("pause", &RobotNode::onPause, this);
@@ -151,10 +162,9 @@ void RobotNode::Channel::onEvent(const Event& e)
     }
     if (announced == Verdict::Converged && node->fault_.empty() && monitor->leavesConvergence(e.state))
     {
-      const std::string why = "the converged verdict is withdrawn: the load moved again (maximum at t = " +
-                              formatNumber(e.state.time) + " s, " +
-                              formatNumber(e.state.load_position - monitor->equilibrium()) +
-                              " rad beyond where it rested)";
+      const std::string why =
+          "the converged verdict is withdrawn: the load moved again (maximum at t = " + formatNumber(e.state.time) +
+          " s, " + formatNumber(e.state.load_position - monitor->equilibrium()) + " rad beyond where it rested)";
       ROS_WARN("backlash_servo_node: %s: %s", name.c_str(), why.c_str());
       node->restartMonitor(index, why);
       return;
@@ -273,6 +283,70 @@ void RobotNode::onTrajectory(const trajectory_msgs::JointTrajectory& msg)
   for (const auto& [i, profile] : profiles)
   {
     restartMonitor(i, "new command_trajectory");
+  }
+}
+
+void RobotNode::onReconfigure(std::size_t joint, BacklashServoConfig& c)
+{
+  Channel& ch = *channels_[joint];
+  Simulator& sim = robot_->joint(joint);
+  const RobotJoint& spec = robot_->spec(joint);
+  const KeyValues kv = reconfigureValues(c);
+  const KeyValues before = reconfigureValues(ch.last_good);
+  std::string changed;
+  bool drive_changed = false;
+  ServoParams p = sim.params();
+  DriveParams drive = config_.joints[joint].run.drive;
+  try
+  {
+    for (const auto& [key, text] : kv.keys())
+    {
+      if (before.text(key, "") == text)
+      {
+        continue;
+      }
+      const ParamSection section = findParam(key)->section;
+      if (section == ParamSection::Node)
+      {
+        throw ConfigError(key + ": the arm's setting (the node's ~" + key + "), not a joint's");
+      }
+      if ((key == "load_torque" && spec.arm_gravity) || (key == "load_inertia" && spec.arm_inertia))
+      {
+        throw ConfigError(key + ": the arm sets it at every sample from the pose (give " + key +
+                          " in the joint's keys to hold a constant)");
+      }
+      if (key == "controller_rate" || key == "control_law" || key == "feedback" || key == "compensation")
+      {
+        throw ConfigError(key + ": the arm's loads follow the joint's controller samples; a new " + key +
+                          " restarts them (restart the node)");
+      }
+      changed += (changed.empty() ? "" : ", ") + key;
+      drive_changed = drive_changed || section == ParamSection::Drive;
+    }
+    updateServoKeys(kv, &p);
+    p.load_torque = sim.params().load_torque;  // the arm's, or the constant no change touched
+    p.load_inertia = sim.params().load_inertia;
+    p.validate();
+    readDriveKeys(kv, true, &drive);
+    drive.validate(ControlMode::Position);
+    if (drive_changed && !sim.retuneDrive(drive, &ch))  // nothing changed when it cannot
+    {
+      throw ConfigError("the drive's new settings need a fresh controller (restart the node)");
+    }
+    sim.setParams(p, &ch);  // validated above: applied
+  }
+  catch (const std::exception& e)
+  {
+    ROS_ERROR("backlash_servo_node: %s: reconfigure refused: %s; keeping the previous values", spec.name.c_str(),
+              e.what());
+    c = ch.last_good;
+    return;
+  }
+  config_.joints[joint].run.drive = drive;
+  ch.last_good = c;
+  if (!changed.empty())
+  {
+    restartMonitor(joint, "live change of " + changed);
   }
 }
 

@@ -8,20 +8,25 @@
  * name; effort: the motor's torque [N·m], the mesh torque on the load [N·m]), impact (with the joint's name),
  * <joint>/limit_cycle (latched, per joint), <joint>/command (std_msgs/Float64, rad), command_trajectory (any subset
  * of the joints; the others hold their set-points). Services ~pause, ~resume. Position mode with each joint's own
- * drive.
+ * drive. dynamic_reconfigure per joint at ~<joint> (one group per joint in rqt): its plant and its drive's settings
+ * live; what the arm sets (its gravity, its inertia), the node's own settings and what would move the joint's sample
+ * grid (rate, law, feedback, compensation) are refused there, saying why.
  */
 #pragma once
 
+#include <dynamic_reconfigure/server.h>
 #include <ros/ros.h>
 #include <sensor_msgs/JointState.h>
 #include <std_msgs/Float64.h>
 #include <std_srvs/Trigger.h>
 #include <trajectory_msgs/JointTrajectory.h>
 
+#include <boost/thread/recursive_mutex.hpp>
 #include <memory>
 #include <string>
 #include <vector>
 
+#include "backlash_servo/BacklashServoConfig.h"
 #include "backlash_servo/robot/robot_simulator.h"
 #include "backlash_servo/simulation/response_monitor.h"
 #include "node_config.h"
@@ -62,6 +67,9 @@ class RobotNode
     ros::Publisher limit_cycle_pub;
     std::string limit_cycle_topic, command_topic;
     ros::Subscriber command_sub;
+    boost::recursive_mutex reconfigure_mutex;
+    std::unique_ptr<dynamic_reconfigure::Server<BacklashServoConfig>> reconfigure;
+    BacklashServoConfig last_good;  // the values in force, what rqt shows
     void onEvent(const Event& e) override;
   };
 
@@ -69,6 +77,9 @@ class RobotNode
   /// The points of every joint named in the message become that joint's profile; refused whole (ROS_ERROR) if any
   /// joint is unknown or its points are bad.
   void onTrajectory(const trajectory_msgs::JointTrajectory& msg);
+  /// A live change of joint i's keys (its group ~<joint>): applied at this step boundary, or refused whole (the
+  /// reply holds the values in force, ROS_ERROR says why).
+  void onReconfigure(std::size_t joint, BacklashServoConfig& c);
   bool onPause(std_srvs::Trigger::Request& req, std_srvs::Trigger::Response& res);
   bool onResume(std_srvs::Trigger::Request& req, std_srvs::Trigger::Response& res);
   /// Judges joint i afresh from now on (a new command); `reason` is published at once with verdict undecided.

@@ -6,86 +6,13 @@
 #include <cmath>
 #include "backlash_servo/config/run_config_loader.h"
 #include "backlash_servo/model/param_table.h"
+#include "reconfigure_values.h"
 
 namespace backlash_servo
 {
-namespace
-{
-/// The generated config → key values, by the names of the parameter table.
-KeyValues keyValuesOf(const BacklashServoConfig& c)
-{
-  KeyValues kv;
-  kv.nameKeysAsFlags(false);
-  for (const auto& d : BacklashServoConfig::__getParamDescriptions__())
-  {
-    boost::any value;
-    d->getValue(c, value);
-    const ParamSpec* spec = findParam(d->name);
-    if (spec == nullptr)
-    {
-      continue;  // a .cfg entry the table does not know: the consistency test fails for it
-    }
-    if (d->type == "double")
-    {
-      kv.setNumber(d->name, boost::any_cast<double>(value));
-    }
-    else if (d->type == "int")
-    {
-      const int i = boost::any_cast<int>(value);
-      kv.set(d->name, i >= 0 && i < static_cast<int>(spec->choices.size()) ? spec->choices[i] : std::to_string(i));
-    }
-    else if (d->type == "bool")
-    {
-      kv.setBoolean(d->name, boost::any_cast<bool>(value));
-    }
-    else
-    {
-      kv.set(d->name, boost::any_cast<std::string>(value));
-    }
-  }
-  return kv;
-}
-}  // namespace
-
 BacklashServoConfig ServoNode::currentConfig() const
 {
-  // Every live key of the table, by name: the generated config is filled through its own message form.
-  dynamic_reconfigure::Config msg;
-  const ServoParams& p = sim_.params();
-  for (const ParamSpec* spec : paramsIn(ParamSection::Servo))
-  {
-    if (const auto* text = std::get_if<std::string ServoParams::*>(&spec->field))
-    {
-      const auto it = std::find(spec->choices.begin(), spec->choices.end(), p.*(*text));
-      dynamic_reconfigure::ConfigTools::appendParameter(msg, spec->key, static_cast<int>(it - spec->choices.begin()));
-      continue;
-    }
-    dynamic_reconfigure::ConfigTools::appendParameter(msg, spec->key, p.*std::get<double ServoParams::*>(spec->field));
-  }
-  const KeyValues drive = driveKeyValues(config_.run.drive);
-  for (const ParamSpec* spec : paramsIn(ParamSection::Drive))
-  {
-    if (spec->type == ParamType::Choice)
-    {
-      const std::string value = drive.text(spec->key, spec->fallback);
-      const auto it = std::find(spec->choices.begin(), spec->choices.end(), value);
-      dynamic_reconfigure::ConfigTools::appendParameter(msg, spec->key, static_cast<int>(it - spec->choices.begin()));
-    }
-    else
-    {
-      dynamic_reconfigure::ConfigTools::appendParameter(msg, spec->key, drive.number(spec->key));
-    }
-  }
-  dynamic_reconfigure::ConfigTools::appendParameter(msg, "control_mode",
-                                                    config_.control_mode == ControlMode::Effort ? 1 : 0);
-  dynamic_reconfigure::ConfigTools::appendParameter(msg, "publish_rate", config_.publish_rate);
-  dynamic_reconfigure::ConfigTools::appendParameter(msg, "real_time_factor", config_.real_time_factor);
-  dynamic_reconfigure::ConfigTools::appendParameter(msg, "min_impact_speed", config_.min_impact_speed);
-  dynamic_reconfigure::ConfigTools::appendParameter(msg, "sync_timeout", config_.sync_timeout);
-  dynamic_reconfigure::ConfigTools::appendParameter(msg, "effort_timeout", config_.effort_timeout);
-  BacklashServoConfig c = BacklashServoConfig::__getDefault__();
-  c.__fromMessage__(msg);
-  return c;
+  return reconfigureConfig(sim_.params(), config_.run.drive, config_);
 }
 
 void ServoNode::restartMonitor(const std::string& reason)
@@ -133,7 +60,7 @@ void ServoNode::onReconfigure(BacklashServoConfig& c, uint32_t)
     c.load_torque = sim_.params().load_torque;
   }
   mirror_stale_ = false;
-  const KeyValues kv = keyValuesOf(c);
+  const KeyValues kv = reconfigureValues(c);
   NodeConfig next;
   ServoParams p = sim_.params();
   try
@@ -158,7 +85,7 @@ void ServoNode::onReconfigure(BacklashServoConfig& c, uint32_t)
   refused_.clear();
   // A live change of anything the joint's motion depends on (plant or drive, not the node's own settings) restarts
   // the judgement: the maxima before it belong to another joint. (Values compared as the exact text of each key.)
-  const KeyValues before = keyValuesOf(last_good_);
+  const KeyValues before = reconfigureValues(last_good_);
   std::string changed;
   bool drive_changed = false;
   for (const auto& [key, text] : kv.keys())

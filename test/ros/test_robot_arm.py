@@ -9,6 +9,7 @@ import time
 import unittest
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import dynamic_reconfigure.client  # noqa: E402
 import rospy  # noqa: E402
 import rostest  # noqa: E402
 from sensor_msgs.msg import JointState  # noqa: E402
@@ -103,6 +104,17 @@ class RobotArm(unittest.TestCase):
         self.assertTrue(wait_for(lambda: now() >= sent + 2.0, 60.0))
         self.assertAlmostEqual(pose()[2], 0.0, delta=1e-3)  # the refused trajectory did not move the wrist
         self.assertTrue(all(m.joint in JOINTS for m in impacts.msgs))
+
+        # Live tuning per joint (rqt: one group per joint): the wrist's restitution changes, its judgement restarts;
+        # the shoulder's load torque is the arm's gravity and is refused (the reply holds the value in force).
+        wrist = dynamic_reconfigure.client.Client(NODE + "/wrist", timeout=10)
+        self.assertEqual(wrist.update_configuration({"restitution": 0.5})["restitution"], 0.5)
+        self.assertTrue(wait_for(lambda: "live change of restitution" in cycles["wrist"].msgs[-1].reason, 30.0),
+                        cycles["wrist"].msgs[-1].reason)
+        self.assertNotIn("live change", cycles["elbow"].msgs[-1].reason)
+        shoulder = dynamic_reconfigure.client.Client(NODE + "/shoulder", timeout=10)
+        kept = shoulder.update_configuration({"load_torque": 0.0})["load_torque"]
+        self.assertNotEqual(kept, 0.0)
 
         # The node's bag, reported joint by joint: each joint's last verdict as its topic said it.
         path = rospy.get_param("~bag")
