@@ -10,6 +10,7 @@
 
 #include "backlash_servo/config/robot_config.h"
 #include "backlash_servo/files/safe_output.h"
+#include "backlash_servo/model/param_table.h"
 #include "backlash_servo/robot/robot_run.h"
 #include "backlash_servo/studies/run_report.h"
 #include "progress.h"
@@ -113,6 +114,8 @@ int simulateRobot(const FlagParser& options, double sample_rate)
     run.overrideWith(options.flags());
     duration = run.number("duration", 0.0);
     max_duration = run.number("max_duration", 0.0);
+    param("duration").check(duration);  // a flag's text is a number only here: its range as the table has it
+    param("max_duration").check(max_duration);
     // The judges check at the fastest controller's samples (1 kHz for continuous laws), as often as loads change.
     check_period = robotCheckPeriod(model.joints);
     if (options.given("csv") && sample_rate * check_period > 1.0)

@@ -119,6 +119,12 @@ TEST(Sim, ARobotFileRunsEveryJointOfTheArm)
   EXPECT_EQ(code, 2);
   EXPECT_NE(refused.find("--backlash with a robot file: the joints' keys are the file's"), std::string::npos)
       << refused;
+  for (const char* bad : {" --duration nan", " --duration -1", " --max-duration inf"})
+  {
+    const std::string out = runCapture(SIM + arm + bad + " 2>&1", &code);
+    EXPECT_EQ(code, 2) << bad << ": " << out;
+    EXPECT_NE(out.find("duration"), std::string::npos) << out;
+  }
   // A single-joint tool never runs an arm's file as the default joint: refused, naming the tool that runs it.
   const std::string sweep = runCapture(SWEEP + arm + " --backlash 0.1,0.2 2>&1", &code);
   EXPECT_EQ(code, 2);
