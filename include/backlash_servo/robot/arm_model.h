@@ -20,6 +20,9 @@
 
 namespace backlash_servo
 {
+/// Standard gravity [m/s²].
+constexpr double STANDARD_GRAVITY = 9.80665;
+
 /// One movable URDF joint (revolute, continuous or prismatic) and its transmission, if the URDF gives one.
 struct ArmJoint
 {
@@ -33,7 +36,8 @@ struct ArmJoint
   std::string actuator;    ///< the transmission's actuator name; empty = none
 };
 
-/// The arm: parsed once, then evaluated at any pose. Not copyable (KDL solvers hold references to the tree).
+/// The arm: parsed once, then evaluated at any pose. Not copyable (KDL solvers hold references to the tree); one
+/// thread at a time (the solvers keep scratch state).
 class ArmModel
 {
  public:
@@ -52,7 +56,7 @@ class ArmModel
   int indexOf(const std::string& name) const;
   /// Gravity's torque on each joint's load at pose q [N·m] (positive in +q_i), gravity g [m/s²] along −z of the
   /// root link.
-  Eigen::VectorXd gravityOnLoad(const Eigen::VectorXd& q, double g = 9.80665) const;
+  Eigen::VectorXd gravityOnLoad(const Eigen::VectorXd& q, double g = STANDARD_GRAVITY) const;
   /// The joint-space mass matrix M(q) [kg·m²]: M(q)_ii is the inertia joint i moves at pose q with the others held.
   Eigen::MatrixXd massMatrix(const Eigen::VectorXd& q) const;
 

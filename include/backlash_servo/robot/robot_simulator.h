@@ -65,6 +65,8 @@ class RobotSimulator
   double loadInertia(std::size_t i) const { return sims_[i].params().load_inertia; }
 
  private:
+  /// Whether joint i takes a load (gravity or inertia) from the arm, updated at its instants.
+  bool armLoaded(std::size_t i) const { return joints_[i].arm_gravity || joints_[i].arm_inertia; }
   /// Time of joint i's next update instant after its k-th [s]: its controller's sample or the update period's.
   double updateTime(std::size_t i, long k) const;
   /// Sets the arm's gravity and inertia at the current pose into the joints in `due`.

@@ -148,6 +148,7 @@ struct ArmModel::Dynamics
   KDL::Tree tree;
   std::vector<int> kdl_index;                       // joints_[i] → its q_nr in the tree
   std::unique_ptr<KDL::TreeIdSolver_RNE> inertial;  // without gravity: M(q) q̈ alone
+  std::unique_ptr<KDL::TreeIdSolver_RNE> gravity;   // standard gravity (the solver keeps the vector it was made with)
 
   KDL::JntArray toKdl(const Eigen::VectorXd& q) const
   {
@@ -234,6 +235,8 @@ ArmModel::ArmModel(const std::string& urdf_xml) : dynamics_(std::make_unique<Dyn
     joints_.push_back(joint);
   }
   dynamics_->inertial = std::make_unique<KDL::TreeIdSolver_RNE>(dynamics_->tree, KDL::Vector(0.0, 0.0, 0.0));
+  dynamics_->gravity =
+      std::make_unique<KDL::TreeIdSolver_RNE>(dynamics_->tree, KDL::Vector(0.0, 0.0, -STANDARD_GRAVITY));
 }
 
 ArmModel::~ArmModel() = default;
@@ -253,7 +256,12 @@ int ArmModel::indexOf(const std::string& name) const
 Eigen::VectorXd ArmModel::gravityOnLoad(const Eigen::VectorXd& q, double g) const
 {
   const unsigned n = dynamics_->tree.getNrOfJoints();
-  KDL::TreeIdSolver_RNE solver(dynamics_->tree, KDL::Vector(0.0, 0.0, -g));
+  std::unique_ptr<KDL::TreeIdSolver_RNE> other;  // another g than the standard's: its own solver
+  if (g != STANDARD_GRAVITY)
+  {
+    other = std::make_unique<KDL::TreeIdSolver_RNE>(dynamics_->tree, KDL::Vector(0.0, 0.0, -g));
+  }
+  KDL::TreeIdSolver_RNE& solver = other ? *other : *dynamics_->gravity;
   const KDL::JntArray zero(n);
   KDL::JntArray held(n);
   if (solver.CartToJnt(dynamics_->toKdl(q), zero, zero, KDL::WrenchMap(), held) < 0)

@@ -55,7 +55,7 @@ RobotSimulator::RobotSimulator(std::vector<RobotJoint> joints, const ArmModel* a
 
 int RobotSimulator::indexOf(const std::string& name) const
 {
-  for (std::size_t i = 0; i < arm_index_.size(); ++i)
+  for (std::size_t i = 0; i < joints_.size(); ++i)
   {
     if (joints_[i].name == name)
     {
@@ -106,7 +106,7 @@ void RobotSimulator::advanceTo(double t_end, const std::vector<EventSink*>& sink
     double next = std::numeric_limits<double>::infinity();
     for (std::size_t i = 0; i < sims_.size(); ++i)
     {
-      if (joints_[i].arm_gravity || joints_[i].arm_inertia)
+      if (armLoaded(i))
       {
         next = std::min(next, updateTime(i, updates_[i] + 1));
       }
@@ -119,7 +119,7 @@ void RobotSimulator::advanceTo(double t_end, const std::vector<EventSink*>& sink
     std::vector<std::size_t> due;
     for (std::size_t i = 0; i < sims_.size(); ++i)
     {
-      if ((joints_[i].arm_gravity || joints_[i].arm_inertia) && updateTime(i, updates_[i] + 1) == next)
+      if (armLoaded(i) && updateTime(i, updates_[i] + 1) == next)
       {
         ++updates_[i];
         due.push_back(i);
