@@ -190,23 +190,30 @@ std::vector<RobotJoint> robotJointsFrom(const KeyValues& top,
   return out;
 }
 
+std::unique_ptr<ArmModel> armModelFrom(const std::string& urdf_text, const std::string& source)
+{
+  if (urdf_text.empty())
+  {
+    return nullptr;
+  }
+  try
+  {
+    return std::make_unique<ArmModel>(urdf_text);
+  }
+  catch (const std::invalid_argument& e)
+  {
+    throw ConfigError(source + ": " + e.what());
+  }
+}
+
 RobotModel loadRobot(const std::string& path)
 {
-  constexpr std::size_t MAX_URDF_BYTES = 64u << 20;
   const RobotFile file = loadRobotFile(path);
   RobotModel model;
   model.top = file.top;
   if (!file.urdf.empty())
   {
-    const std::string text = readRegularFile("urdf", file.urdf, MAX_URDF_BYTES);
-    try
-    {
-      model.arm = std::make_unique<ArmModel>(text);
-    }
-    catch (const std::invalid_argument& e)
-    {
-      throw ConfigError("urdf '" + file.urdf + "': " + e.what());
-    }
+    model.arm = armModelFrom(readRegularFile("urdf", file.urdf, MAX_URDF_BYTES), "urdf '" + file.urdf + "'");
   }
   model.joints = robotJointsFrom(file.top, file.joints, model.arm.get());
   return model;

@@ -37,7 +37,7 @@ int main(int argc, char** argv)
     const backlash_servo::PrivateParams given = backlash_servo::readPrivateParams(pnh);
     if (given.arm)
     {
-      const backlash_servo::RobotNodeConfig config = backlash_servo::loadRobotNodeConfig(nh, pnh, given);
+      const backlash_servo::RobotNodeConfig config = backlash_servo::loadRobotNodeConfig(nh, given);
       backlash_servo::RobotNode node(nh, pnh, config);
       return node.run() ? 0 : 1;
     }

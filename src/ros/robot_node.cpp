@@ -5,12 +5,11 @@
 
 #include <algorithm>
 #include <ctime>
-#include <fstream>
-#include <sstream>
 
 #include "backlash_servo/LimitCycleStatus.h"
 #include "backlash_servo/config/robot_config.h"
 #include "backlash_servo/config/run_config_loader.h"
+#include "backlash_servo/config/safe_input.h"
 #include "backlash_servo/model/param_table.h"
 #include "launch_end.h"
 #include "reconfigure_values.h"
@@ -40,20 +39,11 @@ std::string robotDescription(const ros::NodeHandle& nh, const std::string& urdf_
   {
     return "";
   }
-  std::ifstream in(urdf_file);
-  if (!in)
-  {
-    throw ConfigError("~urdf: cannot read '" + urdf_file +
-                      "' (give an absolute path, or load the robot description into the robot_description parameter)");
-  }
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return ss.str();
+  return readRegularFile("~urdf", urdf_file, MAX_URDF_BYTES);
 }
 }  // namespace
 
-RobotNodeConfig loadRobotNodeConfig(const ros::NodeHandle& nh, const ros::NodeHandle& /*pnh*/,
-                                    const PrivateParams& given)
+RobotNodeConfig loadRobotNodeConfig(const ros::NodeHandle& nh, const PrivateParams& given)
 {
   RobotNodeConfig c;
   c.node = nodeSettingsFrom(withNodeDefaults(given.given), NodeConfig());
@@ -62,31 +52,15 @@ RobotNodeConfig loadRobotNodeConfig(const ros::NodeHandle& nh, const ros::NodeHa
     throw ConfigError(std::string(c.node.sync ? "sync" : "control_mode") +
                       ": an arm's joints run their own drives (position mode, not in lockstep)");
   }
-  c.urdf = robotDescription(nh, given.urdf);
-  std::unique_ptr<ArmModel> arm;
-  if (!c.urdf.empty())
-  {
-    try
-    {
-      arm = std::make_unique<ArmModel>(c.urdf);
-    }
-    catch (const std::invalid_argument& e)
-    {
-      throw ConfigError(std::string("robot_description: ") + e.what());
-    }
-  }
-  c.joints = robotJointsFrom(given.given, given.joints, arm.get());
+  c.arm = armModelFrom(robotDescription(nh, given.urdf), "robot_description");
+  c.joints = robotJointsFrom(given.given, given.joints, c.arm.get());
   return c;
 }
 
 RobotNode::RobotNode(ros::NodeHandle& nh, ros::NodeHandle& pnh, const RobotNodeConfig& config)
     : config_(config), clock_(nh, config_.node, SAMPLE_QUEUE), paused_(config.node.paused)
 {
-  if (!config_.urdf.empty())
-  {
-    arm_ = std::make_unique<ArmModel>(config_.urdf);
-  }
-  robot_ = std::make_unique<RobotSimulator>(config_.joints, arm_.get(), 1.0 / config_.node.publish_rate);
+  robot_ = std::make_unique<RobotSimulator>(config_.joints, config_.arm.get(), 1.0 / config_.node.publish_rate);
   if (!config_.node.record_bag.empty())
   {
     recorder_ = std::make_unique<NodeRecorder>(config_.node.record_bag);  // throws naming record_bag
@@ -137,8 +111,8 @@ RobotNode::RobotNode(ros::NodeHandle& nh, ros::NodeHandle& pnh, const RobotNodeC
         robot_->spec(i).arm_inertia ? " (the arm's, at the pose)" : "");
   }
   ROS_INFO("backlash_servo_node: an arm of %zu joints%s, %s, real_time_factor %g, %g Hz", robot_->size(),
-           arm_ ? (" ('" + arm_->robotName() + "')").c_str() : "", clock_.modeName(), config_.node.real_time_factor,
-           config_.node.publish_rate);
+           config_.arm ? (" ('" + config_.arm->robotName() + "')").c_str() : "", clock_.modeName(),
+           config_.node.real_time_factor, config_.node.publish_rate);
 }
 
 void RobotNode::Channel::onEvent(const Event& e)

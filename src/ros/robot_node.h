@@ -38,14 +38,14 @@ namespace backlash_servo
 /// What an arm's node reads: the node's own settings (rates, clock, stop) and the joints.
 struct RobotNodeConfig
 {
-  NodeConfig node;                 ///< publish_rate, real_time_factor, publish_clock, stop_after, … (the Node keys)
-  std::string urdf;                ///< the robot description's text; "" = independent joints
-  std::vector<RobotJoint> joints;  ///< each joint's run (robot_config.h)
+  NodeConfig node;  ///< publish_rate, real_time_factor, publish_clock, stop_after, … (the Node keys)
+  std::shared_ptr<const ArmModel> arm;  ///< the robot description's arm (parsed once); null = independent joints
+  std::vector<RobotJoint> joints;       ///< each joint's run (robot_config.h)
 };
 
 /// From ~joints, the top-level keys, and the robot description: the `robot_description` parameter (the node's
 /// namespace, as robot_state_publisher reads it) or the file ~urdf. Throws ConfigError naming the key.
-RobotNodeConfig loadRobotNodeConfig(const ros::NodeHandle& nh, const ros::NodeHandle& pnh, const PrivateParams& given);
+RobotNodeConfig loadRobotNodeConfig(const ros::NodeHandle& nh, const PrivateParams& given);
 
 class RobotNode
 {
@@ -105,7 +105,6 @@ class RobotNode
 
   RobotNodeConfig config_;
   SimClock clock_;
-  std::unique_ptr<ArmModel> arm_;
   std::unique_ptr<RobotSimulator> robot_;
   std::vector<std::unique_ptr<Channel>> channels_;
   std::vector<EventSink*> sinks_;

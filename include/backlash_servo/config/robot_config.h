@@ -49,6 +49,13 @@ std::vector<RobotJoint> robotJointsFrom(const KeyValues& top,
                                         const std::vector<std::pair<std::string, KeyValues>>& joints,
                                         const ArmModel* arm, ControlMode mode = ControlMode::Position);
 
+/// The largest URDF file read [bytes].
+constexpr std::size_t MAX_URDF_BYTES = 64u << 20;
+
+/// The arm of URDF text, its errors as ConfigError naming `source` ("urdf 'PATH'", "robot_description"); null for
+/// an empty text (independent joints).
+std::unique_ptr<ArmModel> armModelFrom(const std::string& urdf_text, const std::string& source);
+
 /// A robot file read whole: its arm (null without `urdf:`), its joints, its top-level keys (the run's keys among them).
 struct RobotModel
 {
