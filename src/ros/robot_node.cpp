@@ -1,11 +1,13 @@
 // backlash_servo_node for an arm: the joints of a robot description in one simulated time.
 #include "robot_node.h"
 
+#include <diagnostic_msgs/DiagnosticStatus.h>
 #include <rosgraph_msgs/Clock.h>
 
 #include <algorithm>
 #include <ctime>
 
+#include "backlash_servo/BacklashState.h"
 #include "backlash_servo/LimitCycleStatus.h"
 #include "backlash_servo/config/robot_config.h"
 #include "backlash_servo/config/run_config_loader.h"
@@ -15,6 +17,7 @@
 #include "reconfigure_values.h"
 #include "status_messages.h"
 #include "trajectory_profile.h"
+#include "wall_throttle.h"
 
 namespace backlash_servo
 {
@@ -47,28 +50,30 @@ RobotNodeConfig loadRobotNodeConfig(const ros::NodeHandle& nh, const PrivatePara
 {
   RobotNodeConfig c;
   c.node = nodeSettingsFrom(withNodeDefaults(given.given), NodeConfig());
-  if (c.node.control_mode != ControlMode::Position || c.node.sync)
-  {
-    throw ConfigError(std::string(c.node.sync ? "sync" : "control_mode") +
-                      ": an arm's joints run their own drives (position mode, not in lockstep)");
-  }
   c.arm = armModelFrom(robotDescription(nh, given.urdf), "robot_description");
   c.joints = robotJointsFrom(given.given, given.joints, c.arm.get());
   return c;
 }
 
 RobotNode::RobotNode(ros::NodeHandle& nh, ros::NodeHandle& pnh, const RobotNodeConfig& config)
-    : config_(config), clock_(nh, config_.node, SAMPLE_QUEUE), paused_(config.node.paused)
+    : config_(config), clock_(nh, config_.node, SAMPLE_QUEUE), diagnostics_(nh, pnh), paused_(config.node.paused)
 {
   robot_ = std::make_unique<RobotSimulator>(config_.joints, config_.arm.get(), 1.0 / config_.node.publish_rate);
+  for (std::size_t i = 0; effortMode() && i < robot_->size(); ++i)
+  {
+    robot_->joint(i).setMotorTorque(config_.node.motor_effort);
+  }
   if (!config_.node.record_bag.empty())
   {
     recorder_ = std::make_unique<NodeRecorder>(config_.node.record_bag);  // throws naming record_bag
   }
   joint_pub_ = nh.advertise<sensor_msgs::JointState>("joint_states", SAMPLE_QUEUE);
   impact_pub_ = nh.advertise<ImpactEvent>("impact", SAMPLE_QUEUE);
+  encoder_pub_ = nh.advertise<sensor_msgs::JointState>("encoder_states", SAMPLE_QUEUE);
   joint_topic_ = joint_pub_.getTopic();
   impact_topic_ = impact_pub_.getTopic();
+  encoder_topic_ = encoder_pub_.getTopic();
+  diagnostics_.setHardwareID("backlash_servo");
   clock_topic_ = clock_.publisher() ? clock_.publisher().getTopic() : std::string();
   for (std::size_t i = 0; i < robot_->size(); ++i)
   {
@@ -76,8 +81,17 @@ RobotNode::RobotNode(ros::NodeHandle& nh, ros::NodeHandle& pnh, const RobotNodeC
     ch->node = this;
     ch->index = i;
     const std::string& name = robot_->spec(i).name;
+    ch->judge = std::make_unique<JointJudge>(name, name + ": ");
+    ch->command = config_.joints[i].run.command;
     ch->limit_cycle_pub = nh.advertise<LimitCycleStatus>(name + "/limit_cycle", 1000, true);
     ch->limit_cycle_topic = ch->limit_cycle_pub.getTopic();
+    ch->state_pub = nh.advertise<BacklashState>(name + "/backlash_state", SAMPLE_QUEUE);
+    ch->state_topic = ch->state_pub.getTopic();
+    if (!effortMode())
+    {
+      robot_->joint(i).setSampleObserver([this, i](const State& s, const Drive& d) { publishEncoders(i, s, d); });
+    }
+    diagnostics_.add(name, [this, i](diagnostic_updater::DiagnosticStatusWrapper& st) { diagnose(i, st); });
     ch->command_sub = nh.subscribe<std_msgs::Float64>(
         name + "/command", 100, [this, i](const std_msgs::Float64::ConstPtr& m) { onCommand(i, *m); });
     ch->command_topic = ch->command_sub.getTopic();
@@ -96,6 +110,8 @@ RobotNode::RobotNode(ros::NodeHandle& nh, ros::NodeHandle& pnh, const RobotNodeC
   }
   trajectory_sub_ = nh.subscribe("command_trajectory", 10, &RobotNode::onTrajectory, this);
   trajectory_topic_ = trajectory_sub_.getTopic();
+  effort_sub_ = nh.subscribe("motor_effort", 100, &RobotNode::onEffort, this);
+  effort_topic_ = effort_sub_.getTopic();
   pause_srv_ = pnh.advertiseService("pause", &RobotNode::onPause, this);
   resume_srv_ = pnh.advertiseService("resume", &RobotNode::onResume, this);
   clock_.start();
@@ -110,9 +126,10 @@ RobotNode::RobotNode(ros::NodeHandle& nh, ros::NodeHandle& pnh, const RobotNodeC
         robot_->spec(i).arm_gravity ? " (the arm's gravity)" : "", p.load_inertia,
         robot_->spec(i).arm_inertia ? " (the arm's, at the pose)" : "");
   }
-  ROS_INFO("backlash_servo_node: an arm of %zu joints%s, %s, real_time_factor %g, %g Hz", robot_->size(),
-           config_.arm ? (" ('" + config_.arm->robotName() + "')").c_str() : "", clock_.modeName(),
-           config_.node.real_time_factor, config_.node.publish_rate);
+  ROS_INFO("backlash_servo_node: an arm of %zu joints%s, %s mode%s, %s, real_time_factor %g, %g Hz", robot_->size(),
+           config_.arm ? (" ('" + config_.arm->robotName() + "')").c_str() : "", effortMode() ? "effort" : "position",
+           config_.node.sync ? " in lockstep" : "", clock_.modeName(), config_.node.real_time_factor,
+           config_.node.publish_rate);
 }
 
 void RobotNode::Channel::onEvent(const Event& e)
@@ -126,79 +143,48 @@ void RobotNode::Channel::onEvent(const Event& e)
     }
     return;
   }
-  if (e.type == EventType::Maximum || e.type == EventType::Minimum)
+  std::string withdrawn;
+  if (judge->onEvent(e, &withdrawn))
   {
-    const std::size_t before = monitor->maxima().size();
-    monitor->onEvent(e);
-    if (e.type != EventType::Maximum || monitor->maxima().size() == before)
-    {
-      return;
-    }
-    if (announced == Verdict::Converged && node->fault_.empty() && monitor->leavesConvergence(e.state))
-    {
-      const std::string why =
-          "the converged verdict is withdrawn: the load moved again (maximum at t = " + formatNumber(e.state.time) +
-          " s, " + formatNumber(e.state.load_position - monitor->equilibrium()) + " rad beyond where it rested)";
-      ROS_WARN("backlash_servo_node: %s: %s", name.c_str(), why.c_str());
-      node->restartMonitor(index, why);
-      return;
-    }
-    node->publishLimitCycle(index, e.state.time);
+    node->publishLimitCycle(index, e.state.time, true);
+  }
+  else if (!withdrawn.empty() && node->fault_.empty())
+  {
+    ROS_WARN("backlash_servo_node: %s: %s", name.c_str(), withdrawn.c_str());
+    node->restartMonitor(index, withdrawn);
   }
 }
 
 void RobotNode::restartMonitor(std::size_t i, const std::string& reason)
 {
   const Simulator& sim = robot_->joint(i);
-  Channel& ch = *channels_[i];
-  const double target = setPoint(i);
-  ch.monitor = std::make_unique<ResponseMonitor>(sim.params(), target,
-                                                 loopEquilibrium(sim.params(), config_.joints[i].run.drive, target),
-                                                 sim.state(), sim.drive().sampled());
-  // A profile is judged from its end on (a hunt around an intermediate set-point is not the final verdict).
-  ch.judge_from = sim.profile() && sim.profile()->endTime() > sim.state().time ? sim.profile()->endTime() : -1.0;
-  ch.announced = Verdict::Undecided;
-  ch.reason = reason.empty() ? "" : reason + " at t = " + formatNumber(sim.state().time) + " s: judging afresh";
-  publishLimitCycle(i, sim.state().time);
+  channels_[i]->judge->restart(sim, config_.joints[i].run, setPoint(i), effortMode() ? nullptr : sim.profile(),
+                               1.0 / config_.node.publish_rate, reason);
+  publishLimitCycle(i, sim.state().time, false);
 }
 
 double RobotNode::setPoint(std::size_t i) const
 {
   const Simulator& sim = robot_->joint(i);
+  if (effortMode())
+  {
+    return channels_[i]->command;
+  }
   return sim.profile() ? sim.profile()->finalValue() : sim.command();
 }
 
-void RobotNode::publishLimitCycle(std::size_t i, double sim_time)
+double RobotNode::reference(std::size_t i) const
+{
+  const Simulator& sim = robot_->joint(i);
+  return !effortMode() && sim.profile() ? sim.profile()->at(sim.state().time) : setPoint(i);
+}
+
+void RobotNode::publishLimitCycle(std::size_t i, double sim_time, bool maximum)
 {
   Channel& ch = *channels_[i];
-  const Simulator& sim = robot_->joint(i);
-  LimitCycleStatus m;
+  LimitCycleStatus m = ch.judge->status(robot_->joint(i), config_.joints[i].run, sim_time, fault_.empty(), maximum);
   m.header.stamp = stamp(sim_time);
-  m.sim_time = sim_time;
-  RunConfig read = config_.joints[i].run;
-  read.params = sim.params();
-  fillVerdict(*ch.monitor, cycleResolution(ch.monitor->cycleShape(), loopCount(read)), &m);
-  m.steady_error = NAN;
-  m.settling_band = NAN;
-  m.settling_time = NAN;
-  m.steady_rms_error = NAN;
-  m.command = setPoint(i);
-  m.joint = robot_->spec(i).name;
-  if (ch.monitor->status().verdict != Verdict::Undecided && fault_.empty())
-  {
-    ch.reason.clear();
-  }
-  m.reason = fault_.empty() ? ch.reason : fault_;
   emit(ch.limit_cycle_pub, ch.limit_cycle_topic, m);
-  if (ch.monitor->status().verdict != ch.announced)
-  {
-    ch.announced = ch.monitor->status().verdict;
-    ROS_INFO("backlash_servo_node: %s: %s at t = %.4f s%s", m.joint.c_str(), m.verdict.c_str(), sim_time,
-             m.detected
-                 ? (" (peak to peak " + formatNumber(m.peak_to_peak) + " rad, period " + formatNumber(m.period) + " s)")
-                       .c_str()
-                 : "");
-  }
 }
 
 void RobotNode::onCommand(std::size_t joint, const std_msgs::Float64& msg)
@@ -211,7 +197,11 @@ void RobotNode::onCommand(std::size_t joint, const std_msgs::Float64& msg)
   try
   {
     param("command").check(msg.data);
-    robot_->joint(joint).setCommand(msg.data, &*channels_[joint]);
+    if (!effortMode())
+    {
+      robot_->joint(joint).setCommand(msg.data, channels_[joint].get());
+      lockstep_.answered();  // lockstep: the answer for the state just published
+    }
   }
   catch (const std::exception& e)
   {
@@ -219,6 +209,7 @@ void RobotNode::onCommand(std::size_t joint, const std_msgs::Float64& msg)
               e.what());
     return;
   }
+  channels_[joint]->command = msg.data;  // effort mode: the set-point judged against
   restartMonitor(joint, "new command " + formatNumber(msg.data) + " rad");
 }
 
@@ -232,6 +223,10 @@ void RobotNode::onTrajectory(const trajectory_msgs::JointTrajectory& msg)
   std::vector<std::pair<std::size_t, std::shared_ptr<CommandProfile>>> profiles;
   try
   {
+    if (effortMode())
+    {
+      throw ConfigError("the node is in effort mode (control_mode: effort); a trajectory is a position command");
+    }
     const double start = trajectoryStart(msg, clock_.origin(), now);
     for (const std::string& name : msg.joint_names)
     {
@@ -254,10 +249,78 @@ void RobotNode::onTrajectory(const trajectory_msgs::JointTrajectory& msg)
     ROS_ERROR("backlash_servo_node: command_trajectory refused (%s); keeping every set-point", e.what());
     return;
   }
+  lockstep_.answered();  // lockstep: a trajectory answers the state just published
   for (const auto& [i, profile] : profiles)
   {
     restartMonitor(i, "new command_trajectory");
   }
+}
+
+void RobotNode::onEffort(const sensor_msgs::JointState& msg)
+{
+  if (recorder_)
+  {
+    recorder_->write(effort_topic_, msg);
+  }
+  if (!effortMode())
+  {
+    // Not kept either: a torque sent in position mode must not surface later.
+    BACKLASH_LOG_WALL_THROTTLE(WARN, 5.0,
+                               "backlash_servo_node: motor_effort ignored in position mode (set control_mode: effort)");
+    return;
+  }
+  std::vector<std::pair<std::size_t, double>> efforts;
+  try
+  {
+    if (msg.effort.size() != msg.name.size())
+    {
+      throw ConfigError("effort: " + std::to_string(msg.effort.size()) + " values for " +
+                        std::to_string(msg.name.size()) + " names");
+    }
+    for (std::size_t k = 0; k < msg.name.size(); ++k)
+    {
+      const int i = motorOrJoint(msg.name[k]);
+      if (i < 0)
+      {
+        throw ConfigError("name: '" + msg.name[k] + "' is neither a joint nor a motor of this arm");
+      }
+      try
+      {
+        param("motor_effort").check(msg.effort[k]);
+      }
+      catch (const std::exception& e)
+      {
+        throw ConfigError(msg.name[k] + ": " + e.what());
+      }
+      efforts.emplace_back(static_cast<std::size_t>(i), msg.effort[k]);
+    }
+  }
+  catch (const std::exception& e)
+  {
+    BACKLASH_LOG_WALL_THROTTLE(ERROR, 1.0, "backlash_servo_node: motor_effort refused (%s); keeping every torque",
+                               e.what());
+    return;
+  }
+  for (const auto& [i, effort] : efforts)
+  {
+    Channel& ch = *channels_[i];
+    robot_->joint(i).setMotorTorque(effort, &ch);
+    ch.last_effort_time = robot_->time();
+    ch.effort_timed_out = false;
+  }
+  lockstep_.answered();  // lockstep: the answer for the state just published
+}
+
+int RobotNode::motorOrJoint(const std::string& name) const
+{
+  for (std::size_t i = 0; i < robot_->size(); ++i)
+  {
+    if (robot_->spec(i).name == name || robot_->spec(i).motor_name == name)
+    {
+      return static_cast<int>(i);
+    }
+  }
+  return -1;
 }
 
 void RobotNode::onReconfigure(std::size_t joint, BacklashServoConfig& c)
@@ -302,8 +365,9 @@ void RobotNode::onReconfigure(std::size_t joint, BacklashServoConfig& c)
     p.load_inertia = sim.params().load_inertia;
     p.validate();
     readDriveKeys(kv, true, &drive);
-    drive.validate(ControlMode::Position);
-    if (drive_changed && !sim.retuneDrive(drive, &ch))  // nothing changed when it cannot
+    drive.validate(config_.node.control_mode);
+    // (Effort mode: the settings are stored; the encoders apply to encoder_states at once.)
+    if (drive_changed && !effortMode() && !sim.retuneDrive(drive, &ch))  // nothing changed when it cannot
     {
       throw ConfigError("the drive's new settings need a fresh controller (restart the node)");
     }
@@ -344,9 +408,26 @@ bool RobotNode::onResume(std_srvs::Trigger::Request&, std_srvs::Trigger::Respons
 void RobotNode::publishSample()
 {
   const std::size_t n = robot_->size();
+  const ros::Time now = stamp(robot_->time());
+  if (effortMode())
+  {
+    // The plant's encoders, read at the external controller's period (the publish period), before joint_states.
+    sensor_msgs::JointState& enc = encoder_msg_;
+    enc.header.stamp = now;
+    enc.name = jointNames();
+    enc.position.resize(2 * n);
+    for (std::size_t i = 0; i < n; ++i)
+    {
+      const State& s = robot_->joint(i).state();
+      const DriveParams& d = config_.joints[i].run.drive;
+      enc.position[i] = encoderReading(s.load_position, d.load_encoder_resolution);
+      enc.position[n + i] = encoderReading(s.motor_position, d.motor_encoder_resolution);
+    }
+    emit(encoder_pub_, encoder_topic_, enc);
+  }
   sensor_msgs::JointState& js = joint_msg_;
-  js.header.stamp = stamp(robot_->time());
-  js.name.resize(2 * n);
+  js.header.stamp = now;
+  js.name = jointNames();
   js.position.resize(2 * n);
   js.velocity.resize(2 * n);
   js.effort.resize(2 * n);
@@ -354,8 +435,6 @@ void RobotNode::publishSample()
   {
     const Simulator& sim = robot_->joint(i);
     const State& s = sim.state();
-    js.name[i] = robot_->spec(i).name;
-    js.name[n + i] = robot_->spec(i).motor_name;
     js.position[i] = s.load_position;
     js.position[n + i] = s.motor_position;
     js.velocity[i] = s.load_velocity;
@@ -364,6 +443,40 @@ void RobotNode::publishSample()
     js.effort[n + i] = sim.motorTorque();
   }
   emit(joint_pub_, joint_topic_, js);
+  for (std::size_t i = 0; i < n; ++i)
+  {
+    const Channel& ch = *channels_[i];
+    emit(ch.state_pub, ch.state_topic, backlashStateMessage(robot_->joint(i), reference(i), now));
+  }
+}
+
+const std::vector<std::string>& RobotNode::jointNames()
+{
+  if (names_.empty())
+  {
+    for (std::size_t i = 0; i < robot_->size(); ++i)
+    {
+      names_.push_back(robot_->spec(i).name);
+    }
+    for (std::size_t i = 0; i < robot_->size(); ++i)
+    {
+      names_.push_back(robot_->spec(i).motor_name);
+    }
+  }
+  return names_;
+}
+
+void RobotNode::publishEncoders(std::size_t i, const State& s, const Drive& drive)
+{
+  double motor = 0.0, load = 0.0;
+  if (drive.readings(&motor, &load))
+  {
+    sensor_msgs::JointState js;
+    js.header.stamp = stamp(s.time);
+    js.name = {robot_->spec(i).name, robot_->spec(i).motor_name};
+    js.position = {load, motor};  // quantised readings q(θ_c) [rad] and q(θ_m) [rad, motor shaft]
+    emit(encoder_pub_, encoder_topic_, js);
+  }
 }
 
 void RobotNode::publishClock(double t, bool force)
@@ -389,27 +502,90 @@ bool RobotNode::stepTo(double t)
     paused_ = true;
     for (std::size_t i = 0; i < robot_->size(); ++i)
     {
-      publishLimitCycle(i, robot_->time());
+      channels_[i]->judge->fault(robot_->joint(i), e.what());
+      publishLimitCycle(i, robot_->time(), false);
     }
+    diagnostics_.force_update();
     return false;
   }
   for (std::size_t i = 0; i < robot_->size(); ++i)
   {
-    const Simulator& sim = robot_->joint(i);
-    Channel& ch = *channels_[i];
-    if (ch.judge_from >= 0.0 && sim.state().time >= ch.judge_from)
+    if (channels_[i]->judge->sample(robot_->joint(i), reference(i)))
     {
-      ch.monitor->restartAt(sim.state());  // the profile has ended: judged afresh against its final value
-      ch.announced = Verdict::Undecided;
-      ch.judge_from = -1.0;
-    }
-    ch.monitor->check(sim.state(), sim.drive().winding(), ch.judge_from < 0.0 && sim.atRestForever());
-    if (ch.monitor->status().verdict != ch.announced)
-    {
-      publishLimitCycle(i, sim.state().time);
+      publishLimitCycle(i, robot_->time(), false);
     }
   }
   return true;
+}
+
+void RobotNode::checkEffortTimeouts()
+{
+  const double timeout = config_.node.effort_timeout;
+  for (std::size_t i = 0; effortMode() && timeout > 0.0 && i < robot_->size(); ++i)
+  {
+    Channel& ch = *channels_[i];
+    Simulator& sim = robot_->joint(i);
+    if (ch.effort_timed_out || robot_->time() - ch.last_effort_time < timeout)
+    {
+      continue;
+    }
+    ch.effort_timed_out = true;
+    ROS_WARN(
+        "backlash_servo_node: %s: no motor_effort for %g s of sim time (effort_timeout): motor torque set to 0 N·m "
+        "(was %g N·m) until the next message",
+        robot_->spec(i).name.c_str(), robot_->time() - ch.last_effort_time, sim.motorTorque());
+    sim.setMotorTorque(0.0, &ch);
+  }
+}
+
+void RobotNode::diagnose(std::size_t i, diagnostic_updater::DiagnosticStatusWrapper& status)
+{
+  const Simulator& sim = robot_->joint(i);
+  status.summary(fault_.empty() ? diagnostic_msgs::DiagnosticStatus::OK : diagnostic_msgs::DiagnosticStatus::ERROR,
+                 fault_.empty() ? (paused_ ? "paused" : "running") : fault_);
+  status.add("sim_time [s]", formatNumber(sim.state().time));
+  status.add("impacts", std::to_string(sim.impactCount()));
+  status.add("load_torque [N·m]", formatNumber(sim.params().load_torque));
+  status.add("load_inertia [kg·m²]", formatNumber(sim.params().load_inertia));
+  channels_[i]->judge->diagnose(sim, config_.joints[i].run, &status);
+  if (config_.node.sync)
+  {
+    status.add("lockstep answers late", std::to_string(lockstep_.late()));
+  }
+}
+
+void RobotNode::awaitStart()
+{
+  // Give recorders and monitors time to subscribe before sim time starts (callbacks are served meanwhile).
+  const ros::WallTime start = ros::WallTime::now() + ros::WallDuration(config_.node.start_delay);
+  while (ros::ok() && ros::WallTime::now() < start)
+  {
+    ros::spinOnce();
+    ros::WallDuration(0.01).sleep();
+  }
+  if (!config_.node.sync)
+  {
+    return;
+  }
+  // A subscriber of joint_states or encoder_states and a publisher of the answer.
+  const auto connected = [this] {
+    bool answering = effortMode() ? effort_sub_.getNumPublishers() > 0 : trajectory_sub_.getNumPublishers() > 0;
+    for (const auto& ch : channels_)
+    {
+      answering = answering || (!effortMode() && ch->command_sub.getNumPublishers() > 0);
+    }
+    return answering && (joint_pub_.getNumSubscribers() > 0 || encoder_pub_.getNumSubscribers() > 0);
+  };
+  lockstep_.waitForController(connected, effortMode() ? effort_topic_ : trajectory_topic_ + " or <joint>/command");
+}
+
+void RobotNode::awaitAnswer()
+{
+  if (config_.node.sync)
+  {
+    lockstep_.awaitAnswer([this] { return paused_; }, effortMode() ? "motor_effort" : "command", robot_->time(),
+                          config_.node.sync_timeout);
+  }
 }
 
 void RobotNode::reportStop(double t, const ros::WallTime& run_start)
@@ -418,11 +594,16 @@ void RobotNode::reportStop(double t, const ros::WallTime& run_start)
   const double cpu = static_cast<double>(std::clock()) / CLOCKS_PER_SEC;
   for (std::size_t i = 0; i < robot_->size(); ++i)
   {
-    const LimitCycleReport& st = channels_[i]->monitor->status();
+    const LimitCycleReport& st = channels_[i]->judge->monitor().status();
     ROS_INFO(
         "backlash_servo_node: stop_after %g s reached: %s: verdict %s, error %.6g rad, period %.6g s, %llu impacts",
         config_.node.stop_after, robot_->spec(i).name.c_str(), toString(st.verdict), st.error, st.period,
         static_cast<unsigned long long>(robot_->joint(i).impactCount()));
+  }
+  if (config_.node.sync)
+  {
+    ROS_INFO("backlash_servo_node: lockstep: %ld steps, %ld answered late (after sync_timeout)", sample_index_,
+             lockstep_.late());
   }
   ROS_INFO(
       "backlash_servo_node: %ld samples at %g Hz in %.3f s wall: achieved real-time factor %.1f, CPU %.3f s (%.1f %% "
@@ -432,21 +613,22 @@ void RobotNode::reportStop(double t, const ros::WallTime& run_start)
 
 bool RobotNode::run()
 {
-  const ros::WallTime start = ros::WallTime::now() + ros::WallDuration(config_.node.start_delay);
-  while (ros::ok() && ros::WallTime::now() < start)
-  {
-    ros::spinOnce();
-    ros::WallDuration(0.01).sleep();
-  }
+  awaitStart();
   clock_.reanchor(robot_->time());
   const ros::WallTime run_start = ros::WallTime::now();
   publishClock(robot_->time(), true);
   publishSample();
   sample_index_ = 1;
+  awaitAnswer();
   bool reached_stop = false;
   while (ros::ok())
   {
-    ros::spinOnce();
+    ros::spinOnce();  // commands, services and reconfigure act here, at a step boundary
+    if ((ros::WallTime::now() - last_diagnostics_).toSec() >= 1.0)
+    {
+      last_diagnostics_ = ros::WallTime::now();
+      diagnostics_.force_update();  // on the node's own 1 s wall schedule: sim time may run at any rate
+    }
     if (paused_)
     {
       if (clock_.skipped() >= 0.0)
@@ -463,9 +645,11 @@ bool RobotNode::run()
       continue;
     }
     ++sample_index_;
+    checkEffortTimeouts();
     const bool stop = config_.node.stop_after > 0.0 && t >= config_.node.stop_after;
     publishClock(t, stop);
     publishSample();
+    awaitAnswer();  // the last state too: every published state has its answer in the bag
     if (stop)
     {
       reportStop(t, run_start);

@@ -5,15 +5,21 @@
  *        /joint_states, one /clock. A thin adapter: the physics and the judges are the core's.
  *
  * Topics (in the node's namespace): joint_states (every load joint by its URDF name, every motor by its actuator's
- * name; effort: the motor's torque [N·m], the mesh torque on the load [N·m]), impact (with the joint's name),
- * <joint>/limit_cycle (latched, per joint), <joint>/command (std_msgs/Float64, rad), command_trajectory (any subset
- * of the joints; the others hold their set-points). Services ~pause, ~resume. Position mode with each joint's own
- * drive. dynamic_reconfigure per joint at ~<joint> (one group per joint in rqt): its plant and its drive's settings
- * live; what the arm sets (its gravity, its inertia), the node's own settings and what would move the joint's sample
- * grid (rate, law, feedback, compensation) are refused there, saying why.
+ * name; effort: the motor's torque [N·m], the mesh torque on the load [N·m]), encoder_states (the quantised readings
+ * under the same names), impact (with the joint's name), <joint>/limit_cycle (latched) and <joint>/backlash_state per
+ * joint, <joint>/command (std_msgs/Float64, rad), command_trajectory (any subset of the joints; the others hold their
+ * set-points), /diagnostics (one status per joint). Services ~pause, ~resume.
+ * Position mode: each joint's own drive. Effort mode (control_mode: effort): motor_effort (sensor_msgs/JointState,
+ * efforts [N·m] by joint or motor name; joints not named keep theirs) sets the motors' torques; <joint>/command is
+ * then the set-point each joint is judged against. Lockstep (sync): one answer (motor_effort, or in position mode a
+ * command or trajectory) per published state before the arm advances.
+ * dynamic_reconfigure per joint at ~<joint> (one group per joint in rqt): its plant and its drive's settings live;
+ * what the arm sets (its gravity, its inertia), the node's own settings and what would move the joint's sample grid
+ * (rate, law, feedback, compensation) are refused there, saying why.
  */
 #pragma once
 
+#include <diagnostic_updater/diagnostic_updater.h>
 #include <dynamic_reconfigure/server.h>
 #include <ros/ros.h>
 #include <sensor_msgs/JointState.h>
@@ -28,7 +34,8 @@
 
 #include "backlash_servo/BacklashServoConfig.h"
 #include "backlash_servo/robot/robot_simulator.h"
-#include "backlash_servo/simulation/response_monitor.h"
+#include "joint_judge.h"
+#include "lockstep.h"
 #include "node_config.h"
 #include "node_recorder.h"
 #include "sim_clock.h"
@@ -60,12 +67,12 @@ class RobotNode
   {
     RobotNode* node = nullptr;
     std::size_t index = 0;
-    std::unique_ptr<ResponseMonitor> monitor;
-    Verdict announced = Verdict::Undecided;
-    std::string reason;        // why the verdict is (still) what it is
-    double judge_from = -1.0;  // a profile's end [s]: the verdict starts afresh there (-1: none pending)
-    ros::Publisher limit_cycle_pub;
-    std::string limit_cycle_topic, command_topic;
+    std::unique_ptr<JointJudge> judge;
+    double command = 0.0;           // the set-point θ_R judged against in effort mode [rad]
+    double last_effort_time = 0.0;  // effort mode: sim time of the joint's last motor_effort [s]
+    bool effort_timed_out = false;  // effort mode: its torque was dropped for want of one
+    ros::Publisher limit_cycle_pub, state_pub;
+    std::string limit_cycle_topic, state_topic, command_topic;
     ros::Subscriber command_sub;
     boost::recursive_mutex reconfigure_mutex;
     std::unique_ptr<dynamic_reconfigure::Server<BacklashServoConfig>> reconfigure;
@@ -74,6 +81,11 @@ class RobotNode
   };
 
   void onCommand(std::size_t joint, const std_msgs::Float64& msg);
+  /// Effort mode: the motors named (by joint or motor name) take their efforts [N·m]; refused whole (ROS_ERROR) if a
+  /// name is unknown, the arrays differ in length or an effort is out of range.
+  void onEffort(const sensor_msgs::JointState& msg);
+  /// The joint whose URDF name or motor name is `name`; -1 when none.
+  int motorOrJoint(const std::string& name) const;
   /// The points of every joint named in the message become that joint's profile; refused whole (ROS_ERROR) if any
   /// joint is unknown or its points are bad.
   void onTrajectory(const trajectory_msgs::JointTrajectory& msg);
@@ -84,10 +96,25 @@ class RobotNode
   bool onResume(std_srvs::Trigger::Request& req, std_srvs::Trigger::Response& res);
   /// Judges joint i afresh from now on (a new command); `reason` is published at once with verdict undecided.
   void restartMonitor(std::size_t i, const std::string& reason);
-  void publishLimitCycle(std::size_t i, double sim_time);
-  /// Joint i's set-point [rad]: its profile's final value, else its command.
+  void publishLimitCycle(std::size_t i, double sim_time, bool maximum);
+  bool effortMode() const { return config_.node.control_mode == ControlMode::Effort; }
+  /// Joint i's set-point [rad]: effort mode the one judged against; else its profile's final value or its command.
   double setPoint(std::size_t i) const;
+  /// Joint i's θ_R now [rad] (a profile's value at this instant).
+  double reference(std::size_t i) const;
   void publishSample();
+  /// joint_states' names: every load joint (URDF order), then every motor.
+  const std::vector<std::string>& jointNames();
+  /// encoder_states: joint i's readings at a sample of its digital drive (position mode).
+  void publishEncoders(std::size_t i, const State& s, const Drive& drive);
+  /// Waits start_delay (and in lockstep for a controller) before sim time starts.
+  void awaitStart();
+  /// Lockstep: serves callbacks until the answer to the state just published arrives or sync_timeout passes.
+  void awaitAnswer();
+  /// Effort mode: a joint without motor_effort for effort_timeout s of sim time has its torque dropped to 0.
+  void checkEffortTimeouts();
+  /// One joint's /diagnostics status: running/paused/fault, sim time, impacts, its load now and its verdict.
+  void diagnose(std::size_t i, diagnostic_updater::DiagnosticStatusWrapper& status);
   void publishClock(double t, bool force);
   /// Advances every joint to t [s] and judges each; false after a simulation error (the node pauses, says why).
   bool stepTo(double t);
@@ -109,12 +136,16 @@ class RobotNode
   std::vector<std::unique_ptr<Channel>> channels_;
   std::vector<EventSink*> sinks_;
   std::unique_ptr<NodeRecorder> recorder_;
-  ros::Publisher joint_pub_, impact_pub_;
-  std::string joint_topic_, impact_topic_, clock_topic_, trajectory_topic_;
-  ros::Subscriber trajectory_sub_;
+  ros::Publisher joint_pub_, impact_pub_, encoder_pub_;
+  std::string joint_topic_, impact_topic_, encoder_topic_, clock_topic_, trajectory_topic_, effort_topic_;
+  ros::Subscriber trajectory_sub_, effort_sub_;
   ros::ServiceServer pause_srv_, resume_srv_;
-  sensor_msgs::JointState joint_msg_;
+  sensor_msgs::JointState joint_msg_, encoder_msg_;
+  std::vector<std::string> names_;  // jointNames(), built once
+  diagnostic_updater::Updater diagnostics_;
+  ros::WallTime last_diagnostics_;
   long sample_index_ = 0;
+  Lockstep lockstep_;  // sync: the answer awaited for each published state, the late ones counted
   bool paused_ = false;
   std::string fault_;  // the simulation error holding the arm; empty while healthy
 };

@@ -28,6 +28,7 @@ ServoNode::ServoNode(ros::NodeHandle& nh, ros::NodeHandle& pnh, const NodeConfig
       command_(config.run.command),
       profile_(config.run.profile),
       effort_(config.motor_effort),
+      judge_(config.load_joint_name, ""),
       paused_(config.paused),
       diagnostics_(nh, pnh)
 {

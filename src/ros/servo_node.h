@@ -26,11 +26,9 @@
 #include <memory>
 
 #include "backlash_servo/BacklashServoConfig.h"
-#include "backlash_servo/simulation/response_monitor.h"
 #include "backlash_servo/simulation/simulator.h"
-#include "backlash_servo/simulation/steady_state.h"
-#include "backlash_servo/simulation/step_response.h"
-#include "backlash_servo/simulation/tracking_metrics.h"
+#include "joint_judge.h"
+#include "lockstep.h"
 #include "node_config.h"
 #include "node_recorder.h"
 #include "sim_clock.h"
@@ -108,9 +106,6 @@ class ServoNode : public EventSink
   /// Judges afresh from now on (a new command, trajectory, reset, mode or a live change of a plant or drive
   /// parameter); `reason` says what restarted it and /limit_cycle is published at once with verdict undecided.
   void restartMonitor(const std::string& reason = "");
-  /// Whether a maximum of the load (its state there) leaves a converged verdict: above the quiet band of where the
-  /// load was judged to rest. The node then withdraws the verdict, says so and judges afresh.
-  bool leftConvergence(const State& at_maximum) const;
   ros::Time stamp(double sim_time) const { return clock_.stamp(sim_time); }
   /// Publishes an output and writes it to the node's bag (record_bag) under its resolved topic name.
   template <class M>
@@ -135,21 +130,9 @@ class ServoNode : public EventSink
   Simulator sim_;
   double command_;                                 // θ_R [rad] (a profile's final value), kept also in effort mode
   std::shared_ptr<const CommandProfile> profile_;  // θ_R(t) in sim time (YAML `profile`, command_trajectory) or null
-  double judge_from_ = -1.0;  // the profile's end [s sim]: the verdict starts afresh there (-1: none pending)
-  double effort_;             // effort-mode torque [N·m]
-  std::unique_ptr<ResponseMonitor> monitor_;   // the same judge as backlash_sim (rest and quiet rules included)
-  std::unique_ptr<TrackingMetrics> tracking_;  // the tracking figures since the judgement began (every sample)
-  SteadyAnswer steady_;                        // of the current judgement once converged (steadyNow)
-  /// The tracking figures now (settling into the band, steady-state RMS error), as backlash_sim defines them.
-  TrackingFigures trackingNow() const;
-  /// The steady answer of the current judgement (steady_state.h), found once when it turns converged; none before.
-  /// In effort mode the external controller's law is unknown: only a joint held for ever has one.
-  const SteadyAnswer& steadyNow();
-  /// A cycle's size in counts of the encoder the loop reads and in arcmin (the drive's settings now).
-  CycleResolution resolutionNow(const CycleShape& cycle) const;
-  Verdict announced_ = Verdict::Undecided;
+  double effort_;                                  // effort-mode torque [N·m]
+  JointJudge judge_;             // the verdict, as backlash_sim's judge gives it, with tracking and steady figures
   bool fault_diverged_ = false;  // the fault is a runaway motion: only ~reset resumes
-  double converged_at_ = 0.0;    // sim time the latest converged verdict was announced [s]
 
   std::unique_ptr<NodeRecorder> recorder_;  // the node's own bag (record_bag), or null
   ros::Publisher joint_pub_, impact_pub_, state_pub_, limit_cycle_pub_, encoder_pub_;
@@ -162,19 +145,15 @@ class ServoNode : public EventSink
   boost::recursive_mutex reconfigure_mutex_;
   std::unique_ptr<dynamic_reconfigure::Server<BacklashServoConfig>> reconfigure_;
   BacklashServoConfig last_good_;
-  std::string verdict_reason_;  ///< /limit_cycle's reason while the verdict is undecided (or the fault)
-  std::string refused_;         ///< the last refused reconfigure (key, value, reason) until the next accepted one
-  bool mirror_stale_ = false;   ///< a topic changed a live value that last_good_ and dynamic_reconfigure do not show
+  std::string refused_;        ///< the last refused reconfigure (key, value, reason) until the next accepted one
+  bool mirror_stale_ = false;  ///< a topic changed a live value that last_good_ and dynamic_reconfigure do not show
   /// Brings last_good_ and the dynamic_reconfigure parameters up to date (called once per wall second).
   void refreshReconfigureMirror();
 
   double sample_base_ = 0.0;  // sim time of sample 0 of the current schedule [s]
   long sample_index_ = 0;     // index of the next sample
-  // Lockstep (sync): waiting for the answer to the state just published; its arrival; answers that came too late.
-  bool awaiting_ = false;
-  bool answered_ = false;
-  long sync_misses_ = 0;
-  long published_ = 0;  // per-sample messages published (for the drain at exit)
+  Lockstep lockstep_;         // sync: the answer awaited for each published state, the late ones counted
+  long published_ = 0;        // per-sample messages published (for the drain at exit)
   // State at the previous /diagnostics (rates over the interval).
   ros::WallTime diag_wall_;
   double diag_sim_ = -1.0;

@@ -20,28 +20,14 @@ void ServoNode::awaitStart()
   }
   if (config_.sync)
   {
-    // Lockstep needs its controller connected before the first state goes out (a state nobody answers would stall
-    // the run until sync_timeout): a subscriber of joint_states or encoder_states and a publisher of the answer
-    // topic, plus a second for the controller's own subscription to finish connecting.
+    // A subscriber of joint_states or encoder_states and a publisher of the answer topic.
     const ros::Subscriber& answer = config_.control_mode == ControlMode::Effort ? effort_sub_ : command_sub_;
-    ros::WallTime said = ros::WallTime::now();
-    ROS_INFO(
-        "backlash_servo_node: lockstep: waiting for a controller (subscribing joint_states or encoder_states, "
-        "publishing %s)",
-        answer.getTopic().c_str());
-    while (ros::ok() && ((joint_pub_.getNumSubscribers() == 0 && encoder_pub_.getNumSubscribers() == 0) ||
-                         answer.getNumPublishers() == 0))
-    {
-      ros::spinOnce();
-      ros::WallDuration(0.01).sleep();
-      if ((ros::WallTime::now() - said).toSec() > 10.0)
-      {
-        ROS_INFO("backlash_servo_node: lockstep: still waiting for a controller");
-        said = ros::WallTime::now();
-      }
-    }
-    ros::WallDuration(1.0).sleep();
-    ros::spinOnce();
+    lockstep_.waitForController(
+        [&] {
+          return (joint_pub_.getNumSubscribers() > 0 || encoder_pub_.getNumSubscribers() > 0) &&
+                 answer.getNumPublishers() > 0;
+        },
+        answer.getTopic());
   }
 }
 
@@ -73,21 +59,9 @@ bool ServoNode::stepTo(double t)
     return false;
   }
   ++sample_index_;
-  // Rest and quiet rules, as backlash_sim applies them; in effort mode against `command` too (the external
-  // controller's integrator is not visible: its stick–slip phases count as rest only once quiet for long).
-  if (judge_from_ >= 0.0 && sim_.state().time >= judge_from_)
-  {
-    monitor_->restartAt(sim_.state());  // the profile has ended: judged afresh against its final value
-    announced_ = Verdict::Undecided;
-    judge_from_ = -1.0;
-  }
-  monitor_->check(sim_.state(), sim_.drive().winding(), judge_from_ < 0.0 && sim_.atRestForever());
-  {
-    const State& s = sim_.state();
-    const double reference = profile_ && sim_.controlMode() == ControlMode::Position ? profile_->at(s.time) : command_;
-    tracking_->add(s.time, reference, s.load_position, sim_.motorTorque());
-  }
-  if (monitor_->status().verdict != announced_)
+  const double now = sim_.state().time;
+  const double reference = profile_ && sim_.controlMode() == ControlMode::Position ? profile_->at(now) : command_;
+  if (judge_.sample(sim_, reference))
   {
     publishLimitCycle(t, false);
   }
@@ -99,13 +73,13 @@ void ServoNode::reportStop(double t, const ros::WallTime& run_start)
   if (config_.sync)
   {
     ROS_INFO("backlash_servo_node: lockstep: %ld steps, %ld answered late (after sync_timeout)", sample_index_,
-             sync_misses_);
+             lockstep_.late());
   }
   const double wall = (ros::WallTime::now() - run_start).toSec();
   const double cpu = static_cast<double>(std::clock()) / CLOCKS_PER_SEC;
   ROS_INFO("backlash_servo_node: stop_after %g s reached: verdict %s, error %.6g rad, period %.6g s, %llu impacts",
-           config_.stop_after, toString(monitor_->status().verdict), monitor_->status().error,
-           monitor_->status().period, static_cast<unsigned long long>(sim_.impactCount()));
+           config_.stop_after, toString(judge_.monitor().status().verdict), judge_.monitor().status().error,
+           judge_.monitor().status().period, static_cast<unsigned long long>(sim_.impactCount()));
   ROS_INFO(
       "backlash_servo_node: %ld samples at %g Hz in %.3f s wall: achieved real-time factor %.1f, "
       "CPU %.3f s (%.1f %% of one core)",
@@ -163,10 +137,7 @@ bool ServoNode::run()
     const bool stop = config_.stop_after > 0.0 && t >= config_.stop_after;
     publishClock(t, stop);
     publishSample();
-    if (!stop)
-    {
-      awaitAnswer();
-    }
+    awaitAnswer();  // the last state too: every published state has its answer in the bag
     if (stop)
     {
       reportStop(t, run_start);
@@ -188,9 +159,7 @@ void ServoNode::enterFault(const std::string& what, bool diverged)
   fault_diverged_ = diverged;
   // /limit_cycle no longer shows the verdict of a motion that has ended: diverged (an unstable loop ran away) or
   // undecided with the fault as its reason.
-  monitor_->restartAt(sim_.state());
-  announced_ = Verdict::Undecided;
-  verdict_reason_ = "simulation stopped at t = " + formatNumber(sim_.state().time) + " s: " + what;
+  judge_.fault(sim_, what);
   publishLimitCycle(sim_.state().time, false, diverged);
   const ServoParams& p = sim_.params();
   ROS_ERROR(
@@ -229,37 +198,12 @@ void ServoNode::drainBeforeExit(double wall)
 
 void ServoNode::awaitAnswer()
 {
-  if (!config_.sync)
+  if (config_.sync)
   {
-    return;
+    lockstep_.awaitAnswer([this] { return paused_ || !fault_.empty(); },
+                          sim_.controlMode() == ControlMode::Effort ? "motor_effort" : "command", sim_.state().time,
+                          config_.sync_timeout);
   }
-  answered_ = false;
-  awaiting_ = true;
-  const ros::WallTime start = ros::WallTime::now();
-  bool warned = false;
-  while (ros::ok() && !answered_)
-  {
-    ros::getGlobalCallbackQueue()->callAvailable(ros::WallDuration(0.001));
-    if (paused_ || !fault_.empty())
-    {
-      continue;  // a paused or faulted node waits with its controller
-    }
-    if (config_.sync_timeout > 0.0 && (ros::WallTime::now() - start).toSec() >= config_.sync_timeout)
-    {
-      ++sync_misses_;
-      if (!warned)
-      {
-        ROS_WARN(
-            "backlash_servo_node: lockstep: no %s for t = %.6f s within sync_timeout %g s; advancing on the "
-            "last input (this run is no longer reproducible)",
-            sim_.controlMode() == ControlMode::Effort ? "motor_effort" : "command", sim_.state().time,
-            config_.sync_timeout);
-        warned = true;
-      }
-      break;
-    }
-  }
-  awaiting_ = false;
 }
 
 void ServoNode::checkEffortTimeout()

@@ -27,7 +27,7 @@ void ServoNode::onCommand(const std_msgs::Float64& msg)
   if (sim_.controlMode() == ControlMode::Position)
   {
     sim_.setCommand(command_);
-    answered_ = answered_ || awaiting_;  // lockstep: the answer for the state just published
+    lockstep_.answered();  // lockstep: the answer for the state just published
   }
   restartMonitor("new command " + formatNumber(command_) + " rad");  // both modes judge against the command
 }
@@ -56,7 +56,7 @@ void ServoNode::onEffort(const std_msgs::Float64& msg)
   last_effort_time_ = sim_.state().time;
   effort_timed_out_ = false;
   sim_.setMotorTorque(effort_);
-  answered_ = answered_ || awaiting_;  // lockstep: the answer for the state just published
+  lockstep_.answered();  // lockstep: the answer for the state just published
 }
 
 void ServoNode::applyPositionDrive()
@@ -97,7 +97,7 @@ void ServoNode::onTrajectory(const trajectory_msgs::JointTrajectory& msg)
     ROS_ERROR("backlash_servo_node: command_trajectory refused (%s); keeping the current set-point", e.what());
     return;
   }
-  answered_ = answered_ || awaiting_;  // lockstep: a trajectory answers the state just published, as a command does
+  lockstep_.answered();  // lockstep: a trajectory answers the state just published, as a command does
   restartMonitor("new command_trajectory");  // judged against the trajectory's final point
 }
 

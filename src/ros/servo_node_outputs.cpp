@@ -5,29 +5,12 @@
 #include <sensor_msgs/JointState.h>
 #include <cmath>
 #include <cstdint>
-#include "backlash_servo/BacklashState.h"
 #include "backlash_servo/ImpactEvent.h"
 #include "backlash_servo/LimitCycleStatus.h"
 #include "status_messages.h"
 
 namespace backlash_servo
 {
-namespace
-{
-uint8_t contactCode(Contact c)
-{
-  switch (c)
-  {
-    case Contact::Forward:
-      return BacklashState::FORWARD;
-    case Contact::Backward:
-      return BacklashState::BACKWARD;
-    default:
-      return BacklashState::APART;
-  }
-}
-}  // namespace
-
 void ServoNode::publishDiagnostics()
 {
   last_diagnostics_ = ros::WallTime::now();
@@ -45,33 +28,7 @@ void ServoNode::diagnose(diagnostic_updater::DiagnosticStatusWrapper& status)
   status.add("sim_time [s]", formatNumber(sim_.state().time));
   status.add("impacts", std::to_string(sim_.impactCount()));
   // The figures backlash_sim reports, under the same names and units.
-  const LimitCycleReport& verdict = monitor_->status();
-  status.add("verdict", toString(verdict.verdict));
-  status.add("equilibrium [rad]", formatNumber(monitor_->equilibrium()));
-  if (verdict.verdict == Verdict::LimitCycle || verdict.verdict == Verdict::Irregular)
-  {
-    status.add("limit_cycle_error [rad]", formatNumber(verdict.error));
-    status.add("period [s]", formatNumber(verdict.period));
-    status.add("maxima_per_period", std::to_string(verdict.multiplicity));
-    const CycleShape cycle = monitor_->cycleShape();
-    status.add("peak_to_peak [rad]", formatNumber(cycle.peak_to_peak));
-    status.add("cycle_centre [rad]", formatNumber(cycle.centre));
-    const CycleResolution resolution = resolutionNow(cycle);
-    status.add("peak_to_peak_counts", formatNumber(resolution.counts));
-    status.add("peak_to_peak_arcmin", formatNumber(resolution.arcmin));
-    status.add("below_encoder_resolution", resolution.below_count ? "true" : "false");
-  }
-  if (verdict.verdict == Verdict::Converged)
-  {
-    const SteadyAnswer& steady = steadyNow();
-    status.add("steady_error [rad]", std::isnan(steady.error) ? "n/a: " + steady.note : formatNumber(steady.error));
-    status.add("steady_basis", steadyBasisName(steady.basis));
-  }
-  const TrackingFigures tracking = trackingNow();
-  status.add("settling_band [rad]", formatNumber(tracking.band));
-  status.add("settling_time [s]",
-             std::isnan(tracking.settling_time) ? "- (outside the band)" : formatNumber(tracking.settling_time));
-  status.add("steady_rms_error [rad]", formatNumber(tracking.steady_rms_error));
+  judge_.diagnose(sim_, config_.run, &status);
   // Rates over the last diagnostics interval: impacts per simulated second, simulated seconds per wall second.
   const ros::WallTime now = ros::WallTime::now();
   const double wall = (now - diag_wall_).toSec();
@@ -86,7 +43,7 @@ void ServoNode::diagnose(diagnostic_updater::DiagnosticStatusWrapper& status)
   diag_impacts_ = sim_.impactCount();
   if (config_.sync)
   {
-    status.add("lockstep answers late", std::to_string(sync_misses_));
+    status.add("lockstep answers late", std::to_string(lockstep_.late()));
   }
 }
 
@@ -156,32 +113,8 @@ void ServoNode::publishSample()
   emit(joint_pub_, joint_topic_, js);
   published_ += 2;  // joint_states, backlash_state (/clock counts where it is published)
 
-  BacklashState b;
-  b.header.stamp = now;
-  b.sim_time = s.time;
-  b.contact = contactCode(s.contact);
-  b.gap = sim_.gap();
-  b.mesh_torque = sim_.meshTorque();
-  b.motor_torque = sim_.motorTorque();
-  b.command = profile_ && sim_.controlMode() == ControlMode::Position ? profile_->at(s.time) : command_;
-  b.control_mode = sim_.controlMode() == ControlMode::Effort ? BacklashState::EFFORT : BacklashState::POSITION;
-  const EnergyLedger& e = sim_.energy();
-  b.energy_input = e.input;
-  b.energy_motor_friction = e.motor_friction;
-  b.energy_load_friction = e.load_friction;
-  b.energy_impact_loss = e.impact_loss;
-  b.energy_motor_dry_friction = e.motor_dry_friction;
-  b.energy_load_dry_friction = e.load_dry_friction;
-  b.energy_load_work = e.load_work;
-  if (!sim_.energyValid())
-  {
-    // A ramp of the continuous law ran in its moving frame: the ledger is the frame's (NaN: unknown; ~reset restores).
-    b.energy_input = b.energy_motor_friction = b.energy_load_friction = b.energy_impact_loss =
-        b.energy_motor_dry_friction = b.energy_load_dry_friction = b.energy_load_work = NAN;
-  }
-  b.energy_kinetic = sim_.kineticEnergy();
-  b.impacts = sim_.impactCount();
-  emit(state_pub_, state_topic_, b);
+  const double command = profile_ && sim_.controlMode() == ControlMode::Position ? profile_->at(s.time) : command_;
+  emit(state_pub_, state_topic_, backlashStateMessage(sim_, command, now));
 }
 
 void ServoNode::onEvent(const Event& e)
@@ -195,134 +128,26 @@ void ServoNode::onEvent(const Event& e)
     const ImpactEvent m = impactMessage(e, stamp(e.state.time), config_.load_joint_name);
     emit(impact_pub_, impact_topic_, m);
   }
-  else if (e.type == EventType::Maximum)  // both modes: effort mode is judged against `command` as well
+  else
   {
-    const std::size_t before = monitor_->maxima().size();
-    monitor_->onEvent(e);
-    if (monitor_->maxima().size() == before)
+    // Maxima and minima to the judge (both modes: effort mode is judged against `command` as well).
+    std::string withdrawn;
+    if (judge_.onEvent(e, &withdrawn))
     {
-      return;  // not above the command
+      publishLimitCycle(e.state.time, true);
     }
-    if (leftConvergence(e.state))
+    else if (!withdrawn.empty())
     {
-      const std::string why = "the converged verdict of t = " + formatNumber(converged_at_) +
-                              " s is withdrawn: the load moved again (maximum at t = " + formatNumber(e.state.time) +
-                              " s, " + formatNumber(e.state.load_position - monitor_->equilibrium()) +
-                              " rad beyond where it rested)";
-      ROS_WARN("backlash_servo_node: %s", why.c_str());
-      restartMonitor(why);  // published at once: undecided, with the reason
-      return;
-    }
-    publishLimitCycle(e.state.time, true);
-  }
-  else if (e.type == EventType::Minimum)
-  {
-    monitor_->onEvent(e);  // the cycle's lowest points (peak to peak, centre)
-  }
-}
-
-bool ServoNode::leftConvergence(const State& at_maximum) const
-{
-  // A maximum above the quiet band after a converged verdict: the load moved again (an external controller's
-  // integrator, a breakaway, a push) — the verdict no longer describes the joint.
-  return announced_ == Verdict::Converged && fault_.empty() && monitor_->leavesConvergence(at_maximum);
-}
-
-TrackingFigures ServoNode::trackingNow() const
-{
-  if (!tracking_)
-  {
-    return TrackingFigures();
-  }
-  const double dt = 1.0 / config_.publish_rate;
-  return tracking_->figures(sim_.state().time, dt,
-                            cycleLeavesBand(monitor_->status(), monitor_->cycleShape(), command_, tracking_->band()));
-}
-
-CycleResolution ServoNode::resolutionNow(const CycleShape& cycle) const
-{
-  RunConfig read = config_.run;
-  read.params = sim_.params();
-  return cycleResolution(cycle, loopCount(read));
-}
-
-const SteadyAnswer& ServoNode::steadyNow()
-{
-  if (monitor_->status().verdict != Verdict::Converged)
-  {
-    steady_ = SteadyAnswer();
-    return steady_;
-  }
-  const bool effort = sim_.controlMode() == ControlMode::Effort;
-  if (steady_.basis == SteadyBasis::None || (effort && steady_.basis == SteadyBasis::Unsettled))
-  {
-    if (!effort || sim_.atRestForever())  // (held for ever: steadyAnswer's first answer, whoever drives)
-    {
-      steady_ = steadyAnswer(sim_, config_.run.drive, command_, monitor_->equilibrium(), monitor_->scale());
-    }
-    else
-    {
-      steady_.basis = SteadyBasis::Unsettled;
-      steady_.note = "effort mode: the external controller's law is unknown";
+      ROS_WARN("backlash_servo_node: %s", withdrawn.c_str());
+      restartMonitor(withdrawn);  // published at once: undecided, with the reason
     }
   }
-  return steady_;
 }
 
 void ServoNode::publishLimitCycle(double sim_time, bool maximum, bool diverged)
 {
-  const auto& st = monitor_->status();
-  LimitCycleStatus m;
+  LimitCycleStatus m = judge_.status(sim_, config_.run, sim_time, fault_.empty(), maximum, diverged);
   m.header.stamp = stamp(sim_time);
-  m.sim_time = sim_time;
-  fillVerdict(*monitor_, resolutionNow(monitor_->cycleShape()), &m);
-  if (diverged)
-  {
-    m.verdict = toString(Verdict::Diverged);
-  }
-  m.joint = config_.load_joint_name;
-  const SteadyAnswer& steady = steadyNow();
-  m.steady_error = steady.error;
-  m.steady_basis = steady.basis == SteadyBasis::None ? "" : steadyBasisName(steady.basis);
-  const TrackingFigures tracking = trackingNow();
-  m.settling_band = tracking.band;
-  m.settling_time = tracking.settling_time;
-  m.steady_rms_error = tracking.steady_rms_error;
-  m.command = command_;
-  if (st.verdict != Verdict::Undecided && fault_.empty())
-  {
-    verdict_reason_.clear();  // a verdict reached: nothing pending to explain
-  }
-  // A convergence is never withdrawn silently (the load moved again: an external controller's integrator, a joint
-  // breaking away): the message says which verdict it replaces and since when.
-  if (announced_ == Verdict::Converged && st.verdict != Verdict::Converged && fault_.empty())
-  {
-    verdict_reason_ = "the converged verdict of t = " + formatNumber(converged_at_) +
-                      " s is withdrawn: the load moved again (maximum at t = " +
-                      formatNumber(monitor_->maxima().empty() ? sim_time : monitor_->maxima().back().time) + " s)";
-    ROS_WARN("backlash_servo_node: %s", verdict_reason_.c_str());
-  }
-  m.reason = verdict_reason_;
   emit(limit_cycle_pub_, limit_cycle_topic_, m);
-  if (maximum)
-  {
-    ROS_INFO("maximum #%u at t = %.4f s: load %.6f rad (error %+.6f rad); verdict: %s", m.maxima_observed,
-             m.last_maximum_time, m.last_maximum_position, m.last_maximum_position - command_, m.verdict.c_str());
-  }
-  if (st.verdict != announced_)
-  {
-    announced_ = st.verdict;
-    if (m.detected)
-    {
-      ROS_INFO("%s detected: error %.6f rad, period %.4f s; load %.6f rad peak to peak about %.6f rad",
-               st.verdict == Verdict::LimitCycle ? "LIMIT CYCLE" : "IRREGULAR OSCILLATION", st.error, st.period,
-               m.peak_to_peak, m.cycle_centre);
-    }
-    else if (st.verdict == Verdict::Converged)
-    {
-      converged_at_ = sim_time;
-      ROS_INFO("converged to the command at t = %.4f s: no limit cycle", sim_time);
-    }
-  }
 }
 }  // namespace backlash_servo

@@ -17,27 +17,9 @@ BacklashServoConfig ServoNode::currentConfig() const
 
 void ServoNode::restartMonitor(const std::string& reason)
 {
-  const bool running = monitor_ != nullptr;
-  judge_from_ = profile_ && sim_.controlMode() == ControlMode::Position ? profile_->endTime() : -1.0;
-  // Effort mode is fed by an external, usually digital, controller: its cycles may be quasi-periodic bands too.
-  // Effort mode: the external controller's law is unknown; its rest is judged against `command` itself.
-  const double equilibrium = sim_.controlMode() == ControlMode::Effort
-                                 ? command_
-                                 : loopEquilibrium(sim_.params(), config_.run.drive, command_);
-  monitor_ = std::make_unique<ResponseMonitor>(sim_.params(), command_, equilibrium, sim_.state(),
-                                               sim_.drive().sampled() || sim_.controlMode() == ControlMode::Effort);
-  // The tracking figures start afresh with the judgement: the reference's last move is this step or the profile.
-  RunConfig tracked = config_.run;
-  tracked.params = sim_.params();
-  tracked.initial = sim_.state();
-  tracked.command = command_;
-  tracked.profile = sim_.controlMode() == ControlMode::Position ? profile_ : nullptr;
-  tracking_ = std::make_unique<TrackingMetrics>(trackingOf(tracked, 1.0 / config_.publish_rate, INFINITY));
-  announced_ = Verdict::Undecided;
-  steady_ = SteadyAnswer();
-  if (running && !reason.empty())
+  judge_.restart(sim_, config_.run, command_, profile_, 1.0 / config_.publish_rate, reason);
+  if (!reason.empty())
   {
-    verdict_reason_ = reason + " at t = " + formatNumber(sim_.state().time) + " s: judging afresh";
     publishLimitCycle(sim_.state().time, false);  // no stale verdict: undecided, with the reason, until the new one
   }
 }

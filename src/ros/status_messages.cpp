@@ -2,6 +2,53 @@
 
 namespace backlash_servo
 {
+namespace
+{
+uint8_t contactCode(Contact c)
+{
+  switch (c)
+  {
+    case Contact::Forward:
+      return BacklashState::FORWARD;
+    case Contact::Backward:
+      return BacklashState::BACKWARD;
+    default:
+      return BacklashState::APART;
+  }
+}
+}  // namespace
+
+BacklashState backlashStateMessage(const Simulator& sim, double command, const ros::Time& stamp)
+{
+  const State& s = sim.state();
+  BacklashState b;
+  b.header.stamp = stamp;
+  b.sim_time = s.time;
+  b.contact = contactCode(s.contact);
+  b.gap = sim.gap();
+  b.mesh_torque = sim.meshTorque();
+  b.motor_torque = sim.motorTorque();
+  b.command = command;
+  b.control_mode = sim.controlMode() == ControlMode::Effort ? BacklashState::EFFORT : BacklashState::POSITION;
+  const EnergyLedger& e = sim.energy();
+  b.energy_input = e.input;
+  b.energy_motor_friction = e.motor_friction;
+  b.energy_load_friction = e.load_friction;
+  b.energy_impact_loss = e.impact_loss;
+  b.energy_motor_dry_friction = e.motor_dry_friction;
+  b.energy_load_dry_friction = e.load_dry_friction;
+  b.energy_load_work = e.load_work;
+  if (!sim.energyValid())
+  {
+    // A ramp of the continuous law ran in its moving frame: the ledger is the frame's (NaN: unknown).
+    b.energy_input = b.energy_motor_friction = b.energy_load_friction = b.energy_impact_loss =
+        b.energy_motor_dry_friction = b.energy_load_dry_friction = b.energy_load_work = NAN;
+  }
+  b.energy_kinetic = sim.kineticEnergy();
+  b.impacts = sim.impactCount();
+  return b;
+}
+
 ImpactEvent impactMessage(const Event& e, const ros::Time& stamp, const std::string& joint)
 {
   ImpactEvent m;

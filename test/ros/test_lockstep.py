@@ -24,6 +24,15 @@ def run_loop(bag_dir, name, port, stop_after, extra=()):
     return os.path.join(bag_dir, name + ".bag")
 
 
+def run_arm(bag_dir, name, port, stop_after):
+    """The example arm driven by the rospy template (robot.launch controller:=python) at 1 kHz; the bag's path."""
+    env = dict(os.environ, ROS_MASTER_URI="http://localhost:%d" % port)
+    subprocess.run(["roslaunch", "-p", str(port), "backlash_servo", "robot.launch", "controller:=python",
+                    "record:=true", "bag_dir:=" + bag_dir, "bag_name:=" + name, "stop_after:=%g" % stop_after,
+                    "publish_rate:=1000", "real_time_factor:=0"], env=env, check=False, capture_output=True, timeout=180)
+    return os.path.join(bag_dir, name + ".bag")
+
+
 def contents(path):
     """Every recorded message by topic, as recorded (sim time starts at 0: stamps compare as they are)."""
     out = {}
@@ -102,6 +111,58 @@ class Lockstep(unittest.TestCase):
         maxima = [m for m in bag["/limit_cycle"] if m.maxima_observed > 0]
         first = min(maxima, key=lambda m: m.maxima_observed)
         self.assertAlmostEqual(first.last_maximum_position, cli["maxima"][0]["position"], delta=1e-9)
+
+    def test_an_arm_driven_from_outside_is_deterministic_and_exact(self):
+        # Every joint of the example arm answered by one motor_effort (a JointState of efforts by name) per state:
+        # two runs give identical bags; the torque each motor carries over [t_k, t_k+1) is the answer to the state at
+        # t_k; the template's first answers follow its law on the encoder readings; the held arm's gravity is carried
+        # through each gear.
+        joints = ["shoulder", "elbow", "wrist"]
+        with tempfile.TemporaryDirectory() as d:
+            a = contents(run_arm(d, "arm_a", 11416, 2.0))
+            b = contents(run_arm(d, "arm_b", 11417, 2.0))
+        states, answers, readings = a["/joint_states"], a["/motor_effort"], a["/encoder_states"]
+        self.assertEqual(len(states), 2001)  # every step of 1 ms over 2 s
+        self.assertEqual(len(answers), 2001)  # one answer per state
+        self.assertEqual(len(readings), 2001)
+        topics = ["/joint_states", "/encoder_states", "/motor_effort"]
+        topics += ["/%s/%s" % (j, t) for j in joints for t in ("backlash_state", "limit_cycle")]
+        for topic in topics:
+            self.assertEqual(len(a[topic]), len(b[topic]), topic)
+            for m, n in zip(a[topic], b[topic]):
+                self.assertEqual(serialized(m), serialized(n), topic)
+        names = list(states[0].name)
+        self.assertEqual(names[:3], joints)
+        motor = {j: names[3 + i] for i, j in enumerate(joints)}
+        for k in range(len(states) - 1):
+            self.assertEqual(answers[k].header.stamp, states[k].header.stamp)
+            self.assertEqual(sorted(answers[k].name), sorted(joints))
+            nxt = states[k + 1]
+            for j, u in zip(answers[k].name, answers[k].effort):
+                self.assertEqual(nxt.effort[nxt.name.index(motor[j])], u, (k, j))
+        # Encoder readings: the true load angles on the YAML's 17-bit load encoder.
+        for js, enc in zip(states, readings):
+            self.assertEqual(list(enc.name), names)
+            for j in joints:
+                self.assertEqual(enc.position[names.index(j)], quantise(js.position[names.index(j)], 131072))
+        # The template's first two answers: kp e_0, then kp e_1 + ki Δt e_1 − kd (y_1 − y_0)/Δt, with each joint's
+        # own PID gains from the YAML (shoulder: 22.5, 45, 1.05).
+        y0 = readings[0].position[0]
+        y1 = readings[1].position[0]
+        e0, e1 = 0.3 - y0, 0.3 - y1
+        u = dict(zip(answers[0].name, answers[0].effort))
+        self.assertAlmostEqual(u["shoulder"], 22.5 * e0, delta=1e-12)
+        u = dict(zip(answers[1].name, answers[1].effort))
+        self.assertAlmostEqual(u["shoulder"], 22.5 * e1 + 45.0 * 0.001 * e1 - 1.05 * (y1 - y0) / 0.001, delta=1e-9)
+        # Held at its commands, each motor carries its load's gravity through its gear (the mean over the last
+        # 0.5 s; the mesh torque on each load is gravity's, so the motor's is −ρ times it on average).
+        last = [js for js in states if js.header.stamp.to_sec() >= 1.5]
+        for i, j in enumerate(joints):
+            mesh = sum(js.effort[i] for js in last) / len(last)
+            torque = sum(js.effort[3 + i] for js in last) / len(last)
+            rho = 0.02 if j == "wrist" else 0.01
+            self.assertAlmostEqual(torque, rho * mesh, delta=0.05 * abs(rho * mesh), msg=j)
+            self.assertGreater(abs(mesh), 0.01, j)
 
 
 if __name__ == "__main__":

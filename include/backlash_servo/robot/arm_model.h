@@ -50,7 +50,8 @@ class ArmModel
   ArmModel& operator=(const ArmModel&) = delete;
 
   const std::string& robotName() const { return robot_name_; }
-  /// The movable joints, in the order of every vector here (depth-first from the root, as KDL numbers them).
+  /// The movable joints, in the order of every vector here: depth-first from the root (as KDL numbers them), then
+  /// those of subtrees without mass (a motor's drawing, a mark), which change neither gravity nor inertia.
   const std::vector<ArmJoint>& joints() const { return joints_; }
   /// Index of a joint by URDF name; -1 when the URDF has no movable joint by that name.
   int indexOf(const std::string& name) const;
@@ -59,8 +60,13 @@ class ArmModel
   Eigen::VectorXd gravityOnLoad(const Eigen::VectorXd& q, double g = STANDARD_GRAVITY) const;
   /// The joint-space mass matrix M(q) [kg·m²]: M(q)_ii is the inertia joint i moves at pose q with the others held.
   Eigen::MatrixXd massMatrix(const Eigen::VectorXd& q) const;
+  /// M(q)_ii [kg·m²] alone: one pass of the inverse dynamics instead of one per joint.
+  double inertiaAbout(const Eigen::VectorXd& q, std::size_t i) const;
 
  private:
+  /// Column c of M(q) [kg·m²].
+  Eigen::VectorXd massColumn(const Eigen::VectorXd& q, std::size_t c) const;
+
   struct Dynamics;
   std::string robot_name_;
   std::vector<ArmJoint> joints_;

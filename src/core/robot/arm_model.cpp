@@ -79,8 +79,40 @@ KDL::RigidBodyInertia inertiaOf(const urdf::Link& link)
   return KDL::RigidBodyInertia(i.mass, origin.p, about_com_rotated.getRotationalInertia());
 }
 
-void addSubtree(const urdf::Link& link, KDL::Tree* tree)
+/// Whether the link or a link below it has mass or rotational inertia (else it moves nothing of the arm's dynamics).
+bool carriesMass(const urdf::Link& link)
 {
+  const auto& i = link.inertial;
+  if (i && (i->mass != 0.0 || i->ixx != 0.0 || i->iyy != 0.0 || i->izz != 0.0))
+  {
+    return true;
+  }
+  return std::any_of(link.child_links.begin(), link.child_links.end(),
+                     [](const urdf::LinkSharedPtr& child) { return carriesMass(*child); });
+}
+
+/// The movable joints of the subtree from `link` (its own joint first), depth-first.
+void movableJoints(const urdf::Link& link, std::vector<urdf::JointConstSharedPtr>* out)
+{
+  if (isMovable(*link.parent_joint))
+  {
+    out->push_back(link.parent_joint);
+  }
+  for (const urdf::LinkSharedPtr& child : link.child_links)
+  {
+    movableJoints(*child, out);
+  }
+}
+
+/// Adds the link and those below it to the tree, except subtrees without mass (a motor's drawing, a mark): they
+/// change neither gravity nor inertia, and their movable joints go to `massless` instead.
+void addSubtree(const urdf::Link& link, KDL::Tree* tree, std::vector<urdf::JointConstSharedPtr>* massless)
+{
+  if (!carriesMass(link))
+  {
+    movableJoints(link, massless);
+    return;
+  }
   const urdf::Joint& joint = *link.parent_joint;
   const KDL::Segment segment(link.name, jointOf(joint), toKdl(joint.parent_to_joint_origin_transform), inertiaOf(link));
   if (!tree->addSegment(segment, joint.parent_link_name))
@@ -89,7 +121,7 @@ void addSubtree(const urdf::Link& link, KDL::Tree* tree)
   }
   for (const urdf::LinkSharedPtr& child : link.child_links)
   {
-    addSubtree(*child, tree);
+    addSubtree(*child, tree, massless);
   }
 }
 
@@ -141,12 +173,36 @@ std::map<std::string, std::pair<double, std::string>> transmissionsOf(const tiny
   }
   return found;
 }
+/// A movable URDF joint as the arm lists it: name, limits and its transmission (if the URDF gives one).
+ArmJoint armJointOf(const urdf::Joint& uj, const std::map<std::string, std::pair<double, std::string>>& transmissions)
+{
+  ArmJoint j;
+  j.name = uj.name;
+  j.prismatic = uj.type == urdf::Joint::PRISMATIC;
+  if (uj.type != urdf::Joint::CONTINUOUS && uj.limits)
+  {
+    j.lower = uj.limits->lower;
+    j.upper = uj.limits->upper;
+  }
+  if (uj.limits)
+  {
+    j.velocity_limit = uj.limits->velocity;
+    j.effort_limit = uj.limits->effort;
+  }
+  const auto t = transmissions.find(j.name);
+  if (t != transmissions.end())
+  {
+    j.reduction = t->second.first;
+    j.actuator = t->second.second;
+  }
+  return j;
+}
 }  // namespace
 
 struct ArmModel::Dynamics
 {
   KDL::Tree tree;
-  std::vector<int> kdl_index;                       // joints_[i] → its q_nr in the tree
+  std::vector<int> kdl_index;                       // joints_[i] → its q_nr in the tree; -1: a massless subtree's
   std::unique_ptr<KDL::TreeIdSolver_RNE> inertial;  // without gravity: M(q) q̈ alone
   std::unique_ptr<KDL::TreeIdSolver_RNE> gravity;   // standard gravity (the solver keeps the vector it was made with)
 
@@ -155,7 +211,10 @@ struct ArmModel::Dynamics
     KDL::JntArray a(tree.getNrOfJoints());
     for (std::size_t i = 0; i < kdl_index.size(); ++i)
     {
-      a(kdl_index[i]) = q(static_cast<Eigen::Index>(i));
+      if (kdl_index[i] >= 0)
+      {
+        a(kdl_index[i]) = q(static_cast<Eigen::Index>(i));
+      }
     }
     return a;
   }
@@ -183,9 +242,10 @@ ArmModel::ArmModel(const std::string& urdf_xml) : dynamics_(std::make_unique<Dyn
   }
   robot_name_ = model->getName();
   dynamics_->tree = KDL::Tree(model->getRoot()->name);
+  std::vector<urdf::JointConstSharedPtr> massless;
   for (const urdf::LinkSharedPtr& child : model->getRoot()->child_links)
   {
-    addSubtree(*child, &dynamics_->tree);
+    addSubtree(*child, &dynamics_->tree, &massless);
   }
   const auto transmissions = transmissionsOf(robot);
   // KDL numbers the movable joints depth-first; keep that order.
@@ -197,27 +257,7 @@ ArmModel::ArmModel(const std::string& urdf_xml) : dynamics_(std::make_unique<Dyn
     {
       continue;
     }
-    const urdf::JointConstSharedPtr uj = model->getJoint(kj.getName());
-    ArmJoint j;
-    j.name = kj.getName();
-    j.prismatic = uj->type == urdf::Joint::PRISMATIC;
-    if (uj->type != urdf::Joint::CONTINUOUS && uj->limits)
-    {
-      j.lower = uj->limits->lower;
-      j.upper = uj->limits->upper;
-    }
-    if (uj->limits)
-    {
-      j.velocity_limit = uj->limits->velocity;
-      j.effort_limit = uj->limits->effort;
-    }
-    const auto t = transmissions.find(j.name);
-    if (t != transmissions.end())
-    {
-      j.reduction = t->second.first;
-      j.actuator = t->second.second;
-    }
-    ordered.emplace_back(static_cast<int>(element.q_nr), j);
+    ordered.emplace_back(static_cast<int>(element.q_nr), armJointOf(*model->getJoint(kj.getName()), transmissions));
   }
   for (const auto& [joint, unused] : transmissions)
   {
@@ -233,6 +273,11 @@ ArmModel::ArmModel(const std::string& urdf_xml) : dynamics_(std::make_unique<Dyn
   {
     dynamics_->kdl_index.push_back(index);
     joints_.push_back(joint);
+  }
+  for (const urdf::JointConstSharedPtr& uj : massless)
+  {
+    dynamics_->kdl_index.push_back(-1);
+    joints_.push_back(armJointOf(*uj, transmissions));
   }
   dynamics_->inertial = std::make_unique<KDL::TreeIdSolver_RNE>(dynamics_->tree, KDL::Vector(0.0, 0.0, 0.0));
   dynamics_->gravity =
@@ -271,34 +316,53 @@ Eigen::VectorXd ArmModel::gravityOnLoad(const Eigen::VectorXd& q, double g) cons
   Eigen::VectorXd on_load(static_cast<Eigen::Index>(joints_.size()));
   for (std::size_t i = 0; i < joints_.size(); ++i)
   {
-    on_load(static_cast<Eigen::Index>(i)) = -held(dynamics_->kdl_index[i]);  // gravity's torque opposes the holding one
+    const int k = dynamics_->kdl_index[i];
+    on_load(static_cast<Eigen::Index>(i)) = k >= 0 ? -held(k) : 0.0;  // gravity's torque opposes the holding one
   }
   return on_load;
 }
 
 Eigen::MatrixXd ArmModel::massMatrix(const Eigen::VectorXd& q) const
 {
-  const unsigned n = dynamics_->tree.getNrOfJoints();
-  const KDL::JntArray pose = dynamics_->toKdl(q);
-  const KDL::JntArray zero(n);
   const auto count = static_cast<Eigen::Index>(joints_.size());
-  Eigen::MatrixXd m(count, count);
+  Eigen::MatrixXd m = Eigen::MatrixXd::Zero(count, count);
   for (Eigen::Index c = 0; c < count; ++c)
   {
-    // Column c: the torques that give joint c a unit acceleration from rest without gravity, M(q) e_c.
-    KDL::JntArray unit(n);
-    unit(dynamics_->kdl_index[static_cast<std::size_t>(c)]) = 1.0;
-    KDL::JntArray column(n);
-    if (dynamics_->inertial->CartToJnt(pose, zero, unit, KDL::WrenchMap(), column) < 0)
-    {
-      throw std::runtime_error("ArmModel: KDL's inverse dynamics failed");
-    }
-    for (Eigen::Index r = 0; r < count; ++r)
-    {
-      m(r, c) = column(dynamics_->kdl_index[static_cast<std::size_t>(r)]);
-    }
+    m.col(c) = massColumn(q, static_cast<std::size_t>(c));
   }
   return m;
+}
+
+double ArmModel::inertiaAbout(const Eigen::VectorXd& q, std::size_t i) const
+{
+  return massColumn(q, i)(static_cast<Eigen::Index>(i));
+}
+
+Eigen::VectorXd ArmModel::massColumn(const Eigen::VectorXd& q, std::size_t c) const
+{
+  const auto count = static_cast<Eigen::Index>(joints_.size());
+  Eigen::VectorXd out = Eigen::VectorXd::Zero(count);
+  const int kc = dynamics_->kdl_index.at(c);
+  if (kc < 0)
+  {
+    return out;  // a massless subtree's joint moves no mass
+  }
+  // The torques that give joint c a unit acceleration from rest without gravity: M(q) e_c.
+  const unsigned n = dynamics_->tree.getNrOfJoints();
+  const KDL::JntArray zero(n);
+  KDL::JntArray unit(n);
+  unit(kc) = 1.0;
+  KDL::JntArray column(n);
+  if (dynamics_->inertial->CartToJnt(dynamics_->toKdl(q), zero, unit, KDL::WrenchMap(), column) < 0)
+  {
+    throw std::runtime_error("ArmModel: KDL's inverse dynamics failed");
+  }
+  for (Eigen::Index r = 0; r < count; ++r)
+  {
+    const int kr = dynamics_->kdl_index[static_cast<std::size_t>(r)];
+    out(r) = kr >= 0 ? column(kr) : 0.0;
+  }
+  return out;
 }
 
 }  // namespace backlash_servo

@@ -138,9 +138,6 @@ void RobotSimulator::applyArmLoad(const std::vector<std::size_t>& due)
   }
   const Eigen::VectorXd q = pose();
   const Eigen::VectorXd gravity = arm_->gravityOnLoad(q);
-  const bool any_inertia =
-      std::any_of(due.begin(), due.end(), [this](std::size_t i) { return joints_[i].arm_inertia; });
-  const Eigen::MatrixXd mass = any_inertia ? arm_->massMatrix(q) : Eigen::MatrixXd();
   for (std::size_t i : due)
   {
     const int a = arm_index_[i];
@@ -155,7 +152,7 @@ void RobotSimulator::applyArmLoad(const std::vector<std::size_t>& due)
     }
     if (joints_[i].arm_inertia)
     {
-      p.load_inertia = mass(a, a);
+      p.load_inertia = arm_->inertiaAbout(q, static_cast<std::size_t>(a));  // M(q)_ii: one pass, not the matrix
     }
     sims_[i].setParams(p);
   }

@@ -117,6 +117,49 @@ TEST(ArmModel, TheMassMatrixIsTheTwoLinkArmsByHand)
   }
 }
 
+TEST(ArmModel, MasslessDrawingsLeaveTheDynamicsAsTheyAre)
+{
+  // A motor drawn beside the shoulder (a massless rotor on a continuous joint) and a mark mimicking it on the upper
+  // arm: listed after the massive joints, with no gravity and no inertia, and the two-link arm's figures unchanged.
+  const std::string drawings = R"(
+  <link name="rotor"><visual><geometry><cylinder radius="0.03" length="0.02"/></geometry></visual></link>
+  <joint name="shoulder_motor" type="continuous">
+    <parent link="base_link"/><child link="rotor"/><origin xyz="0 -0.07 0"/><axis xyz="0 1 0"/>
+  </joint>
+  <link name="mark"/>
+  <joint name="shoulder_gear" type="continuous">
+    <parent link="upper"/><child link="mark"/><axis xyz="0 1 0"/><mimic joint="shoulder_motor" multiplier="0.01"/>
+  </joint>
+)";
+  const ArmModel plain(twoLinkArm());
+  const ArmModel drawn(twoLinkArm(drawings));
+  ASSERT_EQ(drawn.joints().size(), 4u);
+  EXPECT_EQ(drawn.joints()[0].name, "shoulder");
+  EXPECT_EQ(drawn.joints()[1].name, "elbow");
+  EXPECT_GE(drawn.indexOf("shoulder_motor"), 2);  // after the massive joints, in the tree's depth-first order
+  EXPECT_GE(drawn.indexOf("shoulder_gear"), 2);
+  for (double q2 : {-1.0, 0.0, 2.2})
+  {
+    Eigen::VectorXd q(2), q4(4);
+    q << 0.4, q2;
+    q4 << 0.4, q2, 31.0, 0.31;
+    const Eigen::VectorXd g = plain.gravityOnLoad(q);
+    const Eigen::VectorXd g4 = drawn.gravityOnLoad(q4);
+    const Eigen::MatrixXd m = plain.massMatrix(q);
+    const Eigen::MatrixXd m4 = drawn.massMatrix(q4);
+    EXPECT_EQ(g4.head(2), g);
+    EXPECT_EQ(g4.tail(2), Eigen::Vector2d::Zero());
+    EXPECT_EQ(m4.topLeftCorner(2, 2), m);
+    EXPECT_EQ(m4.rightCols(2), Eigen::MatrixXd::Zero(4, 2));
+    EXPECT_EQ(m4.bottomRows(2), Eigen::MatrixXd::Zero(2, 4));
+    for (std::size_t i = 0; i < 4; ++i)
+    {
+      const auto k = static_cast<Eigen::Index>(i);
+      EXPECT_EQ(drawn.inertiaAbout(q4, i), m4(k, k)) << i;  // one pass gives the diagonal entry
+    }
+  }
+}
+
 TEST(ArmModel, RefusesWhatItCannotRead)
 {
   const auto refused = [](const std::string& xml, const std::string& says) {
