@@ -16,7 +16,8 @@ from sensor_msgs.msg import JointState  # noqa: E402
 from std_msgs.msg import Float64  # noqa: E402
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint  # noqa: E402
 
-from backlash_servo.msg import ImpactEvent, LimitCycleStatus  # noqa: E402
+from backlash_servo.msg import BacklashState, ImpactEvent, LimitCycleStatus  # noqa: E402
+from diagnostic_msgs.msg import DiagnosticArray  # noqa: E402
 from helpers import Collector, call_trigger, wait_for  # noqa: E402
 
 NODE = "/backlash_servo"
@@ -41,6 +42,8 @@ class RobotArm(unittest.TestCase):
         joints = Collector("/joint_states", JointState)
         impacts = Collector("/impact", ImpactEvent)
         cycles = {j: Collector("/%s/limit_cycle" % j, LimitCycleStatus) for j in JOINTS}
+        states = Collector("/shoulder/backlash_state", BacklashState)
+        diagnostics = Collector("/diagnostics", DiagnosticArray)
         trajectory = rospy.Publisher("/command_trajectory", JointTrajectory, queue_size=10)
         elbow_command = rospy.Publisher("/elbow/command", Float64, queue_size=10)
         self.assertTrue(joints.wait_connected() and impacts.wait_connected())
@@ -75,6 +78,17 @@ class RobotArm(unittest.TestCase):
         for j in JOINTS:
             self.assertTrue(cycles[j].msgs, j)
             self.assertEqual(cycles[j].msgs[-1].joint, j)
+            self.assertGreater(cycles[j].msgs[-1].settling_band, 0.0, j)  # the tracking figures, as a joint's
+        # Each joint's backlash_state (the shoulder's: its set-point, the teeth on a flank or apart) and its own status
+        # on /diagnostics with the load it carries now: gravity at the pose.
+        self.assertTrue(states.msgs)
+        self.assertEqual(states.msgs[-1].command, 0.3)
+        self.assertTrue(wait_for(lambda: any(s.name.endswith(": shoulder") for a in diagnostics.msgs
+                                             for s in a.status), 30.0))
+        status = [s for a in diagnostics.msgs for s in a.status if s.name.endswith(": shoulder")][-1]
+        values = {kv.key: kv.value for kv in status.values}
+        self.assertAlmostEqual(float(values["load_torque [N·m]"]), held[0], delta=0.01 * abs(held[0]))
+        self.assertIn(values["verdict"], ("limit_cycle", "converged", "undecided", "irregular_oscillation"))
 
         # A trajectory for the wrist alone: it goes to 0 rad in 0.5 s; the others hold their set-points.
         msg = JointTrajectory()
