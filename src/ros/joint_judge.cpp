@@ -167,9 +167,10 @@ LimitCycleStatus JointJudge::status(const Simulator& sim, const RunConfig& run, 
   m.reason = reason_;
   if (maximum)
   {
-    ROS_INFO("%smaximum #%u at t = %.4f s: load %.6f rad (error %+.6f rad); verdict: %s", log_prefix_.c_str(),
-             m.maxima_observed, m.last_maximum_time, m.last_maximum_position, m.last_maximum_position - command_,
-             m.verdict.c_str());
+    // (Debug: a digital drive's hunt has hundreds of maxima a second, and a log line costs more than its sample.)
+    ROS_DEBUG("%smaximum #%u at t = %.4f s: load %.6f rad (error %+.6f rad); verdict: %s", log_prefix_.c_str(),
+              m.maxima_observed, m.last_maximum_time, m.last_maximum_position, m.last_maximum_position - command_,
+              m.verdict.c_str());
   }
   if (st.verdict != announced_)
   {

@@ -471,12 +471,37 @@ void RobotNode::publishEncoders(std::size_t i, const State& s, const Drive& driv
   double motor = 0.0, load = 0.0;
   if (drive.readings(&motor, &load))
   {
-    sensor_msgs::JointState js;
-    js.header.stamp = stamp(s.time);
-    js.name = {robot_->spec(i).name, robot_->spec(i).motor_name};
-    js.position = {load, motor};  // quantised readings q(θ_c) [rad] and q(θ_m) [rad, motor shaft]
-    emit(encoder_pub_, encoder_topic_, js);
+    readings_.push_back({s.time, i, load, motor});  // published with the others of its instant (flushEncoders)
   }
+}
+
+void RobotNode::flushEncoders()
+{
+  std::stable_sort(readings_.begin(), readings_.end(),
+                   [](const Reading& a, const Reading& b) { return a.time < b.time; });
+  for (std::size_t k = 0; k < readings_.size();)
+  {
+    std::size_t end = k;
+    while (end < readings_.size() && readings_[end].time == readings_[k].time)
+    {
+      ++end;
+    }
+    sensor_msgs::JointState js;  // the joints sampled at this instant: their loads, then their motors
+    js.header.stamp = stamp(readings_[k].time);
+    for (std::size_t r = k; r < end; ++r)
+    {
+      js.name.push_back(robot_->spec(readings_[r].joint).name);
+      js.position.push_back(readings_[r].load);  // quantised q(θ_c) [rad]
+    }
+    for (std::size_t r = k; r < end; ++r)
+    {
+      js.name.push_back(robot_->spec(readings_[r].joint).motor_name);
+      js.position.push_back(readings_[r].motor);  // quantised q(θ_m) [rad, motor shaft]
+    }
+    emit(encoder_pub_, encoder_topic_, js);
+    k = end;
+  }
+  readings_.clear();
 }
 
 void RobotNode::publishClock(double t, bool force)
@@ -494,9 +519,11 @@ bool RobotNode::stepTo(double t)
   try
   {
     robot_->advanceTo(t, sinks_);
+    flushEncoders();
   }
   catch (const std::exception& e)
   {
+    flushEncoders();  // what the drives read before the fault
     fault_ = "simulation stopped at t = " + formatNumber(robot_->time()) + " s: " + e.what();
     ROS_ERROR("backlash_servo_node: %s. Paused: topics and services keep working.", fault_.c_str());
     paused_ = true;

@@ -105,8 +105,10 @@ class RobotNode
   void publishSample();
   /// joint_states' names: every load joint (URDF order), then every motor.
   const std::vector<std::string>& jointNames();
-  /// encoder_states: joint i's readings at a sample of its digital drive (position mode).
+  /// encoder_states: joint i's readings at a sample of its digital drive (position mode), kept for flushEncoders.
   void publishEncoders(std::size_t i, const State& s, const Drive& drive);
+  /// Publishes the readings kept during a step in time order, one message per instant with every joint sampled then.
+  void flushEncoders();
   /// Waits start_delay (and in lockstep for a controller) before sim time starts.
   void awaitStart();
   /// Lockstep: serves callbacks until the answer to the state just published arrives or sync_timeout passes.
@@ -142,6 +144,14 @@ class RobotNode
   ros::ServiceServer pause_srv_, resume_srv_;
   sensor_msgs::JointState joint_msg_, encoder_msg_;
   std::vector<std::string> names_;  // jointNames(), built once
+  /// A digital drive's encoder readings at one of its samples [rad]: the load's, the motor's (motor shaft).
+  struct Reading
+  {
+    double time;
+    std::size_t joint;
+    double load, motor;
+  };
+  std::vector<Reading> readings_;  // taken during the current step, not yet published
   diagnostic_updater::Updater diagnostics_;
   ros::WallTime last_diagnostics_;
   long sample_index_ = 0;

@@ -2,7 +2,8 @@
  * @file arm_model.h
  * @brief An arm's rigid-body dynamics from its URDF: the movable joints (names, axes, limits), the simple
  *        transmissions (reduction and actuator per joint), and at a pose q the gravity torque on each joint's load
- *        and the joint-space mass matrix. No ROS dependency (urdfdom parses the XML, orocos-kdl computes).
+ *        and the joint-space mass matrix. No ROS dependency (urdfdom parses the XML; orocos-kdl's frames and inertias, in a
+ *        recursive Newton–Euler pass of our own over the bodies in an array).
  *
  * Units SI: q in rad (m for a prismatic joint), torques in N·m, inertias in kg·m². Signs as the model's
  * `load_torque`: gravityOnLoad(q)[i] is the torque gravity applies to joint i's load, positive in +q_i (the torque
@@ -36,8 +37,8 @@ struct ArmJoint
   std::string actuator;    ///< the transmission's actuator name; empty = none
 };
 
-/// The arm: parsed once, then evaluated at any pose. Not copyable (KDL solvers hold references to the tree); one
-/// thread at a time (the solvers keep scratch state).
+/// The arm: parsed once, then evaluated at any pose. Not copyable; one thread at a time (a pass of the inverse
+/// dynamics keeps scratch state).
 class ArmModel
 {
  public:

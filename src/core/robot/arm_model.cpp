@@ -4,7 +4,6 @@
 #include <tinyxml2.h>
 #include <urdf_parser/urdf_parser.h>
 #include <kdl/tree.hpp>
-#include <kdl/treeidsolver_recursive_newton_euler.hpp>
 
 #include <algorithm>
 #include <cmath>
@@ -199,24 +198,92 @@ ArmJoint armJointOf(const urdf::Joint& uj, const std::map<std::string, std::pair
 }
 }  // namespace
 
+/// The arm's bodies flattened, parents before children, and the recursive Newton–Euler inverse dynamics over them
+/// at rest (q̇ = 0: what gravity and the mass matrix need). Hand-written over arrays: KDL's tree solver looks every
+/// segment up by name in a map and allocates per pass, several times the arithmetic.
 struct ArmModel::Dynamics
 {
-  KDL::Tree tree;
-  std::vector<int> kdl_index;                       // joints_[i] → its q_nr in the tree; -1: a massless subtree's
-  std::unique_ptr<KDL::TreeIdSolver_RNE> inertial;  // without gravity: M(q) q̈ alone
-  std::unique_ptr<KDL::TreeIdSolver_RNE> gravity;   // standard gravity (the solver keeps the vector it was made with)
-
-  KDL::JntArray toKdl(const Eigen::VectorXd& q) const
+  struct Body
   {
-    KDL::JntArray a(tree.getNrOfJoints());
+    KDL::Segment segment;  // joint, the frame from the parent's tip to this body's, the inertia
+    int parent = -1;       // index in bodies; -1: attached to the root link
+    int q = -1;            // index of its joint in the pose (KDL's q_nr); -1: fixed
+  };
+  KDL::Tree tree;
+  std::vector<Body> bodies;
+  std::vector<int> kdl_index;  // joints_[i] → its q_nr in the tree; -1: a massless subtree's
+  // Scratch of one pass (one thread at a time): each body's frame from its parent, joint twist, acceleration, wrench.
+  mutable std::vector<KDL::Frame> x;
+  mutable std::vector<KDL::Twist> s, a;
+  mutable std::vector<KDL::Wrench> f;
+  mutable std::vector<double> q_kdl;
+
+  void flatten(const KDL::TreeElement& element, int parent)
+  {
+    for (const KDL::SegmentMap::const_iterator& child : GetTreeElementChildren(element))
+    {
+      const KDL::TreeElement& e = child->second;
+      Body b;
+      b.segment = GetTreeElementSegment(e);
+      b.parent = parent;
+      b.q = b.segment.getJoint().getType() == KDL::Joint::None ? -1 : static_cast<int>(GetTreeElementQNr(e));
+      bodies.push_back(b);
+      flatten(e, static_cast<int>(bodies.size()) - 1);
+    }
+  }
+
+  /// The pose in KDL's numbering from q in the arm's.
+  void setPose(const Eigen::VectorXd& q) const
+  {
+    q_kdl.assign(tree.getNrOfJoints(), 0.0);
     for (std::size_t i = 0; i < kdl_index.size(); ++i)
     {
       if (kdl_index[i] >= 0)
       {
-        a(kdl_index[i]) = q(static_cast<Eigen::Index>(i));
+        q_kdl[static_cast<std::size_t>(kdl_index[i])] = q(static_cast<Eigen::Index>(i));
       }
     }
-    return a;
+  }
+
+  /**
+   * τ = M(q) q̈ − τ_g(q) at rest: the joint torques [N·m] that give the bodies the joint accelerations `qdd` (only
+   * joint `accelerated` has one, of 1; −1: none) with the root accelerating upwards by `g` [m/s²] (gravity's
+   * equivalent), into tau (KDL's numbering). Pose from setPose().
+   */
+  void inverseDynamics(int accelerated, double g, std::vector<double>* tau) const
+  {
+    const std::size_t n = bodies.size();
+    x.resize(n);
+    s.resize(n);
+    a.resize(n);
+    f.resize(n);
+    tau->assign(tree.getNrOfJoints(), 0.0);
+    const KDL::Twist root(KDL::Vector(0.0, 0.0, g), KDL::Vector::Zero());  // −(gravity) as the root's acceleration
+    for (std::size_t i = 0; i < n; ++i)
+    {
+      const Body& b = bodies[i];
+      const double qi = b.q >= 0 ? q_kdl[static_cast<std::size_t>(b.q)] : 0.0;
+      x[i] = b.segment.pose(qi);
+      s[i] = x[i].M.Inverse(b.segment.twist(qi, 1.0));  // the joint's unit twist in the body's frame
+      a[i] = x[i].Inverse(b.parent >= 0 ? a[static_cast<std::size_t>(b.parent)] : root);
+      if (b.q >= 0 && b.q == accelerated)
+      {
+        a[i] += s[i];
+      }
+      f[i] = b.segment.getInertia() * a[i];  // at rest: no velocity terms
+    }
+    for (std::size_t i = n; i-- > 0;)
+    {
+      const Body& b = bodies[i];
+      if (b.q >= 0)
+      {
+        (*tau)[static_cast<std::size_t>(b.q)] = KDL::dot(s[i], f[i]);
+      }
+      if (b.parent >= 0)
+      {
+        f[static_cast<std::size_t>(b.parent)] += x[i] * f[i];
+      }
+    }
   }
 };
 
@@ -279,9 +346,7 @@ ArmModel::ArmModel(const std::string& urdf_xml) : dynamics_(std::make_unique<Dyn
     dynamics_->kdl_index.push_back(-1);
     joints_.push_back(armJointOf(*uj, transmissions));
   }
-  dynamics_->inertial = std::make_unique<KDL::TreeIdSolver_RNE>(dynamics_->tree, KDL::Vector(0.0, 0.0, 0.0));
-  dynamics_->gravity =
-      std::make_unique<KDL::TreeIdSolver_RNE>(dynamics_->tree, KDL::Vector(0.0, 0.0, -STANDARD_GRAVITY));
+  dynamics_->flatten(dynamics_->tree.getRootSegment()->second, -1);
 }
 
 ArmModel::~ArmModel() = default;
@@ -300,24 +365,14 @@ int ArmModel::indexOf(const std::string& name) const
 
 Eigen::VectorXd ArmModel::gravityOnLoad(const Eigen::VectorXd& q, double g) const
 {
-  const unsigned n = dynamics_->tree.getNrOfJoints();
-  std::unique_ptr<KDL::TreeIdSolver_RNE> other;  // another g than the standard's: its own solver
-  if (g != STANDARD_GRAVITY)
-  {
-    other = std::make_unique<KDL::TreeIdSolver_RNE>(dynamics_->tree, KDL::Vector(0.0, 0.0, -g));
-  }
-  KDL::TreeIdSolver_RNE& solver = other ? *other : *dynamics_->gravity;
-  const KDL::JntArray zero(n);
-  KDL::JntArray held(n);
-  if (solver.CartToJnt(dynamics_->toKdl(q), zero, zero, KDL::WrenchMap(), held) < 0)
-  {
-    throw std::runtime_error("ArmModel: KDL's inverse dynamics failed");
-  }
+  dynamics_->setPose(q);
+  std::vector<double> held;
+  dynamics_->inverseDynamics(-1, g, &held);
   Eigen::VectorXd on_load(static_cast<Eigen::Index>(joints_.size()));
   for (std::size_t i = 0; i < joints_.size(); ++i)
   {
     const int k = dynamics_->kdl_index[i];
-    on_load(static_cast<Eigen::Index>(i)) = k >= 0 ? -held(k) : 0.0;  // gravity's torque opposes the holding one
+    on_load(static_cast<Eigen::Index>(i)) = k >= 0 ? -held[static_cast<std::size_t>(k)] : 0.0;  // opposes holding
   }
   return on_load;
 }
@@ -348,19 +403,13 @@ Eigen::VectorXd ArmModel::massColumn(const Eigen::VectorXd& q, std::size_t c) co
     return out;  // a massless subtree's joint moves no mass
   }
   // The torques that give joint c a unit acceleration from rest without gravity: M(q) e_c.
-  const unsigned n = dynamics_->tree.getNrOfJoints();
-  const KDL::JntArray zero(n);
-  KDL::JntArray unit(n);
-  unit(kc) = 1.0;
-  KDL::JntArray column(n);
-  if (dynamics_->inertial->CartToJnt(dynamics_->toKdl(q), zero, unit, KDL::WrenchMap(), column) < 0)
-  {
-    throw std::runtime_error("ArmModel: KDL's inverse dynamics failed");
-  }
+  dynamics_->setPose(q);
+  std::vector<double> column;
+  dynamics_->inverseDynamics(kc, 0.0, &column);
   for (Eigen::Index r = 0; r < count; ++r)
   {
     const int kr = dynamics_->kdl_index[static_cast<std::size_t>(r)];
-    out(r) = kr >= 0 ? column(kr) : 0.0;
+    out(r) = kr >= 0 ? column[static_cast<std::size_t>(kr)] : 0.0;
   }
   return out;
 }
