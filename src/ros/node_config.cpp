@@ -147,7 +147,7 @@ PrivateParams readPrivateParams(const ros::NodeHandle& pnh)
       {
         if (joint.second.getType() != XmlRpc::XmlRpcValue::TypeStruct)
         {
-          throw ConfigError("~joints/" + joint.first + ": must be a mapping of key: value (or empty: {})");
+          throw ConfigError("~joints/" + joint.first + ": must be a mapping of key: value");
         }
         KeyValues own;
         own.nameKeysAsFlags(false);

@@ -44,6 +44,32 @@ std::string robotDescription(const ros::NodeHandle& nh, const std::string& urdf_
   }
   return readRegularFile("~urdf", urdf_file, MAX_URDF_BYTES);
 }
+/// A geared joint of the arm (a transmission in the URDF) left out of `joints:` is most often one written `NAME: {}`:
+/// the parameter server drops empty mappings, so the node never sees it. Said, with the remedy.
+void warnUnsimulatedTransmissions(const RobotNodeConfig& c)
+{
+  if (!c.arm)
+  {
+    return;
+  }
+  std::string left;
+  for (const ArmJoint& j : c.arm->joints())
+  {
+    const bool simulated =
+        std::any_of(c.joints.begin(), c.joints.end(), [&j](const RobotJoint& r) { return r.name == j.name; });
+    if (j.reduction != 0.0 && !simulated)
+    {
+      left += (left.empty() ? "" : ", ") + j.name;
+    }
+  }
+  if (!left.empty())
+  {
+    ROS_WARN(
+        "backlash_servo_node: the robot description's geared joints %s are not simulated (held at 0 rad in the pose): "
+        "a joint written as '%s: {}' in ~joints is dropped by the parameter server — give it a key, e.g. its command",
+        left.c_str(), left.substr(0, left.find(',')).c_str());
+  }
+}
 }  // namespace
 
 RobotNodeConfig loadRobotNodeConfig(const ros::NodeHandle& nh, const PrivateParams& given)
@@ -52,6 +78,7 @@ RobotNodeConfig loadRobotNodeConfig(const ros::NodeHandle& nh, const PrivatePara
   c.node = nodeSettingsFrom(withNodeDefaults(given.given), NodeConfig());
   c.arm = armModelFrom(robotDescription(nh, given.urdf), "robot_description");
   c.joints = robotJointsFrom(given.given, given.joints, c.arm.get());
+  warnUnsimulatedTransmissions(c);
   return c;
 }
 

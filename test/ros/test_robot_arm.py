@@ -5,6 +5,7 @@ import math
 import os
 import subprocess
 import sys
+import tempfile
 import time
 import unittest
 
@@ -21,6 +22,7 @@ from diagnostic_msgs.msg import DiagnosticArray  # noqa: E402
 from helpers import Collector, call_trigger, wait_for  # noqa: E402
 
 NODE = "/backlash_servo"
+THESIS = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..", "config", "thesis_limit_cycle.yaml")
 REPORT = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..", "bin", "backlash_bag_report")
 JOINTS = ["shoulder", "elbow", "wrist"]
 RHO = {"shoulder": 0.01, "elbow": 0.01, "wrist": 0.02}  # 1 / the URDF's mechanicalReduction
@@ -146,6 +148,54 @@ class RobotArm(unittest.TestCase):
         elbow = report["joints"][1]
         self.assertGreater(elbow["impacts_per_second"], 10.0)  # the upright forearm rattled
         os.remove(path)
+
+    def test_joints_without_an_arm_equal_single_joint_nodes(self):
+        # Two joints in one node (a robot file without a URDF: no coupling) move exactly as two single-joint nodes
+        # running their configurations: every sample and every impact bit for bit.
+        with open(THESIS) as f:
+            thesis = f.read()
+        with tempfile.TemporaryDirectory() as d:
+            files = {"two": thesis + "\njoints:\n  a: {command: 1.0}\n  b: {command: 0.5, restitution: 0.6}\n",
+                     "a": thesis, "b": thesis.replace("command: 1.0", "command: 0.5")
+                     .replace("restitution: 1.0", "restitution: 0.6")}
+            bags = {}
+            for port, (name, text) in enumerate(sorted(files.items()), start=11471):
+                config = os.path.join(d, name + ".yaml")
+                with open(config, "w") as f:
+                    f.write(text)
+                env = dict(os.environ, ROS_MASTER_URI="http://localhost:%d" % port)
+                subprocess.run(["roslaunch", "-p", str(port), "backlash_servo", "backlash_servo.launch",
+                                "config:=" + config, "record:=true", "bag_dir:=" + d, "bag_name:=" + name,
+                                "stop_after:=20", "real_time_factor:=0", "publish_clock:=true"],
+                               env=env, check=False, capture_output=True, timeout=120)
+                bags[name] = recorded(os.path.join(d, name + ".bag"))
+        two = bags["two"]["/joint_states"]
+        self.assertEqual(list(two[0].name), ["a", "b", "a_motor", "b_motor"])
+        for joint in ("a", "b"):
+            single = bags[joint]["/joint_states"]
+            self.assertEqual(len(single), 2001)
+            self.assertEqual(len(two), len(single))
+            load, motor = two[0].name.index(joint), two[0].name.index(joint + "_motor")
+            for t, s in zip(two, single):  # the single joint's order: motor_joint, load_joint
+                self.assertEqual(t.header.stamp, s.header.stamp)
+                self.assertEqual((t.position[load], t.velocity[load], t.effort[load]),
+                                 (s.position[1], s.velocity[1], s.effort[1]))
+                self.assertEqual((t.position[motor], t.velocity[motor], t.effort[motor]),
+                                 (s.position[0], s.velocity[0], s.effort[0]))
+            impacts = [m for m in bags["two"]["/impact"] if m.joint == joint]
+            self.assertGreater(len(impacts), 10)
+            self.assertEqual([(m.sim_time, m.impulse, m.energy_loss) for m in impacts],
+                             [(m.sim_time, m.impulse, m.energy_loss) for m in bags[joint]["/impact"]])
+
+
+def recorded(path):
+    """Every message of the bag by topic."""
+    import rosbag
+    out = {}
+    with rosbag.Bag(path) as bag:
+        for topic, msg, _ in bag.read_messages():
+            out.setdefault(topic, []).append(msg)
+    return out
 
 
 if __name__ == "__main__":
