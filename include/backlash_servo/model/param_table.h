@@ -98,8 +98,8 @@ const std::vector<ParamSpec>& parameterTable();
 const ParamSpec* findParam(const std::string& key);
 /// The entry for key; throws std::logic_error for a key not in the table (a programming error).
 const ParamSpec& param(const std::string& key);
-/// Entries of one section, in table order.
-std::vector<const ParamSpec*> paramsIn(ParamSection section);
+/// Entries of one section, in table order (built once).
+const std::vector<const ParamSpec*>& paramsIn(ParamSection section);
 const char* toString(ParamSection s);
 const char* toString(ParamType t);
 

@@ -2,6 +2,7 @@
 
 #include <cmath>
 #include <cstdlib>
+#include <map>
 #include <stdexcept>
 #include <string_view>
 #include <unordered_map>
@@ -400,17 +401,21 @@ const ParamSpec& param(const std::string& key)
   return *p;
 }
 
-std::vector<const ParamSpec*> paramsIn(ParamSection section)
+const std::vector<const ParamSpec*>& paramsIn(ParamSection section)
 {
-  std::vector<const ParamSpec*> out;
-  for (const ParamSpec& p : parameterTable())
-  {
-    if (p.section == section)
+  // Built once: every parameter change validates through it (an arm sets its joints' loads thousands of times a
+  // simulated second).
+  static const std::map<ParamSection, std::vector<const ParamSpec*>> by_section = [] {
+    std::map<ParamSection, std::vector<const ParamSpec*>> m;
+    for (const ParamSpec& p : parameterTable())
     {
-      out.push_back(&p);
+      m[p.section].push_back(&p);
     }
-  }
-  return out;
+    return m;
+  }();
+  static const std::vector<const ParamSpec*> none;
+  const auto it = by_section.find(section);
+  return it == by_section.end() ? none : it->second;
 }
 
 const char* toString(ParamSection s)
