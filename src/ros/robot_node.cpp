@@ -101,6 +101,14 @@ RobotNode::RobotNode(ros::NodeHandle& nh, ros::NodeHandle& pnh, const RobotNodeC
   impact_topic_ = impact_pub_.getTopic();
   encoder_topic_ = encoder_pub_.getTopic();
   diagnostics_.setHardwareID("backlash_servo");
+  for (const bool motors : {false, true})
+  {
+    for (std::size_t i = 0; i < robot_->size(); ++i)
+    {
+      joint_msg_.name.push_back(motors ? robot_->spec(i).motor_name : robot_->spec(i).name);
+    }
+  }
+  encoder_msg_.name = joint_msg_.name;
   clock_topic_ = clock_.publisher() ? clock_.publisher().getTopic() : std::string();
   for (std::size_t i = 0; i < robot_->size(); ++i)
   {
@@ -185,8 +193,8 @@ void RobotNode::Channel::onEvent(const Event& e)
 void RobotNode::restartMonitor(std::size_t i, const std::string& reason)
 {
   const Simulator& sim = robot_->joint(i);
-  channels_[i]->judge->restart(sim, config_.joints[i].run, setPoint(i), effortMode() ? nullptr : sim.profile(),
-                               1.0 / config_.node.publish_rate, reason);
+  channels_[i]->judge->restart(sim, config_.joints[i].run, setPoint(i), sim.profile(), 1.0 / config_.node.publish_rate,
+                               reason);
   publishLimitCycle(i, sim.state().time, false);
 }
 
@@ -217,10 +225,7 @@ void RobotNode::publishLimitCycle(std::size_t i, double sim_time, bool maximum)
 void RobotNode::onCommand(std::size_t joint, const std_msgs::Float64& msg)
 {
   const Channel& ch = *channels_[joint];
-  if (recorder_)
-  {
-    recorder_->write(ch.command_topic, msg);
-  }
+  record(ch.command_topic, msg);
   try
   {
     param("command").check(msg.data);
@@ -242,10 +247,7 @@ void RobotNode::onCommand(std::size_t joint, const std_msgs::Float64& msg)
 
 void RobotNode::onTrajectory(const trajectory_msgs::JointTrajectory& msg)
 {
-  if (recorder_)
-  {
-    recorder_->write(trajectory_topic_, msg);
-  }
+  record(trajectory_topic_, msg);
   const double now = robot_->time();
   std::vector<std::pair<std::size_t, std::shared_ptr<CommandProfile>>> profiles;
   try
@@ -285,10 +287,7 @@ void RobotNode::onTrajectory(const trajectory_msgs::JointTrajectory& msg)
 
 void RobotNode::onEffort(const sensor_msgs::JointState& msg)
 {
-  if (recorder_)
-  {
-    recorder_->write(effort_topic_, msg);
-  }
+  record(effort_topic_, msg);
   if (!effortMode())
   {
     // Not kept either: a torque sent in position mode must not surface later.
@@ -441,7 +440,6 @@ void RobotNode::publishSample()
     // The plant's encoders, read at the external controller's period (the publish period), before joint_states.
     sensor_msgs::JointState& enc = encoder_msg_;
     enc.header.stamp = now;
-    enc.name = jointNames();
     enc.position.resize(2 * n);
     for (std::size_t i = 0; i < n; ++i)
     {
@@ -454,7 +452,6 @@ void RobotNode::publishSample()
   }
   sensor_msgs::JointState& js = joint_msg_;
   js.header.stamp = now;
-  js.name = jointNames();
   js.position.resize(2 * n);
   js.velocity.resize(2 * n);
   js.effort.resize(2 * n);
@@ -475,22 +472,6 @@ void RobotNode::publishSample()
     const Channel& ch = *channels_[i];
     emit(ch.state_pub, ch.state_topic, backlashStateMessage(robot_->joint(i), reference(i), now));
   }
-}
-
-const std::vector<std::string>& RobotNode::jointNames()
-{
-  if (names_.empty())
-  {
-    for (std::size_t i = 0; i < robot_->size(); ++i)
-    {
-      names_.push_back(robot_->spec(i).name);
-    }
-    for (std::size_t i = 0; i < robot_->size(); ++i)
-    {
-      names_.push_back(robot_->spec(i).motor_name);
-    }
-  }
-  return names_;
 }
 
 void RobotNode::publishEncoders(std::size_t i, const State& s, const Drive& drive)
@@ -610,13 +591,7 @@ void RobotNode::diagnose(std::size_t i, diagnostic_updater::DiagnosticStatusWrap
 
 void RobotNode::awaitStart()
 {
-  // Give recorders and monitors time to subscribe before sim time starts (callbacks are served meanwhile).
-  const ros::WallTime start = ros::WallTime::now() + ros::WallDuration(config_.node.start_delay);
-  while (ros::ok() && ros::WallTime::now() < start)
-  {
-    ros::spinOnce();
-    ros::WallDuration(0.01).sleep();
-  }
+  serveCallbacksFor(config_.node.start_delay);  // recorders and monitors subscribe before sim time starts
   if (!config_.node.sync)
   {
     return;

@@ -103,8 +103,6 @@ class RobotNode
   /// Joint i's θ_R now [rad] (a profile's value at this instant).
   double reference(std::size_t i) const;
   void publishSample();
-  /// joint_states' names: every load joint (URDF order), then every motor.
-  const std::vector<std::string>& jointNames();
   /// encoder_states: joint i's readings at a sample of its digital drive (position mode), kept for flushEncoders.
   void publishEncoders(std::size_t i, const State& s, const Drive& drive);
   /// Publishes the readings kept during a step in time order, one message per instant with every joint sampled then.
@@ -126,6 +124,12 @@ class RobotNode
   void emit(const ros::Publisher& pub, const std::string& topic, const M& msg)
   {
     pub.publish(msg);
+    record(topic, msg);
+  }
+  /// Writes a message (an output, or an input as received) to the node's bag, if it records.
+  template <class M>
+  void record(const std::string& topic, const M& msg)
+  {
     if (recorder_)
     {
       recorder_->write(topic, msg);
@@ -142,8 +146,9 @@ class RobotNode
   std::string joint_topic_, impact_topic_, encoder_topic_, clock_topic_, trajectory_topic_, effort_topic_;
   ros::Subscriber trajectory_sub_, effort_sub_;
   ros::ServiceServer pause_srv_, resume_srv_;
+  // The per-sample messages, kept so that a sample allocates nothing of its own; their names (every load joint in
+  // URDF order, then every motor) set once.
   sensor_msgs::JointState joint_msg_, encoder_msg_;
-  std::vector<std::string> names_;  // jointNames(), built once
   /// A digital drive's encoder readings at one of its samples [rad]: the load's, the motor's (motor shaft).
   struct Reading
   {

@@ -11,13 +11,7 @@ namespace backlash_servo
 {
 void ServoNode::awaitStart()
 {
-  // Give recorders and monitors time to subscribe before sim time starts (callbacks are served meanwhile).
-  const ros::WallTime start = ros::WallTime::now() + ros::WallDuration(config_.start_delay);
-  while (ros::ok() && ros::WallTime::now() < start)
-  {
-    ros::spinOnce();
-    ros::WallDuration(0.01).sleep();
-  }
+  serveCallbacksFor(config_.start_delay);  // recorders and monitors subscribe before sim time starts
   if (config_.sync)
   {
     // A subscriber of joint_states or encoder_states and a publisher of the answer topic.
@@ -183,17 +177,12 @@ void ServoNode::drainBeforeExit(double wall)
   const double rate = static_cast<double>(published_) / std::max(wall, 1e-3);
   const double drain =
       subscribed && rate > 20000.0 ? std::min(30.0, static_cast<double>(published_) / 20000.0 - wall) : 0.0;
-  const ros::WallTime end = ros::WallTime::now() + ros::WallDuration(std::max(drain, 0.2));
   if (drain > 0.5)
   {
     ROS_INFO("backlash_servo_node: %.1f s for subscribers (recorders) to receive the %ld messages still queued", drain,
              published_);
   }
-  while (ros::ok() && ros::WallTime::now() < end)
-  {
-    ros::spinOnce();
-    ros::WallDuration(0.01).sleep();
-  }
+  serveCallbacksFor(std::max(drain, 0.2));
 }
 
 void ServoNode::awaitAnswer()

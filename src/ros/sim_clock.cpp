@@ -4,6 +4,16 @@
 
 namespace backlash_servo
 {
+void serveCallbacksFor(double seconds)
+{
+  const ros::WallTime end = ros::WallTime::now() + ros::WallDuration(seconds);
+  while (ros::ok() && ros::WallTime::now() < end)
+  {
+    ros::spinOnce();
+    ros::WallDuration(0.01).sleep();
+  }
+}
+
 SimClock::SimClock(ros::NodeHandle& nh, const NodeConfig& config, uint32_t queue)
     : config_(config),
       mode_(config.publish_clock ? Mode::Publisher : (ros::Time::isSimTime() ? Mode::External : Mode::RealTime))

@@ -13,6 +13,9 @@
 
 namespace backlash_servo
 {
+/// Serves callbacks for `seconds` of wall time (or until shutdown): a start delay, a drain before exit.
+void serveCallbacksFor(double seconds);
+
 class SimClock
 {
  public:

@@ -36,3 +36,13 @@ def run_cli(*args):
     """Runs backlash_sim (found with rosrun) and returns its stdout."""
     return subprocess.run(["rosrun", "backlash_servo", "backlash_sim"] + list(args), check=True,
                           capture_output=True, text=True).stdout
+
+
+def bag_contents(path):
+    """Every message of a bag by topic, as recorded."""
+    import rosbag
+    out = {}
+    with rosbag.Bag(path) as bag:
+        for topic, msg, _ in bag.read_messages():
+            out.setdefault(topic, []).append(msg)
+    return out

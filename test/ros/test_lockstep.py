@@ -9,10 +9,9 @@ import tempfile
 import unittest
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-import rosbag  # noqa: E402
 import rostest  # noqa: E402
 
-from helpers import run_cli  # noqa: E402
+from helpers import bag_contents, run_cli  # noqa: E402
 
 
 def run_loop(bag_dir, name, port, stop_after, extra=()):
@@ -33,15 +32,6 @@ def run_arm(bag_dir, name, port, stop_after):
     return os.path.join(bag_dir, name + ".bag")
 
 
-def contents(path):
-    """Every recorded message by topic, as recorded (sim time starts at 0: stamps compare as they are)."""
-    out = {}
-    with rosbag.Bag(path) as bag:
-        for topic, msg, _ in bag.read_messages():
-            out.setdefault(topic, []).append(msg)
-    return out
-
-
 def serialized(msg):
     import io
     buf = io.BytesIO()
@@ -56,8 +46,8 @@ def quantise(angle, counts):
 class Lockstep(unittest.TestCase):
     def test_two_runs_give_identical_bags(self):
         with tempfile.TemporaryDirectory() as d:
-            a = contents(run_loop(d, "a", 11411, 60))
-            b = contents(run_loop(d, "b", 11412, 60))
+            a = bag_contents(run_loop(d, "a", 11411, 60))
+            b = bag_contents(run_loop(d, "b", 11412, 60))
         self.assertEqual(a["/joint_states"][0].header.stamp.to_nsec(), 0)  # sim time starts at 0
         self.assertEqual(len(a["/joint_states"]), 6001)  # every step of 10 ms over 60 s, none dropped
         self.assertEqual(len(a["/motor_effort"]), 6001)  # one answer per state
@@ -76,8 +66,8 @@ class Lockstep(unittest.TestCase):
             with open(config, "w") as f:
                 f.write(text + "\nbacklash: 0.05\nload_encoder_resolution: 4096\nmotor_encoder_resolution: 1000\n")
             extra = ("controller:=python", "config:=" + config, "kp:=2.0", "kd:=0.5", "ki:=0.1")
-            a = contents(run_loop(d, "a", 11414, 20, extra))
-            b = contents(run_loop(d, "b", 11415, 20, extra))
+            a = bag_contents(run_loop(d, "a", 11414, 20, extra))
+            b = bag_contents(run_loop(d, "b", 11415, 20, extra))
         self.assertEqual(len(a["/joint_states"]), 2001)
         self.assertEqual(len(a["/encoder_states"]), 2001)  # one reading per state, in effort mode too
         self.assertEqual(len(a["/motor_effort"]), 2001)  # one answer per state
@@ -103,7 +93,7 @@ class Lockstep(unittest.TestCase):
                                                           "external_controller.yaml"),
                                  "--controller-rate", "100", "--json"))
         with tempfile.TemporaryDirectory() as d:
-            bag = contents(run_loop(d, "p", 11413, cli["simulated_time"] + 1.0))
+            bag = bag_contents(run_loop(d, "p", 11413, cli["simulated_time"] + 1.0))
         last = bag["/limit_cycle"][-1]
         self.assertEqual(cli["verdict"], "limit_cycle")
         self.assertEqual(last.verdict, "limit_cycle")
@@ -119,8 +109,8 @@ class Lockstep(unittest.TestCase):
         # through each gear.
         joints = ["shoulder", "elbow", "wrist"]
         with tempfile.TemporaryDirectory() as d:
-            a = contents(run_arm(d, "arm_a", 11416, 2.0))
-            b = contents(run_arm(d, "arm_b", 11417, 2.0))
+            a = bag_contents(run_arm(d, "arm_a", 11416, 2.0))
+            b = bag_contents(run_arm(d, "arm_b", 11417, 2.0))
         states, answers, readings = a["/joint_states"], a["/motor_effort"], a["/encoder_states"]
         self.assertEqual(len(states), 2001)  # every step of 1 ms over 2 s
         self.assertEqual(len(answers), 2001)  # one answer per state

@@ -19,7 +19,7 @@ from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint  # noqa: E
 
 from backlash_servo.msg import BacklashState, ImpactEvent, LimitCycleStatus  # noqa: E402
 from diagnostic_msgs.msg import DiagnosticArray  # noqa: E402
-from helpers import Collector, call_trigger, wait_for  # noqa: E402
+from helpers import Collector, bag_contents, call_trigger, wait_for  # noqa: E402
 
 NODE = "/backlash_servo"
 THESIS = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..", "config", "thesis_limit_cycle.yaml")
@@ -168,7 +168,7 @@ class RobotArm(unittest.TestCase):
                                 "config:=" + config, "record:=true", "bag_dir:=" + d, "bag_name:=" + name,
                                 "stop_after:=20", "real_time_factor:=0", "publish_clock:=true"],
                                env=env, check=False, capture_output=True, timeout=120)
-                bags[name] = recorded(os.path.join(d, name + ".bag"))
+                bags[name] = bag_contents(os.path.join(d, name + ".bag"))
         two = bags["two"]["/joint_states"]
         self.assertEqual(list(two[0].name), ["a", "b", "a_motor", "b_motor"])
         for joint in ("a", "b"):
@@ -186,16 +186,6 @@ class RobotArm(unittest.TestCase):
             self.assertGreater(len(impacts), 10)
             self.assertEqual([(m.sim_time, m.impulse, m.energy_loss) for m in impacts],
                              [(m.sim_time, m.impulse, m.energy_loss) for m in bags[joint]["/impact"]])
-
-
-def recorded(path):
-    """Every message of the bag by topic."""
-    import rosbag
-    out = {}
-    with rosbag.Bag(path) as bag:
-        for topic, msg, _ in bag.read_messages():
-            out.setdefault(topic, []).append(msg)
-    return out
 
 
 if __name__ == "__main__":
