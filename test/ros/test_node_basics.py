@@ -62,7 +62,10 @@ class NodeBasics(unittest.TestCase):
         after = later()[0]
         self.assertEqual(list(after.position), [0.0, 0.0])
         self.assertEqual(list(after.velocity), [0.0, 0.0])
-        states = [m for m in self.states.msgs if m.sim_time > t_reset + 1e-3]
+        # (backlash_state arrives on its own connection, possibly after joint_states of the same instant: wait for it)
+        states_after = lambda: [m for m in self.states.msgs if m.sim_time > t_reset + 1e-3]
+        self.assertTrue(wait_for(lambda: len(states_after()) > 0, 10.0))
+        states = states_after()
         self.assertEqual(states[0].command, 0.0)
         self.assertEqual(states[0].impacts, 0)
 
